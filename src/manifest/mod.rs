@@ -1,0 +1,521 @@
+//! Experiment manifests: YAML in, a validated [`Manifest`] out.
+//!
+//! Parsing happens in two steps. The `raw` structs mirror the YAML exactly and
+//! refuse unknown keys; [`Manifest::load`] then checks what serde cannot (units,
+//! positivity, ordering, files that must exist) and resolves paths relative to
+//! the manifest's folder. Every error names the file, the dotted field path and
+//! the line, and nothing is run before the whole manifest has passed.
+
+pub mod locate;
+pub mod raw;
+
+use std::fmt;
+use std::path::{Path, PathBuf};
+
+use sha2::{Digest, Sha256};
+
+pub use raw::{
+    ArcDetection, Board, BscanRender, CameraCalibrationBoard, FitRadius, Gates, Phantom, RenderSpec, Rig, Sweep,
+    TrueCamera, TrueTransform, Wire,
+};
+
+/// A manifest problem, located.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ManifestError {
+    pub file: PathBuf,
+    /// Dotted field path, e.g. `phantom.hemisphere.radius_mm` (empty for the whole file).
+    pub field: String,
+    /// 1-based line, when the field (or its parent) could be found.
+    pub line: Option<usize>,
+    pub message: String,
+}
+
+impl fmt::Display for ManifestError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}", self.file.display())?;
+        if let Some(line) = self.line {
+            write!(f, ":{line}")?;
+        }
+        if !self.field.is_empty() {
+            write!(f, ": field `{}`", self.field)?;
+        }
+        write!(f, ": {}", self.message)
+    }
+}
+
+impl std::error::Error for ManifestError {}
+
+/// All problems found in one manifest (validation does not stop at the first).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ManifestErrors(pub Vec<ManifestError>);
+
+impl fmt::Display for ManifestErrors {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        for (i, e) in self.0.iter().enumerate() {
+            if i > 0 {
+                writeln!(f)?;
+            }
+            write!(f, "{e}")?;
+        }
+        Ok(())
+    }
+}
+
+impl std::error::Error for ManifestErrors {}
+
+/// Where the camera intrinsics come from.
+#[derive(Debug, Clone, PartialEq)]
+pub enum CameraSource {
+    /// An OpenCV FileStorage YAML/XML file (`camera_matrix`, `distortion_coefficients`).
+    IntrinsicsFile(PathBuf),
+    /// Calibrate from board images: a folder, or `None` for the dataset's own
+    /// `camera_calibration/` folder.
+    Calibrate {
+        images: Option<PathBuf>,
+        board: CameraCalibrationBoard,
+    },
+}
+
+/// Where a dataset's frames come from.
+#[derive(Debug, Clone, PartialEq)]
+pub enum DatasetSource {
+    Render(Box<RenderSpec>),
+    Folder(PathBuf),
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct Dataset {
+    pub name: String,
+    pub source: DatasetSource,
+}
+
+/// How a frame's BRE is compared with a cut-off.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum CutoffRule {
+    /// The largest of |x|, |y|, |z| must be below the cut-off.
+    MaxAxis,
+    /// The 3D distance must be below the cut-off.
+    Norm,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct Thresholds {
+    /// Descending, the first one usually infinity (all frames).
+    pub bre_cutoffs_mm: Vec<f64>,
+    pub cutoff_rule: CutoffRule,
+    /// The cut-off whose re-solved calibration is the run's result.
+    pub calibration_cutoff_mm: f64,
+    pub min_frames: usize,
+    pub gates: Gates,
+}
+
+/// A validated experiment.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Manifest {
+    pub path: PathBuf,
+    /// SHA-256 of the manifest text as read.
+    pub sha256: String,
+    pub text: String,
+    pub experiment: String,
+    pub description: String,
+    pub phantom: Phantom,
+    pub rig: Rig,
+    pub camera: CameraSource,
+    pub bscan_spacing_mm_per_px: [f64; 2],
+    pub arc_detection: ArcDetection,
+    pub thresholds: Thresholds,
+    pub datasets: Vec<Dataset>,
+}
+
+struct Checker<'a> {
+    file: &'a Path,
+    text: &'a str,
+    errors: Vec<ManifestError>,
+}
+
+impl Checker<'_> {
+    fn fail(&mut self, field: &str, message: impl Into<String>) {
+        self.errors.push(ManifestError {
+            file: self.file.to_path_buf(),
+            field: field.to_string(),
+            line: locate::line_of(self.text, field),
+            message: message.into(),
+        });
+    }
+
+    fn positive(&mut self, field: &str, value: f64) {
+        if !(value.is_finite() && value > 0.0) {
+            self.fail(
+                field,
+                format!("must be a positive number of millimetres/units, got {value}"),
+            );
+        }
+    }
+
+    fn at_least(&mut self, field: &str, value: f64, min: f64) {
+        if !(value.is_finite() && value >= min) {
+            self.fail(field, format!("must be at least {min}, got {value}"));
+        }
+    }
+
+    fn finite(&mut self, field: &str, values: &[f64]) {
+        if values.iter().any(|v| !v.is_finite()) {
+            self.fail(field, "must hold finite numbers");
+        }
+    }
+
+    fn range(&mut self, field: &str, range: [f64; 2]) {
+        if !(range[0].is_finite() && range[1].is_finite() && range[0] > 0.0 && range[0] < range[1]) {
+            self.fail(
+                field,
+                format!(
+                    "must be [low, high] with 0 < low < high, got [{}, {}]",
+                    range[0], range[1]
+                ),
+            );
+        }
+    }
+
+    fn board(&mut self, field: &str, board: &Board) {
+        if board.inner_corners[0] < 2 || board.inner_corners[1] < 2 {
+            self.fail(&format!("{field}.inner_corners"), "needs at least 2x2 inner corners");
+        }
+        self.positive(&format!("{field}.square_mm"), board.square_mm);
+    }
+
+    fn existing(&mut self, field: &str, base: &Path, value: &str, want_dir: bool) -> PathBuf {
+        let path = base.join(value);
+        let ok = if want_dir { path.is_dir() } else { path.is_file() };
+        if !ok {
+            let what = if want_dir { "folder" } else { "file" };
+            self.fail(field, format!("{what} `{}` does not exist", path.display()));
+        }
+        path
+    }
+}
+
+fn sha256_hex(bytes: &[u8]) -> String {
+    let digest = Sha256::digest(bytes);
+    digest.iter().map(|b| format!("{b:02x}")).collect()
+}
+
+fn strip_position(message: &str) -> &str {
+    match message.find(" at line ") {
+        Some(i) => &message[..i],
+        None => message,
+    }
+}
+
+impl Manifest {
+    /// Reads, parses and validates a manifest file.
+    pub fn load(path: &Path) -> Result<Manifest, ManifestErrors> {
+        let text = std::fs::read_to_string(path).map_err(|e| {
+            ManifestErrors(vec![ManifestError {
+                file: path.to_path_buf(),
+                field: String::new(),
+                line: None,
+                message: format!("cannot read the manifest: {e}"),
+            }])
+        })?;
+        Manifest::from_text(path, &text)
+    }
+
+    /// Parses and validates manifest text; `path` names it in errors and anchors relative paths.
+    pub fn from_text(path: &Path, text: &str) -> Result<Manifest, ManifestErrors> {
+        let deserializer = serde_yaml::Deserializer::from_str(text);
+        let raw: raw::RawManifest = serde_path_to_error::deserialize(deserializer).map_err(|e| {
+            let field = e.path().to_string();
+            let field = if field == "." { String::new() } else { field };
+            let inner = e.inner();
+            let line = inner
+                .location()
+                .map(|l| l.line())
+                .or_else(|| locate::line_of(text, &field));
+            ManifestErrors(vec![ManifestError {
+                file: path.to_path_buf(),
+                field,
+                line,
+                message: strip_position(&inner.to_string()).to_string(),
+            }])
+        })?;
+        let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
+        let mut c = Checker {
+            file: path,
+            text,
+            errors: Vec::new(),
+        };
+        let manifest = validate(&mut c, &base, raw, path, text);
+        if c.errors.is_empty() {
+            Ok(manifest)
+        } else {
+            Err(ManifestErrors(c.errors))
+        }
+    }
+}
+
+fn validate(c: &mut Checker<'_>, base: &Path, raw: raw::RawManifest, path: &Path, text: &str) -> Manifest {
+    if raw.experiment.trim().is_empty() || raw.experiment.contains(['/', '\\']) {
+        c.fail(
+            "experiment",
+            "must be a non-empty name without slashes (it names the run folder)",
+        );
+    }
+    match &raw.phantom {
+        Phantom::Hemisphere { centre_in_phantom_mm, radius_mm } => {
+            c.finite("phantom.hemisphere.centre_in_phantom_mm", centre_in_phantom_mm);
+            c.positive("phantom.hemisphere.radius_mm", *radius_mm);
+        }
+        Phantom::Point { .. } => c.fail(
+            "phantom.point",
+            "the point phantom is described but this version of probecal has no B-scan detector for it; use `hemisphere`",
+        ),
+        Phantom::FourWire { .. } => c.fail(
+            "phantom.four_wire",
+            "the 4-wire phantom is described but this version of probecal has no B-scan detector for it; use `hemisphere`",
+        ),
+    }
+    match &raw.rig {
+        Rig::Checkerboard {
+            probe_board,
+            phantom_board,
+        } => {
+            c.board("rig.checkerboard.probe_board", probe_board);
+            c.board("rig.checkerboard.phantom_board", phantom_board);
+            if probe_board.id_dots == phantom_board.id_dots {
+                c.fail(
+                    "rig.checkerboard.phantom_board.id_dots",
+                    "the probe board and the phantom board must carry a different number of identification dots",
+                );
+            }
+            for (name, b) in [("probe_board", probe_board), ("phantom_board", phantom_board)] {
+                if !(1..=2).contains(&b.id_dots) {
+                    c.fail(&format!("rig.checkerboard.{name}.id_dots"), "must be 1 or 2");
+                }
+            }
+        }
+    }
+    let camera = match (&raw.camera.intrinsics_file, &raw.camera.calibrate) {
+        (Some(file), None) => CameraSource::IntrinsicsFile(c.existing("camera.intrinsics_file", base, file, false)),
+        (None, Some(cal)) => {
+            c.board(
+                "camera.calibrate",
+                &Board {
+                    inner_corners: cal.inner_corners,
+                    square_mm: cal.square_mm,
+                    id_dots: 0,
+                },
+            );
+            let images = cal
+                .images
+                .as_ref()
+                .map(|f| c.existing("camera.calibrate.images", base, f, true));
+            CameraSource::Calibrate {
+                images,
+                board: cal.clone(),
+            }
+        }
+        _ => {
+            c.fail("camera", "give exactly one of `intrinsics_file` or `calibrate`");
+            CameraSource::IntrinsicsFile(PathBuf::new())
+        }
+    };
+    let spacing = raw.bscan.spacing_mm_per_px;
+    c.positive("bscan.spacing_mm_per_px[0]", spacing[0]);
+    c.positive("bscan.spacing_mm_per_px[1]", spacing[1]);
+    let arc = raw.bscan.arc_detection.clone();
+    c.range("bscan.arc_detection.radius_fraction", arc.radius_fraction);
+    c.at_least("bscan.arc_detection.min_span_deg", arc.min_span_deg, 1.0);
+    c.positive("bscan.arc_detection.max_rms_px", arc.max_rms_px);
+    c.at_least("bscan.arc_detection.min_points", arc.min_points as f64, 5.0);
+
+    let t = &raw.thresholds;
+    if t.bre_cutoffs_mm.is_empty() {
+        c.fail(
+            "thresholds.bre_cutoffs_mm",
+            "needs at least one cut-off (use .inf for all frames)",
+        );
+    }
+    for (i, w) in t.bre_cutoffs_mm.windows(2).enumerate() {
+        if w[1] >= w[0] {
+            c.fail(
+                &format!("thresholds.bre_cutoffs_mm[{}]", i + 1),
+                format!("cut-offs must be strictly descending, but {} follows {}", w[1], w[0]),
+            );
+        }
+    }
+    for (i, v) in t.bre_cutoffs_mm.iter().enumerate() {
+        if v.is_nan() || *v <= 0.0 {
+            c.fail(
+                &format!("thresholds.bre_cutoffs_mm[{i}]"),
+                format!("must be positive (or .inf), got {v}"),
+            );
+        }
+    }
+    let calibration_cutoff_mm = t.calibration_cutoff_mm.unwrap_or(f64::INFINITY);
+    if !t.bre_cutoffs_mm.contains(&calibration_cutoff_mm) {
+        c.fail(
+            "thresholds.calibration_cutoff_mm",
+            format!("must be one of bre_cutoffs_mm, got {calibration_cutoff_mm}"),
+        );
+    }
+    if t.min_frames < 3 {
+        c.fail(
+            "thresholds.min_frames",
+            format!("Horn's solution needs at least 3 frames, got {}", t.min_frames),
+        );
+    }
+    for (field, value) in [
+        ("thresholds.gates.truth_corner_error_mm", t.gates.truth_corner_error_mm),
+        (
+            "thresholds.gates.truth_rotation_error_deg",
+            t.gates.truth_rotation_error_deg,
+        ),
+        ("thresholds.gates.bre_mean_mm", t.gates.bre_mean_mm),
+    ] {
+        if let Some(v) = value {
+            c.positive(field, v);
+        }
+    }
+
+    if raw.datasets.is_empty() {
+        c.fail("datasets", "lists no dataset");
+    }
+    let mut datasets = Vec::new();
+    for (i, d) in raw.datasets.iter().enumerate() {
+        let field = format!("datasets[{i}]");
+        if d.name.trim().is_empty() || d.name.contains(['/', '\\']) || d.name.starts_with('.') {
+            c.fail(&format!("{field}.name"), "must be a non-empty name without slashes");
+        }
+        if raw.datasets[..i].iter().any(|o| o.name == d.name) {
+            c.fail(
+                &format!("{field}.name"),
+                format!("dataset name `{}` is used twice", d.name),
+            );
+        }
+        let source = match (&d.render, &d.folder) {
+            (Some(spec), None) => {
+                validate_render(c, &format!("{field}.render"), spec);
+                DatasetSource::Render(Box::new(spec.clone()))
+            }
+            (None, Some(folder)) => DatasetSource::Folder(c.existing(&format!("{field}.folder"), base, folder, true)),
+            _ => {
+                c.fail(
+                    &field,
+                    "give exactly one of `render` (a generator spec) or `folder` (recorded files)",
+                );
+                continue;
+            }
+        };
+        datasets.push(Dataset {
+            name: d.name.clone(),
+            source,
+        });
+    }
+    if matches!(camera, CameraSource::Calibrate { images: None, .. })
+        && datasets.iter().any(|d| matches!(d.source, DatasetSource::Folder(_)))
+    {
+        // A recorded folder must bring its calibration views or the manifest must name them.
+        for (i, d) in datasets.iter().enumerate() {
+            if let DatasetSource::Folder(folder) = &d.source {
+                if !folder.join("camera_calibration").is_dir() {
+                    c.fail(
+                        &format!("datasets[{i}].folder"),
+                        "has no camera_calibration/ folder; set camera.calibrate.images or camera.intrinsics_file",
+                    );
+                }
+            }
+        }
+    }
+
+    Manifest {
+        path: path.to_path_buf(),
+        sha256: sha256_hex(text.as_bytes()),
+        text: text.to_string(),
+        experiment: raw.experiment,
+        description: raw.description,
+        phantom: raw.phantom,
+        rig: raw.rig,
+        camera,
+        bscan_spacing_mm_per_px: spacing,
+        arc_detection: arc,
+        thresholds: Thresholds {
+            bre_cutoffs_mm: t.bre_cutoffs_mm.clone(),
+            cutoff_rule: t.cutoff_rule,
+            calibration_cutoff_mm,
+            min_frames: t.min_frames,
+            gates: t.gates.clone(),
+        },
+        datasets,
+    }
+}
+
+fn validate_render(c: &mut Checker<'_>, field: &str, spec: &RenderSpec) {
+    if spec.frames < 3 {
+        c.fail(
+            &format!("{field}.frames"),
+            format!("at least 3 frames are needed, got {}", spec.frames),
+        );
+    }
+    if spec.calibration_views < 4 {
+        c.fail(
+            &format!("{field}.calibration_views"),
+            format!(
+                "camera calibration needs at least 4 views, got {}",
+                spec.calibration_views
+            ),
+        );
+    }
+    let cam = &spec.camera;
+    if cam.image_size_px[0] < 64 || cam.image_size_px[1] < 64 {
+        c.fail(
+            &format!("{field}.camera.image_size_px"),
+            "must be at least 64x64 pixels",
+        );
+    }
+    c.positive(&format!("{field}.camera.focal_px"), cam.focal_px);
+    c.finite(&format!("{field}.camera.distortion"), &cam.distortion);
+    c.at_least(&format!("{field}.camera.noise_grey_levels"), cam.noise_grey_levels, 0.0);
+    c.at_least(&format!("{field}.camera.blur_sigma_px"), cam.blur_sigma_px, 0.0);
+    c.range(&format!("{field}.board_distance_mm"), spec.board_distance_mm);
+    let s = &spec.sweep;
+    for (name, v) in [
+        ("tilt_x_deg", s.tilt_x_deg),
+        ("tilt_y_deg", s.tilt_y_deg),
+        ("rotation_z_deg", s.rotation_z_deg),
+        ("elevation_offset_sd_mm", s.elevation_offset_sd_mm),
+        ("tremor_mm", s.tremor_mm),
+        ("tremor_deg", s.tremor_deg),
+    ] {
+        c.at_least(&format!("{field}.sweep.{name}"), v, 0.0);
+    }
+    let b = &spec.bscan;
+    c.positive(&format!("{field}.bscan.depth_mm"), b.depth_mm);
+    if !(b.fan_deg > 0.0 && b.fan_deg < 170.0) {
+        c.fail(
+            &format!("{field}.bscan.fan_deg"),
+            format!("must be between 0 and 170 degrees, got {}", b.fan_deg),
+        );
+    }
+    c.positive(&format!("{field}.bscan.convex_radius_mm"), b.convex_radius_mm);
+    c.at_least(&format!("{field}.bscan.slice_thickness_mm"), b.slice_thickness_mm, 0.0);
+    for (name, v) in [
+        ("outlier_rate", b.outlier_rate),
+        ("missing_rate", b.missing_rate),
+        ("bubble_rate", b.bubble_rate),
+    ] {
+        if !(0.0..=1.0).contains(&v) {
+            c.fail(
+                &format!("{field}.bscan.{name}"),
+                format!("must be a fraction between 0 and 1, got {v}"),
+            );
+        }
+    }
+    if let Some(t) = &spec.marker_T_image {
+        c.finite(&format!("{field}.marker_T_image.rotation_deg"), &t.rotation_deg);
+        c.finite(&format!("{field}.marker_T_image.translation_mm"), &t.translation_mm);
+    }
+}
+
+#[cfg(test)]
+mod tests;
