@@ -1,0 +1,63 @@
+//! Chessboard inner-corner detection: OpenCV's `findChessboardCorners` (adaptive
+//! threshold, normalised image) followed by `cornerSubPix`. The camera calibration
+//! and the per-frame board poses both go through this one function.
+
+use opencv::core::{Mat, Point2f, Size, TermCriteria, TermCriteria_Type, Vector};
+use opencv::{calib3d, imgproc};
+
+/// Sub-pixel refinement settings (OpenCV's calibration sample: 11x11 window, 30 iterations, eps 0.1).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SubPix {
+    /// Half the search window (OpenCV's `winSize`).
+    pub half_window_px: i32,
+    pub max_iterations: i32,
+    pub epsilon_px: f64,
+}
+
+impl Default for SubPix {
+    fn default() -> Self {
+        SubPix {
+            half_window_px: 5,
+            max_iterations: 30,
+            epsilon_px: 0.1,
+        }
+    }
+}
+
+/// Inner corners of a `cols x rows` chessboard in OpenCV's order, or `None` if not found.
+pub fn detect_chessboard(
+    image: &Mat,
+    inner_corners: [u32; 2],
+    subpix: SubPix,
+) -> opencv::Result<Option<Vec<[f64; 2]>>> {
+    let pattern = Size::new(inner_corners[0] as i32, inner_corners[1] as i32);
+    let mut corners = Vector::<Point2f>::new();
+    let flags = calib3d::CALIB_CB_ADAPTIVE_THRESH | calib3d::CALIB_CB_NORMALIZE_IMAGE;
+    if !calib3d::find_chessboard_corners(image, pattern, &mut corners, flags)? {
+        return Ok(None);
+    }
+    let criteria = TermCriteria::new(
+        TermCriteria_Type::EPS as i32 + TermCriteria_Type::COUNT as i32,
+        subpix.max_iterations,
+        subpix.epsilon_px,
+    )?;
+    let window = Size::new(subpix.half_window_px, subpix.half_window_px);
+    imgproc::corner_sub_pix(image, &mut corners, window, Size::new(-1, -1), criteria)?;
+    Ok(Some(corners.iter().map(|p| [p.x as f64, p.y as f64]).collect()))
+}
+
+/// `Mat` of 3D object points for OpenCV calls.
+pub fn object_points(points_mm: &[nalgebra::Point2<f64>]) -> Vector<opencv::core::Point3f> {
+    points_mm
+        .iter()
+        .map(|p| opencv::core::Point3f::new(p.x as f32, p.y as f32, 0.0))
+        .collect()
+}
+
+/// `Vector<Point2f>` of image points for OpenCV calls.
+pub fn image_points(points_px: &[[f64; 2]]) -> Vector<Point2f> {
+    points_px
+        .iter()
+        .map(|p| Point2f::new(p[0] as f32, p[1] as f32))
+        .collect()
+}
