@@ -1,0 +1,123 @@
+//! A dataset folder: `frames.csv` (frame, camera_image, bscan_image; paths
+//! relative to the folder), the images it names, and optionally
+//! `camera_calibration/` with board views. Rendered and recorded datasets share it.
+
+use std::path::{Path, PathBuf};
+
+/// Name of the frame list inside a dataset folder.
+pub const FRAME_LIST: &str = "frames.csv";
+
+/// The files of one frame.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FrameFiles {
+    pub frame: usize,
+    pub camera_image: PathBuf,
+    pub bscan_image: PathBuf,
+}
+
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum DatasetError {
+    #[error("{path}: cannot read the frame list: {message}")]
+    Unreadable { path: PathBuf, message: String },
+    #[error("{path}:1: the header must be `frame,camera_image,bscan_image`, found `{found}`")]
+    Header { path: PathBuf, found: String },
+    #[error("{path}:{line}: {message}")]
+    Line {
+        path: PathBuf,
+        line: usize,
+        message: String,
+    },
+    #[error("{path}: lists no frames")]
+    Empty { path: PathBuf },
+}
+
+/// Reads and checks a dataset's frame list (the images themselves are checked when read).
+pub fn load_frame_list(folder: &Path) -> Result<Vec<FrameFiles>, DatasetError> {
+    let path = folder.join(FRAME_LIST);
+    let text = std::fs::read_to_string(&path).map_err(|e| DatasetError::Unreadable {
+        path: path.clone(),
+        message: e.to_string(),
+    })?;
+    let mut lines = text.lines().enumerate();
+    let header = lines.next().map(|(_, l)| l.trim()).unwrap_or("");
+    if header != "frame,camera_image,bscan_image" {
+        return Err(DatasetError::Header {
+            path,
+            found: header.to_string(),
+        });
+    }
+    let mut frames: Vec<FrameFiles> = Vec::new();
+    for (i, raw) in lines {
+        let line = i + 1;
+        if raw.trim().is_empty() {
+            continue;
+        }
+        let fail = |message: String| DatasetError::Line {
+            path: path.clone(),
+            line,
+            message,
+        };
+        let fields: Vec<&str> = raw.split(',').map(str::trim).collect();
+        if fields.len() != 3 {
+            return Err(fail(format!(
+                "expected 3 comma-separated fields, found {}",
+                fields.len()
+            )));
+        }
+        let frame: usize = fields[0]
+            .parse()
+            .map_err(|_| fail(format!("frame `{}` is not a whole number", fields[0])))?;
+        if frames.iter().any(|f| f.frame == frame) {
+            return Err(fail(format!("frame {frame} is listed twice")));
+        }
+        if fields[1].is_empty() || fields[2].is_empty() {
+            return Err(fail("camera_image and bscan_image must both be given".into()));
+        }
+        frames.push(FrameFiles {
+            frame,
+            camera_image: folder.join(fields[1]),
+            bscan_image: folder.join(fields[2]),
+        });
+    }
+    if frames.is_empty() {
+        return Err(DatasetError::Empty { path });
+    }
+    Ok(frames)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn with_list(name: &str, text: &str) -> (PathBuf, Result<Vec<FrameFiles>, DatasetError>) {
+        let dir = std::env::temp_dir().join(format!("probecal-list-{}-{name}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        std::fs::write(dir.join(FRAME_LIST), text).unwrap();
+        let result = load_frame_list(&dir);
+        (dir, result)
+    }
+
+    #[test]
+    fn reads_good_list_and_names_the_line_of_a_bad_one() {
+        let (dir, ok) = with_list(
+            "good",
+            "frame,camera_image,bscan_image\n0,c0.png,b0.png\n\n3,c3.png,b3.png\n",
+        );
+        let ok = ok.unwrap();
+        assert_eq!(ok.len(), 2);
+        assert_eq!(ok[1].frame, 3);
+        assert_eq!(ok[1].bscan_image, dir.join("b3.png"));
+        let (_, bad) = with_list(
+            "bad",
+            "frame,camera_image,bscan_image\n0,c0.png,b0.png\nx,c1.png,b1.png\n",
+        );
+        let msg = bad.unwrap_err().to_string();
+        assert!(msg.ends_with(":3: frame `x` is not a whole number"), "{msg}");
+        let (_, dup) = with_list("dup", "frame,camera_image,bscan_image\n0,a,b\n0,a,b\n");
+        assert!(dup.unwrap_err().to_string().contains(":3: frame 0 is listed twice"));
+        let (_, header) = with_list("header", "id,cam,us\n");
+        assert!(matches!(header.unwrap_err(), DatasetError::Header { .. }));
+        let (_, empty) = with_list("empty", "frame,camera_image,bscan_image\n");
+        assert!(matches!(empty.unwrap_err(), DatasetError::Empty { .. }));
+    }
+}

@@ -1,0 +1,253 @@
+//! Renders convex-probe B-scans of the hemisphere phantom in its water tank.
+//!
+//! Along each beam (a ray from the fan's virtual apex) the echoes are computed in
+//! 3D at several elevation offsets across the beam's slice thickness: the specular
+//! echo of the dome where the beam first meets it (strong at normal incidence),
+//! the acoustic shadow behind it, the tank floor and its reverberation, the walls
+//! where the slice cuts them, air bubbles with comet tails. Then lateral/axial
+//! blur, multiplicative speckle, depth attenuation, near-field ringing, log
+//! compression and noise. Outside the fan the image is 0; inside it is at least 1.
+
+use nalgebra::{Point3, Vector3};
+
+use super::scene::{FrameKind, Scene};
+use crate::geometry::Rigid;
+use crate::image::{gaussian_blur_f32, Gray8, ImageError};
+use crate::rng::Rng;
+
+/// An air bubble in the water (world frame).
+#[derive(Debug, Clone, Copy, serde::Serialize)]
+pub struct Bubble {
+    pub centre_world_mm: [f64; 3],
+    pub radius_mm: f64,
+}
+
+/// Settings of the echo model that the manifest exposes.
+#[derive(Debug, Clone, Copy)]
+pub struct EchoModel {
+    pub slice_thickness_mm: f64,
+    pub bubble_rate: f64,
+}
+
+const AXIAL_SIGMA_MM: f64 = 0.30;
+const ELEVATION_SAMPLES: usize = 7;
+
+/// Draws the bubbles of one frame.
+pub fn draw_bubbles(
+    scene: &Scene,
+    world_T_image: &Rigid,
+    kind: FrameKind,
+    model: EchoModel,
+    rng: &mut Rng,
+) -> Vec<Bubble> {
+    let mut bubbles = Vec::new();
+    let geometry = &scene.bscan;
+    let c = scene.sphere_centre_world.coords;
+    let normal = world_T_image.rotation * Vector3::z();
+    if rng.chance(model.bubble_rate) {
+        for _ in 0..1 + rng.below(4) {
+            // Floating in the slice, somewhere in the fan above the floor.
+            let u = rng.uniform(0.15, 0.85) * geometry.width_mm();
+            let v = rng.uniform(8.0, geometry.depth_mm * 0.8);
+            let e = rng.uniform(-0.5, 0.5) * model.slice_thickness_mm;
+            let p = world_T_image * Point3::new(u, v, e);
+            if (p.coords - c).norm() > scene.sphere_radius_mm + 1.5 && p.z > scene.tank.floor_z_mm + 2.0 {
+                bubbles.push(Bubble {
+                    centre_world_mm: p.coords.into(),
+                    radius_mm: rng.uniform(0.3, 0.9),
+                });
+            }
+        }
+    }
+    if kind == FrameKind::DomeBubbles {
+        // Stuck on the dome near where the plane cuts it.
+        for _ in 0..3 + rng.below(4) {
+            let around = rng.uniform(-60f64, 60.0).to_radians();
+            let in_plane = world_T_image.rotation * Vector3::new(around.sin(), -around.cos(), 0.0);
+            let dir = (in_plane + normal * rng.uniform(-0.08, 0.08)).normalize();
+            let r = rng.uniform(0.6, 1.4);
+            let p = c + dir * (scene.sphere_radius_mm + r);
+            bubbles.push(Bubble {
+                centre_world_mm: p.into(),
+                radius_mm: r,
+            });
+        }
+    }
+    bubbles
+}
+
+/// First intersection distance of a ray with a sphere, if any.
+fn ray_sphere(origin: &Vector3<f64>, dir: &Vector3<f64>, centre: &Vector3<f64>, radius: f64) -> Option<f64> {
+    let oc = origin - centre;
+    let b = dir.dot(&oc);
+    let disc = b * b - (oc.norm_squared() - radius * radius);
+    (disc >= 0.0).then(|| -b - disc.sqrt())
+}
+
+/// Renders one B-scan.
+pub fn render_bscan(
+    scene: &Scene,
+    world_T_image: &Rigid,
+    bubbles: &[Bubble],
+    model: EchoModel,
+    rng: &mut Rng,
+) -> Result<Gray8, ImageError> {
+    let g = &scene.bscan;
+    let (w, h) = (g.width_px, g.height_px);
+    let [sx, sy] = g.spacing_mm_per_px;
+    let c = scene.sphere_centre_world.coords;
+    let radius = scene.sphere_radius_mm;
+    let tank = scene.tank;
+    let rotation = world_T_image.rotation;
+    let normal = rotation * Vector3::z();
+    let apex_world = world_T_image * Point3::new(g.apex_mm[0], g.apex_mm[1], 0.0);
+
+    // Elevation profile of the beam: Gaussian across the slice.
+    let half = model.slice_thickness_mm / 2.0;
+    let offsets: Vec<(f64, f64)> = (0..ELEVATION_SAMPLES)
+        .map(|j| {
+            let e = if ELEVATION_SAMPLES > 1 {
+                -half + 2.0 * half * j as f64 / (ELEVATION_SAMPLES - 1) as f64
+            } else {
+                0.0
+            };
+            let weight = if half > 0.0 {
+                (-(e / (half / 1.5)).powi(2) / 2.0).exp()
+            } else {
+                1.0
+            };
+            (e, weight)
+        })
+        .collect();
+    let weight_sum: f64 = offsets.iter().map(|o| o.1).sum();
+
+    let mut echo = vec![0f32; w * h];
+    let mut base = vec![0f32; w * h];
+    let mut inside = vec![false; w * h];
+    for y in 0..h {
+        for x in 0..w {
+            let (u_mm, v_mm) = (x as f64 * sx, y as f64 * sy);
+            if !g.inside_fan(u_mm, v_mm) {
+                continue;
+            }
+            let i = y * w + x;
+            inside[i] = true;
+            let (r, angle) = g.polar(u_mm, v_mm);
+            let dir = rotation * Vector3::new(angle.sin(), angle.cos(), 0.0);
+            let mut e_sum = 0.0;
+            let mut shadow = 0.0;
+            for &(e, weight) in &offsets {
+                let origin = apex_world.coords + normal * e;
+                let mut blocked_at = f64::INFINITY;
+                if let Some(lambda) = ray_sphere(&origin, &dir, &c, radius) {
+                    let hit = origin + dir * lambda;
+                    if lambda > g.convex_radius_mm && hit.z >= c.z - 0.5 {
+                        let n = (hit - c) / radius;
+                        let incidence = dir.dot(&n).abs();
+                        let strength = 0.15 + 0.85 * incidence.powi(4);
+                        e_sum += weight * 1.6 * strength * (-((r - lambda) / AXIAL_SIGMA_MM).powi(2) / 2.0).exp();
+                        blocked_at = lambda + 2.0 * AXIAL_SIGMA_MM;
+                    }
+                }
+                if dir.z < -1e-6 {
+                    let lambda_floor = (tank.floor_z_mm - origin.z) / dir.z;
+                    if lambda_floor < blocked_at {
+                        let strength = 0.3 + 0.7 * dir.z.powi(2);
+                        e_sum += weight
+                            * 0.9
+                            * strength
+                            * (-((r - lambda_floor) / (AXIAL_SIGMA_MM * 1.5)).powi(2) / 2.0).exp();
+                        let reverb = g.convex_radius_mm + 2.0 * (lambda_floor - g.convex_radius_mm);
+                        e_sum +=
+                            weight * 0.25 * strength * (-((r - reverb) / (AXIAL_SIGMA_MM * 2.0)).powi(2) / 2.0).exp();
+                        blocked_at = blocked_at.min(lambda_floor + 2.0 * AXIAL_SIGMA_MM);
+                    }
+                }
+                if r > blocked_at {
+                    shadow += weight;
+                }
+            }
+            let point = apex_world.coords + dir * r;
+            let wall_distance = (tank.wall_x_mm - point.x.abs()).min(tank.wall_y_mm - point.y.abs());
+            let outside_tank = wall_distance < 0.0 || point.z < tank.floor_z_mm;
+            let wall_echo = 0.7 * (-(wall_distance / 0.7).powi(2) / 2.0).exp();
+            e_sum = e_sum / weight_sum + wall_echo;
+            let shadow = shadow / weight_sum;
+            let mut b = if outside_tank {
+                0.004
+            } else {
+                0.015 * (1.0 - 0.85 * shadow)
+            };
+            // Ringing of the transducer face.
+            let near = r - g.convex_radius_mm;
+            b += 0.5 * (-near / 1.2).exp() + 0.12 * (-near / 5.0).exp();
+            base[i] = b as f32;
+            echo[i] = e_sum as f32;
+        }
+    }
+
+    // Bubbles: bright spots with a reverberation tail down the beam.
+    let image_T_world = world_T_image.inverse();
+    for bubble in bubbles {
+        let centre = image_T_world * Point3::from(Vector3::from(bubble.centre_world_mm));
+        if centre.z.abs() > half + bubble.radius_mm {
+            continue;
+        }
+        let (rb, ab) = g.polar(centre.x, centre.y);
+        let size = bubble.radius_mm.max(0.35);
+        let x0 = ((centre.x - 4.0) / sx).floor().max(0.0) as usize;
+        let x1 = (((centre.x + 4.0) / sx).ceil() as usize).min(w);
+        let y0 = ((centre.y - 3.0) / sy).floor().max(0.0) as usize;
+        for y in y0..h {
+            for x in x0..x1 {
+                let i = y * w + x;
+                if !inside[i] {
+                    continue;
+                }
+                let (u_mm, v_mm) = (x as f64 * sx, y as f64 * sy);
+                let (r, a) = g.polar(u_mm, v_mm);
+                let lateral = (a - ab) * rb;
+                let along = r - rb;
+                let spot = (-(lateral * lateral + along * along) / (2.0 * size * size)).exp();
+                let tail = if along > 0.0 {
+                    0.45 * (-along / 4.0).exp()
+                        * (std::f64::consts::PI * along / 0.9).cos().powi(2)
+                        * (-(lateral / size).powi(2) / 2.0).exp()
+                } else {
+                    0.0
+                };
+                echo[i] += (1.4 * spot + tail) as f32;
+            }
+        }
+    }
+
+    // Lateral and axial resolution of the beam.
+    gaussian_blur_f32(w, h, &mut echo, 0.45 / sx, 0.2 / sy)?;
+    // Speckle: magnitude of a blurred complex Gaussian field, mean 1.
+    let mut re: Vec<f32> = (0..w * h).map(|_| rng.normal(0.0, 1.0) as f32).collect();
+    let mut im: Vec<f32> = (0..w * h).map(|_| rng.normal(0.0, 1.0) as f32).collect();
+    gaussian_blur_f32(w, h, &mut re, 0.35 / sx, 0.15 / sy)?;
+    gaussian_blur_f32(w, h, &mut im, 0.35 / sx, 0.15 / sy)?;
+    let mut speckle: Vec<f32> = re.iter().zip(&im).map(|(a, b)| (a * a + b * b).sqrt()).collect();
+    let mean = speckle.iter().map(|v| *v as f64).sum::<f64>() / speckle.len() as f64;
+    for v in speckle.iter_mut() {
+        *v /= mean as f32;
+    }
+
+    let mut levels = vec![0f32; w * h];
+    for y in 0..h {
+        for x in 0..w {
+            let i = y * w + x;
+            if !inside[i] {
+                continue;
+            }
+            let (r, _) = g.polar(x as f64 * sx, y as f64 * sy);
+            let attenuation = (-0.004 * (r - g.convex_radius_mm)).exp() as f32;
+            let intensity = ((base[i] + echo[i]) * speckle[i] * attenuation).max(0.0);
+            let compressed = (1.0 + 60.0 * intensity).log10() / 61f32.log10();
+            let noisy = 235.0 * compressed + rng.normal(0.0, 2.0) as f32;
+            levels[i] = noisy.clamp(1.0, 255.0);
+        }
+    }
+    Ok(Gray8::from_levels(w, h, &levels))
+}

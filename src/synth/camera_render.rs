@@ -1,0 +1,169 @@
+//! Renders camera photos of printed boards through the distorted pinhole model.
+//!
+//! Each pixel is integrated over 3x3 sub-samples; each sub-sample's viewing ray
+//! comes from inverting the lens distortion (precomputed once per camera on the
+//! pixel-corner lattice and interpolated), so straight board edges bend exactly
+//! as the distortion model says. Then: uneven lighting and vignetting, optical
+//! blur, sensor noise, 8-bit quantisation.
+
+use nalgebra::{Point3, Vector3};
+
+use crate::board::{BoardLayout, Ink};
+use crate::camera_model::CameraIntrinsics;
+use crate::geometry::Rigid;
+use crate::image::{gaussian_blur_f32, Gray8, ImageError};
+use crate::rng::Rng;
+
+/// Viewing rays of the pixel-corner lattice of one camera.
+pub struct RayMap {
+    width: usize,
+    height: usize,
+    /// (w+1) x (h+1) normalised undistorted coordinates of the pixel corners.
+    corners: Vec<[f32; 2]>,
+}
+
+impl RayMap {
+    pub fn new(camera: &CameraIntrinsics) -> RayMap {
+        let (width, height) = (camera.image_size_px[0] as usize, camera.image_size_px[1] as usize);
+        let mut corners = Vec::with_capacity((width + 1) * (height + 1));
+        for y in 0..=height {
+            for x in 0..=width {
+                let (nx, ny) = camera.undistort_pixel([x as f64 - 0.5, y as f64 - 0.5]);
+                corners.push([nx as f32, ny as f32]);
+            }
+        }
+        RayMap { width, height, corners }
+    }
+
+    /// Normalised ray of a point inside pixel (x, y) at fractions (fx, fy) of its extent.
+    #[inline]
+    fn ray(&self, x: usize, y: usize, fx: f32, fy: f32) -> [f32; 2] {
+        let stride = self.width + 1;
+        let a = self.corners[y * stride + x];
+        let b = self.corners[y * stride + x + 1];
+        let c = self.corners[(y + 1) * stride + x];
+        let d = self.corners[(y + 1) * stride + x + 1];
+        let top = [a[0] + (b[0] - a[0]) * fx, a[1] + (b[1] - a[1]) * fx];
+        let bottom = [c[0] + (d[0] - c[0]) * fx, c[1] + (d[1] - c[1]) * fx];
+        [top[0] + (bottom[0] - top[0]) * fy, top[1] + (bottom[1] - top[1]) * fy]
+    }
+}
+
+/// Photometric settings of one photo.
+#[derive(Debug, Clone, Copy)]
+pub struct Photometry {
+    pub noise_grey_levels: f64,
+    pub blur_sigma_px: f64,
+    pub lighting_gradient: f64,
+}
+
+/// A board placed in front of the camera.
+pub struct PlacedBoard<'a> {
+    pub camera_T_board: Rigid,
+    pub layout: &'a BoardLayout,
+}
+
+const BLACK_REFLECTANCE: f32 = 0.07;
+const WHITE_REFLECTANCE: f32 = 0.88;
+
+/// Renders one photo. `rng` drives the lighting direction, exposure and noise.
+pub fn render_photo(
+    camera: &CameraIntrinsics,
+    rays: &RayMap,
+    boards: &[PlacedBoard<'_>],
+    photometry: Photometry,
+    rng: &mut Rng,
+) -> Result<Gray8, ImageError> {
+    let (w, h) = (rays.width, rays.height);
+    // Each board as a plane in the camera frame: origin, normal, and the inverse pose.
+    struct Plane<'a> {
+        origin: Vector3<f32>,
+        normal: Vector3<f32>,
+        board_T_camera: Rigid,
+        layout: &'a BoardLayout,
+    }
+    let planes: Vec<Plane<'_>> = boards
+        .iter()
+        .map(|b| Plane {
+            origin: b.camera_T_board.translation.vector.cast::<f32>(),
+            normal: (b.camera_T_board.rotation * Vector3::z()).cast::<f32>(),
+            board_T_camera: b.camera_T_board.inverse(),
+            layout: b.layout,
+        })
+        .collect();
+
+    // Lighting: a linear gradient in a random direction, a soft spot, and vignetting.
+    let angle = rng.uniform(0.0, std::f64::consts::TAU);
+    let (gx, gy) = (angle.cos() as f32, angle.sin() as f32);
+    let gradient = photometry.lighting_gradient as f32;
+    let spot = [
+        rng.uniform(0.2, 0.8) as f32 * w as f32,
+        rng.uniform(0.2, 0.8) as f32 * h as f32,
+    ];
+    let exposure = rng.uniform(0.9, 1.05) as f32;
+    let diag = ((w * w + h * h) as f32).sqrt();
+    let (fx, cx, fy, cy) = (
+        camera.fx() as f32,
+        camera.cx() as f32,
+        camera.fy() as f32,
+        camera.cy() as f32,
+    );
+
+    let mut levels = vec![0f32; w * h];
+    const SUB: [f32; 3] = [1.0 / 6.0, 0.5, 5.0 / 6.0];
+    for y in 0..h {
+        for x in 0..w {
+            let mut reflectance = 0f32;
+            for &sy in &SUB {
+                for &sx in &SUB {
+                    let [nx, ny] = rays.ray(x, y, sx, sy);
+                    let dir = Vector3::new(nx, ny, 1.0);
+                    let mut best: Option<(f32, f32)> = None;
+                    for plane in &planes {
+                        let denom = plane.normal.dot(&dir);
+                        if denom.abs() < 1e-6 {
+                            continue;
+                        }
+                        let t = plane.normal.dot(&plane.origin) / denom;
+                        if t <= 0.0 || best.is_some_and(|(bt, _)| bt <= t) {
+                            continue;
+                        }
+                        let hit = dir * t;
+                        let local = plane.board_T_camera * Point3::new(hit.x as f64, hit.y as f64, hit.z as f64);
+                        if let Some(ink) = plane.layout.ink_at(local.x, local.y) {
+                            let r = if ink == Ink::Black {
+                                BLACK_REFLECTANCE
+                            } else {
+                                WHITE_REFLECTANCE
+                            };
+                            best = Some((t, r));
+                        }
+                    }
+                    reflectance += match best {
+                        Some((_, r)) => r,
+                        None => {
+                            // Background: a dull surface with a slow texture.
+                            let u = fx * nx + cx;
+                            let v = fy * ny + cy;
+                            0.30 + 0.06 * ((u * 0.011).sin() * (v * 0.007).cos()) + 0.03 * ((u + v) * 0.031).sin()
+                        }
+                    };
+                }
+            }
+            reflectance /= 9.0;
+            let (xf, yf) = (x as f32, y as f32);
+            let ramp =
+                1.0 - gradient * (0.5 + 0.5 * ((xf - w as f32 / 2.0) * gx + (yf - h as f32 / 2.0) * gy) / (diag / 2.0));
+            let d2 = ((xf - spot[0]).powi(2) + (yf - spot[1]).powi(2)) / (diag * diag);
+            let spot_light = 0.15 * (-d2 / 0.05).exp();
+            let r2 = ((xf - cx).powi(2) + (yf - cy).powi(2)) / (fx * fx);
+            let vignette = 1.0 / (1.0 + r2).powi(2);
+            levels[y * w + x] = 255.0 * exposure * reflectance * (ramp + spot_light) * vignette;
+        }
+    }
+    gaussian_blur_f32(w, h, &mut levels, photometry.blur_sigma_px, photometry.blur_sigma_px)?;
+    for v in levels.iter_mut() {
+        *v += rng.normal(0.0, photometry.noise_grey_levels) as f32;
+    }
+    Ok(Gray8::from_levels(w, h, &levels))
+}

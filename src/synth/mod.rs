@@ -1,0 +1,302 @@
+//! `probecal synth`: renders a dataset (camera photos, B-scans, calibration views)
+//! from a generator spec, deterministically from its seed, with the ground truth
+//! written beside it in `ground_truth.json` (read by the evaluation only).
+//!
+//! A rendered dataset is cached: `render_spec.json` holds the exact inputs and
+//! the dataset is rendered again only when they change. Rendering happens in a
+//! temporary folder that is renamed into place when complete.
+
+pub mod bscan_render;
+pub mod camera_render;
+pub mod scene;
+
+use std::path::{Path, PathBuf};
+
+use nalgebra::Point3;
+use serde::Serialize;
+
+use crate::board::BoardLayout;
+use crate::camera_model::CameraIntrinsics;
+use crate::dataset::FRAME_LIST;
+use crate::geometry::{to_rows, Rigid};
+use crate::manifest::{Manifest, Phantom, RenderSpec, Rig};
+use crate::parallel::parallel_map;
+use crate::rng::Rng;
+use bscan_render::{Bubble, EchoModel};
+use camera_render::{Photometry, PlacedBoard, RayMap};
+use scene::{FrameKind, SceneInputs};
+
+/// Bumped whenever a change to the renderer changes its pixels.
+pub const GENERATOR_VERSION: u32 = 1;
+
+#[derive(Debug, thiserror::Error)]
+pub enum SynthError {
+    #[error("{0}")]
+    Scene(#[from] scene::SceneError),
+    #[error("{0}")]
+    Image(#[from] crate::image::ImageError),
+    #[error("{path}: {message}")]
+    Io { path: PathBuf, message: String },
+    #[error("rendering needs {what}, which this manifest does not describe")]
+    Unsupported { what: &'static str },
+}
+
+fn io_err(path: &Path) -> impl Fn(std::io::Error) -> SynthError + '_ {
+    move |e| SynthError::Io {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    }
+}
+
+/// Everything that determines a rendered dataset's bytes.
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct RenderInputs {
+    pub generator_version: u32,
+    pub spec: RenderSpec,
+    pub probe_board: [f64; 3],
+    pub phantom_board: [f64; 3],
+    pub calibration_board: [f64; 2],
+    pub calibration_square_mm: f64,
+    pub sphere_centre_in_phantom_mm: [f64; 3],
+    pub sphere_radius_mm: f64,
+    pub spacing_mm_per_px: [f64; 2],
+}
+
+fn layouts(manifest: &Manifest) -> Result<(BoardLayout, BoardLayout, BoardLayout, [f64; 3], f64), SynthError> {
+    let Rig::Checkerboard {
+        probe_board,
+        phantom_board,
+    } = &manifest.rig;
+    let layout = |b: &crate::manifest::Board| BoardLayout {
+        inner_corners: b.inner_corners,
+        square_mm: b.square_mm,
+        id_dots: b.id_dots,
+    };
+    let calibration = match &manifest.camera {
+        crate::manifest::CameraSource::Calibrate { board, .. } => BoardLayout {
+            inner_corners: board.inner_corners,
+            square_mm: board.square_mm,
+            id_dots: 0,
+        },
+        // A file gives the intrinsics; the views are still rendered for inspection.
+        crate::manifest::CameraSource::IntrinsicsFile(_) => BoardLayout {
+            inner_corners: [9, 6],
+            square_mm: 30.0,
+            id_dots: 0,
+        },
+    };
+    let Phantom::Hemisphere {
+        centre_in_phantom_mm,
+        radius_mm,
+    } = &manifest.phantom
+    else {
+        return Err(SynthError::Unsupported {
+            what: "a hemisphere phantom",
+        });
+    };
+    Ok((
+        layout(probe_board),
+        layout(phantom_board),
+        calibration,
+        *centre_in_phantom_mm,
+        *radius_mm,
+    ))
+}
+
+/// The exact inputs of a dataset render.
+pub fn render_inputs(manifest: &Manifest, spec: &RenderSpec) -> Result<RenderInputs, SynthError> {
+    let (probe, phantom, calibration, centre, radius) = layouts(manifest)?;
+    let board = |b: &BoardLayout| {
+        [
+            b.inner_corners[0] as f64,
+            b.inner_corners[1] as f64,
+            b.square_mm * 1000.0 + b.id_dots as f64,
+        ]
+    };
+    Ok(RenderInputs {
+        generator_version: GENERATOR_VERSION,
+        spec: spec.clone(),
+        probe_board: board(&probe),
+        phantom_board: board(&phantom),
+        calibration_board: [calibration.inner_corners[0] as f64, calibration.inner_corners[1] as f64],
+        calibration_square_mm: calibration.square_mm,
+        sphere_centre_in_phantom_mm: centre,
+        sphere_radius_mm: radius,
+        spacing_mm_per_px: manifest.bscan_spacing_mm_per_px,
+    })
+}
+
+/// What a render did.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum RenderOutcome {
+    Rendered,
+    UpToDate,
+}
+
+/// Renders `spec` into `folder` unless the folder already holds exactly this render.
+pub fn ensure_rendered(manifest: &Manifest, spec: &RenderSpec, folder: &Path) -> Result<RenderOutcome, SynthError> {
+    let inputs = render_inputs(manifest, spec)?;
+    let inputs_json = serde_json::to_string_pretty(&inputs).map_err(|e| SynthError::Io {
+        path: folder.to_path_buf(),
+        message: e.to_string(),
+    })?;
+    let spec_file = folder.join("render_spec.json");
+    if std::fs::read_to_string(&spec_file).ok().as_deref() == Some(inputs_json.as_str())
+        && folder.join(FRAME_LIST).is_file()
+    {
+        return Ok(RenderOutcome::UpToDate);
+    }
+    let parent = folder.parent().map(Path::to_path_buf).unwrap_or_default();
+    std::fs::create_dir_all(&parent).map_err(io_err(&parent))?;
+    let name = folder
+        .file_name()
+        .map(|n| n.to_string_lossy().to_string())
+        .unwrap_or_default();
+    let partial = parent.join(format!(".{name}.partial"));
+    if partial.exists() {
+        std::fs::remove_dir_all(&partial).map_err(io_err(&partial))?;
+    }
+    render_into(manifest, spec, &partial)?;
+    std::fs::write(partial.join("render_spec.json"), &inputs_json).map_err(io_err(&partial))?;
+    if folder.exists() {
+        std::fs::remove_dir_all(folder).map_err(io_err(folder))?;
+    }
+    std::fs::rename(&partial, folder).map_err(io_err(folder))?;
+    Ok(RenderOutcome::Rendered)
+}
+
+#[derive(Serialize)]
+struct GroundTruthFrame {
+    frame: usize,
+    kind: FrameKind,
+    camera_T_marker_photo: [[f64; 4]; 4],
+    camera_T_marker_bscan: [[f64; 4]; 4],
+    elevation_offset_mm: f64,
+    centre_projection_px: [f64; 2],
+    bubbles: Vec<Bubble>,
+}
+
+#[derive(Serialize)]
+struct GroundTruthFile {
+    generator_version: u32,
+    seed: u64,
+    camera: CameraIntrinsics,
+    marker_T_image: [[f64; 4]; 4],
+    camera_T_phantom: [[f64; 4]; 4],
+    sphere_centre_in_phantom_mm: [f64; 3],
+    sphere_radius_mm: f64,
+    bscan_size_px: [usize; 2],
+    bscan_apex_mm: [f64; 2],
+    frames: Vec<GroundTruthFrame>,
+    camera_calibration_views: Vec<[[f64; 4]; 4]>,
+}
+
+fn render_into(manifest: &Manifest, spec: &RenderSpec, folder: &Path) -> Result<(), SynthError> {
+    let (probe, phantom, calibration, centre, radius) = layouts(manifest)?;
+    let scene = scene::build(&SceneInputs {
+        spec,
+        probe_board: probe,
+        phantom_board: phantom,
+        calibration_board: calibration,
+        sphere_centre_in_phantom_mm: centre,
+        sphere_radius_mm: radius,
+        spacing_mm_per_px: manifest.bscan_spacing_mm_per_px,
+    })?;
+    let frames_dir = folder.join("frames");
+    let calib_dir = folder.join("camera_calibration");
+    std::fs::create_dir_all(&frames_dir).map_err(io_err(&frames_dir))?;
+    std::fs::create_dir_all(&calib_dir).map_err(io_err(&calib_dir))?;
+    let rays = RayMap::new(&scene.camera);
+    let photometry = Photometry {
+        noise_grey_levels: spec.camera.noise_grey_levels,
+        blur_sigma_px: spec.camera.blur_sigma_px,
+        lighting_gradient: spec.camera.lighting_gradient,
+    };
+    let echo = EchoModel {
+        slice_thickness_mm: spec.bscan.slice_thickness_mm,
+        bubble_rate: spec.bscan.bubble_rate,
+    };
+
+    let calibration_results = parallel_map(
+        scene.camera_T_calibration_board.len(),
+        |view| -> Result<(), SynthError> {
+            let mut rng = Rng::fork(spec.seed, 1000 + view as u64);
+            let board = PlacedBoard {
+                camera_T_board: scene.camera_T_calibration_board[view],
+                layout: &scene.calibration_board,
+            };
+            let image = camera_render::render_photo(&scene.camera, &rays, &[board], photometry, &mut rng)?;
+            image.write_png(&calib_dir.join(format!("view_{view:03}.png")))?;
+            Ok(())
+        },
+    );
+    calibration_results.into_iter().collect::<Result<Vec<_>, _>>()?;
+
+    let camera_T_phantom = scene.camera_T_world * scene.world_T_phantom;
+    let frame_results = parallel_map(scene.frames.len(), |k| -> Result<GroundTruthFrame, SynthError> {
+        let plan = &scene.frames[k];
+        let mut rng = Rng::fork(spec.seed, 10_000 + k as u64);
+        let camera_T_marker_photo = scene.camera_T_world * plan.world_T_marker_photo;
+        let boards = [
+            PlacedBoard {
+                camera_T_board: camera_T_marker_photo,
+                layout: &scene.probe_board,
+            },
+            PlacedBoard {
+                camera_T_board: camera_T_phantom,
+                layout: &scene.phantom_board,
+            },
+        ];
+        let photo = camera_render::render_photo(&scene.camera, &rays, &boards, photometry, &mut rng)?;
+        photo.write_png(&frames_dir.join(format!("camera_{k:03}.png")))?;
+        let world_T_image: Rigid = plan.world_T_marker_bscan * scene.marker_T_image;
+        let bubbles = bscan_render::draw_bubbles(&scene, &world_T_image, plan.kind, echo, &mut rng);
+        let bscan = bscan_render::render_bscan(&scene, &world_T_image, &bubbles, echo, &mut rng)?;
+        bscan.write_png(&frames_dir.join(format!("bscan_{k:03}.png")))?;
+        Ok(GroundTruthFrame {
+            frame: k,
+            kind: plan.kind,
+            camera_T_marker_photo: to_rows(&camera_T_marker_photo),
+            camera_T_marker_bscan: to_rows(&(scene.camera_T_world * plan.world_T_marker_bscan)),
+            elevation_offset_mm: plan.elevation_offset_mm,
+            centre_projection_px: plan.centre_projection_px,
+            bubbles,
+        })
+    });
+    let truth_frames = frame_results.into_iter().collect::<Result<Vec<_>, _>>()?;
+
+    let mut list = String::from("frame,camera_image,bscan_image\n");
+    for k in 0..scene.frames.len() {
+        list.push_str(&format!("{k},frames/camera_{k:03}.png,frames/bscan_{k:03}.png\n"));
+    }
+    let list_path = folder.join(FRAME_LIST);
+    std::fs::write(&list_path, list).map_err(io_err(&list_path))?;
+
+    let centre_world = scene.world_T_phantom * Point3::from(nalgebra::Vector3::from(centre));
+    debug_assert!((centre_world - scene.sphere_centre_world).norm() < 1e-9);
+    let truth = GroundTruthFile {
+        generator_version: GENERATOR_VERSION,
+        seed: spec.seed,
+        camera: scene.camera.clone(),
+        marker_T_image: to_rows(&scene.marker_T_image),
+        camera_T_phantom: to_rows(&camera_T_phantom),
+        sphere_centre_in_phantom_mm: centre,
+        sphere_radius_mm: radius,
+        bscan_size_px: [scene.bscan.width_px, scene.bscan.height_px],
+        bscan_apex_mm: scene.bscan.apex_mm,
+        frames: truth_frames,
+        camera_calibration_views: scene.camera_T_calibration_board.iter().map(to_rows).collect(),
+    };
+    let truth_path = folder.join(crate::truth::GROUND_TRUTH_FILE);
+    let text = serde_json::to_string_pretty(&truth).map_err(|e| SynthError::Io {
+        path: truth_path.clone(),
+        message: e.to_string(),
+    })?;
+    std::fs::write(&truth_path, text).map_err(io_err(&truth_path))?;
+    Ok(())
+}
+
+/// Where a rendered dataset lives.
+pub fn dataset_folder(datasets_root: &Path, experiment: &str, dataset: &str) -> PathBuf {
+    datasets_root.join(format!("{experiment}__{dataset}"))
+}

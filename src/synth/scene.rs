@@ -1,0 +1,405 @@
+//! The simulated lab: where the camera, the boards, the tank and the probe are.
+//!
+//! World frame W (used only here and in the renderers): origin at the sphere
+//! centre, z up (towards the probe), x to the camera's right. The phantom board is
+//! fixed beside the tank facing the camera; the probe board is on the probe casing,
+//! parallel to the B-scan plane. The probe sweeps over the hemisphere with tilts
+//! about the image's X (lateral) and Y (beam) axes and a small rotation about Z.
+
+use nalgebra::{Matrix3, Point3, Rotation3, Translation3, UnitQuaternion, Vector3};
+
+use crate::board::BoardLayout;
+use crate::camera_model::CameraIntrinsics;
+use crate::geometry::Rigid;
+use crate::manifest::{RenderSpec, TrueTransform};
+use crate::rng::Rng;
+
+/// Why a frame is what it is (ground truth only).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum FrameKind {
+    /// Plane close to the sphere centre, photo and B-scan nearly simultaneous.
+    Normal,
+    /// Plane far from the centre: the arc is real but its centre is not the sphere's.
+    OffCentre,
+    /// The probe moved between the photo and the B-scan.
+    Jerk,
+    /// Air bubbles stuck on the dome add bright echoes at the arc.
+    DomeBubbles,
+    /// The plane misses the hemisphere: no arc.
+    Missing,
+}
+
+/// The probe's convex array and the B-scan raster.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BscanGeometry {
+    pub width_px: usize,
+    pub height_px: usize,
+    pub spacing_mm_per_px: [f64; 2],
+    /// Virtual apex of the fan in the image frame, mm.
+    pub apex_mm: [f64; 2],
+    pub convex_radius_mm: f64,
+    pub depth_mm: f64,
+    pub half_fan_rad: f64,
+}
+
+impl BscanGeometry {
+    pub fn new(spacing_mm_per_px: [f64; 2], depth_mm: f64, fan_deg: f64, convex_radius_mm: f64) -> Self {
+        let half_fan_rad = (fan_deg / 2.0).to_radians();
+        let width_mm = 2.0 * (convex_radius_mm + depth_mm) * half_fan_rad.sin();
+        BscanGeometry {
+            width_px: (width_mm / spacing_mm_per_px[0]).ceil() as usize + 1,
+            height_px: (depth_mm / spacing_mm_per_px[1]).ceil() as usize + 1,
+            spacing_mm_per_px,
+            apex_mm: [width_mm / 2.0, -convex_radius_mm],
+            convex_radius_mm,
+            depth_mm,
+            half_fan_rad,
+        }
+    }
+
+    pub fn width_mm(&self) -> f64 {
+        2.0 * self.apex_mm[0]
+    }
+
+    /// Polar coordinates (radius from the apex, angle from the central beam) of an image point, mm.
+    pub fn polar(&self, u_mm: f64, v_mm: f64) -> (f64, f64) {
+        let dx = u_mm - self.apex_mm[0];
+        let dy = v_mm - self.apex_mm[1];
+        ((dx * dx + dy * dy).sqrt(), dx.atan2(dy))
+    }
+
+    pub fn inside_fan(&self, u_mm: f64, v_mm: f64) -> bool {
+        let (r, angle) = self.polar(u_mm, v_mm);
+        angle.abs() <= self.half_fan_rad && r >= self.convex_radius_mm && r <= self.convex_radius_mm + self.depth_mm
+    }
+}
+
+/// Tank walls and floor, world frame (mm).
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct Tank {
+    pub floor_z_mm: f64,
+    pub wall_x_mm: f64,
+    pub wall_y_mm: f64,
+}
+
+/// One rendered frame's true geometry.
+#[derive(Debug, Clone)]
+pub struct FramePlan {
+    pub kind: FrameKind,
+    /// Probe marker pose when the photo was taken.
+    pub world_T_marker_photo: Rigid,
+    /// Probe marker pose when the B-scan was taken.
+    pub world_T_marker_bscan: Rigid,
+    /// Signed distance from the B-scan plane to the sphere centre, mm.
+    pub elevation_offset_mm: f64,
+    /// Pixel of the sphere centre's projection onto the B-scan plane.
+    pub centre_projection_px: [f64; 2],
+}
+
+/// The whole simulated setup of one dataset.
+#[derive(Debug, Clone)]
+pub struct Scene {
+    pub camera: CameraIntrinsics,
+    pub camera_T_world: Rigid,
+    pub world_T_phantom: Rigid,
+    pub marker_T_image: Rigid,
+    pub sphere_centre_world: Point3<f64>,
+    pub sphere_radius_mm: f64,
+    pub tank: Tank,
+    pub probe_board: BoardLayout,
+    pub phantom_board: BoardLayout,
+    pub bscan: BscanGeometry,
+    pub frames: Vec<FramePlan>,
+    /// Poses of the camera-calibration board, one per view.
+    pub calibration_board: BoardLayout,
+    pub camera_T_calibration_board: Vec<Rigid>,
+}
+
+fn rotation_from_columns(x: Vector3<f64>, y: Vector3<f64>, z: Vector3<f64>) -> UnitQuaternion<f64> {
+    UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(Matrix3::from_columns(&[x, y, z])))
+}
+
+fn euler_deg(rx: f64, ry: f64, rz: f64) -> UnitQuaternion<f64> {
+    UnitQuaternion::from_euler_angles(rx.to_radians(), ry.to_radians(), rz.to_radians())
+}
+
+/// The true calibration of a transform given in a manifest.
+pub fn true_transform(t: &TrueTransform) -> Rigid {
+    let [rx, ry, rz] = t.rotation_deg;
+    Rigid::from_parts(
+        Translation3::from(Vector3::from(t.translation_mm)),
+        euler_deg(rx, ry, rz),
+    )
+}
+
+/// The probe casing's nominal mount: board centred over the array, parallel to the
+/// B-scan plane 25 mm in front of it, its last row of corners 45 mm above the array.
+pub fn nominal_marker_T_image(board: &BoardLayout, bscan: &BscanGeometry) -> Rigid {
+    let s = board.square_mm;
+    let x = (board.inner_corners[0] as f64 - 1.0) * s / 2.0 - bscan.width_mm() / 2.0;
+    let y = (board.inner_corners[1] as f64 - 1.0) * s + 45.0;
+    Rigid::from_parts(Translation3::new(x, y, 25.0), euler_deg(1.5, -2.0, 1.0))
+}
+
+/// A small random rigid motion.
+fn jitter(rng: &mut Rng, sigma_mm: f64, sigma_deg: f64) -> Rigid {
+    let axis_angle =
+        Vector3::new(rng.normal(0.0, 1.0), rng.normal(0.0, 1.0), rng.normal(0.0, 1.0)) * sigma_deg.to_radians();
+    let shift = Vector3::new(rng.normal(0.0, 1.0), rng.normal(0.0, 1.0), rng.normal(0.0, 1.0)) * sigma_mm;
+    Rigid::new(shift, axis_angle)
+}
+
+/// Pixels of a board's paper corners, if the whole board is in view and faces the camera.
+pub fn board_in_view(
+    camera: &CameraIntrinsics,
+    camera_T_board: &Rigid,
+    board: &BoardLayout,
+    margin_px: f64,
+) -> Option<[f64; 4]> {
+    let facing = (camera_T_board.rotation * Vector3::z()).dot(&camera_T_board.translation.vector.normalize());
+    if facing < 0.35 {
+        return None; // seen at more than ~70° or from behind
+    }
+    let [x0, y0, x1, y1] = board.paper_bounds_mm();
+    let [w, h] = [camera.image_size_px[0] as f64, camera.image_size_px[1] as f64];
+    let mut bbox = [f64::MAX, f64::MAX, f64::MIN, f64::MIN];
+    for (x, y) in [(x0, y0), (x1, y0), (x0, y1), (x1, y1)] {
+        let p = camera.project(&(camera_T_board * Point3::new(x, y, 0.0)))?;
+        if p[0] < margin_px || p[1] < margin_px || p[0] > w - margin_px || p[1] > h - margin_px {
+            return None;
+        }
+        bbox = [
+            bbox[0].min(p[0]),
+            bbox[1].min(p[1]),
+            bbox[2].max(p[0]),
+            bbox[3].max(p[1]),
+        ];
+    }
+    Some(bbox)
+}
+
+fn boxes_apart(a: [f64; 4], b: [f64; 4], gap: f64) -> bool {
+    a[2] + gap < b[0] || b[2] + gap < a[0] || a[3] + gap < b[1] || b[3] + gap < a[1]
+}
+
+/// Inputs of the scene besides the render spec.
+pub struct SceneInputs<'a> {
+    pub spec: &'a RenderSpec,
+    pub probe_board: BoardLayout,
+    pub phantom_board: BoardLayout,
+    pub calibration_board: BoardLayout,
+    pub sphere_centre_in_phantom_mm: [f64; 3],
+    pub sphere_radius_mm: f64,
+    pub spacing_mm_per_px: [f64; 2],
+}
+
+/// Why a scene could not be laid out.
+#[derive(Debug, thiserror::Error)]
+pub enum SceneError {
+    #[error("could not place frame {frame} with both boards fully in view after {tries} tries: the boards are too large for this camera and distance")]
+    FrameDoesNotFit { frame: usize, tries: usize },
+    #[error("could not place calibration view {view} in the image after {tries} tries")]
+    CalibrationViewDoesNotFit { view: usize, tries: usize },
+}
+
+/// Where the camera and the phantom board stand in the world frame: the camera in
+/// front of the tank and above it, looking down at the scene; the phantom board
+/// beside the tank, turned 15° away from facing the camera squarely.
+pub fn lab_layout(board_distance_mm: [f64; 2], phantom_board: &BoardLayout) -> (Rigid, Rigid) {
+    let [near, far] = board_distance_mm;
+    let target = Vector3::new(-80.0, -40.0, 70.0);
+    let view_dir = Vector3::new(0.0, 520.0, -260.0).normalize();
+    let camera_position = target - view_dir * ((near + far) / 2.0 + 40.0);
+    let z_c = view_dir;
+    let x_c = z_c.cross(&Vector3::z()).normalize();
+    let y_c = z_c.cross(&x_c);
+    let world_T_camera = Rigid::from_parts(
+        Translation3::from(camera_position),
+        rotation_from_columns(x_c, y_c, z_c),
+    );
+
+    let pb = phantom_board;
+    let board_centre_world = Vector3::new(-175.0, -80.0, 0.0);
+    let to_camera = (camera_position - board_centre_world).normalize();
+    let n = UnitQuaternion::from_axis_angle(&Vector3::z_axis(), 15f64.to_radians()) * to_camera;
+    let z_p = -n;
+    let down = -Vector3::z();
+    let y_p = (down - z_p * down.dot(&z_p)).normalize();
+    let x_p = y_p.cross(&z_p);
+    let r_wp = rotation_from_columns(x_p, y_p, z_p);
+    let centre_in_board = Vector3::new(
+        (pb.inner_corners[0] as f64 - 1.0) * pb.square_mm / 2.0,
+        (pb.inner_corners[1] as f64 - 1.0) * pb.square_mm / 2.0,
+        0.0,
+    );
+    let world_T_phantom = Rigid::from_parts(Translation3::from(board_centre_world - r_wp * centre_in_board), r_wp);
+    (world_T_camera, world_T_phantom)
+}
+
+pub fn build(inputs: &SceneInputs<'_>) -> Result<Scene, SceneError> {
+    let spec = inputs.spec;
+    let cam = &spec.camera;
+    let [w, h] = cam.image_size_px;
+    let camera = CameraIntrinsics {
+        image_size_px: [w, h],
+        camera_matrix: [
+            [cam.focal_px, 0.0, (w as f64 - 1.0) / 2.0 + cam.principal_offset_px[0]],
+            [0.0, cam.focal_px, (h as f64 - 1.0) / 2.0 + cam.principal_offset_px[1]],
+            [0.0, 0.0, 1.0],
+        ],
+        distortion: cam.distortion,
+        rms_px: None,
+        per_view_rms_px: Vec::new(),
+    };
+    let bscan = BscanGeometry::new(
+        inputs.spacing_mm_per_px,
+        spec.bscan.depth_mm,
+        spec.bscan.fan_deg,
+        spec.bscan.convex_radius_mm,
+    );
+
+    let (world_T_camera, world_T_phantom) = lab_layout(spec.board_distance_mm, &inputs.phantom_board);
+    let camera_T_world = world_T_camera.inverse();
+    let [near, far] = spec.board_distance_mm;
+    let sphere_centre_world = world_T_phantom * Point3::from(Vector3::from(inputs.sphere_centre_in_phantom_mm));
+    let c = sphere_centre_world.coords;
+    let radius = inputs.sphere_radius_mm;
+    let tank = Tank {
+        floor_z_mm: c.z - 30.0,
+        wall_x_mm: 75.0,
+        wall_y_mm: 60.0,
+    };
+
+    let marker_T_image = match &spec.marker_T_image {
+        Some(t) => true_transform(t),
+        None => nominal_marker_T_image(&inputs.probe_board, &bscan),
+    };
+    let image_T_marker = marker_T_image.inverse();
+    let camera_T_phantom = camera_T_world * world_T_phantom;
+    let phantom_box = board_in_view(&camera, &camera_T_phantom, &inputs.phantom_board, 12.0);
+
+    let mut rng = Rng::fork(spec.seed, 1);
+    let r_nominal = rotation_from_columns(Vector3::x(), -Vector3::z(), Vector3::y());
+    let sweep = &spec.sweep;
+    let mut frames = Vec::with_capacity(spec.frames);
+    for frame in 0..spec.frames {
+        let kind = if rng.chance(spec.bscan.missing_rate) {
+            FrameKind::Missing
+        } else if rng.chance(spec.bscan.outlier_rate) {
+            [FrameKind::OffCentre, FrameKind::Jerk, FrameKind::DomeBubbles][rng.below(3)]
+        } else {
+            FrameKind::Normal
+        };
+        let tries = 400;
+        let mut placed = None;
+        for _ in 0..tries {
+            let u_c = bscan.width_mm() / 2.0 + rng.uniform(-30.0, 30.0);
+            let v_c = rng.uniform(35.0, 90.0);
+            let (r_polar, angle) = bscan.polar(u_c, v_c);
+            if angle.abs() > bscan.half_fan_rad - 10f64.to_radians()
+                || r_polar + radius > bscan.convex_radius_mm + bscan.depth_mm
+            {
+                continue;
+            }
+            let sign = if rng.chance(0.5) { 1.0 } else { -1.0 };
+            let elevation = match kind {
+                FrameKind::OffCentre => sign * rng.uniform(7.0, 11.0),
+                FrameKind::Missing => sign * rng.uniform(radius + 1.5, radius + 6.0),
+                _ => rng.normal(0.0, sweep.elevation_offset_sd_mm),
+            };
+            let rotation = r_nominal
+                * UnitQuaternion::from_axis_angle(
+                    &Vector3::x_axis(),
+                    rng.uniform(-sweep.tilt_x_deg, sweep.tilt_x_deg).to_radians(),
+                )
+                * UnitQuaternion::from_axis_angle(
+                    &Vector3::y_axis(),
+                    rng.uniform(-sweep.tilt_y_deg, sweep.tilt_y_deg).to_radians(),
+                )
+                * UnitQuaternion::from_axis_angle(
+                    &Vector3::z_axis(),
+                    rng.uniform(-sweep.rotation_z_deg, sweep.rotation_z_deg).to_radians(),
+                );
+            let centre_in_image = Vector3::new(u_c, v_c, elevation);
+            let world_T_image = Rigid::from_parts(Translation3::from(c - rotation * centre_in_image), rotation);
+            let world_T_marker_bscan = world_T_image * image_T_marker;
+            let (tremor_mm, tremor_deg) = if kind == FrameKind::Jerk {
+                (rng.uniform(2.0, 4.0) / 1.7, rng.uniform(1.0, 2.0) / 1.7)
+            } else {
+                (sweep.tremor_mm, sweep.tremor_deg)
+            };
+            let world_T_marker_photo = world_T_marker_bscan * jitter(&mut rng, tremor_mm, tremor_deg);
+            let camera_T_marker = camera_T_world * world_T_marker_photo;
+            let Some(probe_box) = board_in_view(&camera, &camera_T_marker, &inputs.probe_board, 12.0) else {
+                continue;
+            };
+            let Some(phantom_box) = phantom_box else { continue };
+            if !boxes_apart(probe_box, phantom_box, 15.0) {
+                continue;
+            }
+            let distance = camera_T_marker.translation.vector.norm();
+            if distance < near || distance > far + 150.0 {
+                continue;
+            }
+            placed = Some(FramePlan {
+                kind,
+                world_T_marker_photo,
+                world_T_marker_bscan,
+                elevation_offset_mm: elevation,
+                centre_projection_px: [u_c / bscan.spacing_mm_per_px[0], v_c / bscan.spacing_mm_per_px[1]],
+            });
+            break;
+        }
+        frames.push(placed.ok_or(SceneError::FrameDoesNotFit { frame, tries })?);
+    }
+
+    // Camera-calibration views: a plain board over the whole field of view.
+    let mut calib_rng = Rng::fork(spec.seed, 2);
+    let cb = inputs.calibration_board;
+    let cb_centre = Vector3::new(
+        (cb.inner_corners[0] as f64 - 1.0) * cb.square_mm / 2.0,
+        (cb.inner_corners[1] as f64 - 1.0) * cb.square_mm / 2.0,
+        0.0,
+    );
+    let mut camera_T_calibration_board = Vec::new();
+    for view in 0..spec.calibration_views {
+        let tries = 2000;
+        let mut placed = None;
+        for _ in 0..tries {
+            let depth = calib_rng.uniform(near, far + 100.0);
+            let (fx, fy) = (camera.fx(), camera.fy());
+            // Aim the board centre anywhere in the central 70% of the image.
+            let px = calib_rng.uniform(0.15, 0.85) * w as f64;
+            let py = calib_rng.uniform(0.15, 0.85) * h as f64;
+            let centre = Vector3::new((px - camera.cx()) / fx * depth, (py - camera.cy()) / fy * depth, depth);
+            let rotation = euler_deg(
+                calib_rng.uniform(-35.0, 35.0),
+                calib_rng.uniform(-35.0, 35.0),
+                calib_rng.uniform(-20.0, 20.0),
+            );
+            let pose = Rigid::from_parts(Translation3::from(centre - rotation * cb_centre), rotation);
+            if board_in_view(&camera, &pose, &cb, 15.0).is_some() {
+                placed = Some(pose);
+                break;
+            }
+        }
+        camera_T_calibration_board.push(placed.ok_or(SceneError::CalibrationViewDoesNotFit { view, tries })?);
+    }
+
+    Ok(Scene {
+        camera,
+        camera_T_world,
+        world_T_phantom,
+        marker_T_image,
+        sphere_centre_world,
+        sphere_radius_mm: radius,
+        tank,
+        probe_board: inputs.probe_board,
+        phantom_board: inputs.phantom_board,
+        bscan,
+        frames,
+        calibration_board: cb,
+        camera_T_calibration_board,
+    })
+}
