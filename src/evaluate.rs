@@ -1,0 +1,290 @@
+//! Stage 5: the calibration from point pairs, and how good it is.
+//!
+//! - Pairs: a frame's feature pixel `(u, v)` gives `points_in_image = (sx u, sy v, 0)`;
+//!   the phantom feature `p` gives `points_in_marker = marker_T_camera · camera_T_phantom · p`.
+//!   Horn's closed form on these pairs is `marker_T_image`.
+//! - BRE (back-projection residual error): per frame and axis of the phantom frame,
+//!   `|p - phantom_T_camera · camera_T_marker · marker_T_image · points_in_image|`, mm.
+//! - The thesis's threshold table: BRE of all frames under the all-frames
+//!   calibration decides which frames stay below each cut-off; the calibration is
+//!   solved again on those frames and their statistics reported.
+//! - Against ground truth (rendered data): the image's four corners and centre
+//!   mapped by the estimated and the true `marker_T_image`; their distances.
+
+use nalgebra::{Point3, Vector3};
+use polars::prelude::*;
+use serde::Serialize;
+
+use crate::geometry::{pixel_to_image_mm, rotation_angle_between_deg, Rigid};
+use crate::horn::{self, HornError, HornFit, Variant};
+use crate::manifest::CutoffRule;
+
+/// One usable frame's measurements.
+#[derive(Debug, Clone)]
+pub struct Correspondence {
+    pub frame: usize,
+    pub feature_px: [f64; 2],
+    pub camera_T_marker: Rigid,
+    pub camera_T_phantom: Rigid,
+}
+
+impl Correspondence {
+    pub fn point_in_marker(&self, feature_in_phantom: &Point3<f64>) -> Point3<f64> {
+        self.camera_T_marker.inverse() * (self.camera_T_phantom * feature_in_phantom)
+    }
+
+    /// The feature pixel back-projected into the phantom frame.
+    pub fn reconstruct_in_phantom(&self, marker_T_image: &Rigid, spacing: [f64; 2]) -> Point3<f64> {
+        let in_image = pixel_to_image_mm(self.feature_px, spacing);
+        self.camera_T_phantom.inverse() * (self.camera_T_marker * (marker_T_image * in_image))
+    }
+}
+
+/// Solves `marker_T_image` from frames (Horn, rigid).
+pub fn solve(
+    frames: &[Correspondence],
+    feature_in_phantom: &Point3<f64>,
+    spacing: [f64; 2],
+) -> Result<HornFit, HornError> {
+    let points_in_image: Vec<Point3<f64>> = frames
+        .iter()
+        .map(|f| pixel_to_image_mm(f.feature_px, spacing))
+        .collect();
+    let points_in_marker: Vec<Point3<f64>> = frames.iter().map(|f| f.point_in_marker(feature_in_phantom)).collect();
+    horn::solve(&points_in_image, &points_in_marker, Variant::Rigid)
+}
+
+/// Per-axis BRE of one frame, mm: `[|dx|, |dy|, |dz|]` and the 3D distance.
+pub fn bre(
+    frame: &Correspondence,
+    marker_T_image: &Rigid,
+    feature_in_phantom: &Point3<f64>,
+    spacing: [f64; 2],
+) -> ([f64; 3], f64) {
+    let d: Vector3<f64> = frame.reconstruct_in_phantom(marker_T_image, spacing) - feature_in_phantom;
+    ([d.x.abs(), d.y.abs(), d.z.abs()], d.norm())
+}
+
+/// Std (n − 1), mean, min, max of one axis, mm.
+#[derive(Debug, Clone, Copy, Serialize, PartialEq)]
+pub struct AxisStats {
+    pub std: f64,
+    pub mean: f64,
+    pub min: f64,
+    pub max: f64,
+}
+
+/// Reads one statistic of an axis.
+pub type StatGetter = fn(&AxisStats) -> f64;
+
+/// The thesis's rows, in its order.
+pub const STAT_ROWS: [(&str, StatGetter); 4] = [
+    ("Std.", |a| a.std),
+    ("Mean", |a| a.mean),
+    ("Min", |a| a.min),
+    ("Max", |a| a.max),
+];
+
+/// BRE statistics along x, y, z of the phantom frame.
+#[derive(Debug, Clone, Copy, Serialize, PartialEq)]
+pub struct BreStats {
+    pub x: AxisStats,
+    pub y: AxisStats,
+    pub z: AxisStats,
+}
+
+impl BreStats {
+    pub fn axes(&self) -> [AxisStats; 3] {
+        [self.x, self.y, self.z]
+    }
+    /// The largest of the three axis means.
+    pub fn max_mean(&self) -> f64 {
+        self.x.mean.max(self.y.mean).max(self.z.mean)
+    }
+}
+
+fn axis_stats(column: &Column) -> PolarsResult<AxisStats> {
+    let s = column.as_materialized_series();
+    Ok(AxisStats {
+        std: s.std(1).unwrap_or(f64::NAN),
+        mean: s.mean().unwrap_or(f64::NAN),
+        min: s.min::<f64>()?.unwrap_or(f64::NAN),
+        max: s.max::<f64>()?.unwrap_or(f64::NAN),
+    })
+}
+
+/// Statistics of per-frame BRE values (columns `x`, `y`, `z`) with polars.
+pub fn bre_stats(values: &[[f64; 3]]) -> PolarsResult<BreStats> {
+    let column = |i: usize, name: &str| Column::new(name.into(), values.iter().map(|v| v[i]).collect::<Vec<f64>>());
+    let df = DataFrame::new(values.len(), vec![column(0, "x"), column(1, "y"), column(2, "z")])?;
+    Ok(BreStats {
+        x: axis_stats(df.column("x")?)?,
+        y: axis_stats(df.column("y")?)?,
+        z: axis_stats(df.column("z")?)?,
+    })
+}
+
+/// Error of an estimate against the truth.
+#[derive(Debug, Clone, Copy, Serialize, PartialEq)]
+pub struct TruthComparison {
+    /// Over the image's four corners and its centre.
+    pub corner_error_mean_mm: f64,
+    pub corner_error_max_mm: f64,
+    pub rotation_error_deg: f64,
+    pub translation_error_mm: f64,
+}
+
+pub fn compare_with_truth(
+    estimate: &Rigid,
+    truth: &Rigid,
+    image_size_px: [usize; 2],
+    spacing: [f64; 2],
+) -> TruthComparison {
+    let (w, h) = ((image_size_px[0] - 1) as f64, (image_size_px[1] - 1) as f64);
+    let probes = [[0.0, 0.0], [w, 0.0], [0.0, h], [w, h], [w / 2.0, h / 2.0]];
+    let distances: Vec<f64> = probes
+        .iter()
+        .map(|p| {
+            let x = pixel_to_image_mm(*p, spacing);
+            (estimate * x - truth * x).norm()
+        })
+        .collect();
+    TruthComparison {
+        corner_error_mean_mm: distances.iter().sum::<f64>() / distances.len() as f64,
+        corner_error_max_mm: distances.iter().cloned().fold(0.0, f64::max),
+        rotation_error_deg: rotation_angle_between_deg(estimate, truth),
+        translation_error_mm: (estimate.translation.vector - truth.translation.vector).norm(),
+    }
+}
+
+/// One row of the threshold table.
+#[derive(Debug, Clone, Serialize)]
+pub struct ThresholdRow {
+    /// `inf` for all frames.
+    pub cutoff_mm: f64,
+    /// Frames whose all-frames BRE is below the cut-off.
+    pub frames: Vec<usize>,
+    /// The calibration solved again on those frames, or why it could not be.
+    #[serde(skip)]
+    pub fit: Result<HornFit, HornError>,
+    pub stats: Option<BreStats>,
+    pub truth: Option<TruthComparison>,
+}
+
+fn passes(bre_axes: &[f64; 3], norm: f64, cutoff: f64, rule: CutoffRule) -> bool {
+    match rule {
+        CutoffRule::MaxAxis => bre_axes.iter().cloned().fold(0.0, f64::max) < cutoff,
+        CutoffRule::Norm => norm < cutoff,
+    }
+}
+
+/// What the evaluation needs besides the frames.
+pub struct EvaluationInputs<'a> {
+    pub feature_in_phantom: Point3<f64>,
+    pub spacing: [f64; 2],
+    pub cutoffs_mm: &'a [f64],
+    pub rule: CutoffRule,
+    pub min_frames: usize,
+    pub truth: Option<(Rigid, [usize; 2])>,
+}
+
+/// All-frames BRE (per frame, from the all-frames calibration) and the threshold table.
+pub fn threshold_table(
+    frames: &[Correspondence],
+    inputs: &EvaluationInputs<'_>,
+    all_frames_fit: &HornFit,
+) -> PolarsResult<Vec<ThresholdRow>> {
+    let all_bre: Vec<([f64; 3], f64)> = frames
+        .iter()
+        .map(|f| {
+            bre(
+                f,
+                &all_frames_fit.target_T_source,
+                &inputs.feature_in_phantom,
+                inputs.spacing,
+            )
+        })
+        .collect();
+    let mut rows = Vec::new();
+    for &cutoff in inputs.cutoffs_mm {
+        let kept: Vec<Correspondence> = frames
+            .iter()
+            .zip(&all_bre)
+            .filter(|(_, (axes, norm))| passes(axes, *norm, cutoff, inputs.rule))
+            .map(|(f, _)| f.clone())
+            .collect();
+        let fit = if kept.len() < inputs.min_frames {
+            Err(HornError::TooFewPairs(kept.len()))
+        } else {
+            solve(&kept, &inputs.feature_in_phantom, inputs.spacing)
+        };
+        let (stats, truth) = match &fit {
+            Ok(fit) => {
+                let values: Vec<[f64; 3]> = kept
+                    .iter()
+                    .map(|f| bre(f, &fit.target_T_source, &inputs.feature_in_phantom, inputs.spacing).0)
+                    .collect();
+                let truth = inputs
+                    .truth
+                    .map(|(t, size)| compare_with_truth(&fit.target_T_source, &t, size, inputs.spacing));
+                (Some(bre_stats(&values)?), truth)
+            }
+            Err(_) => (None, None),
+        };
+        rows.push(ThresholdRow {
+            cutoff_mm: cutoff,
+            frames: kept.iter().map(|f| f.frame).collect(),
+            fit,
+            stats,
+            truth,
+        });
+    }
+    Ok(rows)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::rigid_from_axis_angle;
+
+    #[test]
+    fn stats_match_hand_computation() {
+        let s = bre_stats(&[[1.0, 0.0, 2.0], [3.0, 0.0, 2.0], [5.0, 3.0, 2.0]]).unwrap();
+        assert_eq!(s.x.mean, 3.0);
+        assert_eq!(s.x.std, 2.0); // sample std (n - 1)
+        assert_eq!((s.y.min, s.y.max), (0.0, 3.0));
+        assert_eq!(s.z.std, 0.0);
+    }
+
+    #[test]
+    fn exact_frames_give_zero_bre_and_exact_calibration() {
+        let marker_T_image = rigid_from_axis_angle(Vector3::new(0.02, -0.03, 0.01), Vector3::new(-20.0, 160.0, 25.0));
+        let camera_T_phantom = rigid_from_axis_angle(Vector3::new(2.0, 0.1, 0.2), Vector3::new(-100.0, 80.0, 500.0));
+        let feature = Point3::new(60.0, 45.0, -40.0);
+        let spacing = [0.2, 0.2];
+        let frames: Vec<Correspondence> = (0..8)
+            .map(|k| {
+                let px = [300.0 + 40.0 * (k % 3) as f64, 250.0 + 30.0 * (k / 3) as f64];
+                // Build a marker pose that puts this pixel exactly on the feature.
+                let rot = rigid_from_axis_angle(Vector3::new(0.1 * k as f64, -0.05 * k as f64, 0.02), Vector3::zeros());
+                let in_image = pixel_to_image_mm(px, spacing);
+                let phantom_T_image_rot = rot.rotation;
+                let t = feature.coords - phantom_T_image_rot * in_image.coords;
+                let phantom_T_image = Rigid::from_parts(t.into(), phantom_T_image_rot);
+                let camera_T_marker = camera_T_phantom * phantom_T_image * marker_T_image.inverse();
+                Correspondence {
+                    frame: k,
+                    feature_px: px,
+                    camera_T_marker,
+                    camera_T_phantom,
+                }
+            })
+            .collect();
+        let fit = solve(&frames, &feature, spacing).unwrap();
+        let cmp = compare_with_truth(&fit.target_T_source, &marker_T_image, [800, 600], spacing);
+        assert!(cmp.corner_error_max_mm < 1e-8, "{cmp:?}");
+        for f in &frames {
+            assert!(bre(f, &fit.target_T_source, &feature, spacing).1 < 1e-8);
+        }
+    }
+}

@@ -1,0 +1,329 @@
+//! The `probecal` command line.
+
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+
+use probecal::manifest::Manifest;
+use probecal::output::{bre_table_text, cutoff_label, threshold_table_text, write_atomic, write_dataset_run};
+use probecal::report::{render_index, IndexEntry};
+
+#[derive(Parser)]
+#[command(
+    name = "probecal",
+    version,
+    about = "Freehand ultrasound probe calibration from camera images and B-scans"
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Run experiments end to end: render or read each dataset, calibrate, evaluate, report.
+    Run {
+        /// Experiment manifests (YAML).
+        #[arg(required = true)]
+        manifests: Vec<PathBuf>,
+        /// Output folder; each experiment and dataset gets a subfolder, plus index.html.
+        /// Default: a new numbered folder under runs/.
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Where rendered datasets are cached.
+        #[arg(long, default_value = "datasets")]
+        datasets: PathBuf,
+        /// Replace an experiment's earlier output in --out.
+        #[arg(long)]
+        force: bool,
+        /// Print only errors and gate failures.
+        #[arg(long)]
+        quiet: bool,
+    },
+    /// Check manifests without running anything.
+    Validate {
+        #[arg(required = true)]
+        manifests: Vec<PathBuf>,
+    },
+    /// Render the datasets of experiments (camera images, B-scans, ground truth) only.
+    Synth {
+        #[arg(required = true)]
+        manifests: Vec<PathBuf>,
+        #[arg(long, default_value = "datasets")]
+        datasets: PathBuf,
+    },
+    /// Calibrate a camera from chessboard images; writes OpenCV FileStorage YAML.
+    CalibrateCamera {
+        /// Image files and/or folders of images.
+        #[arg(required = true)]
+        images: Vec<PathBuf>,
+        /// Inner corners, COLSxROWS (e.g. 9x6).
+        #[arg(long, value_parser = parse_board)]
+        board: [u32; 2],
+        /// Square size in millimetres (or any unit: the translations come out in it).
+        #[arg(long)]
+        square_mm: f64,
+        /// Output file.
+        #[arg(long)]
+        out: PathBuf,
+    },
+}
+
+fn parse_board(text: &str) -> Result<[u32; 2], String> {
+    let (c, r) = text
+        .split_once(['x', 'X'])
+        .ok_or_else(|| format!("`{text}` is not COLSxROWS (e.g. 9x6)"))?;
+    let parse = |s: &str| {
+        s.trim()
+            .parse::<u32>()
+            .map_err(|_| format!("`{text}` is not COLSxROWS (e.g. 9x6)"))
+    };
+    let (c, r) = (parse(c)?, parse(r)?);
+    if c < 2 || r < 2 {
+        return Err(format!("a board needs at least 2x2 inner corners, got {c}x{r}"));
+    }
+    Ok([c, r])
+}
+
+fn load_all(paths: &[PathBuf]) -> Result<Vec<Manifest>, String> {
+    let mut manifests = Vec::new();
+    let mut errors = Vec::new();
+    for p in paths {
+        match Manifest::load(p) {
+            Ok(m) => manifests.push(m),
+            Err(e) => errors.push(e.to_string()),
+        }
+    }
+    if errors.is_empty() {
+        Ok(manifests)
+    } else {
+        Err(errors.join("\n"))
+    }
+}
+
+fn next_run_folder() -> PathBuf {
+    (1..)
+        .map(|i| Path::new("runs").join(format!("run-{i:03}")))
+        .find(|p| !p.exists())
+        .unwrap_or_else(|| PathBuf::from("runs/run"))
+}
+
+fn run(manifests: Vec<PathBuf>, out: Option<PathBuf>, datasets: PathBuf, force: bool, quiet: bool) -> ExitCode {
+    let manifests = match load_all(&manifests) {
+        Ok(m) => m,
+        Err(e) => {
+            eprintln!("error: {e}");
+            return ExitCode::from(2);
+        }
+    };
+    let out = out.unwrap_or_else(next_run_folder);
+    for m in &manifests {
+        let folder = out.join(&m.experiment);
+        if folder.exists() && !force {
+            eprintln!(
+                "error: {} exists already; pass --force to replace it, or choose another --out",
+                folder.display()
+            );
+            return ExitCode::from(2);
+        }
+    }
+    let mut log = |line: &str| {
+        if !quiet {
+            eprintln!("{line}");
+        }
+    };
+    let mut entries = Vec::new();
+    let mut failed = false;
+    let mut gates_failed = false;
+    for m in &manifests {
+        let folder = out.join(&m.experiment);
+        if folder.exists() {
+            if let Err(e) = std::fs::remove_dir_all(&folder) {
+                eprintln!("error: cannot replace {}: {e}", folder.display());
+                return ExitCode::FAILURE;
+            }
+        }
+        if let Err(e) = write_atomic(&folder.join("manifest.yaml"), m.text.as_bytes()) {
+            eprintln!("error: {e}");
+            return ExitCode::FAILURE;
+        }
+        for d in &m.datasets {
+            log(&format!("== {} / {}", m.experiment, d.name));
+            let run = match probecal::run::run_dataset(m, d, &datasets, &mut log) {
+                Ok(r) => r,
+                Err(e) => {
+                    eprintln!("error: {}: {e}", m.path.display());
+                    failed = true;
+                    continue;
+                }
+            };
+            let run_folder = folder.join(&d.name);
+            if let Err(e) = write_dataset_run(&run, m, &run_folder) {
+                eprintln!("error: {e}");
+                failed = true;
+                continue;
+            }
+            let primary = &run.thresholds[run.primary];
+            if !quiet {
+                for (stage, seconds) in &run.timings_s {
+                    eprintln!("  {stage}: {seconds:.1} s");
+                }
+                println!(
+                    "\n{} / {}: {} of {} frames used; calibration at cut-off {} mm from {} frames",
+                    m.experiment,
+                    d.name,
+                    run.used_frames(),
+                    run.frames.len(),
+                    cutoff_label(primary.cutoff_mm),
+                    primary.frames.len()
+                );
+                if let Some(stats) = &primary.stats {
+                    println!("BRE along axes (mm)\n{}", bre_table_text(stats));
+                }
+                println!(
+                    "BRE after removing frames above each cut-off (mm, frames)\n{}",
+                    threshold_table_text(&run)
+                );
+                if let Some(t) = &run.truth {
+                    println!(
+                        "ground truth: image corners {:.3} mm mean, {:.3} mm max; rotation {:.3}°; translation {:.3} mm",
+                        t.calibration.corner_error_mean_mm, t.calibration.corner_error_max_mm, t.calibration.rotation_error_deg, t.calibration.translation_error_mm
+                    );
+                }
+                println!("written to {}", run_folder.display());
+            }
+            for g in &run.gates {
+                if !g.passed {
+                    gates_failed = true;
+                    eprintln!(
+                        "GATE FAILED: {} / {}: {} = {} exceeds {}",
+                        m.experiment,
+                        d.name,
+                        g.name,
+                        g.value.map(|v| format!("{v:.3}")).unwrap_or_else(|| "missing".into()),
+                        g.limit
+                    );
+                }
+            }
+            let stats = primary.stats.as_ref();
+            entries.push(IndexEntry {
+                experiment: m.experiment.clone(),
+                dataset: d.name.clone(),
+                link: format!("{}/{}/report.html", m.experiment, d.name),
+                frames: format!("{} / {}", run.used_frames(), run.frames.len()),
+                bre_mean: stats
+                    .map(|s| format!("{:.3}", s.max_mean()))
+                    .unwrap_or_else(|| "—".into()),
+                truth_corner: run
+                    .truth
+                    .as_ref()
+                    .map(|t| format!("{:.3}", t.calibration.corner_error_mean_mm))
+                    .unwrap_or_else(|| "—".into()),
+                passed: run.gates_passed(),
+            });
+        }
+    }
+    match render_index(&entries) {
+        Ok(html) => {
+            if let Err(e) = write_atomic(&out.join("index.html"), html.as_bytes()) {
+                eprintln!("error: {e}");
+                failed = true;
+            }
+        }
+        Err(e) => {
+            eprintln!("error: index page: {e}");
+            failed = true;
+        }
+    }
+    if failed {
+        ExitCode::FAILURE
+    } else if gates_failed {
+        ExitCode::from(3)
+    } else {
+        ExitCode::SUCCESS
+    }
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    match cli.command {
+        Command::Run {
+            manifests,
+            out,
+            datasets,
+            force,
+            quiet,
+        } => run(manifests, out, datasets, force, quiet),
+        Command::Validate { manifests } => match load_all(&manifests) {
+            Ok(ms) => {
+                for m in ms {
+                    println!("{}: ok ({} dataset(s))", m.path.display(), m.datasets.len());
+                }
+                ExitCode::SUCCESS
+            }
+            Err(e) => {
+                eprintln!("error: {e}");
+                ExitCode::from(2)
+            }
+        },
+        Command::Synth { manifests, datasets } => {
+            let manifests = match load_all(&manifests) {
+                Ok(m) => m,
+                Err(e) => {
+                    eprintln!("error: {e}");
+                    return ExitCode::from(2);
+                }
+            };
+            for m in &manifests {
+                if let Err(e) = probecal::run::synth_only(m, &datasets, &mut |l| eprintln!("{l}")) {
+                    eprintln!("error: {}: {e}", m.path.display());
+                    return ExitCode::FAILURE;
+                }
+            }
+            ExitCode::SUCCESS
+        }
+        Command::CalibrateCamera {
+            images,
+            board,
+            square_mm,
+            out,
+        } => {
+            if !(square_mm.is_finite() && square_mm > 0.0) {
+                eprintln!("error: --square-mm must be a positive number, got {square_mm}");
+                return ExitCode::from(2);
+            }
+            match probecal::camera_calibration::calibrate_from(&images, board, square_mm) {
+                Ok(cal) => {
+                    for v in &cal.views {
+                        match (&v.reason, v.rms_px) {
+                            (None, Some(rms)) => eprintln!("  {}: used, RMS {rms:.3} px", v.image.display()),
+                            (Some(r), _) => eprintln!("  {}: not used: {r}", v.image.display()),
+                            _ => {}
+                        }
+                    }
+                    let k = &cal.intrinsics;
+                    println!(
+                        "fx {:.4} fy {:.4} cx {:.4} cy {:.4} px; distortion {:?}; RMS {:.6} px",
+                        k.fx(),
+                        k.fy(),
+                        k.cx(),
+                        k.cy(),
+                        k.distortion,
+                        k.rms_px.unwrap_or(f64::NAN)
+                    );
+                    if let Err(e) = k.save(&out, Some((board, square_mm))) {
+                        eprintln!("error: {e}");
+                        return ExitCode::FAILURE;
+                    }
+                    println!("written to {}", out.display());
+                    ExitCode::SUCCESS
+                }
+                Err(e) => {
+                    eprintln!("error: {e}");
+                    ExitCode::FAILURE
+                }
+            }
+        }
+    }
+}

@@ -1,0 +1,398 @@
+//! The HTML page of a dataset run, from a prepared context (numbers already
+//! formatted, mm with 3 decimals as in the thesis). The context is also written as
+//! `report_context.json`, a stable target for tests. Templates live in
+//! `templates/` and are compiled into the binary.
+
+use plotters::prelude::*;
+use serde::Serialize;
+
+use crate::evaluate::{BreStats, STAT_ROWS};
+use crate::geometry::{euler_zyx_deg, to_rows};
+use crate::output::cutoff_label;
+use crate::run::DatasetRun;
+
+const RUN_TEMPLATE: &str = include_str!("../templates/run.html.tera");
+const INDEX_TEMPLATE: &str = include_str!("../templates/index.html.tera");
+
+fn mm(v: f64) -> String {
+    if v.is_finite() {
+        format!("{v:.3}")
+    } else {
+        "—".into()
+    }
+}
+
+#[derive(Debug, Serialize, PartialEq)]
+pub struct StatRow {
+    pub parameter: String,
+    pub values: Vec<String>,
+}
+
+#[derive(Debug, Serialize, PartialEq)]
+pub struct AxisBlock {
+    pub axis: String,
+    pub rows: Vec<StatRow>,
+}
+
+#[derive(Debug, Serialize, PartialEq)]
+pub struct Column {
+    pub label: String,
+    pub frames: usize,
+}
+
+#[derive(Debug, Serialize, PartialEq)]
+pub struct Rejected {
+    pub frame: usize,
+    pub stage: String,
+    pub reason: String,
+}
+
+#[derive(Debug, Serialize, PartialEq)]
+pub struct KeyValue {
+    pub key: String,
+    pub value: String,
+}
+
+#[derive(Debug, Serialize, PartialEq)]
+pub struct Gate {
+    pub name: String,
+    pub limit: String,
+    pub value: String,
+    pub passed: bool,
+}
+
+/// Everything the page shows, formatted.
+#[derive(Debug, Serialize, PartialEq)]
+pub struct RunContext {
+    pub experiment: String,
+    pub dataset: String,
+    pub description: String,
+    pub manifest: String,
+    pub manifest_sha256: String,
+    pub probecal_version: String,
+    pub frames_total: usize,
+    pub frames_used: usize,
+    pub frames_rejected: usize,
+    pub camera: Vec<KeyValue>,
+    pub calibration_matrix: Vec<Vec<String>>,
+    pub calibration: Vec<KeyValue>,
+    /// The thesis's BRE table at the calibration cut-off: rows Std./Mean/Min/Max, columns x, y, z.
+    pub bre_caption: String,
+    pub bre_table: Vec<StatRow>,
+    /// The thesis's threshold table: one column per cut-off.
+    pub threshold_columns: Vec<Column>,
+    pub threshold_blocks: Vec<AxisBlock>,
+    pub truth: Vec<KeyValue>,
+    pub truth_by_cutoff: Vec<StatRow>,
+    pub gates: Vec<Gate>,
+    pub rejected: Vec<Rejected>,
+    pub bre_figure_svg: String,
+}
+
+fn stat_rows(stats: &BreStats) -> Vec<StatRow> {
+    let axes = stats.axes();
+    STAT_ROWS
+        .iter()
+        .map(|(name, get)| StatRow {
+            parameter: name.to_string(),
+            values: axes.iter().map(|a| mm(get(a))).collect(),
+        })
+        .collect()
+}
+
+fn kv(key: &str, value: String) -> KeyValue {
+    KeyValue {
+        key: key.to_string(),
+        value,
+    }
+}
+
+/// Per-frame BRE along x, y, z (all-frames calibration) as an inline SVG.
+pub fn bre_figure(run: &DatasetRun) -> Result<String, String> {
+    let points: Vec<(usize, [f64; 3])> = run
+        .frames
+        .iter()
+        .filter_map(|f| f.bre_mm.map(|b| (f.files.frame, b.0)))
+        .collect();
+    let max_frame = run.frames.iter().map(|f| f.files.frame).max().unwrap_or(1) as f64;
+    let max_bre = points.iter().flat_map(|p| p.1).fold(0.5f64, f64::max) * 1.1;
+    let mut svg = String::new();
+    {
+        let root = SVGBackend::with_string(&mut svg, (760, 320)).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| e.to_string())?;
+        let mut chart = ChartBuilder::on(&root)
+            .margin(12)
+            .x_label_area_size(36)
+            .y_label_area_size(52)
+            .build_cartesian_2d(-0.5..max_frame + 0.5, 0.0..max_bre)
+            .map_err(|e| e.to_string())?;
+        chart
+            .configure_mesh()
+            .x_desc("frame")
+            .y_desc("BRE (mm)")
+            .light_line_style(RGBColor(235, 235, 235))
+            .draw()
+            .map_err(|e| e.to_string())?;
+        let colours = [RGBColor(200, 40, 40), RGBColor(40, 140, 40), RGBColor(40, 70, 200)];
+        for (axis, (name, colour)) in ["x", "y", "z"].iter().zip(colours).enumerate() {
+            let series: Vec<(f64, f64)> = points.iter().map(|(f, b)| (*f as f64, b[axis])).collect();
+            chart
+                .draw_series(LineSeries::new(series.clone(), colour.stroke_width(1)))
+                .map_err(|e| e.to_string())?
+                .label(*name)
+                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], colour.stroke_width(2)));
+            chart
+                .draw_series(series.iter().map(|p| Circle::new(*p, 3, colour.filled())))
+                .map_err(|e| e.to_string())?;
+        }
+        chart
+            .configure_series_labels()
+            .border_style(BLACK)
+            .background_style(WHITE.mix(0.9))
+            .draw()
+            .map_err(|e| e.to_string())?;
+        root.present().map_err(|e| e.to_string())?;
+    }
+    Ok(svg)
+}
+
+/// Prepares the page's context.
+pub fn context(run: &DatasetRun, manifest: &crate::manifest::Manifest) -> RunContext {
+    let fit = run.primary_fit();
+    let primary = &run.thresholds[run.primary];
+    let k = &run.camera.intrinsics;
+    let mut camera = vec![
+        kv("source", run.camera.source.clone()),
+        kv("fx, fy (px)", format!("{:.2}, {:.2}", k.fx(), k.fy())),
+        kv("cx, cy (px)", format!("{:.2}, {:.2}", k.cx(), k.cy())),
+        kv(
+            "k1, k2, p1, p2, k3",
+            k.distortion
+                .iter()
+                .map(|v| format!("{v:.5}"))
+                .collect::<Vec<_>>()
+                .join(", "),
+        ),
+    ];
+    if let Some(rms) = k.rms_px {
+        camera.push(kv("RMS reprojection error (px)", format!("{rms:.3}")));
+    }
+    if let Some(cal) = &run.camera.calibration {
+        camera.push(kv(
+            "views used",
+            format!("{} of {}", cal.views.iter().filter(|v| v.used).count(), cal.views.len()),
+        ));
+    }
+    let euler = euler_zyx_deg(&fit.target_T_source);
+    let t = fit.target_T_source.translation.vector;
+    let calibration = vec![
+        kv(
+            "frames used",
+            format!(
+                "{} (cut-off {} mm)",
+                primary.frames.len(),
+                cutoff_label(primary.cutoff_mm)
+            ),
+        ),
+        kv(
+            "Euler ZYX: roll x, pitch y, yaw z (°)",
+            format!("{:.3}, {:.3}, {:.3}", euler[0], euler[1], euler[2]),
+        ),
+        kv("translation (mm)", format!("{:.3}, {:.3}, {:.3}", t.x, t.y, t.z)),
+        kv(
+            "pixel spacing sx, sy (mm/px)",
+            format!("{}, {}", run.spacing_mm_per_px[0], run.spacing_mm_per_px[1]),
+        ),
+        kv("Horn RMS residual (mm)", mm(fit.rms_residual_mm)),
+    ];
+    let threshold_blocks = ["X", "Y", "Z"]
+        .iter()
+        .enumerate()
+        .map(|(axis, name)| AxisBlock {
+            axis: name.to_string(),
+            rows: STAT_ROWS
+                .iter()
+                .map(|(pname, get)| StatRow {
+                    parameter: pname.to_string(),
+                    values: run
+                        .thresholds
+                        .iter()
+                        .map(|r| {
+                            r.stats
+                                .map(|s| mm(get(&[s.x, s.y, s.z][axis])))
+                                .unwrap_or_else(|| "—".into())
+                        })
+                        .collect(),
+                })
+                .collect(),
+        })
+        .collect();
+    let mut truth = Vec::new();
+    let mut truth_by_cutoff = Vec::new();
+    if let Some(tr) = &run.truth {
+        let c = &tr.calibration;
+        truth.push(kv(
+            "image corners and centre: mean error (mm)",
+            mm(c.corner_error_mean_mm),
+        ));
+        truth.push(kv(
+            "image corners and centre: max error (mm)",
+            mm(c.corner_error_max_mm),
+        ));
+        truth.push(kv("rotation error (°)", mm(c.rotation_error_deg)));
+        truth.push(kv("translation error (mm)", mm(c.translation_error_mm)));
+        truth.push(kv("camera focal length error (px)", mm(tr.camera_focal_error_px)));
+        truth.push(kv(
+            "camera principal point error (px)",
+            mm(tr.camera_principal_error_px),
+        ));
+        if let Some((mean, max)) = tr.arc_centre_error_px {
+            truth.push(kv(
+                "arc centre vs sphere-centre projection, normal frames: mean / max (px)",
+                format!("{} / {}", mm(mean), mm(max)),
+            ));
+        }
+        if let Some((mean, max)) = tr.probe_pose_translation_error_mm {
+            truth.push(kv(
+                "probe board position error: mean / max (mm)",
+                format!("{} / {}", mm(mean), mm(max)),
+            ));
+        }
+        if let Some((mean, max)) = tr.probe_pose_rotation_error_deg {
+            truth.push(kv(
+                "probe board rotation error: mean / max (°)",
+                format!("{} / {}", mm(mean), mm(max)),
+            ));
+        }
+        truth_by_cutoff = vec![
+            StatRow {
+                parameter: "corner error mean (mm)".into(),
+                values: run
+                    .thresholds
+                    .iter()
+                    .map(|r| {
+                        r.truth
+                            .map(|t| mm(t.corner_error_mean_mm))
+                            .unwrap_or_else(|| "—".into())
+                    })
+                    .collect(),
+            },
+            StatRow {
+                parameter: "rotation error (°)".into(),
+                values: run
+                    .thresholds
+                    .iter()
+                    .map(|r| r.truth.map(|t| mm(t.rotation_error_deg)).unwrap_or_else(|| "—".into()))
+                    .collect(),
+            },
+        ];
+    }
+    let used = run.used_frames();
+    RunContext {
+        experiment: run.experiment.clone(),
+        dataset: run.dataset.clone(),
+        description: manifest.description.clone(),
+        manifest: manifest
+            .path
+            .file_name()
+            .map(|n| n.to_string_lossy().to_string())
+            .unwrap_or_default(),
+        manifest_sha256: manifest.sha256.clone(),
+        probecal_version: env!("CARGO_PKG_VERSION").into(),
+        frames_total: run.frames.len(),
+        frames_used: used,
+        frames_rejected: run.frames.len() - used,
+        camera,
+        calibration_matrix: to_rows(&fit.target_T_source)
+            .iter()
+            .map(|r| r.iter().map(|v| format!("{v:.4}")).collect())
+            .collect(),
+        calibration,
+        bre_caption: format!(
+            "BRE along axes for dataset {} ({} frames, cut-off {} mm)",
+            run.dataset,
+            primary.frames.len(),
+            cutoff_label(primary.cutoff_mm)
+        ),
+        bre_table: primary.stats.as_ref().map(stat_rows).unwrap_or_default(),
+        threshold_columns: run
+            .thresholds
+            .iter()
+            .map(|r| Column {
+                label: cutoff_label(r.cutoff_mm),
+                frames: r.frames.len(),
+            })
+            .collect(),
+        threshold_blocks,
+        truth,
+        truth_by_cutoff,
+        gates: run
+            .gates
+            .iter()
+            .map(|g| Gate {
+                name: g.name.clone(),
+                limit: mm(g.limit),
+                value: g.value.map(mm).unwrap_or_else(|| "—".into()),
+                passed: g.passed,
+            })
+            .collect(),
+        rejected: run
+            .frames
+            .iter()
+            .filter_map(|f| {
+                f.rejection.as_ref().map(|(s, r)| Rejected {
+                    frame: f.files.frame,
+                    stage: s.label().into(),
+                    reason: r.clone(),
+                })
+            })
+            .collect(),
+        bre_figure_svg: bre_figure(run).unwrap_or_else(|e| format!("<p>figure not drawn: {e}</p>")),
+    }
+}
+
+fn tera() -> Result<tera::Tera, tera::Error> {
+    let mut t = tera::Tera::default();
+    t.add_raw_templates(vec![("run.html", RUN_TEMPLATE), ("index.html", INDEX_TEMPLATE)])?;
+    Ok(t)
+}
+
+fn error_chain(e: &tera::Error) -> String {
+    let mut text = e.to_string();
+    let mut source = std::error::Error::source(e);
+    while let Some(s) = source {
+        text.push_str(&format!(": {s}"));
+        source = s.source();
+    }
+    text
+}
+
+/// The dataset run's HTML page.
+pub fn render_html(context: &RunContext) -> Result<String, String> {
+    let ctx = tera::Context::from_serialize(context).map_err(|e| error_chain(&e))?;
+    tera()
+        .and_then(|t| t.render("run.html", &ctx))
+        .map_err(|e| error_chain(&e))
+}
+
+/// One line of the index page.
+#[derive(Debug, Serialize)]
+pub struct IndexEntry {
+    pub experiment: String,
+    pub dataset: String,
+    pub link: String,
+    pub frames: String,
+    pub bre_mean: String,
+    pub truth_corner: String,
+    pub passed: bool,
+}
+
+/// The index page linking every dataset run.
+pub fn render_index(entries: &[IndexEntry]) -> Result<String, String> {
+    let mut ctx = tera::Context::new();
+    ctx.insert("entries", entries);
+    ctx.insert("probecal_version", env!("CARGO_PKG_VERSION"));
+    tera()
+        .and_then(|t| t.render("index.html", &ctx))
+        .map_err(|e| error_chain(&e))
+}
