@@ -200,11 +200,18 @@ fn sha256_hex(bytes: &[u8]) -> String {
     digest.iter().map(|b| format!("{b:02x}")).collect()
 }
 
-fn strip_position(message: &str) -> &str {
-    match message.find(" at line ") {
+/// serde_yaml's message without the position and path it repeats (they are shown apart).
+fn strip_position<'a>(message: &'a str, field: &str) -> &'a str {
+    let message = match message.find(" at line ") {
         Some(i) => &message[..i],
         None => message,
-    }
+    };
+    let parent = field.rsplit_once('.').map(|(p, _)| p).unwrap_or("");
+    [field, parent]
+        .iter()
+        .filter(|p| !p.is_empty())
+        .find_map(|p| message.strip_prefix(&format!("{p}: ")))
+        .unwrap_or(message)
 }
 
 impl Manifest {
@@ -226,7 +233,8 @@ impl Manifest {
         let deserializer = serde_yaml::Deserializer::from_str(text);
         let raw: raw::RawManifest = serde_path_to_error::deserialize(deserializer).map_err(|e| {
             let field = e.path().to_string();
-            let field = if field == "." { String::new() } else { field };
+            // serde_path_to_error writes `?` for a segment it could not name (syntax errors).
+            let field = field.split('.').take_while(|s| *s != "?" && !s.is_empty()).collect::<Vec<_>>().join(".");
             let inner = e.inner();
             let line = inner
                 .location()
@@ -234,9 +242,9 @@ impl Manifest {
                 .or_else(|| locate::line_of(text, &field));
             ManifestErrors(vec![ManifestError {
                 file: path.to_path_buf(),
+                message: strip_position(&inner.to_string(), &field).to_string(),
                 field,
                 line,
-                message: strip_position(&inner.to_string()).to_string(),
             }])
         })?;
         let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
