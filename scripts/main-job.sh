@@ -1,0 +1,8 @@
+#!/usr/bin/env bash
+# Sets up the machine, then runs every default experiment end to end into reports/.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+bash scripts/setup.sh
+source scripts/env.sh
+cargo build --bin probecal
+"$CARGO_TARGET_DIR/debug/probecal" run experiments/*.yaml --out reports --force

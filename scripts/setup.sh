@@ -1,0 +1,18 @@
+#!/usr/bin/env bash
+# Installs what probecal needs on Debian 12: OpenCV 4.6 with contrib, clang for
+# the opencv crate's bindings, and the fonts figures use. Safe to run again.
+set -euo pipefail
+
+packages=(libopencv-dev libopencv-contrib-dev clang libclang-dev fonts-dejavu-core pkg-config)
+missing=()
+for p in "${packages[@]}"; do
+  dpkg -s "$p" >/dev/null 2>&1 || missing+=("$p")
+done
+if ((${#missing[@]})); then
+  sudo=""
+  [ "$(id -u)" -eq 0 ] || sudo="sudo"
+  echo "installing: ${missing[*]}"
+  $sudo apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends "${missing[@]}"
+fi
+command -v cargo >/dev/null || { echo "cargo is not installed: install Rust (rustup) first" >&2; exit 1; }
