@@ -47,6 +47,11 @@ pub struct ArcFeature {
     pub rms_px: f64,
     /// Accumulator peak over the strongest competing peak (1 = ambiguous).
     pub peak_ratio: f64,
+    /// Fraction of 5° bins over the arc's span that hold echo points.
+    pub fill: f64,
+    /// 0..1: geometric mean of the arc's span (full at 120°), its support (full at
+    /// four times the minimum number of points) and its fit (1 − RMS / limit).
+    pub confidence: f64,
     /// Arc points, pixels (for figures).
     pub arc_points_px: Vec<[f64; 2]>,
 }
@@ -54,6 +59,10 @@ pub struct ArcFeature {
 const NEAR_FIELD_MM: f64 = 6.0;
 const FAN_EDGE_MM: f64 = 1.5;
 const CELL_MM: f64 = 0.25;
+/// Angular bins for the arc's coverage check.
+const FILL_BIN_DEG: f64 = 5.0;
+/// Smallest fraction of the arc's span that must hold echo points.
+const MIN_FILL: f64 = 0.75;
 
 fn percentile(sorted: &[f32], q: f64) -> f32 {
     if sorted.is_empty() {
@@ -96,6 +105,29 @@ fn fit_circle(points: &[[f64; 2]], start: ([f64; 2], f64), fixed_radius: bool) -
     (a.is_finite() && b.is_finite() && r.is_finite()).then_some(([a, b], r, rms))
 }
 
+/// RMS distance of points to their total-least-squares line (mm).
+fn line_rms(points: &[[f64; 2]]) -> f64 {
+    let n = points.len().max(1) as f64;
+    let (mx, my) = (
+        points.iter().map(|p| p[0]).sum::<f64>() / n,
+        points.iter().map(|p| p[1]).sum::<f64>() / n,
+    );
+    let (mut sxx, mut syy, mut sxy) = (0.0, 0.0, 0.0);
+    for p in points {
+        let (dx, dy) = (p[0] - mx, p[1] - my);
+        sxx += dx * dx;
+        syy += dy * dy;
+        sxy += dx * dy;
+    }
+    // Smallest eigenvalue of the scatter matrix = sum of squared line distances.
+    let half_trace = (sxx + syy) / 2.0;
+    let smallest = half_trace - (((sxx - syy) / 2.0).powi(2) + sxy * sxy).sqrt();
+    (smallest.max(0.0) / n).sqrt()
+}
+
+/// A circle must fit the arc points at least this many times better than a line.
+const MIN_LINE_TO_CIRCLE_RMS: f64 = 2.0;
+
 /// Detects the arc. The inner `Err` is the frame's rejection reason.
 pub fn detect(image: &Mat, settings: &ArcSettings) -> Result<Result<ArcFeature, String>, ImageError> {
     let gray = mat_to_gray8(image)?;
@@ -118,7 +150,11 @@ pub fn detect(image: &Mat, settings: &ArcSettings) -> Result<Result<ArcFeature, 
             && inside(x, y + edge_y)
     };
     let mut smooth: Vec<f32> = gray.data.iter().map(|v| *v as f32).collect();
+    // Ridge orientation needs isotropic smoothing (in mm): an anisotropic blur
+    // would tilt every ridge normal towards the blur's short axis.
+    let mut iso = smooth.clone();
     gaussian_blur_f32(w, h, &mut smooth, 0.4 / sx, 0.2 / sy)?;
+    gaussian_blur_f32(w, h, &mut iso, 0.4 / sx, 0.4 / sy)?;
 
     let near_rows = (NEAR_FIELD_MM / sy).ceil() as usize;
     let mut values: Vec<f32> = Vec::new();
@@ -143,7 +179,7 @@ pub fn detect(image: &Mat, settings: &ArcSettings) -> Result<Result<ArcFeature, 
     //    structure is line-like rather than a speckle blob.
     let mut points_mm: Vec<[f64; 2]> = Vec::new();
     let mut normals: Vec<[f64; 2]> = Vec::new();
-    let at = |x: usize, y: usize| smooth[y * w + x] as f64;
+    let at = |x: usize, y: usize| iso[y * w + x] as f64;
     for x in 2..w.saturating_sub(2) {
         let Some(t) = top[x] else { continue };
         let y_start = (t + near_rows).max(2);
@@ -216,7 +252,7 @@ pub fn detect(image: &Mat, settings: &ArcSettings) -> Result<Result<ArcFeature, 
         if n[1] < (70f64).to_radians().cos() {
             continue; // the centre lies within 70° of straight below an arc point
         }
-        for spread in [-4.0f64, -2.0, 0.0, 2.0, 4.0] {
+        for spread in [-6.0f64, -3.0, 0.0, 3.0, 6.0] {
             let (sin, cos) = spread.to_radians().sin_cos();
             let d = [n[0] * cos - n[1] * sin, n[0] * sin + n[1] * cos];
             for &r in &radii {
@@ -318,7 +354,16 @@ pub fn detect(image: &Mat, settings: &ArcSettings) -> Result<Result<ArcFeature, 
         .iter()
         .map(|p| (p[0] - centre_fit[0]).atan2(centre_fit[1] - p[1]).to_degrees())
         .collect();
-    let span = angles.iter().cloned().fold(f64::MIN, f64::max) - angles.iter().cloned().fold(f64::MAX, f64::min);
+    let first = angles.iter().cloned().fold(f64::MAX, f64::min);
+    let span = angles.iter().cloned().fold(f64::MIN, f64::max) - first;
+    // How continuously the points cover the span: a dome's echo is one unbroken
+    // arc; pieces of other structures that happen to lie on a circle are not.
+    let bins = ((span / FILL_BIN_DEG).ceil() as usize).max(1);
+    let mut occupied = vec![false; bins];
+    for a in &angles {
+        occupied[(((a - first) / FILL_BIN_DEG) as usize).min(bins - 1)] = true;
+    }
+    let fill = occupied.iter().filter(|o| **o).count() as f64 / bins as f64;
     let rms_px = rms_mm / pixel_mm;
     let feature = ArcFeature {
         centre_px: [centre_fit[0] / sx, centre_fit[1] / sy],
@@ -327,6 +372,11 @@ pub fn detect(image: &Mat, settings: &ArcSettings) -> Result<Result<ArcFeature, 
         span_deg: span,
         rms_px,
         peak_ratio,
+        fill,
+        confidence: ((span / 120.0).clamp(0.0, 1.0)
+            * (inliers.len() as f64 / (4.0 * settings.min_points as f64)).clamp(0.0, 1.0)
+            * (1.0 - rms_px / settings.max_rms_px).clamp(0.0, 1.0))
+        .cbrt(),
         arc_points_px: inliers.iter().map(|p| [p[0] / sx, p[1] / sy]).collect(),
     };
     if !(r_min..=r_max).contains(&radius) {
@@ -338,6 +388,19 @@ pub fn detect(image: &Mat, settings: &ArcSettings) -> Result<Result<ArcFeature, 
         return Ok(Err(format!(
             "arc spans only {span:.0}° (need {:.0}°)",
             settings.min_span_deg
+        )));
+    }
+    let straightness = line_rms(&inliers) / rms_mm.max(1e-9);
+    if straightness < MIN_LINE_TO_CIRCLE_RMS {
+        return Ok(Err(format!(
+            "the echo is nearly straight (a line fits it {straightness:.1}x as well as the circle; need {MIN_LINE_TO_CIRCLE_RMS}x): a wall or the floor, not the dome"
+        )));
+    }
+    if fill < MIN_FILL {
+        return Ok(Err(format!(
+            "echo points cover only {:.0}% of the {span:.0}° arc (need {:.0}%): pieces of other echoes, not one arc",
+            100.0 * fill,
+            100.0 * MIN_FILL
         )));
     }
     if rms_px > settings.max_rms_px {
