@@ -151,7 +151,9 @@ pub fn render_bscan(
                 }
                 if dir.z < -1e-6 {
                     let lambda_floor = (tank.floor_z_mm - origin.z) / dir.z;
-                    if lambda_floor < blocked_at {
+                    let floor_hit = origin + dir * lambda_floor;
+                    let inside_walls = floor_hit.x.abs() < tank.wall_x_mm && floor_hit.y.abs() < tank.wall_y_mm;
+                    if lambda_floor < blocked_at && inside_walls {
                         let strength = 0.3 + 0.7 * dir.z.powi(2);
                         e_sum += weight
                             * 0.9
@@ -170,7 +172,11 @@ pub fn render_bscan(
             let point = apex_world.coords + dir * r;
             let wall_distance = (tank.wall_x_mm - point.x.abs()).min(tank.wall_y_mm - point.y.abs());
             let outside_tank = wall_distance < 0.0 || point.z < tank.floor_z_mm;
-            let wall_echo = 0.7 * (-(wall_distance / 0.7).powi(2) / 2.0).exp();
+            let wall_echo = if point.z >= tank.floor_z_mm {
+                0.7 * (-(wall_distance / 0.7).powi(2) / 2.0).exp()
+            } else {
+                0.0
+            };
             e_sum = e_sum / weight_sum + wall_echo;
             let shadow = shadow / weight_sum;
             let mut b = if outside_tank {

@@ -27,7 +27,7 @@ use camera_render::{Photometry, PlacedBoard, RayMap};
 use scene::{FrameKind, SceneInputs};
 
 /// Bumped whenever a change to the renderer changes its pixels.
-pub const GENERATOR_VERSION: u32 = 1;
+pub const GENERATOR_VERSION: u32 = 3;
 
 #[derive(Debug, thiserror::Error)]
 pub enum SynthError {
