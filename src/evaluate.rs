@@ -5,9 +5,9 @@
 //!   Horn's closed form on these pairs is `marker_T_image`.
 //! - BRE (back-projection residual error): per frame and axis of the phantom frame,
 //!   `|p - phantom_T_camera · camera_T_marker · marker_T_image · points_in_image|`, mm.
-//! - The thesis's threshold table: BRE of all frames under the all-frames
-//!   calibration decides which frames stay below each cut-off; the calibration is
-//!   solved again on those frames and their statistics reported.
+//! - The thesis's threshold table: frames above a BRE cut-off are removed (worst
+//!   first, re-solving after each removal, see [`select_below`]); the calibration
+//!   of the frames kept and their statistics are reported.
 //! - Against ground truth (rendered data): the image's four corners and centre
 //!   mapped by the estimated and the true `marker_T_image`; their distances.
 
@@ -33,35 +33,36 @@ impl Correspondence {
         self.camera_T_marker.inverse() * (self.camera_T_phantom * feature_in_phantom)
     }
 
-    /// The feature pixel back-projected into the phantom frame.
-    pub fn reconstruct_in_phantom(&self, marker_T_image: &Rigid, spacing: [f64; 2]) -> Point3<f64> {
+    /// The feature pixel back-projected into the phantom frame through a calibration.
+    pub fn reconstruct_in_phantom(&self, calibration: &HornFit, spacing: [f64; 2]) -> Point3<f64> {
         let in_image = pixel_to_image_mm(self.feature_px, spacing);
-        self.camera_T_phantom.inverse() * (self.camera_T_marker * (marker_T_image * in_image))
+        self.camera_T_phantom.inverse() * (self.camera_T_marker * calibration.apply(&in_image))
     }
 }
 
-/// Solves `marker_T_image` from frames (Horn, rigid).
+/// Solves `marker_T_image` (and a scale, for the similarity variant) from frames.
 pub fn solve(
     frames: &[Correspondence],
     feature_in_phantom: &Point3<f64>,
     spacing: [f64; 2],
+    variant: Variant,
 ) -> Result<HornFit, HornError> {
     let points_in_image: Vec<Point3<f64>> = frames
         .iter()
         .map(|f| pixel_to_image_mm(f.feature_px, spacing))
         .collect();
     let points_in_marker: Vec<Point3<f64>> = frames.iter().map(|f| f.point_in_marker(feature_in_phantom)).collect();
-    horn::solve(&points_in_image, &points_in_marker, Variant::Rigid)
+    horn::solve(&points_in_image, &points_in_marker, variant)
 }
 
 /// Per-axis BRE of one frame, mm: `[|dx|, |dy|, |dz|]` and the 3D distance.
 pub fn bre(
     frame: &Correspondence,
-    marker_T_image: &Rigid,
+    calibration: &HornFit,
     feature_in_phantom: &Point3<f64>,
     spacing: [f64; 2],
 ) -> ([f64; 3], f64) {
-    let d: Vector3<f64> = frame.reconstruct_in_phantom(marker_T_image, spacing) - feature_in_phantom;
+    let d: Vector3<f64> = frame.reconstruct_in_phantom(calibration, spacing) - feature_in_phantom;
     ([d.x.abs(), d.y.abs(), d.z.abs()], d.norm())
 }
 
@@ -135,7 +136,7 @@ pub struct TruthComparison {
 }
 
 pub fn compare_with_truth(
-    estimate: &Rigid,
+    estimate: &HornFit,
     truth: &Rigid,
     image_size_px: [usize; 2],
     spacing: [f64; 2],
@@ -146,14 +147,14 @@ pub fn compare_with_truth(
         .iter()
         .map(|p| {
             let x = pixel_to_image_mm(*p, spacing);
-            (estimate * x - truth * x).norm()
+            (estimate.apply(&x) - truth * x).norm()
         })
         .collect();
     TruthComparison {
         corner_error_mean_mm: distances.iter().sum::<f64>() / distances.len() as f64,
         corner_error_max_mm: distances.iter().cloned().fold(0.0, f64::max),
-        rotation_error_deg: rotation_angle_between_deg(estimate, truth),
-        translation_error_mm: (estimate.translation.vector - truth.translation.vector).norm(),
+        rotation_error_deg: rotation_angle_between_deg(&estimate.target_T_source, truth),
+        translation_error_mm: (estimate.target_T_source.translation.vector - truth.translation.vector).norm(),
     }
 }
 
@@ -171,13 +172,6 @@ pub struct ThresholdRow {
     pub truth: Option<TruthComparison>,
 }
 
-fn passes(bre_axes: &[f64; 3], norm: f64, cutoff: f64, rule: CutoffRule) -> bool {
-    match rule {
-        CutoffRule::MaxAxis => bre_axes.iter().cloned().fold(0.0, f64::max) < cutoff,
-        CutoffRule::Norm => norm < cutoff,
-    }
-}
-
 /// What the evaluation needs besides the frames.
 pub struct EvaluationInputs<'a> {
     pub feature_in_phantom: Point3<f64>,
@@ -185,48 +179,69 @@ pub struct EvaluationInputs<'a> {
     pub cutoffs_mm: &'a [f64],
     pub rule: CutoffRule,
     pub min_frames: usize,
+    pub variant: Variant,
     pub truth: Option<(Rigid, [usize; 2])>,
 }
 
-/// All-frames BRE (per frame, from the all-frames calibration) and the threshold table.
-pub fn threshold_table(
+/// A frame's BRE as the cut-off rule measures it.
+fn rule_value(bre_axes: &[f64; 3], norm: f64, rule: CutoffRule) -> f64 {
+    match rule {
+        CutoffRule::MaxAxis => bre_axes.iter().cloned().fold(0.0, f64::max),
+        CutoffRule::Norm => norm,
+    }
+}
+
+/// The frames kept below a cut-off and their calibration. Starting from all frames,
+/// the frame with the largest BRE under the calibration of the frames still kept
+/// is dropped, one at a time, re-solving after each drop, until every kept frame
+/// is below the cut-off. (One gross outlier inflates every frame's BRE under the
+/// all-frames calibration; dropping worst-first removes it before judging the rest.)
+pub fn select_below(
     frames: &[Correspondence],
+    cutoff: f64,
     inputs: &EvaluationInputs<'_>,
-    all_frames_fit: &HornFit,
-) -> PolarsResult<Vec<ThresholdRow>> {
-    let all_bre: Vec<([f64; 3], f64)> = frames
-        .iter()
-        .map(|f| {
-            bre(
-                f,
-                &all_frames_fit.target_T_source,
-                &inputs.feature_in_phantom,
-                inputs.spacing,
-            )
-        })
-        .collect();
+) -> (Vec<Correspondence>, Result<HornFit, HornError>) {
+    let mut kept = frames.to_vec();
+    loop {
+        if kept.len() < inputs.min_frames {
+            return (kept.clone(), Err(HornError::TooFewPairs(kept.len())));
+        }
+        let fit = match solve(&kept, &inputs.feature_in_phantom, inputs.spacing, inputs.variant) {
+            Ok(fit) => fit,
+            Err(e) => return (kept, Err(e)),
+        };
+        let worst = kept
+            .iter()
+            .enumerate()
+            .map(|(i, f)| {
+                let (axes, norm) = bre(f, &fit, &inputs.feature_in_phantom, inputs.spacing);
+                (i, rule_value(&axes, norm, inputs.rule))
+            })
+            .max_by(|a, b| a.1.total_cmp(&b.1));
+        match worst {
+            Some((i, value)) if value >= cutoff => {
+                kept.remove(i);
+            }
+            _ => return (kept, Ok(fit)),
+        }
+    }
+}
+
+/// The threshold table: for each cut-off, the frames kept, their calibration,
+/// its BRE statistics and (rendered data) its error against the truth.
+pub fn threshold_table(frames: &[Correspondence], inputs: &EvaluationInputs<'_>) -> PolarsResult<Vec<ThresholdRow>> {
     let mut rows = Vec::new();
     for &cutoff in inputs.cutoffs_mm {
-        let kept: Vec<Correspondence> = frames
-            .iter()
-            .zip(&all_bre)
-            .filter(|(_, (axes, norm))| passes(axes, *norm, cutoff, inputs.rule))
-            .map(|(f, _)| f.clone())
-            .collect();
-        let fit = if kept.len() < inputs.min_frames {
-            Err(HornError::TooFewPairs(kept.len()))
-        } else {
-            solve(&kept, &inputs.feature_in_phantom, inputs.spacing)
-        };
+        let (kept, fit) = select_below(frames, cutoff, inputs);
         let (stats, truth) = match &fit {
             Ok(fit) => {
                 let values: Vec<[f64; 3]> = kept
                     .iter()
-                    .map(|f| bre(f, &fit.target_T_source, &inputs.feature_in_phantom, inputs.spacing).0)
+                    .map(|f| bre(f, fit, &inputs.feature_in_phantom, inputs.spacing).0)
                     .collect();
                 let truth = inputs
                     .truth
-                    .map(|(t, size)| compare_with_truth(&fit.target_T_source, &t, size, inputs.spacing));
+                    .map(|(t, size)| compare_with_truth(fit, &t, size, inputs.spacing));
                 (Some(bre_stats(&values)?), truth)
             }
             Err(_) => (None, None),
@@ -280,11 +295,11 @@ mod tests {
                 }
             })
             .collect();
-        let fit = solve(&frames, &feature, spacing).unwrap();
-        let cmp = compare_with_truth(&fit.target_T_source, &marker_T_image, [800, 600], spacing);
+        let fit = solve(&frames, &feature, spacing, Variant::Rigid).unwrap();
+        let cmp = compare_with_truth(&fit, &marker_T_image, [800, 600], spacing);
         assert!(cmp.corner_error_max_mm < 1e-8, "{cmp:?}");
         for f in &frames {
-            assert!(bre(f, &fit.target_T_source, &feature, spacing).1 < 1e-8);
+            assert!(bre(f, &fit, &feature, spacing).1 < 1e-8);
         }
     }
 }

@@ -120,6 +120,7 @@ pub fn frames_table(run: &DatasetRun) -> PolarsResult<DataFrame> {
         Column::new("arc_radius_mm".into(), opt(&|r| r.arc.as_ref().map(|a| a.radius_mm))),
         Column::new("arc_span_deg".into(), opt(&|r| r.arc.as_ref().map(|a| a.span_deg))),
         Column::new("arc_rms_px".into(), opt(&|r| r.arc.as_ref().map(|a| a.rms_px))),
+        Column::new("arc_confidence".into(), opt(&|r| r.arc.as_ref().map(|a| a.confidence))),
         Column::new(
             "arc_points".into(),
             f.iter()
@@ -149,6 +150,14 @@ pub fn frames_table(run: &DatasetRun) -> PolarsResult<DataFrame> {
         Column::new(
             "truth_probe_pose_error_deg".into(),
             opt(&|r| r.truth_probe_pose_error.map(|e| e.1)),
+        ),
+        Column::new(
+            "truth_phantom_pose_error_mm".into(),
+            opt(&|r| r.truth_phantom_pose_error.map(|e| e.0)),
+        ),
+        Column::new(
+            "truth_phantom_pose_error_deg".into(),
+            opt(&|r| r.truth_phantom_pose_error.map(|e| e.1)),
         ),
     ];
     let mut columns = columns;
@@ -206,7 +215,8 @@ pub fn summary(run: &DatasetRun, manifest: &crate::manifest::Manifest) -> Value 
         },
         "calibration": {
             "marker_T_image": to_rows(&fit.target_T_source),
-            "scale_mm_per_px": run.spacing_mm_per_px,
+            "scale_mm_per_px": [run.spacing_mm_per_px[0] * fit.scale, run.spacing_mm_per_px[1] * fit.scale],
+            "solve_variant": manifest.solve_variant,
             "euler_zyx_deg": euler_zyx_deg(&fit.target_T_source),
             "translation_mm": fit.target_T_source.translation.vector.as_slice(),
             "cutoff_mm": cutoff_json(primary.cutoff_mm),
@@ -234,6 +244,7 @@ pub fn summary(run: &DatasetRun, manifest: &crate::manifest::Manifest) -> Value 
             "arc_centre_error_px": pair(t.arc_centre_error_px),
             "probe_pose_error_mm": pair(t.probe_pose_translation_error_mm),
             "probe_pose_error_deg": pair(t.probe_pose_rotation_error_deg),
+            "phantom_pose_error_mm": pair(t.phantom_pose_translation_error_mm),
         });
     }
     out

@@ -203,6 +203,10 @@ pub fn context(run: &DatasetRun, manifest: &crate::manifest::Manifest) -> RunCon
             "pixel spacing sx, sy (mm/px)",
             format!("{}, {}", run.spacing_mm_per_px[0], run.spacing_mm_per_px[1]),
         ),
+        kv(
+            "solved as",
+            format!("{:?}, scale {:.5}", manifest.solve_variant, fit.scale).to_lowercase(),
+        ),
         kv("Horn RMS residual (mm)", mm(fit.rms_residual_mm)),
     ];
     let threshold_blocks = ["X", "Y", "Z"]
@@ -255,6 +259,12 @@ pub fn context(run: &DatasetRun, manifest: &crate::manifest::Manifest) -> RunCon
         if let Some((mean, max)) = tr.probe_pose_translation_error_mm {
             truth.push(kv(
                 "probe board position error: mean / max (mm)",
+                format!("{} / {}", mm(mean), mm(max)),
+            ));
+        }
+        if let Some((mean, max)) = tr.phantom_pose_translation_error_mm {
+            truth.push(kv(
+                "phantom board position error: mean / max (mm)",
                 format!("{} / {}", mm(mean), mm(max)),
             ));
         }

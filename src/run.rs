@@ -54,6 +54,13 @@ pub enum RunError {
     },
     #[error("dataset `{dataset}`: the calibration cannot be solved: {source}")]
     Solve { dataset: String, source: HornError },
+    #[error("dataset `{dataset}`: no calibration at the calibration cut-off {cutoff} mm ({kept} frames left): {source}; lower thresholds.min_frames or raise thresholds.calibration_cutoff_mm")]
+    Cutoff {
+        dataset: String,
+        cutoff: String,
+        kept: usize,
+        source: HornError,
+    },
     #[error("dataset `{dataset}`: {source}")]
     Truth {
         dataset: String,
@@ -102,6 +109,8 @@ pub struct FrameRecord {
     pub truth_arc_centre_error_px: Option<f64>,
     pub truth_elevation_offset_mm: Option<f64>,
     pub truth_probe_pose_error: Option<(f64, f64)>,
+    /// Phantom board pose error (mm, degrees) against the truth.
+    pub truth_phantom_pose_error: Option<(f64, f64)>,
 }
 
 /// Camera intrinsics and, if calibrated here, the calibration.
@@ -130,6 +139,7 @@ pub struct TruthSummary {
     pub arc_centre_error_px: Option<(f64, f64)>,
     pub probe_pose_translation_error_mm: Option<(f64, f64)>,
     pub probe_pose_rotation_error_deg: Option<(f64, f64)>,
+    pub phantom_pose_translation_error_mm: Option<(f64, f64)>,
 }
 
 /// Everything one dataset's run produced.
@@ -225,6 +235,7 @@ fn process_frame(
         truth_arc_centre_error_px: None,
         truth_elevation_offset_mm: None,
         truth_probe_pose_error: None,
+        truth_phantom_pose_error: None,
     };
     let photo = match read_gray_sized(&files.camera_image, camera.image_size_px) {
         Ok(m) => m,
@@ -377,13 +388,18 @@ pub fn run_dataset(
             reasons,
         });
     }
-    let all_frames_fit = evaluate::solve(&correspondences, &feature, spacing).map_err(|source| RunError::Solve {
-        dataset: name.clone(),
-        source,
-    })?;
+    let variant = match manifest.solve_variant {
+        crate::manifest::SolveVariant::Rigid => crate::horn::Variant::Rigid,
+        crate::manifest::SolveVariant::Similarity => crate::horn::Variant::Similarity,
+    };
+    let all_frames_fit =
+        evaluate::solve(&correspondences, &feature, spacing, variant).map_err(|source| RunError::Solve {
+            dataset: name.clone(),
+            source,
+        })?;
     for f in frames.iter_mut() {
         if let Some(c) = correspondences.iter().find(|c| c.frame == f.files.frame) {
-            f.bre_mm = Some(evaluate::bre(c, &all_frames_fit.target_T_source, &feature, spacing));
+            f.bre_mm = Some(evaluate::bre(c, &all_frames_fit, &feature, spacing));
         }
     }
 
@@ -398,9 +414,10 @@ pub fn run_dataset(
         cutoffs_mm: &manifest.thresholds.bre_cutoffs_mm,
         rule: manifest.thresholds.cutoff_rule,
         min_frames,
+        variant,
         truth: truth.as_ref().map(|t| (t.marker_T_image, t.bscan_size_px)),
     };
-    let thresholds = evaluate::threshold_table(&correspondences, &inputs, &all_frames_fit)?;
+    let thresholds = evaluate::threshold_table(&correspondences, &inputs)?;
     let primary = thresholds
         .iter()
         .position(|r| r.cutoff_mm == manifest.thresholds.calibration_cutoff_mm)
@@ -417,6 +434,7 @@ pub fn run_dataset(
         let mut arc_errors = Vec::new();
         let mut pose_t = Vec::new();
         let mut pose_r = Vec::new();
+        let mut phantom_t = Vec::new();
         for f in frames.iter_mut() {
             let Some(tf) = t.frame(f.files.frame) else { continue };
             f.truth_kind = Some(tf.kind.clone());
@@ -430,13 +448,20 @@ pub fn run_dataset(
                     arc_errors.push(e);
                 }
             }
+            let pose_error = |est: &Rigid, truth: &Rigid| {
+                (
+                    (est.translation.vector - truth.translation.vector).norm(),
+                    rotation_angle_between_deg(est, truth),
+                )
+            };
             if let (Some(poses), Ok(true_pose)) = (&f.poses, rigid_from_rows(&tf.camera_T_marker_photo)) {
-                let est: &Rigid = &poses.camera_T_marker.camera_T_board;
-                let dt = (est.translation.vector - true_pose.translation.vector).norm();
-                let dr = rotation_angle_between_deg(est, &true_pose);
+                let (dt, dr) = pose_error(&poses.camera_T_marker.camera_T_board, &true_pose);
                 f.truth_probe_pose_error = Some((dt, dr));
                 pose_t.push(dt);
                 pose_r.push(dr);
+                let (pt, pr) = pose_error(&poses.camera_T_phantom.camera_T_board, &t.camera_T_phantom);
+                f.truth_phantom_pose_error = Some((pt, pr));
+                phantom_t.push(pt);
             }
         }
         let k = &camera.intrinsics;
@@ -448,6 +473,7 @@ pub fn run_dataset(
             arc_centre_error_px: mean_max(&arc_errors),
             probe_pose_translation_error_mm: mean_max(&pose_t),
             probe_pose_rotation_error_deg: mean_max(&pose_r),
+            phantom_pose_translation_error_mm: mean_max(&phantom_t),
         }
     });
 

@@ -15,8 +15,8 @@ use std::path::{Path, PathBuf};
 use sha2::{Digest, Sha256};
 
 pub use raw::{
-    ArcDetection, Board, BscanRender, CameraCalibrationBoard, FitRadius, Gates, Phantom, RenderSpec, Rig, Sweep,
-    TrueCamera, TrueTransform, Wire,
+    ArcDetection, Board, BscanRender, CameraCalibrationBoard, FitRadius, Gates, Phantom, RenderSpec, Rig, SolveVariant,
+    Sweep, TrueCamera, TrueTransform, Wire,
 };
 
 /// A manifest problem, located.
@@ -125,6 +125,7 @@ pub struct Manifest {
     pub bscan_spacing_mm_per_px: [f64; 2],
     pub arc_detection: ArcDetection,
     pub thresholds: Thresholds,
+    pub solve_variant: SolveVariant,
     pub datasets: Vec<Dataset>,
 }
 
@@ -234,7 +235,11 @@ impl Manifest {
         let raw: raw::RawManifest = serde_path_to_error::deserialize(deserializer).map_err(|e| {
             let field = e.path().to_string();
             // serde_path_to_error writes `?` for a segment it could not name (syntax errors).
-            let field = field.split('.').take_while(|s| *s != "?" && !s.is_empty()).collect::<Vec<_>>().join(".");
+            let field = field
+                .split('.')
+                .take_while(|s| *s != "?" && !s.is_empty())
+                .collect::<Vec<_>>()
+                .join(".");
             let inner = e.inner();
             let line = inner
                 .location()
@@ -454,6 +459,7 @@ fn validate(c: &mut Checker<'_>, base: &Path, raw: raw::RawManifest, path: &Path
             min_frames: t.min_frames,
             gates: t.gates.clone(),
         },
+        solve_variant: raw.solve.variant,
         datasets,
     }
 }

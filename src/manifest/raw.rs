@@ -20,7 +20,26 @@ pub struct RawManifest {
     pub bscan: RawBscan,
     #[serde(default)]
     pub thresholds: RawThresholds,
+    #[serde(default)]
+    pub solve: Solve,
     pub datasets: Vec<RawDataset>,
+}
+
+/// How `marker_T_image` is solved.
+#[derive(Debug, Clone, Default, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct Solve {
+    /// `rigid` trusts the B-scan pixel spacing; `similarity` also estimates an
+    /// isotropic scale on it (Horn's variant with scale, the thesis's eq. 4).
+    pub variant: SolveVariant,
+}
+
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SolveVariant {
+    #[default]
+    Rigid,
+    Similarity,
 }
 
 /// The phantom and its features, in the phantom frame P (the phantom board's frame), mm.

@@ -52,38 +52,218 @@ fn good_manifest_parses_with_defaults() {
 }
 
 /// (what is changed, replace this, with this, expected field, expected line, expected message part)
-const BAD: &[(&str, &str, &str, &str, Option<usize>, &str)] = &[
-    ("unknown top-level key", "experiment: demo\n", "experiment: demo\ncolour: red\n", "colour", Some(2), "unknown field `colour`"),
-    ("typo in a nested key", "    radius_mm: 15.0", "    radius: 15.0", "phantom.hemisphere.radius", Some(5), "unknown field `radius`"),
-    ("negative radius", "radius_mm: 15.0", "radius_mm: -4.0", "phantom.hemisphere.radius_mm", Some(5), "must be a positive number"),
-    ("zero square size", "probe_board: {inner_corners: [10, 10], square_mm: 13.0", "probe_board: {inner_corners: [10, 10], square_mm: 0.0", "rig.checkerboard.probe_board.square_mm", Some(8), "got 0"),
-    ("wrong type", "seed: 3", "seed: three", "datasets[0].render.seed", Some(22), "invalid type"),
-    ("missing required field", "    radius_mm: 15.0\n", "", "phantom.hemisphere", Some(4), "missing field `radius_mm`"),
-    ("unknown phantom", "  hemisphere:\n", "  sphere:\n", "phantom.sphere", Some(3), "unknown variant `sphere`"),
-    ("thresholds out of order", "[.inf, 2.0, 1.5, 1.0]", "[.inf, 1.0, 1.5]", "thresholds.bre_cutoffs_mm[2]", Some(17), "strictly descending"),
-    ("calibration cut-off not listed", "calibration_cutoff_mm: 2.0", "calibration_cutoff_mm: 3.0", "thresholds.calibration_cutoff_mm", Some(18), "must be one of bre_cutoffs_mm"),
-    ("too few frames", "frames: 20", "frames: 2", "datasets[0].render.frames", Some(23), "at least 3 frames"),
-    ("same identification dots", "square_mm: 13.0, id_dots: 2", "square_mm: 13.0, id_dots: 1", "rig.checkerboard.phantom_board.id_dots", Some(9), "different number"),
-    ("intrinsics file missing", "  calibrate:\n    inner_corners: [9, 6]\n    square_mm: 30.0\n", "  intrinsics_file: nowhere/intrinsics.yml\n", "camera.intrinsics_file", Some(11), "does not exist"),
-    ("both camera sources", "  calibrate:\n", "  intrinsics_file: x.yml\n  calibrate:\n", "camera", Some(10), "exactly one of"),
-    ("dataset without source", "    render:\n      seed: 3\n      frames: 20\n", "    seed: 3\n", "datasets[0].seed", Some(21), "unknown field `seed`"),
-    ("recorded folder missing", "    render:\n      seed: 3\n      frames: 20\n", "    folder: no/such/folder\n", "datasets[0].folder", Some(21), "does not exist"),
-    ("duplicate dataset names", "      frames: 20\n", "      frames: 20\n  - name: first\n    render: {seed: 4}\n", "datasets[1].name", Some(24), "used twice"),
-    ("no datasets", "datasets:\n  - name: first\n    render:\n      seed: 3\n      frames: 20\n", "datasets: []\n", "datasets", Some(19), "lists no dataset"),
-    ("min_frames below three", "  calibration_cutoff_mm: 2.0\n", "  calibration_cutoff_mm: 2.0\n  min_frames: 2\n", "thresholds.min_frames", Some(19), "at least 3 frames"),
-    ("negative spacing", "[0.2, 0.2]", "[0.2, -0.2]", "bscan.spacing_mm_per_px[1]", Some(15), "must be a positive number"),
-    ("board too small", "inner_corners: [10, 10], square_mm: 13.0, id_dots: 1", "inner_corners: [1, 10], square_mm: 13.0, id_dots: 1", "rig.checkerboard.probe_board.inner_corners", Some(8), "at least 2x2"),
-    ("point phantom not runnable", "  hemisphere:\n    centre_in_phantom_mm: [250.0, 65.0, -9.0]\n    radius_mm: 15.0\n", "  point:\n    position_in_phantom_mm: [1, 2, 3]\n", "phantom.point", Some(3), "no B-scan detector"),
-    ("YAML syntax error", "    radius_mm: 15.0\n", "    radius_mm: 15.0\n   oops: 1\n", "phantom", Some(6), "did not find expected key"),
-    ("fan angle impossible", "      frames: 20\n", "      frames: 20\n      bscan: {fan_deg: 200}\n", "datasets[0].render.bscan.fan_deg", Some(24), "between 0 and 170"),
-    ("outlier rate above one", "      frames: 20\n", "      frames: 20\n      bscan: {outlier_rate: 1.5}\n", "datasets[0].render.bscan.outlier_rate", Some(24), "fraction between 0 and 1"),
+type BadCase = (
+    &'static str,
+    &'static str,
+    &'static str,
+    &'static str,
+    Option<usize>,
+    &'static str,
+);
+
+const BAD: &[BadCase] = &[
+    (
+        "unknown top-level key",
+        "experiment: demo\n",
+        "experiment: demo\ncolour: red\n",
+        "colour",
+        Some(2),
+        "unknown field `colour`",
+    ),
+    (
+        "typo in a nested key",
+        "    radius_mm: 15.0",
+        "    radius: 15.0",
+        "phantom.hemisphere.radius",
+        Some(5),
+        "unknown field `radius`",
+    ),
+    (
+        "negative radius",
+        "radius_mm: 15.0",
+        "radius_mm: -4.0",
+        "phantom.hemisphere.radius_mm",
+        Some(5),
+        "must be a positive number",
+    ),
+    (
+        "zero square size",
+        "probe_board: {inner_corners: [10, 10], square_mm: 13.0",
+        "probe_board: {inner_corners: [10, 10], square_mm: 0.0",
+        "rig.checkerboard.probe_board.square_mm",
+        Some(8),
+        "got 0",
+    ),
+    (
+        "wrong type",
+        "seed: 3",
+        "seed: three",
+        "datasets[0].render.seed",
+        Some(22),
+        "invalid type",
+    ),
+    (
+        "missing required field",
+        "    radius_mm: 15.0\n",
+        "",
+        "phantom.hemisphere",
+        Some(4),
+        "missing field `radius_mm`",
+    ),
+    (
+        "unknown phantom",
+        "  hemisphere:\n",
+        "  sphere:\n",
+        "phantom.sphere",
+        Some(3),
+        "unknown variant `sphere`",
+    ),
+    (
+        "thresholds out of order",
+        "[.inf, 2.0, 1.5, 1.0]",
+        "[.inf, 1.0, 1.5]",
+        "thresholds.bre_cutoffs_mm[2]",
+        Some(17),
+        "strictly descending",
+    ),
+    (
+        "calibration cut-off not listed",
+        "calibration_cutoff_mm: 2.0",
+        "calibration_cutoff_mm: 3.0",
+        "thresholds.calibration_cutoff_mm",
+        Some(18),
+        "must be one of bre_cutoffs_mm",
+    ),
+    (
+        "too few frames",
+        "frames: 20",
+        "frames: 2",
+        "datasets[0].render.frames",
+        Some(23),
+        "at least 3 frames",
+    ),
+    (
+        "same identification dots",
+        "square_mm: 13.0, id_dots: 2",
+        "square_mm: 13.0, id_dots: 1",
+        "rig.checkerboard.phantom_board.id_dots",
+        Some(9),
+        "different number",
+    ),
+    (
+        "intrinsics file missing",
+        "  calibrate:\n    inner_corners: [9, 6]\n    square_mm: 30.0\n",
+        "  intrinsics_file: nowhere/intrinsics.yml\n",
+        "camera.intrinsics_file",
+        Some(11),
+        "does not exist",
+    ),
+    (
+        "both camera sources",
+        "  calibrate:\n",
+        "  intrinsics_file: x.yml\n  calibrate:\n",
+        "camera",
+        Some(10),
+        "exactly one of",
+    ),
+    (
+        "dataset without source",
+        "    render:\n      seed: 3\n      frames: 20\n",
+        "    seed: 3\n",
+        "datasets[0].seed",
+        Some(21),
+        "unknown field `seed`",
+    ),
+    (
+        "recorded folder missing",
+        "    render:\n      seed: 3\n      frames: 20\n",
+        "    folder: no/such/folder\n",
+        "datasets[0].folder",
+        Some(21),
+        "does not exist",
+    ),
+    (
+        "duplicate dataset names",
+        "      frames: 20\n",
+        "      frames: 20\n  - name: first\n    render: {seed: 4}\n",
+        "datasets[1].name",
+        Some(24),
+        "used twice",
+    ),
+    (
+        "no datasets",
+        "datasets:\n  - name: first\n    render:\n      seed: 3\n      frames: 20\n",
+        "datasets: []\n",
+        "datasets",
+        Some(19),
+        "lists no dataset",
+    ),
+    (
+        "min_frames below three",
+        "  calibration_cutoff_mm: 2.0\n",
+        "  calibration_cutoff_mm: 2.0\n  min_frames: 2\n",
+        "thresholds.min_frames",
+        Some(19),
+        "at least 3 frames",
+    ),
+    (
+        "negative spacing",
+        "[0.2, 0.2]",
+        "[0.2, -0.2]",
+        "bscan.spacing_mm_per_px[1]",
+        Some(15),
+        "must be a positive number",
+    ),
+    (
+        "board too small",
+        "inner_corners: [10, 10], square_mm: 13.0, id_dots: 1",
+        "inner_corners: [1, 10], square_mm: 13.0, id_dots: 1",
+        "rig.checkerboard.probe_board.inner_corners",
+        Some(8),
+        "at least 2x2",
+    ),
+    (
+        "point phantom not runnable",
+        "  hemisphere:\n    centre_in_phantom_mm: [250.0, 65.0, -9.0]\n    radius_mm: 15.0\n",
+        "  point:\n    position_in_phantom_mm: [1, 2, 3]\n",
+        "phantom.point",
+        Some(3),
+        "no B-scan detector",
+    ),
+    (
+        "YAML syntax error",
+        "    radius_mm: 15.0\n",
+        "    radius_mm: 15.0\n   oops: 1\n",
+        "phantom",
+        Some(6),
+        "did not find expected key",
+    ),
+    (
+        "fan angle impossible",
+        "      frames: 20\n",
+        "      frames: 20\n      bscan: {fan_deg: 200}\n",
+        "datasets[0].render.bscan.fan_deg",
+        Some(24),
+        "between 0 and 170",
+    ),
+    (
+        "outlier rate above one",
+        "      frames: 20\n",
+        "      frames: 20\n      bscan: {outlier_rate: 1.5}\n",
+        "datasets[0].render.bscan.outlier_rate",
+        Some(24),
+        "fraction between 0 and 1",
+    ),
 ];
 
 #[test]
 fn bad_manifests_name_file_field_and_line() {
     let mut failures = Vec::new();
     for (what, from, to, field, line, message) in BAD {
-        assert!(GOOD.contains(from), "test case `{what}`: `{from}` is not in the good manifest");
+        assert!(
+            GOOD.contains(from),
+            "test case `{what}`: `{from}` is not in the good manifest"
+        );
         let text = GOOD.replacen(from, to, 1);
         let result = std::panic::catch_unwind(|| parse(&text));
         let errors = match result {
@@ -100,18 +280,29 @@ fn bad_manifests_name_file_field_and_line() {
         let first = &errors.0[0];
         let shown = errors.to_string();
         if first.field != *field || first.line != *line || !first.message.contains(message) {
-            failures.push(format!("{what}: got `{shown}` (field `{}`, line {:?})", first.field, first.line));
+            failures.push(format!(
+                "{what}: got `{shown}` (field `{}`, line {:?})",
+                first.field, first.line
+            ));
         }
         if !shown.starts_with("experiments/demo.yaml") {
             failures.push(format!("{what}: the file is not named first: `{shown}`"));
         }
     }
-    assert!(failures.is_empty(), "{} of {} cases wrong:\n{}", failures.len(), BAD.len(), failures.join("\n"));
+    assert!(
+        failures.is_empty(),
+        "{} of {} cases wrong:\n{}",
+        failures.len(),
+        BAD.len(),
+        failures.join("\n")
+    );
 }
 
 #[test]
 fn several_problems_are_reported_together() {
-    let text = GOOD.replace("radius_mm: 15.0", "radius_mm: -1.0").replace("frames: 20", "frames: 1");
+    let text = GOOD
+        .replace("radius_mm: 15.0", "radius_mm: -1.0")
+        .replace("frames: 20", "frames: 1");
     let errors = parse(&text).unwrap_err();
     assert_eq!(errors.0.len(), 2, "{errors}");
 }
