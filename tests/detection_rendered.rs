@@ -13,17 +13,29 @@ use probecal::geometry::rigid_from_rows;
 use probecal::manifest::{DatasetSource, Manifest};
 use serde_json::Value;
 
+/// The fixture rendered once for all tests of this file (they run in parallel).
 fn rendered() -> (Manifest, PathBuf, Value) {
-    let manifest = Manifest::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/hemisphere_small.yaml")).expect("fixture");
-    let DatasetSource::Render(spec) = &manifest.datasets[0].source else { panic!("fixture renders") };
+    static RENDERED: std::sync::OnceLock<(Manifest, PathBuf, Value)> = std::sync::OnceLock::new();
+    RENDERED.get_or_init(render).clone()
+}
+
+fn render() -> (Manifest, PathBuf, Value) {
+    let manifest = Manifest::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/hemisphere_small.yaml"))
+        .expect("fixture");
+    let DatasetSource::Render(spec) = &manifest.datasets[0].source else {
+        panic!("fixture renders")
+    };
     let folder = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("detection_rendered/small");
     probecal::synth::ensure_rendered(&manifest, spec, &folder).expect("render");
-    let truth: Value = serde_json::from_str(&std::fs::read_to_string(folder.join("ground_truth.json")).unwrap()).unwrap();
+    let truth: Value =
+        serde_json::from_str(&std::fs::read_to_string(folder.join("ground_truth.json")).unwrap()).unwrap();
     (manifest, folder, truth)
 }
 
 fn true_camera(truth: &Value) -> CameraIntrinsics {
-    serde_json::from_value::<TrueCamera>(truth["camera"].clone()).expect("camera").into()
+    serde_json::from_value::<TrueCamera>(truth["camera"].clone())
+        .expect("camera")
+        .into()
 }
 
 #[derive(serde::Deserialize)]
@@ -35,7 +47,13 @@ struct TrueCamera {
 
 impl From<TrueCamera> for CameraIntrinsics {
     fn from(t: TrueCamera) -> Self {
-        CameraIntrinsics { image_size_px: t.image_size_px, camera_matrix: t.camera_matrix, distortion: t.distortion, rms_px: None, per_view_rms_px: vec![] }
+        CameraIntrinsics {
+            image_size_px: t.image_size_px,
+            camera_matrix: t.camera_matrix,
+            distortion: t.distortion,
+            rms_px: None,
+            per_view_rms_px: vec![],
+        }
     }
 }
 
@@ -47,17 +65,30 @@ fn rows(v: &Value) -> [[f64; 4]; 4] {
 fn board_corners_and_identity_match_the_truth() {
     let (_, folder, truth) = rendered();
     let camera = true_camera(&truth);
-    let probe = BoardLayout { inner_corners: [10, 10], square_mm: 13.0, id_dots: 1 };
-    let phantom = BoardLayout { inner_corners: [10, 10], square_mm: 13.0, id_dots: 2 };
+    let probe = BoardLayout {
+        inner_corners: [10, 10],
+        square_mm: 13.0,
+        id_dots: 1,
+    };
+    let phantom = BoardLayout {
+        inner_corners: [10, 10],
+        square_mm: 13.0,
+        id_dots: 2,
+    };
     let rig = RigLayout { probe, phantom };
     let camera_T_phantom = rigid_from_rows(&rows(&truth["camera_T_phantom"])).unwrap();
     let mut errors = Vec::new();
     for frame in truth["frames"].as_array().unwrap() {
         let k = frame["frame"].as_u64().unwrap();
         let image = probecal::image::read_gray(&folder.join(format!("frames/camera_{k:03}.png"))).unwrap();
-        let poses = board_pose::estimate(&image, &camera, &rig).unwrap().unwrap_or_else(|r| panic!("frame {k}: {r}"));
+        let poses = board_pose::estimate(&image, &camera, &rig)
+            .unwrap()
+            .unwrap_or_else(|r| panic!("frame {k}: {r}"));
         let camera_T_marker = rigid_from_rows(&rows(&frame["camera_T_marker_photo"])).unwrap();
-        for (pose, layout, observed) in [(camera_T_marker, probe, &poses.camera_T_marker), (camera_T_phantom, phantom, &poses.camera_T_phantom)] {
+        for (pose, layout, observed) in [
+            (camera_T_marker, probe, &poses.camera_T_marker),
+            (camera_T_phantom, phantom, &poses.camera_T_phantom),
+        ] {
             for (corner, detected) in layout.corners_in_board_mm().iter().zip(&observed.corners_px) {
                 let p = camera.project(&(pose * Point3::new(corner.x, corner.y, 0.0))).unwrap();
                 errors.push(((p[0] - detected[0]).powi(2) + (p[1] - detected[1]).powi(2)).sqrt());
@@ -66,7 +97,10 @@ fn board_corners_and_identity_match_the_truth() {
     }
     let mean = errors.iter().sum::<f64>() / errors.len() as f64;
     let max = errors.iter().cloned().fold(0.0, f64::max);
-    println!("board corners: {} corners, error mean {mean:.4} px, max {max:.4} px", errors.len());
+    println!(
+        "board corners: {} corners, error mean {mean:.4} px, max {max:.4} px",
+        errors.len()
+    );
     // A wrong origin corner or a swapped board would give errors of tens of pixels.
     assert!(mean < 0.1, "mean corner error {mean} px");
     assert!(max < 0.5, "max corner error {max} px");
@@ -92,16 +126,24 @@ fn arc_centres_match_the_truth_and_missing_arcs_are_rejected() {
         let result = arc_detection::detect(&image, &settings).unwrap();
         let centre: [f64; 2] = serde_json::from_value(frame["centre_projection_px"].clone()).unwrap();
         match (kind, result) {
-            ("missing", Ok(f)) => panic!("frame {k}: the plane misses the sphere but an arc was found at {:?}", f.centre_px),
+            ("missing", Ok(f)) => panic!(
+                "frame {k}: the plane misses the sphere but an arc was found at {:?}",
+                f.centre_px
+            ),
             ("missing", Err(_)) => missing += 1,
-            ("normal", Ok(f)) => normal_errors.push(((f.centre_px[0] - centre[0]).powi(2) + (f.centre_px[1] - centre[1]).powi(2)).sqrt()),
+            ("normal", Ok(f)) => {
+                normal_errors.push(((f.centre_px[0] - centre[0]).powi(2) + (f.centre_px[1] - centre[1]).powi(2)).sqrt())
+            }
             ("normal", Err(reason)) => panic!("frame {k}: a clear arc was rejected: {reason}"),
             _ => {}
         }
     }
     let mean = normal_errors.iter().sum::<f64>() / normal_errors.len() as f64;
     let max = normal_errors.iter().cloned().fold(0.0, f64::max);
-    println!("arc centres: {} normal frames, error mean {mean:.3} px, max {max:.3} px; {missing} missing arcs rejected", normal_errors.len());
+    println!(
+        "arc centres: {} normal frames, error mean {mean:.3} px, max {max:.3} px; {missing} missing arcs rejected",
+        normal_errors.len()
+    );
     assert!(normal_errors.len() >= 8);
     assert!(mean < 1.0, "mean arc centre error {mean} px");
     assert!(max < 2.5, "max arc centre error {max} px");
@@ -115,16 +157,29 @@ fn camera_calibration_of_rendered_views_recovers_the_true_camera() {
     let k = &cal.intrinsics;
     let focal = (k.fx() - camera.fx()).abs().max((k.fy() - camera.fy()).abs());
     let principal = ((k.cx() - camera.cx()).powi(2) + (k.cy() - camera.cy()).powi(2)).sqrt();
-    println!("camera: focal error {focal:.3} px, principal point error {principal:.3} px, RMS {:.3} px", k.rms_px.unwrap());
-    assert!(focal < 3.0 && principal < 3.0, "focal {focal} px, principal point {principal} px");
-    assert!((k.distortion[0] - camera.distortion[0]).abs() < 0.01, "k1 {} vs {}", k.distortion[0], camera.distortion[0]);
+    println!(
+        "camera: focal error {focal:.3} px, principal point error {principal:.3} px, RMS {:.3} px",
+        k.rms_px.unwrap()
+    );
+    assert!(
+        focal < 3.0 && principal < 3.0,
+        "focal {focal} px, principal point {principal} px"
+    );
+    assert!(
+        (k.distortion[0] - camera.distortion[0]).abs() < 0.01,
+        "k1 {} vs {}",
+        k.distortion[0],
+        camera.distortion[0]
+    );
     assert!(k.rms_px.unwrap() < 0.3);
 }
 
 #[test]
 fn rendering_is_deterministic() {
     let (manifest, folder, _) = rendered();
-    let DatasetSource::Render(spec) = &manifest.datasets[0].source else { unreachable!() };
+    let DatasetSource::Render(spec) = &manifest.datasets[0].source else {
+        unreachable!()
+    };
     let mut one = (**spec).clone();
     one.frames = 2;
     one.calibration_views = 4;
@@ -134,9 +189,22 @@ fn rendering_is_deterministic() {
         let _ = std::fs::remove_dir_all(dir);
         probecal::synth::ensure_rendered(&manifest, &one, dir).unwrap();
     }
-    for file in ["frames/camera_001.png", "frames/bscan_001.png", "camera_calibration/view_003.png", "ground_truth.json", "frames.csv"] {
-        assert_eq!(std::fs::read(a.join(file)).unwrap(), std::fs::read(b.join(file)).unwrap(), "{file} differs between two renders");
+    for file in [
+        "frames/camera_001.png",
+        "frames/bscan_001.png",
+        "camera_calibration/view_003.png",
+        "ground_truth.json",
+        "frames.csv",
+    ] {
+        assert_eq!(
+            std::fs::read(a.join(file)).unwrap(),
+            std::fs::read(b.join(file)).unwrap(),
+            "{file} differs between two renders"
+        );
     }
     // The first two frames of the 14-frame render are the same scene and pixels.
-    assert_eq!(std::fs::read(a.join("frames/bscan_001.png")).unwrap(), std::fs::read(folder.join("frames/bscan_001.png")).unwrap());
+    assert_eq!(
+        std::fs::read(a.join("frames/bscan_001.png")).unwrap(),
+        std::fs::read(folder.join("frames/bscan_001.png")).unwrap()
+    );
 }

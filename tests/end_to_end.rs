@@ -24,15 +24,33 @@ fn tmp(name: &str) -> PathBuf {
 fn run_writes_the_tables_summary_and_page() {
     let out = tmp("run");
     let datasets = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("end_to_end_datasets");
-    let result = probecal().arg("run").arg(fixture()).arg("--out").arg(&out).arg("--datasets").arg(&datasets).output().unwrap();
+    let result = probecal()
+        .arg("run")
+        .arg(fixture())
+        .arg("--out")
+        .arg(&out)
+        .arg("--datasets")
+        .arg(&datasets)
+        .output()
+        .unwrap();
     let stdout = String::from_utf8_lossy(&result.stdout);
     let stderr = String::from_utf8_lossy(&result.stderr);
     assert!(result.status.success(), "exit {:?}\n{stdout}\n{stderr}", result.status);
     // The thesis's tables are printed.
-    assert!(stdout.contains("Std.") && stdout.contains("Mean") && stdout.contains("<∞ (") && stdout.contains("<1 ("), "{stdout}");
+    assert!(
+        stdout.contains("Std.") && stdout.contains("Mean") && stdout.contains("<∞ (") && stdout.contains("<1 ("),
+        "{stdout}"
+    );
 
     let run = out.join("hemisphere_small/small");
-    for file in ["frames.csv", "frames.parquet", "summary.json", "report.html", "report_context.json", "camera_intrinsics.yml"] {
+    for file in [
+        "frames.csv",
+        "frames.parquet",
+        "summary.json",
+        "report.html",
+        "report_context.json",
+        "camera_intrinsics.yml",
+    ] {
         assert!(run.join(file).is_file(), "{file} missing in {}", run.display());
     }
     assert!(out.join("hemisphere_small/manifest.yaml").is_file());
@@ -43,23 +61,34 @@ fn run_writes_the_tables_summary_and_page() {
     assert_eq!(summary["dataset"], "small");
     let frames = &summary["frames"];
     assert_eq!(frames["total"], 14);
-    assert_eq!(frames["used"].as_u64().unwrap() + frames["rejected"].as_u64().unwrap(), 14);
+    assert_eq!(
+        frames["used"].as_u64().unwrap() + frames["rejected"].as_u64().unwrap(),
+        14
+    );
     let m = summary["calibration"]["marker_T_image"].as_array().unwrap();
     assert_eq!(m.len(), 4);
     assert_eq!(m[3], serde_json::json!([0.0, 0.0, 0.0, 1.0]));
     assert_eq!(summary["calibration"]["scale_mm_per_px"], serde_json::json!([0.2, 0.2]));
     for axis in ["x", "y", "z"] {
         for stat in ["mean", "std", "min", "max"] {
-            assert!(summary["bre_mm"][axis][stat].is_number(), "bre_mm.{axis}.{stat} missing");
+            assert!(
+                summary["bre_mm"][axis][stat].is_number(),
+                "bre_mm.{axis}.{stat} missing"
+            );
         }
     }
     let corner_mean = summary["truth"]["corner_error_mm"]["mean"].as_f64().unwrap();
     let corner_max = summary["truth"]["corner_error_mm"]["max"].as_f64().unwrap();
     let rotation = summary["truth"]["rotation_error_deg"].as_f64().unwrap();
-    println!("small experiment: corner error mean {corner_mean:.3} mm, max {corner_max:.3} mm, rotation {rotation:.3} deg");
+    println!(
+        "small experiment: corner error mean {corner_mean:.3} mm, max {corner_max:.3} mm, rotation {rotation:.3} deg"
+    );
     // 11 or so frames with elevation offsets of ~0.5 mm: a coarse bound; the default
     // experiment's accuracy is checked in `default_experiment_meets_its_gates`.
-    assert!(corner_mean < 2.5 && rotation < 2.5, "corner {corner_mean} mm, rotation {rotation} deg");
+    assert!(
+        corner_mean < 2.5 && rotation < 2.5,
+        "corner {corner_mean} mm, rotation {rotation} deg"
+    );
     assert_eq!(summary["thresholds"].as_array().unwrap().len(), 4);
     assert_eq!(summary["thresholds"][0]["cutoff_mm"], "inf");
 
@@ -79,7 +108,15 @@ fn run_writes_the_tables_summary_and_page() {
     assert!(html.contains("id=\"bre-table\"") && html.contains("id=\"threshold-table\"") && html.contains("<svg"));
 
     // A second run into the same folder is refused without --force.
-    let again = probecal().arg("run").arg(fixture()).arg("--out").arg(&out).arg("--datasets").arg(&datasets).output().unwrap();
+    let again = probecal()
+        .arg("run")
+        .arg(fixture())
+        .arg("--out")
+        .arg(&out)
+        .arg("--datasets")
+        .arg(&datasets)
+        .output()
+        .unwrap();
     assert_eq!(again.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&again.stderr).contains("pass --force"));
 }
@@ -90,7 +127,16 @@ fn same_inputs_give_identical_outputs() {
     let a = tmp("det_a");
     let b = tmp("det_b");
     for out in [&a, &b] {
-        let r = probecal().arg("run").arg(fixture()).arg("--out").arg(out).arg("--datasets").arg(&datasets).arg("--quiet").output().unwrap();
+        let r = probecal()
+            .arg("run")
+            .arg(fixture())
+            .arg("--out")
+            .arg(out)
+            .arg("--datasets")
+            .arg(&datasets)
+            .arg("--quiet")
+            .output()
+            .unwrap();
         assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
     }
     for file in ["frames.csv", "summary.json", "report.html"] {
@@ -104,22 +150,41 @@ fn same_inputs_give_identical_outputs() {
 fn manifest_errors_stop_before_any_work() {
     let dir = tmp("bad");
     std::fs::create_dir_all(&dir).unwrap();
-    let text = std::fs::read_to_string(fixture()).unwrap().replace("radius_mm: 15.0", "radius_mm: -15.0").replace("square_mm: 30.0", "square_mm: 30.0\n    colour: red");
+    let text = std::fs::read_to_string(fixture())
+        .unwrap()
+        .replace("radius_mm: 15.0", "radius_mm: -15.0")
+        .replace("square_mm: 30.0", "square_mm: 30.0\n    colour: red");
     let bad = dir.join("bad.yaml");
     std::fs::write(&bad, text).unwrap();
     for command in ["validate", "run", "synth"] {
-        let r = probecal().arg(command).arg(&bad).arg("--datasets").arg(dir.join("datasets")).output();
-        let r = if command == "validate" { probecal().arg(command).arg(&bad).output() } else { r }.unwrap();
+        let r = probecal()
+            .arg(command)
+            .arg(&bad)
+            .arg("--datasets")
+            .arg(dir.join("datasets"))
+            .output();
+        let r = if command == "validate" {
+            probecal().arg(command).arg(&bad).output()
+        } else {
+            r
+        }
+        .unwrap();
         let stderr = String::from_utf8_lossy(&r.stderr);
         assert_eq!(r.status.code(), Some(2), "{command}: {stderr}");
-        assert!(stderr.contains("bad.yaml:") && stderr.contains("field `camera.calibrate.colour`"), "{command}: {stderr}");
+        assert!(
+            stderr.contains("bad.yaml:") && stderr.contains("field `camera.calibrate.colour`"),
+            "{command}: {stderr}"
+        );
     }
     assert!(!dir.join("datasets").exists(), "work was done despite a bad manifest");
     let fixed = std::fs::read_to_string(&bad).unwrap().replace("\n    colour: red", "");
     std::fs::write(&bad, fixed).unwrap();
     let r = probecal().arg("validate").arg(&bad).output().unwrap();
     let stderr = String::from_utf8_lossy(&r.stderr);
-    assert!(stderr.contains("bad.yaml:7: field `phantom.hemisphere.radius_mm`: must be a positive number"), "{stderr}");
+    assert!(
+        stderr.contains("bad.yaml:7: field `phantom.hemisphere.radius_mm`: must be a positive number"),
+        "{stderr}"
+    );
 }
 
 #[test]
@@ -127,16 +192,98 @@ fn default_experiment_meets_its_gates() {
     let manifest = Path::new(env!("CARGO_MANIFEST_DIR")).join("experiments/hemisphere_checkerboard.yaml");
     let out = tmp("default");
     let datasets = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("end_to_end_datasets_default");
-    let r = probecal().arg("run").arg(&manifest).arg("--out").arg(&out).arg("--datasets").arg(&datasets).output().unwrap();
+    let r = probecal()
+        .arg("run")
+        .arg(&manifest)
+        .arg("--out")
+        .arg(&out)
+        .arg("--datasets")
+        .arg(&datasets)
+        .output()
+        .unwrap();
     let stderr = String::from_utf8_lossy(&r.stderr);
     assert!(r.status.success(), "exit {:?} (3 = a gate failed)\n{stderr}", r.status);
-    let summary: Value =
-        serde_json::from_str(&std::fs::read_to_string(out.join("hemisphere_checkerboard/dataset3/summary.json")).unwrap()).unwrap();
+    let summary: Value = serde_json::from_str(
+        &std::fs::read_to_string(out.join("hemisphere_checkerboard/dataset3/summary.json")).unwrap(),
+    )
+    .unwrap();
     let corner = summary["truth"]["corner_error_mm"]["mean"].as_f64().unwrap();
     let rotation = summary["truth"]["rotation_error_deg"].as_f64().unwrap();
-    println!("default experiment: corner error {corner:.3} mm, rotation {rotation:.3} deg, frames {}", summary["frames"]);
-    assert!(corner <= 1.0 && rotation <= 0.5, "corner {corner} mm, rotation {rotation} deg");
+    println!(
+        "default experiment: corner error {corner:.3} mm, rotation {rotation:.3} deg, frames {}",
+        summary["frames"]
+    );
+    assert!(
+        corner <= 1.0 && rotation <= 0.5,
+        "corner {corner} mm, rotation {rotation} deg"
+    );
     for gate in summary["gates"].as_array().unwrap() {
         assert_eq!(gate["passed"], true, "{gate}");
     }
+}
+
+/// A recorded dataset is a folder with frames.csv and images; here the small
+/// rendered dataset copied without its ground truth, with intrinsics from a file.
+#[test]
+fn recorded_folder_dataset_runs_without_truth() {
+    let base = tmp("recorded");
+    let datasets = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("end_to_end_datasets_recorded");
+    let synth = probecal()
+        .arg("synth")
+        .arg(fixture())
+        .arg("--datasets")
+        .arg(&datasets)
+        .output()
+        .unwrap();
+    assert!(synth.status.success(), "{}", String::from_utf8_lossy(&synth.stderr));
+    let rendered = datasets.join("hemisphere_small__small");
+    let recorded = base.join("lab/session1");
+    std::fs::create_dir_all(recorded.join("frames")).unwrap();
+    std::fs::copy(rendered.join("frames.csv"), recorded.join("frames.csv")).unwrap();
+    for entry in std::fs::read_dir(rendered.join("frames")).unwrap() {
+        let path = entry.unwrap().path();
+        std::fs::copy(&path, recorded.join("frames").join(path.file_name().unwrap())).unwrap();
+    }
+    // Intrinsics from a file, as a lab would have them from an earlier calibration.
+    let cal = probecal()
+        .args(["calibrate-camera", "--board", "9x6", "--square-mm", "30", "--out"])
+        .arg(base.join("lab/camera.yml"))
+        .arg(rendered.join("camera_calibration"))
+        .output()
+        .unwrap();
+    assert!(cal.status.success(), "{}", String::from_utf8_lossy(&cal.stderr));
+    let text = std::fs::read_to_string(fixture())
+        .unwrap()
+        .replace("  calibrate:\n    inner_corners: [9, 6]\n    square_mm: 30.0\n", "  intrinsics_file: camera.yml\n")
+        .replace("    render:\n      seed: 11\n      frames: 14\n      calibration_views: 8\n      bscan: {outlier_rate: 0.15, missing_rate: 0.1}\n", "    folder: session1\n");
+    let manifest = base.join("lab/recorded.yaml");
+    std::fs::write(&manifest, text).unwrap();
+    let out = base.join("out");
+    let r = probecal()
+        .arg("run")
+        .arg(&manifest)
+        .arg("--out")
+        .arg(&out)
+        .arg("--datasets")
+        .arg(base.join("unused"))
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&r.stderr);
+    // The fixture's truth gate cannot be evaluated without truth: exit 3, reported.
+    assert_eq!(r.status.code(), Some(3), "{stderr}");
+    assert!(stderr.contains("truth_corner_error_mm = missing"), "{stderr}");
+    let summary: Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("hemisphere_small/small/summary.json")).unwrap())
+            .unwrap();
+    assert_eq!(summary["rendered"], false);
+    assert!(summary.get("truth").is_none());
+    assert!(
+        summary["frames"]["used"].as_u64().unwrap() >= 8,
+        "{}",
+        summary["frames"]
+    );
+    assert!(
+        !base.join("unused").exists(),
+        "nothing is rendered for a recorded dataset"
+    );
 }

@@ -13,7 +13,11 @@ fn data() -> PathBuf {
 #[test]
 fn reproduces_opencvs_published_calibration() {
     let folder = data();
-    assert!(folder.is_dir(), "{} is missing: the shared data must sit beside the checkout", folder.display());
+    assert!(
+        folder.is_dir(),
+        "{} is missing: the shared data must sit beside the checkout",
+        folder.display()
+    );
     // The folder also holds left_intrinsics.yml and text files: only images are read.
     let cal = calibrate_folder(&folder, [9, 6], 1.0).expect("calibration");
     let used = cal.views.iter().filter(|v| v.used).count();
@@ -41,7 +45,11 @@ fn reproduces_opencvs_published_calibration() {
     assert!(l1_d < 0.05, "distortion L1 distance {l1_d}");
     assert_eq!(k.image_size_px, [640, 480]);
     assert_eq!(k.per_view_rms_px.len(), 13);
-    assert!(k.per_view_rms_px.iter().all(|e| *e > 0.0 && *e < 1.0), "{:?}", k.per_view_rms_px);
+    assert!(
+        k.per_view_rms_px.iter().all(|e| *e > 0.0 && *e < 1.0),
+        "{:?}",
+        k.per_view_rms_px
+    );
 }
 
 #[test]
@@ -56,7 +64,14 @@ fn calibrate_camera_command_writes_opencv_filestorage() {
         .expect("run probecal");
     assert!(status.status.success(), "{}", String::from_utf8_lossy(&status.stderr));
     let text = std::fs::read_to_string(&out).expect("output file");
-    for key in ["%YAML:1.0", "camera_matrix: !!opencv-matrix", "distortion_coefficients: !!opencv-matrix", "avg_reprojection_error", "image_width: 640", "board_width: 9"] {
+    for key in [
+        "%YAML:1.0",
+        "camera_matrix: !!opencv-matrix",
+        "distortion_coefficients: !!opencv-matrix",
+        "avg_reprojection_error",
+        "image_width: 640",
+        "board_width: 9",
+    ] {
         assert!(text.contains(key), "`{key}` missing from\n{text}");
     }
     let back = probecal::camera_model::CameraIntrinsics::load(&out).expect("reads back");
@@ -66,8 +81,15 @@ fn calibrate_camera_command_writes_opencv_filestorage() {
 #[test]
 fn too_few_views_is_a_clear_error() {
     let one = data().join("left01.jpg");
-    let err = probecal::camera_calibration::calibrate_from(&[one], [9, 6], 1.0).unwrap_err().to_string();
+    let err = probecal::camera_calibration::calibrate_from(&[one], [9, 6], 1.0)
+        .unwrap_err()
+        .to_string();
     assert!(err.contains("found in 1 of 1 views; at least 4 are needed"), "{err}");
-    let wrong_board = probecal::camera_calibration::calibrate_folder(&data(), [7, 7], 1.0).unwrap_err().to_string();
-    assert!(wrong_board.contains("left01.jpg: no 7x7 chessboard found"), "{wrong_board}");
+    let wrong_board = probecal::camera_calibration::calibrate_folder(&data(), [7, 7], 1.0)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        wrong_board.contains("left01.jpg: no 7x7 chessboard found"),
+        "{wrong_board}"
+    );
 }
