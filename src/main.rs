@@ -40,6 +40,21 @@ enum Command {
         /// Print only errors and gate failures.
         #[arg(long)]
         quiet: bool,
+        /// Worker threads (0: one per core). Outputs do not depend on it.
+        #[arg(long, default_value_t = 0)]
+        threads: usize,
+    },
+    /// Compare runs with the committed accuracy baselines; fail on regressions.
+    Check {
+        /// Run folders (as written by `run --out`) or summary.json files.
+        #[arg(required = true)]
+        runs: Vec<PathBuf>,
+        /// Folder of baseline files, one `<experiment>.yaml` per experiment.
+        #[arg(long, default_value = "experiments/baselines")]
+        baselines: PathBuf,
+        /// Write the baselines from these runs instead of comparing.
+        #[arg(long)]
+        update: bool,
     },
     /// Check manifests without running anything.
     Validate {
@@ -109,6 +124,72 @@ fn next_run_folder() -> PathBuf {
         .unwrap_or_else(|| PathBuf::from("runs/run"))
 }
 
+fn check(runs: Vec<PathBuf>, baselines: PathBuf, update: bool) -> ExitCode {
+    let summaries = match probecal::check::find_summaries(&runs) {
+        Ok(s) => s,
+        Err(e) => {
+            eprintln!("error: {e}");
+            return ExitCode::from(2);
+        }
+    };
+    if update {
+        return match probecal::check::update(&summaries, &baselines) {
+            Ok(written) => {
+                for path in written {
+                    println!("baseline written: {}", path.display());
+                }
+                ExitCode::SUCCESS
+            }
+            Err(e) => {
+                eprintln!("error: {e}");
+                ExitCode::FAILURE
+            }
+        };
+    }
+    let comparisons = match probecal::check::compare(&summaries, &baselines) {
+        Ok(c) => c,
+        Err(e) => {
+            eprintln!("error: {e}");
+            return ExitCode::from(2);
+        }
+    };
+    print!("{}", probecal::check::table(&comparisons));
+    let mut failed = false;
+    for c in &comparisons {
+        if matches!(
+            c.verdict,
+            probecal::check::Verdict::Regressed | probecal::check::Verdict::Missing
+        ) {
+            failed = true;
+            eprintln!(
+                "{}: {} / {}: {} is {} (baseline {:.3} + tolerance {:.3}); look at {}",
+                c.verdict.label(),
+                c.experiment,
+                c.dataset,
+                c.metric,
+                c.current.map(|v| format!("{v:.3}")).unwrap_or_else(|| "missing".into()),
+                c.baseline.value,
+                c.baseline.tolerance,
+                c.report.display()
+            );
+        }
+    }
+    for gate in probecal::check::failed_gates(&summaries) {
+        failed = true;
+        eprintln!("GATE FAILED: {gate}");
+    }
+    if failed {
+        ExitCode::FAILURE
+    } else {
+        println!(
+            "{} metrics of {} runs: no regression",
+            comparisons.len(),
+            summaries.len()
+        );
+        ExitCode::SUCCESS
+    }
+}
+
 fn run(manifests: Vec<PathBuf>, out: Option<PathBuf>, datasets: PathBuf, force: bool, quiet: bool) -> ExitCode {
     let manifests = match load_all(&manifests) {
         Ok(m) => m,
@@ -149,6 +230,7 @@ fn run(manifests: Vec<PathBuf>, out: Option<PathBuf>, datasets: PathBuf, force: 
             return ExitCode::FAILURE;
         }
         for d in &m.datasets {
+            let started = std::time::SystemTime::now();
             log(&format!("== {} / {}", m.experiment, d.name));
             let run = match probecal::run::run_dataset(m, d, &datasets, &mut log) {
                 Ok(r) => r,
@@ -163,6 +245,10 @@ fn run(manifests: Vec<PathBuf>, out: Option<PathBuf>, datasets: PathBuf, force: 
                 eprintln!("error: {e}");
                 failed = true;
                 continue;
+            }
+            if let Err(e) = write_provenance(&run, m, &run_folder, started) {
+                eprintln!("error: {e}");
+                failed = true;
             }
             let primary = &run.thresholds[run.primary];
             if !quiet {
@@ -245,6 +331,35 @@ fn run(manifests: Vec<PathBuf>, out: Option<PathBuf>, datasets: PathBuf, force: 
     }
 }
 
+fn write_provenance(
+    run: &probecal::run::DatasetRun,
+    manifest: &Manifest,
+    folder: &Path,
+    started: std::time::SystemTime,
+) -> Result<(), probecal::output::OutputError> {
+    use probecal::provenance::{hash_inputs, opencv_version, rfc3339, Provenance, GIT_COMMIT};
+    let (inputs_sha256, inputs) = hash_inputs(&run.input_files);
+    let provenance = Provenance {
+        probecal_version: env!("CARGO_PKG_VERSION"),
+        git_commit: GIT_COMMIT,
+        opencv_version: opencv_version(),
+        command: std::env::args().collect(),
+        manifest: manifest.path.to_string_lossy().to_string(),
+        manifest_sha256: manifest.sha256.clone(),
+        dataset: run.dataset.clone(),
+        dataset_folder: run.dataset_folder.to_string_lossy().to_string(),
+        seed: run.seed,
+        threads: probecal::parallel::threads(),
+        started_utc: rfc3339(started),
+        elapsed_s: started.elapsed().map(|d| d.as_secs_f64()).unwrap_or(0.0),
+        inputs_sha256,
+        inputs,
+    };
+    let text =
+        serde_json::to_string_pretty(&provenance).map_err(|e| probecal::output::OutputError::Report(e.to_string()))?;
+    write_atomic(&folder.join("provenance.json"), text.as_bytes())
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     match cli.command {
@@ -254,7 +369,16 @@ fn main() -> ExitCode {
             datasets,
             force,
             quiet,
-        } => run(manifests, out, datasets, force, quiet),
+            threads,
+        } => {
+            probecal::parallel::set_threads(threads);
+            run(manifests, out, datasets, force, quiet)
+        }
+        Command::Check {
+            runs,
+            baselines,
+            update,
+        } => check(runs, baselines, update),
         Command::Validate { manifests } => match load_all(&manifests) {
             Ok(ms) => {
                 for m in ms {

@@ -232,6 +232,7 @@ pub fn summary(run: &DatasetRun, manifest: &crate::manifest::Manifest) -> Value 
             "truth": r.truth.map(|t| json!({"corner_error_mm": {"mean": t.corner_error_mean_mm, "max": t.corner_error_max_mm}, "rotation_error_deg": t.rotation_error_deg})),
         })).collect::<Vec<_>>(),
         "gates": run.gates,
+        "regression_tolerances": manifest.thresholds.regression,
     });
     if let Some(t) = &run.truth {
         let pair = |v: Option<(f64, f64)>| v.map(|(mean, max)| json!({"mean": mean, "max": max}));

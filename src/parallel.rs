@@ -3,12 +3,27 @@
 
 use std::sync::atomic::{AtomicUsize, Ordering};
 
-/// Runs `job(i)` for every `i` in `0..n` on up to all cores; results in index order.
+/// Worker threads; 0 means one per core.
+static THREADS: AtomicUsize = AtomicUsize::new(0);
+
+/// Sets the number of worker threads (0: one per core), for probecal's own
+/// parallel loops and OpenCV's.
+pub fn set_threads(n: usize) {
+    THREADS.store(n, Ordering::Relaxed);
+    let _ = opencv::core::set_num_threads(if n == 0 { -1 } else { n as i32 });
+}
+
+/// The number of worker threads in use.
+pub fn threads() -> usize {
+    match THREADS.load(Ordering::Relaxed) {
+        0 => std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1),
+        n => n,
+    }
+}
+
+/// Runs `job(i)` for every `i` in `0..n` on the worker threads; results in index order.
 pub fn parallel_map<T: Send>(n: usize, job: impl Fn(usize) -> T + Sync) -> Vec<T> {
-    let threads = std::thread::available_parallelism()
-        .map(|n| n.get())
-        .unwrap_or(1)
-        .min(n.max(1));
+    let threads = threads().min(n.max(1));
     let next = AtomicUsize::new(0);
     let mut results: Vec<(usize, T)> = std::thread::scope(|s| {
         let handles: Vec<_> = (0..threads)

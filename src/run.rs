@@ -160,6 +160,9 @@ pub struct DatasetRun {
     pub spacing_mm_per_px: [f64; 2],
     pub feature_in_phantom_mm: [f64; 3],
     pub timings_s: Vec<(&'static str, f64)>,
+    /// Every file the run read (for provenance).
+    pub input_files: Vec<PathBuf>,
+    pub seed: Option<u64>,
 }
 
 impl DatasetRun {
@@ -203,8 +206,13 @@ fn camera_stage(manifest: &Manifest, dataset: &str, folder: &Path) -> Result<Cam
             calibration: None,
             source: format!("file {}", path.display()),
         }),
-        CameraSource::Calibrate { images, board } => {
-            let images = images.clone().unwrap_or_else(|| folder.join("camera_calibration"));
+        CameraSource::Calibrate { images: given, board } => {
+            let images = given.clone().unwrap_or_else(|| folder.join("camera_calibration"));
+            // Described without machine-specific paths: the outputs must not depend on them.
+            let described = match given {
+                Some(path) => path.display().to_string(),
+                None => "the dataset's camera_calibration/ folder".to_string(),
+            };
             let calibration = camera_calibration::calibrate_folder(&images, board.inner_corners, board.square_mm)
                 .map_err(|source| RunError::Calibration {
                     dataset: dataset.into(),
@@ -212,7 +220,7 @@ fn camera_stage(manifest: &Manifest, dataset: &str, folder: &Path) -> Result<Cam
                 })?;
             Ok(CameraStage {
                 intrinsics: calibration.intrinsics.clone(),
-                source: format!("calibrated from {}", images.display()),
+                source: format!("calibrated from {described}"),
                 calibration: Some(calibration),
             })
         }
@@ -478,6 +486,21 @@ pub fn run_dataset(
     });
 
     let gates = evaluate_gates(manifest, &thresholds[primary], truth_summary.as_ref());
+    let mut input_files = vec![manifest.path.clone(), folder.join(crate::dataset::FRAME_LIST)];
+    for f in &files {
+        input_files.push(f.camera_image.clone());
+        input_files.push(f.bscan_image.clone());
+    }
+    if let Some(cal) = &camera.calibration {
+        input_files.extend(cal.views.iter().map(|v| v.image.clone()));
+    }
+    if let CameraSource::IntrinsicsFile(path) = &manifest.camera {
+        input_files.push(path.clone());
+    }
+    let seed = match &dataset.source {
+        DatasetSource::Render(spec) => Some(spec.seed),
+        DatasetSource::Folder(_) => None,
+    };
     Ok(DatasetRun {
         experiment: manifest.experiment.clone(),
         dataset: name,
@@ -493,6 +516,8 @@ pub fn run_dataset(
         spacing_mm_per_px: spacing,
         feature_in_phantom_mm: *centre_in_phantom_mm,
         timings_s: timings,
+        input_files,
+        seed,
     })
 }
 

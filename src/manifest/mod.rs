@@ -15,8 +15,8 @@ use std::path::{Path, PathBuf};
 use sha2::{Digest, Sha256};
 
 pub use raw::{
-    ArcDetection, Board, BscanRender, CameraCalibrationBoard, FitRadius, Gates, Phantom, RenderSpec, Rig, SolveVariant,
-    Sweep, TrueCamera, TrueTransform, Wire,
+    ArcDetection, Board, BscanRender, CameraCalibrationBoard, FitRadius, Gates, Phantom, Regression, RenderSpec, Rig,
+    SolveVariant, Sweep, TrueCamera, TrueTransform, Wire,
 };
 
 /// A manifest problem, located.
@@ -108,6 +108,7 @@ pub struct Thresholds {
     pub calibration_cutoff_mm: f64,
     pub min_frames: usize,
     pub gates: Gates,
+    pub regression: Regression,
 }
 
 /// A validated experiment.
@@ -378,6 +379,19 @@ fn validate(c: &mut Checker<'_>, base: &Path, raw: raw::RawManifest, path: &Path
             format!("Horn's solution needs at least 3 frames, got {}", t.min_frames),
         );
     }
+    let r = &t.regression;
+    for (field, value) in [
+        ("thresholds.regression.bre_mean_mm", r.bre_mean_mm),
+        ("thresholds.regression.truth_corner_error_mm", r.truth_corner_error_mm),
+        (
+            "thresholds.regression.truth_rotation_error_deg",
+            r.truth_rotation_error_deg,
+        ),
+        ("thresholds.regression.frames_rejected", r.frames_rejected),
+        ("thresholds.regression.pre3d_mm", r.pre3d_mm),
+    ] {
+        c.at_least(field, value, 0.0);
+    }
     for (field, value) in [
         ("thresholds.gates.truth_corner_error_mm", t.gates.truth_corner_error_mm),
         (
@@ -458,6 +472,7 @@ fn validate(c: &mut Checker<'_>, base: &Path, raw: raw::RawManifest, path: &Path
             calibration_cutoff_mm,
             min_frames: t.min_frames,
             gates: t.gates.clone(),
+            regression: t.regression.clone(),
         },
         solve_variant: raw.solve.variant,
         datasets,

@@ -169,6 +169,35 @@ pub struct RawThresholds {
     pub min_frames: usize,
     #[serde(default)]
     pub gates: Gates,
+    #[serde(default)]
+    pub regression: Regression,
+}
+
+/// How much a metric may grow over its baseline before `probecal check` calls it a
+/// regression (written into the baseline by `probecal check --update`).
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct Regression {
+    pub bre_mean_mm: f64,
+    pub truth_corner_error_mm: f64,
+    pub truth_rotation_error_deg: f64,
+    pub frames_rejected: f64,
+    pub pre3d_mm: f64,
+}
+
+impl Default for Regression {
+    fn default() -> Self {
+        // Well above the run-to-run spread of a fixed seed (zero: runs are
+        // deterministic) and of platform floating-point differences, well below what
+        // a worse detector or a broken stage does.
+        Regression {
+            bre_mean_mm: 0.05,
+            truth_corner_error_mm: 0.05,
+            truth_rotation_error_deg: 0.05,
+            frames_rejected: 2.0,
+            pre3d_mm: 0.02,
+        }
+    }
 }
 
 fn default_cutoffs() -> Vec<f64> {
@@ -189,6 +218,7 @@ impl Default for RawThresholds {
             calibration_cutoff_mm: None,
             min_frames: default_min_frames(),
             gates: Gates::default(),
+            regression: Regression::default(),
         }
     }
 }
