@@ -1,0 +1,197 @@
+//! Reproducible runs and the accuracy gate: thread count does not change a byte
+//! of the outputs; `probecal check` passes an unchanged run and fails a worse one
+//! naming the metric.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn probecal() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_probecal"))
+}
+
+fn fixture_text() -> String {
+    std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/hemisphere_small.yaml")).unwrap()
+}
+
+fn fresh(name: &str) -> PathBuf {
+    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR"))
+        .join("reproducibility")
+        .join(name);
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+fn run(manifest: &Path, out: &Path, datasets: &Path, threads: usize) -> std::process::Output {
+    probecal()
+        .arg("run")
+        .arg(manifest)
+        .arg("--out")
+        .arg(out)
+        .arg("--datasets")
+        .arg(datasets)
+        .arg("--threads")
+        .arg(threads.to_string())
+        .arg("--quiet")
+        .output()
+        .unwrap()
+}
+
+#[test]
+fn thread_count_does_not_change_a_byte() {
+    let base = fresh("threads");
+    let manifest = base.join("small.yaml");
+    std::fs::write(&manifest, fixture_text()).unwrap();
+    // Each run renders its own copy of the dataset, with its own thread count.
+    for threads in [1, 2] {
+        let r = run(
+            &manifest,
+            &base.join(format!("out{threads}")),
+            &base.join(format!("datasets{threads}")),
+            threads,
+        );
+        assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    }
+    let one = base.join("out1/hemisphere_small/small");
+    let two = base.join("out2/hemisphere_small/small");
+    for file in [
+        "frames.csv",
+        "frames.parquet",
+        "summary.json",
+        "report.html",
+        "report_context.json",
+        "camera_intrinsics.yml",
+    ] {
+        assert!(
+            std::fs::read(one.join(file)).unwrap() == std::fs::read(two.join(file)).unwrap(),
+            "{file} differs between 1 and 2 threads"
+        );
+    }
+    for file in ["frames/camera_005.png", "frames/bscan_005.png", "ground_truth.json"] {
+        let a = std::fs::read(base.join("datasets1/hemisphere_small__small").join(file)).unwrap();
+        let b = std::fs::read(base.join("datasets2/hemisphere_small__small").join(file)).unwrap();
+        assert!(a == b, "rendered {file} differs between 1 and 2 threads");
+    }
+    // Provenance is written beside the outputs and records the thread count.
+    let provenance: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(one.join("provenance.json")).unwrap()).unwrap();
+    assert_eq!(provenance["threads"], 1);
+    assert_eq!(provenance["seed"], 11);
+    assert!(provenance["inputs"].as_array().unwrap().len() > 28);
+    assert_eq!(
+        provenance["opencv_version"].as_str().unwrap().split('.').next(),
+        Some("4")
+    );
+}
+
+#[test]
+fn check_passes_unchanged_and_fails_planted_regressions() {
+    let base = fresh("check");
+    let datasets = base.join("datasets");
+    let manifest = base.join("small.yaml");
+    std::fs::write(&manifest, fixture_text()).unwrap();
+    let r = run(&manifest, &base.join("reference"), &datasets, 0);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let baselines = base.join("baselines");
+    let update = probecal()
+        .arg("check")
+        .arg(base.join("reference"))
+        .arg("--baselines")
+        .arg(&baselines)
+        .arg("--update")
+        .output()
+        .unwrap();
+    assert!(update.status.success(), "{}", String::from_utf8_lossy(&update.stderr));
+    assert!(baselines.join("hemisphere_small.yaml").is_file());
+
+    // The unchanged run passes.
+    let r = run(&manifest, &base.join("again"), &datasets, 0);
+    assert!(r.status.success());
+    let ok = probecal()
+        .arg("check")
+        .arg(base.join("again"))
+        .arg("--baselines")
+        .arg(&baselines)
+        .output()
+        .unwrap();
+    assert!(
+        ok.status.success(),
+        "{}\n{}",
+        String::from_utf8_lossy(&ok.stdout),
+        String::from_utf8_lossy(&ok.stderr)
+    );
+    assert!(String::from_utf8_lossy(&ok.stdout).contains("no regression"));
+
+    // A worse setting: calibrate from all frames, outliers included.
+    let worse = base.join("worse.yaml");
+    std::fs::write(
+        &worse,
+        fixture_text()
+            .replace("calibration_cutoff_mm: 2.0", "calibration_cutoff_mm: .inf")
+            .replace("truth_corner_error_mm: 3.0", "truth_corner_error_mm: 9.0"),
+    )
+    .unwrap();
+    let r = run(&worse, &base.join("worse"), &datasets, 0);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let bad = probecal()
+        .arg("check")
+        .arg(base.join("worse"))
+        .arg("--baselines")
+        .arg(&baselines)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&bad.stderr);
+    assert_eq!(bad.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains("REGRESSED: hemisphere_small / small: truth_corner_error_mm"),
+        "{stderr}"
+    );
+    assert!(
+        stderr.contains("report.html"),
+        "the message says where to look: {stderr}"
+    );
+
+    // A perturbed solution: the summary of the unchanged run with a worse rotation.
+    let summary = base.join("again/hemisphere_small/small/summary.json");
+    let mut json: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&summary).unwrap()).unwrap();
+    let rotation = json["truth"]["rotation_error_deg"].as_f64().unwrap();
+    json["truth"]["rotation_error_deg"] = serde_json::json!(rotation + 0.2);
+    std::fs::write(&summary, serde_json::to_string(&json).unwrap()).unwrap();
+    let bad = probecal()
+        .arg("check")
+        .arg(&summary)
+        .arg("--baselines")
+        .arg(&baselines)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&bad.stderr);
+    assert_eq!(bad.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains("truth_rotation_error_deg") && !stderr.contains("truth_corner_error_mm"),
+        "{stderr}"
+    );
+}
+
+#[test]
+fn committed_baselines_cover_every_default_experiment() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    for entry in std::fs::read_dir(root.join("experiments")).unwrap() {
+        let path = entry.unwrap().path();
+        if path.extension().is_some_and(|e| e == "yaml") {
+            let manifest = probecal::manifest::Manifest::load(&path).unwrap();
+            let baseline = probecal::check::load_baseline(&probecal::check::baseline_path(
+                &root.join("experiments/baselines"),
+                &manifest.experiment,
+            ))
+            .unwrap_or_else(|e| panic!("{e}"));
+            for d in &manifest.datasets {
+                assert!(
+                    baseline.datasets.contains_key(&d.name),
+                    "baseline of {} lacks dataset {}",
+                    manifest.experiment,
+                    d.name
+                );
+            }
+        }
+    }
+}
