@@ -14,6 +14,7 @@
 #![allow(non_snake_case)]
 
 pub mod arc_detection;
+pub mod aruco;
 pub mod board;
 pub mod board_pose;
 pub mod camera_calibration;

@@ -1,0 +1,175 @@
+//! ArUco markers through OpenCV's contrib `aruco` module (OpenCV 4.6): predefined
+//! and custom dictionaries, marker detection with optional sub-pixel corner
+//! refinement, marker cell patterns (for rendering) and ChArUco corners.
+
+use std::path::Path;
+
+use opencv::aruco::{self, DetectorParameters, Dictionary, PREDEFINED_DICTIONARY_NAME};
+use opencv::core::{FileStorage, Mat, Point2f, Ptr, Vector};
+use opencv::prelude::*;
+
+/// The names the manifests use, OpenCV's own.
+pub const DICTIONARY_NAMES: [(&str, PREDEFINED_DICTIONARY_NAME); 21] = [
+    ("DICT_4X4_50", PREDEFINED_DICTIONARY_NAME::DICT_4X4_50),
+    ("DICT_4X4_100", PREDEFINED_DICTIONARY_NAME::DICT_4X4_100),
+    ("DICT_4X4_250", PREDEFINED_DICTIONARY_NAME::DICT_4X4_250),
+    ("DICT_4X4_1000", PREDEFINED_DICTIONARY_NAME::DICT_4X4_1000),
+    ("DICT_5X5_50", PREDEFINED_DICTIONARY_NAME::DICT_5X5_50),
+    ("DICT_5X5_100", PREDEFINED_DICTIONARY_NAME::DICT_5X5_100),
+    ("DICT_5X5_250", PREDEFINED_DICTIONARY_NAME::DICT_5X5_250),
+    ("DICT_5X5_1000", PREDEFINED_DICTIONARY_NAME::DICT_5X5_1000),
+    ("DICT_6X6_50", PREDEFINED_DICTIONARY_NAME::DICT_6X6_50),
+    ("DICT_6X6_100", PREDEFINED_DICTIONARY_NAME::DICT_6X6_100),
+    ("DICT_6X6_250", PREDEFINED_DICTIONARY_NAME::DICT_6X6_250),
+    ("DICT_6X6_1000", PREDEFINED_DICTIONARY_NAME::DICT_6X6_1000),
+    ("DICT_7X7_50", PREDEFINED_DICTIONARY_NAME::DICT_7X7_50),
+    ("DICT_7X7_100", PREDEFINED_DICTIONARY_NAME::DICT_7X7_100),
+    ("DICT_7X7_250", PREDEFINED_DICTIONARY_NAME::DICT_7X7_250),
+    ("DICT_7X7_1000", PREDEFINED_DICTIONARY_NAME::DICT_7X7_1000),
+    ("DICT_ARUCO_ORIGINAL", PREDEFINED_DICTIONARY_NAME::DICT_ARUCO_ORIGINAL),
+    ("DICT_APRILTAG_16h5", PREDEFINED_DICTIONARY_NAME::DICT_APRILTAG_16h5),
+    ("DICT_APRILTAG_25h9", PREDEFINED_DICTIONARY_NAME::DICT_APRILTAG_25h9),
+    ("DICT_APRILTAG_36h10", PREDEFINED_DICTIONARY_NAME::DICT_APRILTAG_36h10),
+    ("DICT_APRILTAG_36h11", PREDEFINED_DICTIONARY_NAME::DICT_APRILTAG_36h11),
+];
+
+#[derive(Debug, thiserror::Error)]
+pub enum ArucoError {
+    #[error("unknown ArUco dictionary `{0}` (expected one of OpenCV's names, e.g. DICT_4X4_50)")]
+    UnknownDictionary(String),
+    #[error("{path}: not an OpenCV ArUco dictionary file (nmarkers, markersize, marker_N)")]
+    BadDictionaryFile { path: String },
+    #[error("opencv: {0}")]
+    OpenCv(#[from] opencv::Error),
+}
+
+/// A predefined dictionary by its OpenCV name.
+pub fn predefined(name: &str) -> Result<Ptr<Dictionary>, ArucoError> {
+    let (_, id) = DICTIONARY_NAMES
+        .iter()
+        .find(|(n, _)| *n == name)
+        .ok_or_else(|| ArucoError::UnknownDictionary(name.to_string()))?;
+    Ok(aruco::get_predefined_dictionary(*id)?)
+}
+
+/// Size (markers in it, bits per side) of a predefined dictionary name, for validation.
+pub fn predefined_size(name: &str) -> Option<(usize, usize)> {
+    let rest = name.strip_prefix("DICT_")?;
+    let (bits, count) = rest.split_once('_')?;
+    let side = bits.split_once('X')?.0.parse().ok()?;
+    Some((count.parse().ok()?, side))
+}
+
+/// A custom dictionary from an OpenCV FileStorage file (as `tutorial_dict.yml`).
+pub fn dictionary_file(path: &Path) -> Result<Ptr<Dictionary>, ArucoError> {
+    let bad = || ArucoError::BadDictionaryFile {
+        path: path.display().to_string(),
+    };
+    if !path.is_file() {
+        return Err(bad());
+    }
+    let fs = FileStorage::new_def(
+        path.to_string_lossy().as_ref(),
+        opencv::core::FileStorage_Mode::READ as i32,
+    )
+    .map_err(|_| bad())?;
+    let mut dictionary = Dictionary::new_def()?;
+    let root = fs.root_def()?;
+    if !dictionary.read_dictionary(&root).map_err(|_| bad())? {
+        return Err(bad());
+    }
+    Ok(Ptr::new(dictionary))
+}
+
+/// Cells of a marker with its one-cell black border, row by row: `true` is black.
+pub fn marker_cells(dictionary: &Ptr<Dictionary>, id: i32) -> Result<(usize, Vec<bool>), ArucoError> {
+    let side = dictionary.marker_size() as usize + 2;
+    let mut image = Mat::default();
+    aruco::draw_marker(dictionary, id, side as i32, &mut image, 1)?;
+    let mut cells = Vec::with_capacity(side * side);
+    for r in 0..side {
+        for c in 0..side {
+            cells.push(*image.at_2d::<u8>(r as i32, c as i32)? < 128);
+        }
+    }
+    Ok((side, cells))
+}
+
+/// One detected marker: id and corners (clockwise from top-left), pixels.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Marker {
+    pub id: i32,
+    pub corners_px: [[f64; 2]; 4],
+}
+
+/// Detects markers. With `subpixel_half_window_px`, corners are refined by OpenCV's
+/// CORNER_REFINE_SUBPIX with that window (it must stay below a marker cell, or a
+/// corner snaps to a bit's corner); without, they come out as OpenCV's defaults give
+/// them (whole pixels).
+pub fn detect(
+    image: &Mat,
+    dictionary: &Ptr<Dictionary>,
+    subpixel_half_window_px: Option<i32>,
+) -> Result<Vec<Marker>, ArucoError> {
+    let mut parameters = DetectorParameters::create()?;
+    if let Some(window) = subpixel_half_window_px {
+        parameters.set_corner_refinement_method(aruco::CORNER_REFINE_SUBPIX);
+        parameters.set_corner_refinement_win_size(window);
+    }
+    let mut corners = Vector::<Vector<Point2f>>::new();
+    let mut ids = Vector::<i32>::new();
+    let mut rejected = Vector::<Vector<Point2f>>::new();
+    aruco::detect_markers(image, dictionary, &mut corners, &mut ids, &parameters, &mut rejected)?;
+    let mut markers: Vec<Marker> = ids
+        .iter()
+        .zip(corners.iter())
+        .map(|(id, c)| {
+            let mut corners_px = [[0.0; 2]; 4];
+            for (k, p) in c.iter().take(4).enumerate() {
+                corners_px[k] = [p.x as f64, p.y as f64];
+            }
+            Marker { id, corners_px }
+        })
+        .collect();
+    markers.sort_by_key(|m| m.id);
+    Ok(markers)
+}
+
+/// ChArUco chessboard corners (id, pixel) of a `squares_x x squares_y` board.
+pub fn charuco_corners(
+    image: &Mat,
+    dictionary: &Ptr<Dictionary>,
+    squares: [i32; 2],
+    square_length: f32,
+    marker_length: f32,
+) -> Result<Vec<(i32, [f64; 2])>, ArucoError> {
+    let board = aruco::CharucoBoard::create(squares[0], squares[1], square_length, marker_length, dictionary)?;
+    let parameters = DetectorParameters::create()?;
+    let mut corners = Vector::<Vector<Point2f>>::new();
+    let mut ids = Vector::<i32>::new();
+    let mut rejected = Vector::<Vector<Point2f>>::new();
+    aruco::detect_markers(image, dictionary, &mut corners, &mut ids, &parameters, &mut rejected)?;
+    if ids.is_empty() {
+        return Ok(Vec::new());
+    }
+    let mut charuco = Vector::<Point2f>::new();
+    let mut charuco_ids = Vector::<i32>::new();
+    aruco::interpolate_corners_charuco(
+        &corners,
+        &ids,
+        image,
+        &board,
+        &mut charuco,
+        &mut charuco_ids,
+        &Mat::default(),
+        &Mat::default(),
+        2,
+    )?;
+    let mut out: Vec<(i32, [f64; 2])> = charuco_ids
+        .iter()
+        .zip(charuco.iter())
+        .map(|(id, p)| (id, [p.x as f64, p.y as f64]))
+        .collect();
+    out.sort_by_key(|c| c.0);
+    Ok(out)
+}
