@@ -87,6 +87,153 @@ impl BoardLayout {
     }
 }
 
+/// An ArUco grid board: `markers[0] x markers[1]` markers of side `marker_mm`,
+/// `separation_mm` apart, ids `first_id..` row by row from the top-left. Board
+/// frame: origin on the top-left corner of the first marker, x right, y down
+/// (OpenCV 4.6's convention), z into the board. A white margin of half a marker
+/// surrounds the grid.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ArucoLayout {
+    pub dictionary: String,
+    pub markers: [u32; 2],
+    pub marker_mm: f64,
+    pub separation_mm: f64,
+    pub first_id: u32,
+    /// Cells per marker side, border included.
+    pub cells_side: usize,
+    /// Per marker (in id order), its cells row by row, `true` = black.
+    pub cells: Vec<Vec<bool>>,
+}
+
+impl ArucoLayout {
+    /// Builds the layout, reading the marker patterns from OpenCV's dictionary.
+    pub fn new(
+        dictionary: &str,
+        markers: [u32; 2],
+        marker_mm: f64,
+        separation_mm: f64,
+        first_id: u32,
+    ) -> Result<ArucoLayout, crate::aruco::ArucoError> {
+        let dict = crate::aruco::predefined(dictionary)?;
+        let mut cells = Vec::new();
+        let mut side = 0;
+        for k in 0..markers[0] * markers[1] {
+            let (s, c) = crate::aruco::marker_cells(&dict, (first_id + k) as i32)?;
+            side = s;
+            cells.push(c);
+        }
+        Ok(ArucoLayout {
+            dictionary: dictionary.to_string(),
+            markers,
+            marker_mm,
+            separation_mm,
+            first_id,
+            cells_side: side,
+            cells,
+        })
+    }
+
+    pub fn pitch_mm(&self) -> f64 {
+        self.marker_mm + self.separation_mm
+    }
+
+    /// Width and height of the marker grid, mm.
+    pub fn span_mm(&self) -> [f64; 2] {
+        [0, 1].map(|i| self.markers[i] as f64 * self.marker_mm + (self.markers[i] as f64 - 1.0) * self.separation_mm)
+    }
+
+    pub fn ids(&self) -> std::ops::Range<u32> {
+        self.first_id..self.first_id + self.markers[0] * self.markers[1]
+    }
+
+    /// The four corners (clockwise from top-left, as OpenCV reports them) of a marker id.
+    pub fn marker_corners_mm(&self, id: u32) -> Option<[Point2<f64>; 4]> {
+        if !self.ids().contains(&id) {
+            return None;
+        }
+        let k = id - self.first_id;
+        let (x, y) = (
+            (k % self.markers[0]) as f64 * self.pitch_mm(),
+            (k / self.markers[0]) as f64 * self.pitch_mm(),
+        );
+        let l = self.marker_mm;
+        Some([
+            Point2::new(x, y),
+            Point2::new(x + l, y),
+            Point2::new(x + l, y + l),
+            Point2::new(x, y + l),
+        ])
+    }
+
+    fn margin_mm(&self) -> f64 {
+        (0.5 * self.marker_mm).max(self.separation_mm)
+    }
+
+    pub fn paper_bounds_mm(&self) -> [f64; 4] {
+        let m = self.margin_mm();
+        let [w, h] = self.span_mm();
+        [-m, -m, w + m, h + m]
+    }
+
+    pub fn ink_at(&self, x_mm: f64, y_mm: f64) -> Option<Ink> {
+        let [x0, y0, x1, y1] = self.paper_bounds_mm();
+        if x_mm < x0 || y_mm < y0 || x_mm >= x1 || y_mm >= y1 {
+            return None;
+        }
+        let p = self.pitch_mm();
+        let (mx, my) = ((x_mm / p).floor(), (y_mm / p).floor());
+        if mx < 0.0 || my < 0.0 || mx >= self.markers[0] as f64 || my >= self.markers[1] as f64 {
+            return Some(Ink::White);
+        }
+        let (lx, ly) = (x_mm - mx * p, y_mm - my * p);
+        if lx >= self.marker_mm || ly >= self.marker_mm {
+            return Some(Ink::White);
+        }
+        let cell = self.marker_mm / self.cells_side as f64;
+        let (cx, cy) = ((lx / cell) as usize, (ly / cell) as usize);
+        let k = my as usize * self.markers[0] as usize + mx as usize;
+        let black = self.cells[k][cy.min(self.cells_side - 1) * self.cells_side + cx.min(self.cells_side - 1)];
+        Some(if black { Ink::Black } else { Ink::White })
+    }
+}
+
+/// A printed board of either kind.
+#[derive(Debug, Clone, PartialEq)]
+pub enum PrintedBoard {
+    Checkerboard(BoardLayout),
+    Aruco(ArucoLayout),
+}
+
+impl PrintedBoard {
+    pub fn ink_at(&self, x_mm: f64, y_mm: f64) -> Option<Ink> {
+        match self {
+            PrintedBoard::Checkerboard(b) => b.ink_at(x_mm, y_mm),
+            PrintedBoard::Aruco(b) => b.ink_at(x_mm, y_mm),
+        }
+    }
+
+    pub fn paper_bounds_mm(&self) -> [f64; 4] {
+        match self {
+            PrintedBoard::Checkerboard(b) => b.paper_bounds_mm(),
+            PrintedBoard::Aruco(b) => b.paper_bounds_mm(),
+        }
+    }
+
+    /// Centre of the pattern in the board frame: where the board is mounted by.
+    pub fn centre_mm(&self) -> Point2<f64> {
+        match self {
+            PrintedBoard::Checkerboard(b) => Point2::new(
+                (b.inner_corners[0] as f64 - 1.0) * b.square_mm / 2.0,
+                (b.inner_corners[1] as f64 - 1.0) * b.square_mm / 2.0,
+            ),
+            PrintedBoard::Aruco(b) => {
+                let [w, h] = b.span_mm();
+                Point2::new(w / 2.0, h / 2.0)
+            }
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -108,5 +255,23 @@ mod tests {
         assert_eq!(one.ink_at(13.0, -19.5), Some(Ink::White));
         assert_eq!(b.corners_in_board_mm().len(), 100);
         assert_eq!(b.corners_in_board_mm()[11], Point2::new(13.0, 13.0));
+    }
+
+    #[test]
+    fn aruco_layout_prints_opencvs_markers_where_their_corners_are() {
+        let b = ArucoLayout::new("DICT_4X4_50", [4, 4], 30.0, 8.0, 16).unwrap();
+        assert_eq!(b.cells_side, 6);
+        assert_eq!(b.span_mm(), [144.0, 144.0]);
+        assert_eq!(b.ids(), 16..32);
+        let c = b.marker_corners_mm(21).unwrap();
+        assert_eq!(c[0], Point2::new(38.0, 38.0));
+        // The border cells are black, the separation and margin white.
+        assert_eq!(b.ink_at(39.0, 39.0), Some(Ink::Black));
+        assert_eq!(b.ink_at(36.0, 50.0), Some(Ink::White));
+        assert_eq!(b.ink_at(-10.0, -10.0), Some(Ink::White));
+        assert_eq!(b.ink_at(-16.0, 0.0), None);
+        assert!(b.marker_corners_mm(15).is_none());
+        let printed = PrintedBoard::Aruco(b);
+        assert_eq!(printed.centre_mm(), Point2::new(72.0, 72.0));
     }
 }

@@ -14,10 +14,11 @@ use opencv::core::{Mat, Point, Scalar, Vector};
 use opencv::prelude::*;
 use opencv::{calib3d, imgproc};
 
-use crate::board::BoardLayout;
+use crate::aruco;
+use crate::board::{ArucoLayout, BoardLayout, PrintedBoard};
 use crate::camera_model::CameraIntrinsics;
-use crate::corners::{detect_chessboard, image_points, object_points, SubPix};
-use crate::geometry::{rigid_from_parts, Rigid};
+use crate::corners::{detect_chessboard_reduced, image_points, object_points, SubPix};
+use crate::geometry::{rigid_from_parts, rotation_angle_between_deg, Rigid};
 
 /// One board seen in one photo.
 #[derive(Debug, Clone)]
@@ -35,12 +36,15 @@ pub struct FramePoses {
     pub camera_T_phantom: BoardObservation,
 }
 
-/// The rig as the detector needs it.
+/// A checkerboard rig as the detector needs it.
 #[derive(Debug, Clone, Copy)]
 pub struct RigLayout {
     pub probe: BoardLayout,
     pub phantom: BoardLayout,
 }
+
+/// Boards are searched on photos reduced to this size (corners refined at full size).
+pub const SEARCH_MAX_SIDE_PX: i32 = 1000;
 
 /// Reprojection error above which a pose is not trusted, px.
 pub const MAX_REPROJECTION_RMS_PX: f64 = 1.0;
@@ -227,48 +231,284 @@ fn identify(
     }
 }
 
-fn solve_pose(
+/// Pose of a board from its points (board frame, mm) and their pixels: iterative
+/// PnP, optionally started from a guess; RMS reprojection error.
+fn pnp(
     camera: &CameraIntrinsics,
-    layout: &BoardLayout,
+    object: &Vector<opencv::core::Point3f>,
     corners_px: &[[f64; 2]],
+    guess: Option<(&Mat, &Mat)>,
 ) -> opencv::Result<BoardObservation> {
-    let object = object_points(&layout.corners_in_board_mm());
     let image = image_points(corners_px);
     let k = camera.camera_matrix_mat()?;
     let d = camera.distortion_mat()?;
-    let mut rvec = Mat::default();
-    let mut tvec = Mat::default();
+    let (mut rvec, mut tvec) = match guess {
+        Some((r, t)) => (r.try_clone()?, t.try_clone()?),
+        None => (Mat::default(), Mat::default()),
+    };
     calib3d::solve_pnp(
-        &object,
+        object,
         &image,
         &k,
         &d,
         &mut rvec,
         &mut tvec,
-        false,
+        guess.is_some(),
         calib3d::SOLVEPNP_ITERATIVE,
     )?;
-    let mut projected = Vector::<opencv::core::Point2f>::new();
-    calib3d::project_points_def(&object, &rvec, &tvec, &k, &d, &mut projected)?;
-    let sum: f64 = projected
-        .iter()
-        .zip(image.iter())
-        .map(|(p, m)| ((p.x - m.x) as f64).powi(2) + ((p.y - m.y) as f64).powi(2))
-        .sum();
-    let rms = (sum / image.len() as f64).sqrt();
-    let mut r = Mat::default();
-    calib3d::rodrigues_def(&rvec, &mut r)?;
-    let rot = Matrix3::from_fn(|i, j| *r.at_2d::<f64>(i as i32, j as i32).unwrap_or(&0.0));
-    let t = Vector3::new(*tvec.at::<f64>(0)?, *tvec.at::<f64>(1)?, *tvec.at::<f64>(2)?);
+    let rms = reprojection_rms(object, &image, &rvec, &tvec, &k, &d)?;
     Ok(BoardObservation {
-        camera_T_board: rigid_from_parts(&rot, &t),
+        camera_T_board: rigid_from_rvec_tvec(&rvec, &tvec)?,
         reprojection_rms_px: rms,
         corners_px: corners_px.to_vec(),
     })
 }
 
-/// Finds, identifies and poses both boards. The inner `Err` is a frame rejection reason.
-pub fn estimate(image: &Mat, camera: &CameraIntrinsics, rig: &RigLayout) -> opencv::Result<Result<FramePoses, String>> {
+fn reprojection_rms(
+    object: &Vector<opencv::core::Point3f>,
+    image: &Vector<opencv::core::Point2f>,
+    rvec: &Mat,
+    tvec: &Mat,
+    k: &Mat,
+    d: &Mat,
+) -> opencv::Result<f64> {
+    let mut projected = Vector::<opencv::core::Point2f>::new();
+    calib3d::project_points_def(object, rvec, tvec, k, d, &mut projected)?;
+    let sum: f64 = projected
+        .iter()
+        .zip(image.iter())
+        .map(|(p, m)| ((p.x - m.x) as f64).powi(2) + ((p.y - m.y) as f64).powi(2))
+        .sum();
+    Ok((sum / image.len().max(1) as f64).sqrt())
+}
+
+fn rigid_from_rvec_tvec(rvec: &Mat, tvec: &Mat) -> opencv::Result<Rigid> {
+    let mut r = Mat::default();
+    calib3d::rodrigues_def(rvec, &mut r)?;
+    let rot = Matrix3::from_fn(|i, j| *r.at_2d::<f64>(i as i32, j as i32).unwrap_or(&0.0));
+    let t = Vector3::new(*tvec.at::<f64>(0)?, *tvec.at::<f64>(1)?, *tvec.at::<f64>(2)?);
+    Ok(rigid_from_parts(&rot, &t))
+}
+
+fn solve_pose(
+    camera: &CameraIntrinsics,
+    layout: &BoardLayout,
+    corners_px: &[[f64; 2]],
+) -> opencv::Result<BoardObservation> {
+    pnp(camera, &object_points(&layout.corners_in_board_mm()), corners_px, None)
+}
+
+/// Two planar-PnP solutions fitting within this much of each other are ambiguous.
+const AMBIGUITY_RATIO: f64 = 1.3;
+
+/// Pose of one ArUco board from its detected markers; `Err` is the rejection reason.
+fn aruco_board_pose(
+    camera: &CameraIntrinsics,
+    layout: &ArucoLayout,
+    name: &str,
+    markers: &[aruco::Marker],
+    min_markers: usize,
+) -> opencv::Result<Result<BoardObservation, String>> {
+    let mine: Vec<&aruco::Marker> = markers
+        .iter()
+        .filter(|m| m.id >= 0 && layout.ids().contains(&(m.id as u32)))
+        .collect();
+    let total = layout.ids().len();
+    if mine.len() < min_markers {
+        return Ok(Err(format!(
+            "{name} board: {} of {total} markers found (need {min_markers})",
+            mine.len()
+        )));
+    }
+    let mut object = Vector::<opencv::core::Point3f>::new();
+    let mut corners_px = Vec::new();
+    for m in &mine {
+        let Some(corners) = layout.marker_corners_mm(m.id as u32) else {
+            continue;
+        };
+        for (c, px) in corners.iter().zip(&m.corners_px) {
+            object.push(opencv::core::Point3f::new(c.x as f32, c.y as f32, 0.0));
+            corners_px.push(*px);
+        }
+    }
+    // Planar targets admit two poses (IPPE gives both); when both explain the
+    // corners about equally, the pose is ambiguous and the frame is not trusted.
+    let image = image_points(&corners_px);
+    let (k, d) = (camera.camera_matrix_mat()?, camera.distortion_mat()?);
+    let mut rvecs = Vector::<Mat>::new();
+    let mut tvecs = Vector::<Mat>::new();
+    let mut errors = Mat::default();
+    let solutions = calib3d::solve_pnp_generic(
+        &object,
+        &image,
+        &k,
+        &d,
+        &mut rvecs,
+        &mut tvecs,
+        false,
+        calib3d::SolvePnPMethod::SOLVEPNP_IPPE,
+        &Mat::default(),
+        &Mat::default(),
+        &mut errors,
+    )?;
+    if solutions < 1 {
+        return Ok(Err(format!("{name} board: no pose from {} markers", mine.len())));
+    }
+    if solutions >= 2 {
+        let mut errors64 = Mat::default();
+        errors.convert_to_def(&mut errors64, opencv::core::CV_64F)?;
+        let e0 = *errors64.at::<f64>(0)?;
+        let e1 = *errors64.at::<f64>(1)?;
+        let angle = rotation_angle_between_deg(
+            &rigid_from_rvec_tvec(&rvecs.get(0)?, &tvecs.get(0)?)?,
+            &rigid_from_rvec_tvec(&rvecs.get(1)?, &tvecs.get(1)?)?,
+        );
+        if e1 <= AMBIGUITY_RATIO * e0 && angle > 1.0 {
+            return Ok(Err(format!(
+                "{name} board: ambiguous pose, two solutions {angle:.1}° apart fit with {e0:.2} and {e1:.2} px"
+            )));
+        }
+    }
+    let observation = pnp(camera, &object, &corners_px, Some((&rvecs.get(0)?, &tvecs.get(0)?)))?;
+    Ok(Ok(observation))
+}
+
+/// Finds both ArUco boards (told apart by marker ids) and poses them.
+pub fn estimate_aruco(
+    image: &Mat,
+    camera: &CameraIntrinsics,
+    probe: &ArucoLayout,
+    phantom: &ArucoLayout,
+    subpixel_half_window_px: u32,
+    min_markers: usize,
+) -> opencv::Result<Result<FramePoses, String>> {
+    let dictionary = match aruco::predefined(&probe.dictionary) {
+        Ok(d) => d,
+        Err(e) => return Ok(Err(e.to_string())),
+    };
+    let window = (subpixel_half_window_px > 0).then_some(subpixel_half_window_px as i32);
+    let markers = match aruco::detect(image, &dictionary, window) {
+        Ok(m) => m,
+        Err(aruco::ArucoError::OpenCv(e)) => return Err(e),
+        Err(e) => return Ok(Err(e.to_string())),
+    };
+    let mut poses = Vec::new();
+    for (layout, name) in [(probe, "probe"), (phantom, "phantom")] {
+        match aruco_board_pose(camera, layout, name, &markers, min_markers)? {
+            Ok(o) if o.reprojection_rms_px > MAX_REPROJECTION_RMS_PX => {
+                return Ok(Err(format!(
+                    "{name} board pose has a reprojection error of {:.2} px (limit {MAX_REPROJECTION_RMS_PX} px)",
+                    o.reprojection_rms_px
+                )))
+            }
+            Ok(o) => poses.push(o),
+            Err(reason) => return Ok(Err(reason)),
+        }
+    }
+    let phantom_pose = poses.pop();
+    let probe_pose = poses.pop();
+    Ok(match (probe_pose, phantom_pose) {
+        (Some(m), Some(p)) => Ok(FramePoses {
+            camera_T_marker: m,
+            camera_T_phantom: p,
+        }),
+        _ => Err("boards not found".to_string()),
+    })
+}
+
+/// Finds and poses both boards of a rig. The inner `Err` is a frame rejection reason.
+pub fn estimate(image: &Mat, camera: &CameraIntrinsics, rig: &RigBoards) -> opencv::Result<Result<FramePoses, String>> {
+    match (&rig.probe, &rig.phantom, &rig.detection) {
+        (PrintedBoard::Checkerboard(probe), PrintedBoard::Checkerboard(phantom), _) => estimate_checkerboards(
+            image,
+            camera,
+            &RigLayout {
+                probe: *probe,
+                phantom: *phantom,
+            },
+        ),
+        (
+            PrintedBoard::Aruco(probe),
+            PrintedBoard::Aruco(phantom),
+            Detection::Aruco {
+                subpixel_half_window_px,
+                min_markers,
+            },
+        ) => estimate_aruco(image, camera, probe, phantom, *subpixel_half_window_px, *min_markers),
+        _ => Ok(Err("the rig mixes board kinds".to_string())),
+    }
+}
+
+/// How a rig's boards are found.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Detection {
+    Checkerboard,
+    Aruco {
+        subpixel_half_window_px: u32,
+        min_markers: usize,
+    },
+}
+
+/// The rig's two boards as printed, and how to find them.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RigBoards {
+    pub probe: PrintedBoard,
+    pub phantom: PrintedBoard,
+    pub detection: Detection,
+}
+
+impl RigBoards {
+    /// The boards a manifest's rig describes.
+    pub fn from_manifest(rig: &crate::manifest::Rig) -> Result<RigBoards, aruco::ArucoError> {
+        use crate::manifest::Rig;
+        Ok(match rig {
+            Rig::Checkerboard {
+                probe_board,
+                phantom_board,
+            } => {
+                let layout = |b: &crate::manifest::Board| {
+                    PrintedBoard::Checkerboard(BoardLayout {
+                        inner_corners: b.inner_corners,
+                        square_mm: b.square_mm,
+                        id_dots: b.id_dots,
+                    })
+                };
+                RigBoards {
+                    probe: layout(probe_board),
+                    phantom: layout(phantom_board),
+                    detection: Detection::Checkerboard,
+                }
+            }
+            Rig::Aruco {
+                dictionary,
+                probe_board,
+                phantom_board,
+                subpixel_half_window_px,
+                min_markers,
+            } => {
+                let layout = |b: &crate::manifest::ArucoBoard| {
+                    ArucoLayout::new(dictionary, b.markers, b.marker_mm, b.separation_mm, b.first_id)
+                        .map(PrintedBoard::Aruco)
+                };
+                RigBoards {
+                    probe: layout(probe_board)?,
+                    phantom: layout(phantom_board)?,
+                    detection: Detection::Aruco {
+                        subpixel_half_window_px: *subpixel_half_window_px,
+                        min_markers: *min_markers,
+                    },
+                }
+            }
+        })
+    }
+}
+
+/// Finds, identifies and poses both checkerboards. The inner `Err` is a frame rejection reason.
+pub fn estimate_checkerboards(
+    image: &Mat,
+    camera: &CameraIntrinsics,
+    rig: &RigLayout,
+) -> opencv::Result<Result<FramePoses, String>> {
     let mut work = image.try_clone()?;
     let subpix = SubPix {
         half_window_px: 5,
@@ -290,7 +530,8 @@ pub fn estimate(image: &Mat, camera: &CameraIntrinsics, rig: &RigLayout) -> open
         wanted.dedup_by_key(|b| b.inner_corners);
         let mut detection = None;
         for pattern in wanted {
-            if let Some(corners) = detect_chessboard(&work, pattern.inner_corners, subpix)? {
+            if let Some(corners) = detect_chessboard_reduced(&work, pattern.inner_corners, subpix, SEARCH_MAX_SIDE_PX)?
+            {
                 detection = Some((pattern, corners));
                 break;
             }

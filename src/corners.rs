@@ -3,6 +3,7 @@
 //! and the per-frame board poses both go through this one function.
 
 use opencv::core::{Mat, Point2f, Size, TermCriteria, TermCriteria_Type, Vector};
+use opencv::prelude::*;
 use opencv::{calib3d, imgproc};
 
 /// Sub-pixel refinement settings (OpenCV's calibration sample: 11x11 window, 30 iterations, eps 0.1).
@@ -44,6 +45,46 @@ pub fn detect_chessboard(
     let window = Size::new(subpix.half_window_px, subpix.half_window_px);
     imgproc::corner_sub_pix(image, &mut corners, window, Size::new(-1, -1), criteria)?;
     Ok(Some(corners.iter().map(|p| [p.x as f64, p.y as f64]).collect()))
+}
+
+/// Like [`detect_chessboard`], but the board is searched on a copy reduced to at
+/// most `max_side_px` and its corners refined on the full image. On megapixel
+/// photos this is many times faster, and it bounds the time OpenCV's search can
+/// take on a partly hidden board (seen: two minutes at 1920x1080, 0.2 s at half size).
+pub fn detect_chessboard_reduced(
+    image: &Mat,
+    inner_corners: [u32; 2],
+    subpix: SubPix,
+    max_side_px: i32,
+) -> opencv::Result<Option<Vec<[f64; 2]>>> {
+    let side = image.cols().max(image.rows());
+    let factor = ((side + max_side_px - 1) / max_side_px).max(1);
+    if factor == 1 {
+        return detect_chessboard(image, inner_corners, subpix);
+    }
+    let mut reduced = Mat::default();
+    let size = Size::new(image.cols() / factor, image.rows() / factor);
+    imgproc::resize(image, &mut reduced, size, 0.0, 0.0, imgproc::INTER_AREA)?;
+    let pattern = Size::new(inner_corners[0] as i32, inner_corners[1] as i32);
+    let mut corners = Vector::<Point2f>::new();
+    let flags = calib3d::CALIB_CB_ADAPTIVE_THRESH | calib3d::CALIB_CB_NORMALIZE_IMAGE;
+    if !calib3d::find_chessboard_corners(&reduced, pattern, &mut corners, flags)? {
+        return Ok(None);
+    }
+    // Pixel centres: x_full = (x_reduced + 0.5) * factor - 0.5.
+    let f = factor as f32;
+    let mut full: Vector<Point2f> = corners
+        .iter()
+        .map(|p| Point2f::new((p.x + 0.5) * f - 0.5, (p.y + 0.5) * f - 0.5))
+        .collect();
+    let criteria = TermCriteria::new(
+        TermCriteria_Type::EPS as i32 + TermCriteria_Type::COUNT as i32,
+        subpix.max_iterations,
+        subpix.epsilon_px,
+    )?;
+    let window = Size::new(subpix.half_window_px, subpix.half_window_px);
+    imgproc::corner_sub_pix(image, &mut full, window, Size::new(-1, -1), criteria)?;
+    Ok(Some(full.iter().map(|p| [p.x as f64, p.y as f64]).collect()))
 }
 
 /// `Mat` of 3D object points for OpenCV calls.
