@@ -15,8 +15,8 @@ use std::path::{Path, PathBuf};
 use sha2::{Digest, Sha256};
 
 pub use raw::{
-    ArcDetection, Board, BscanRender, CameraCalibrationBoard, FitRadius, Gates, Phantom, Regression, RenderSpec, Rig,
-    SolveVariant, Sweep, TrueCamera, TrueTransform, Wire,
+    ArcDetection, ArucoBoard, Board, BscanRender, CameraCalibrationBoard, FitRadius, Gates, Phantom, Regression,
+    RenderSpec, Rig, SolveVariant, Sweep, TrueCamera, TrueTransform, Wire,
 };
 
 /// A manifest problem, located.
@@ -308,6 +308,62 @@ fn validate(c: &mut Checker<'_>, base: &Path, raw: raw::RawManifest, path: &Path
                 }
             }
         }
+        Rig::Aruco { .. } => {}
+    }
+    if let Rig::Aruco {
+        dictionary,
+        probe_board,
+        phantom_board,
+        min_markers,
+        ..
+    } = &raw.rig
+    {
+        let size = crate::aruco::predefined_size(dictionary)
+            .filter(|_| crate::aruco::DICTIONARY_NAMES.iter().any(|(n, _)| n == dictionary));
+        if size.is_none() {
+            c.fail(
+                "rig.aruco.dictionary",
+                format!("unknown ArUco dictionary `{dictionary}` (OpenCV's names, e.g. DICT_4X4_50)"),
+            );
+        }
+        for (name, b) in [("probe_board", probe_board), ("phantom_board", phantom_board)] {
+            let field = format!("rig.aruco.{name}");
+            if b.markers[0] < 1 || b.markers[1] < 1 {
+                c.fail(&format!("{field}.markers"), "needs at least 1x1 markers");
+            }
+            c.positive(&format!("{field}.marker_mm"), b.marker_mm);
+            c.at_least(&format!("{field}.separation_mm"), b.separation_mm, 0.0);
+            let last = b.first_id as usize + (b.markers[0] * b.markers[1]) as usize;
+            if let Some((count, _)) = size {
+                if last > count {
+                    c.fail(
+                        &format!("{field}.first_id"),
+                        format!(
+                            "ids {}..{} do not fit in {dictionary} ({count} markers)",
+                            b.first_id,
+                            last - 1
+                        ),
+                    );
+                }
+            }
+        }
+        let range = |b: &ArucoBoard| b.first_id..b.first_id + b.markers[0] * b.markers[1];
+        let (p, q) = (range(probe_board), range(phantom_board));
+        if p.start < q.end && q.start < p.end {
+            c.fail(
+                "rig.aruco.phantom_board.first_id",
+                format!(
+                    "marker ids {}..{} overlap the probe board's {}..{}: the boards are told apart by id",
+                    q.start,
+                    q.end - 1,
+                    p.start,
+                    p.end - 1
+                ),
+            );
+        }
+        if *min_markers < 1 {
+            c.fail("rig.aruco.min_markers", "must be at least 1");
+        }
     }
     let camera = match (&raw.camera.intrinsics_file, &raw.camera.calibrate) {
         (Some(file), None) => CameraSource::IntrinsicsFile(c.existing("camera.intrinsics_file", base, file, false)),
@@ -528,6 +584,12 @@ fn validate_render(c: &mut Checker<'_>, field: &str, spec: &RenderSpec) {
     }
     c.positive(&format!("{field}.bscan.convex_radius_mm"), b.convex_radius_mm);
     c.at_least(&format!("{field}.bscan.slice_thickness_mm"), b.slice_thickness_mm, 0.0);
+    if !(0.0..=1.0).contains(&spec.occlusion_rate) {
+        c.fail(
+            &format!("{field}.occlusion_rate"),
+            format!("must be a fraction between 0 and 1, got {}", spec.occlusion_rate),
+        );
+    }
     for (name, v) in [
         ("outlier_rate", b.outlier_rate),
         ("missing_rate", b.missing_rate),

@@ -69,7 +69,42 @@ pub struct Wire {
 #[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(rename_all = "snake_case", deny_unknown_fields)]
 pub enum Rig {
-    Checkerboard { probe_board: Board, phantom_board: Board },
+    Checkerboard {
+        probe_board: Board,
+        phantom_board: Board,
+    },
+    /// ArUco grid boards; the two boards are told apart by their marker ids.
+    Aruco {
+        /// OpenCV's predefined dictionary name, e.g. `DICT_4X4_50`.
+        dictionary: String,
+        probe_board: ArucoBoard,
+        phantom_board: ArucoBoard,
+        /// Sub-pixel corner refinement window (half size, px); 0 turns it off. It
+        /// must stay below a marker cell's size in the image.
+        #[serde(default = "default_aruco_window")]
+        subpixel_half_window_px: u32,
+        /// Fewest markers of a board for a pose.
+        #[serde(default = "default_min_markers")]
+        min_markers: usize,
+    },
+}
+
+fn default_aruco_window() -> u32 {
+    3
+}
+fn default_min_markers() -> usize {
+    4
+}
+
+/// A grid board of ArUco markers with consecutive ids from `first_id`, row by row.
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct ArucoBoard {
+    /// Markers `[columns, rows]`.
+    pub markers: [u32; 2],
+    pub marker_mm: f64,
+    pub separation_mm: f64,
+    pub first_id: u32,
 }
 
 /// A printed checkerboard with a white margin one square wide. Its identification
@@ -260,6 +295,9 @@ pub struct RenderSpec {
     pub board_distance_mm: [f64; 2],
     #[serde(default)]
     pub sweep: Sweep,
+    /// Fraction of photos with something (a finger, a cable) across the probe board.
+    #[serde(default = "default_occlusion")]
+    pub occlusion_rate: f64,
     #[serde(default)]
     pub bscan: BscanRender,
     /// The true calibration; absent: the probe casing's nominal mount for the board size.
@@ -267,6 +305,9 @@ pub struct RenderSpec {
     pub marker_T_image: Option<TrueTransform>,
 }
 
+fn default_occlusion() -> f64 {
+    0.08
+}
 fn default_frames() -> usize {
     50
 }

@@ -9,7 +9,7 @@ const GOOD: &str = "\
 experiment: demo
 phantom:
   hemisphere:
-    centre_in_phantom_mm: [250.0, 65.0, -9.0]
+    centre_in_phantom_mm: [285.7, 76.2, -26.5]
     radius_mm: 15.0
 rig:
   checkerboard:
@@ -224,7 +224,7 @@ const BAD: &[BadCase] = &[
     ),
     (
         "point phantom not runnable",
-        "  hemisphere:\n    centre_in_phantom_mm: [250.0, 65.0, -9.0]\n    radius_mm: 15.0\n",
+        "  hemisphere:\n    centre_in_phantom_mm: [285.7, 76.2, -26.5]\n    radius_mm: 15.0\n",
         "  point:\n    position_in_phantom_mm: [1, 2, 3]\n",
         "phantom.point",
         Some(3),
@@ -296,6 +296,63 @@ fn bad_manifests_name_file_field_and_line() {
         BAD.len(),
         failures.join("\n")
     );
+}
+
+const ARUCO_RIG: &str = "rig:
+  aruco:
+    dictionary: DICT_4X4_50
+    probe_board: {markers: [4, 4], marker_mm: 30.0, separation_mm: 8.0, first_id: 0}
+    phantom_board: {markers: [4, 4], marker_mm: 30.0, separation_mm: 8.0, first_id: 16}
+camera:";
+
+#[test]
+fn aruco_rig_parses_and_its_mistakes_are_located() {
+    let good = GOOD.replacen(
+        "rig:\n  checkerboard:\n    probe_board: {inner_corners: [10, 10], square_mm: 13.0, id_dots: 1}\n    phantom_board: {inner_corners: [10, 10], square_mm: 13.0, id_dots: 2}\ncamera:",
+        ARUCO_RIG,
+        1,
+    );
+    let m = parse(&good).expect("ArUco manifest");
+    assert!(matches!(
+        m.rig,
+        Rig::Aruco {
+            subpixel_half_window_px: 3,
+            min_markers: 4,
+            ..
+        }
+    ));
+    let cases = [
+        (
+            "first_id: 16}",
+            "first_id: 10}",
+            "rig.aruco.phantom_board.first_id",
+            "overlap the probe board's 0..15",
+        ),
+        (
+            "DICT_4X4_50",
+            "DICT_4X4_5O",
+            "rig.aruco.dictionary",
+            "unknown ArUco dictionary `DICT_4X4_5O`",
+        ),
+        (
+            "first_id: 16}",
+            "first_id: 40}",
+            "rig.aruco.phantom_board.first_id",
+            "ids 40..55 do not fit in DICT_4X4_50 (50 markers)",
+        ),
+        (
+            "marker_mm: 30.0, separation_mm: 8.0, first_id: 0",
+            "marker_mm: 0.0, separation_mm: 8.0, first_id: 0",
+            "rig.aruco.probe_board.marker_mm",
+            "positive",
+        ),
+    ];
+    for (from, to, field, message) in cases {
+        let errors = parse(&good.replacen(from, to, 1)).unwrap_err();
+        let e = &errors.0[0];
+        assert_eq!(e.field, field, "{errors}");
+        assert!(e.message.contains(message) && e.line.is_some(), "{errors}");
+    }
 }
 
 #[test]

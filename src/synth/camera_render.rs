@@ -8,7 +8,8 @@
 
 use nalgebra::{Point3, Vector3};
 
-use crate::board::{BoardLayout, Ink};
+use super::scene::Occluder;
+use crate::board::{Ink, PrintedBoard};
 use crate::camera_model::CameraIntrinsics;
 use crate::geometry::Rigid;
 use crate::image::{gaussian_blur_f32, Gray8, ImageError};
@@ -60,11 +61,14 @@ pub struct Photometry {
 /// A board placed in front of the camera.
 pub struct PlacedBoard<'a> {
     pub camera_T_board: Rigid,
-    pub layout: &'a BoardLayout,
+    pub layout: &'a PrintedBoard,
+    /// Something dark lying across the board.
+    pub occluder: Option<Occluder>,
 }
 
 const BLACK_REFLECTANCE: f32 = 0.07;
 const WHITE_REFLECTANCE: f32 = 0.88;
+const OCCLUDER_REFLECTANCE: f32 = 0.22;
 
 /// Renders one photo. `rng` drives the lighting direction, exposure and noise.
 pub fn render_photo(
@@ -80,7 +84,8 @@ pub fn render_photo(
         origin: Vector3<f32>,
         normal: Vector3<f32>,
         board_T_camera: Rigid,
-        layout: &'a BoardLayout,
+        layout: &'a PrintedBoard,
+        occluder: Option<(Occluder, [f64; 2])>,
     }
     let planes: Vec<Plane<'_>> = boards
         .iter()
@@ -89,6 +94,10 @@ pub fn render_photo(
             normal: (b.camera_T_board.rotation * Vector3::z()).cast::<f32>(),
             board_T_camera: b.camera_T_board.inverse(),
             layout: b.layout,
+            occluder: b.occluder.map(|o| {
+                let c = b.layout.centre_mm();
+                (o, [c.x, c.y])
+            }),
         })
         .collect();
 
@@ -130,7 +139,12 @@ pub fn render_photo(
                         }
                         let hit = dir * t;
                         let local = plane.board_T_camera * Point3::new(hit.x as f64, hit.y as f64, hit.z as f64);
-                        if let Some(ink) = plane.layout.ink_at(local.x, local.y) {
+                        let covered = plane
+                            .occluder
+                            .is_some_and(|(o, c)| o.covers(local.x - c[0], local.y - c[1]));
+                        if covered {
+                            best = Some((t, OCCLUDER_REFLECTANCE));
+                        } else if let Some(ink) = plane.layout.ink_at(local.x, local.y) {
                             let r = if ink == Ink::Black {
                                 BLACK_REFLECTANCE
                             } else {

@@ -16,6 +16,7 @@ use nalgebra::Point3;
 use serde::Serialize;
 
 use crate::board::BoardLayout;
+use crate::board_pose::RigBoards;
 use crate::camera_model::CameraIntrinsics;
 use crate::dataset::FRAME_LIST;
 use crate::geometry::{to_rows, Rigid};
@@ -27,7 +28,7 @@ use camera_render::{Photometry, PlacedBoard, RayMap};
 use scene::{FrameKind, SceneInputs};
 
 /// Bumped whenever a change to the renderer changes its pixels.
-pub const GENERATOR_VERSION: u32 = 3;
+pub const GENERATOR_VERSION: u32 = 4;
 
 #[derive(Debug, thiserror::Error)]
 pub enum SynthError {
@@ -53,25 +54,27 @@ fn io_err(path: &Path) -> impl Fn(std::io::Error) -> SynthError + '_ {
 pub struct RenderInputs {
     pub generator_version: u32,
     pub spec: RenderSpec,
-    pub probe_board: [f64; 3],
-    pub phantom_board: [f64; 3],
-    pub calibration_board: [f64; 2],
+    pub rig: Rig,
+    pub calibration_board: [u32; 2],
     pub calibration_square_mm: f64,
     pub sphere_centre_in_phantom_mm: [f64; 3],
     pub sphere_radius_mm: f64,
     pub spacing_mm_per_px: [f64; 2],
 }
 
-fn layouts(manifest: &Manifest) -> Result<(BoardLayout, BoardLayout, BoardLayout, [f64; 3], f64), SynthError> {
-    let Rig::Checkerboard {
-        probe_board,
-        phantom_board,
-    } = &manifest.rig;
-    let layout = |b: &crate::manifest::Board| BoardLayout {
-        inner_corners: b.inner_corners,
-        square_mm: b.square_mm,
-        id_dots: b.id_dots,
-    };
+/// What of the manifest the renderer needs.
+struct Lab {
+    rig: RigBoards,
+    calibration: BoardLayout,
+    centre: [f64; 3],
+    radius: f64,
+}
+
+fn lab(manifest: &Manifest) -> Result<Lab, SynthError> {
+    let rig = RigBoards::from_manifest(&manifest.rig).map_err(|e| SynthError::Io {
+        path: manifest.path.clone(),
+        message: e.to_string(),
+    })?;
     let calibration = match &manifest.camera {
         crate::manifest::CameraSource::Calibrate { board, .. } => BoardLayout {
             inner_corners: board.inner_corners,
@@ -94,34 +97,25 @@ fn layouts(manifest: &Manifest) -> Result<(BoardLayout, BoardLayout, BoardLayout
             what: "a hemisphere phantom",
         });
     };
-    Ok((
-        layout(probe_board),
-        layout(phantom_board),
+    Ok(Lab {
+        rig,
         calibration,
-        *centre_in_phantom_mm,
-        *radius_mm,
-    ))
+        centre: *centre_in_phantom_mm,
+        radius: *radius_mm,
+    })
 }
 
 /// The exact inputs of a dataset render.
 pub fn render_inputs(manifest: &Manifest, spec: &RenderSpec) -> Result<RenderInputs, SynthError> {
-    let (probe, phantom, calibration, centre, radius) = layouts(manifest)?;
-    let board = |b: &BoardLayout| {
-        [
-            b.inner_corners[0] as f64,
-            b.inner_corners[1] as f64,
-            b.square_mm * 1000.0 + b.id_dots as f64,
-        ]
-    };
+    let lab = lab(manifest)?;
     Ok(RenderInputs {
         generator_version: GENERATOR_VERSION,
         spec: spec.clone(),
-        probe_board: board(&probe),
-        phantom_board: board(&phantom),
-        calibration_board: [calibration.inner_corners[0] as f64, calibration.inner_corners[1] as f64],
-        calibration_square_mm: calibration.square_mm,
-        sphere_centre_in_phantom_mm: centre,
-        sphere_radius_mm: radius,
+        rig: manifest.rig.clone(),
+        calibration_board: lab.calibration.inner_corners,
+        calibration_square_mm: lab.calibration.square_mm,
+        sphere_centre_in_phantom_mm: lab.centre,
+        sphere_radius_mm: lab.radius,
         spacing_mm_per_px: manifest.bscan_spacing_mm_per_px,
     })
 }
@@ -174,6 +168,7 @@ struct GroundTruthFrame {
     elevation_offset_mm: f64,
     centre_projection_px: [f64; 2],
     bubbles: Vec<Bubble>,
+    occluder: Option<scene::Occluder>,
 }
 
 #[derive(Serialize)]
@@ -192,11 +187,17 @@ struct GroundTruthFile {
 }
 
 fn render_into(manifest: &Manifest, spec: &RenderSpec, folder: &Path) -> Result<(), SynthError> {
-    let (probe, phantom, calibration, centre, radius) = layouts(manifest)?;
+    let Lab {
+        rig,
+        calibration,
+        centre,
+        radius,
+    } = lab(manifest)?;
+    let calibration_board = crate::board::PrintedBoard::Checkerboard(calibration);
     let scene = scene::build(&SceneInputs {
         spec,
-        probe_board: probe,
-        phantom_board: phantom,
+        probe_board: rig.probe,
+        phantom_board: rig.phantom,
         calibration_board: calibration,
         sphere_centre_in_phantom_mm: centre,
         sphere_radius_mm: radius,
@@ -223,7 +224,8 @@ fn render_into(manifest: &Manifest, spec: &RenderSpec, folder: &Path) -> Result<
             let mut rng = Rng::fork(spec.seed, 1000 + view as u64);
             let board = PlacedBoard {
                 camera_T_board: scene.camera_T_calibration_board[view],
-                layout: &scene.calibration_board,
+                layout: &calibration_board,
+                occluder: None,
             };
             let image = camera_render::render_photo(&scene.camera, &rays, &[board], photometry, &mut rng)?;
             image.write_png(&calib_dir.join(format!("view_{view:03}.png")))?;
@@ -241,10 +243,12 @@ fn render_into(manifest: &Manifest, spec: &RenderSpec, folder: &Path) -> Result<
             PlacedBoard {
                 camera_T_board: camera_T_marker_photo,
                 layout: &scene.probe_board,
+                occluder: plan.occluder,
             },
             PlacedBoard {
                 camera_T_board: camera_T_phantom,
                 layout: &scene.phantom_board,
+                occluder: None,
             },
         ];
         let photo = camera_render::render_photo(&scene.camera, &rays, &boards, photometry, &mut rng)?;
@@ -261,6 +265,7 @@ fn render_into(manifest: &Manifest, spec: &RenderSpec, folder: &Path) -> Result<
             elevation_offset_mm: plan.elevation_offset_mm,
             centre_projection_px: plan.centre_projection_px,
             bubbles,
+            occluder: plan.occluder,
         })
     });
     let truth_frames = frame_results.into_iter().collect::<Result<Vec<_>, _>>()?;

@@ -8,7 +8,7 @@
 
 use nalgebra::{Matrix3, Point3, Rotation3, Translation3, UnitQuaternion, Vector3};
 
-use crate::board::BoardLayout;
+use crate::board::{BoardLayout, PrintedBoard};
 use crate::camera_model::CameraIntrinsics;
 use crate::geometry::Rigid;
 use crate::manifest::{RenderSpec, TrueTransform};
@@ -95,6 +95,45 @@ pub struct FramePlan {
     pub elevation_offset_mm: f64,
     /// Pixel of the sphere centre's projection onto the B-scan plane.
     pub centre_projection_px: [f64; 2],
+    /// Something (a finger, a cable) across the probe board in the photo.
+    pub occluder: Option<Occluder>,
+}
+
+/// A dark capsule lying on the probe board, relative to the board's centre (mm).
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct Occluder {
+    pub from_centre_mm: [f64; 2],
+    pub to_centre_mm: [f64; 2],
+    pub width_mm: f64,
+}
+
+impl Occluder {
+    /// Whether a board point (relative to the board's centre) is covered.
+    pub fn covers(&self, x: f64, y: f64) -> bool {
+        let [ax, ay] = self.from_centre_mm;
+        let [bx, by] = self.to_centre_mm;
+        let (dx, dy) = (bx - ax, by - ay);
+        let t = (((x - ax) * dx + (y - ay) * dy) / (dx * dx + dy * dy).max(1e-12)).clamp(0.0, 1.0);
+        let (px, py) = (ax + t * dx - x, ay + t * dy - y);
+        px * px + py * py <= (self.width_mm / 2.0).powi(2)
+    }
+}
+
+/// Half the side of the square plate each board is mounted on: the scene is laid
+/// out for the plates, so the same seed gives the same motion whatever the boards.
+pub const PLATE_HALF_MM: f64 = 90.0;
+
+/// How far below the probe board's centre the transducer face is, mm.
+pub const MOUNT_DROP_MM: f64 = 100.0;
+
+fn plate_bounds(board: &PrintedBoard) -> [f64; 4] {
+    let c = board.centre_mm();
+    [
+        c.x - PLATE_HALF_MM,
+        c.y - PLATE_HALF_MM,
+        c.x + PLATE_HALF_MM,
+        c.y + PLATE_HALF_MM,
+    ]
 }
 
 /// The whole simulated setup of one dataset.
@@ -107,8 +146,8 @@ pub struct Scene {
     pub sphere_centre_world: Point3<f64>,
     pub sphere_radius_mm: f64,
     pub tank: Tank,
-    pub probe_board: BoardLayout,
-    pub phantom_board: BoardLayout,
+    pub probe_board: PrintedBoard,
+    pub phantom_board: PrintedBoard,
     pub bscan: BscanGeometry,
     pub frames: Vec<FramePlan>,
     /// Poses of the camera-calibration board, one per view.
@@ -134,11 +173,11 @@ pub fn true_transform(t: &TrueTransform) -> Rigid {
 }
 
 /// The probe casing's nominal mount: board centred over the array, parallel to the
-/// B-scan plane 25 mm in front of it, its last row of corners 45 mm above the array.
-pub fn nominal_marker_T_image(board: &BoardLayout, bscan: &BscanGeometry) -> Rigid {
-    let s = board.square_mm;
-    let x = (board.inner_corners[0] as f64 - 1.0) * s / 2.0 - bscan.width_mm() / 2.0;
-    let y = (board.inner_corners[1] as f64 - 1.0) * s + 45.0;
+/// B-scan plane 25 mm in front of it, its centre 100 mm above the array.
+pub fn nominal_marker_T_image(board: &PrintedBoard, bscan: &BscanGeometry) -> Rigid {
+    let centre = board.centre_mm();
+    let x = centre.x - bscan.width_mm() / 2.0;
+    let y = centre.y + MOUNT_DROP_MM;
     Rigid::from_parts(Translation3::new(x, y, 25.0), euler_deg(1.5, -2.0, 1.0))
 }
 
@@ -150,18 +189,19 @@ fn jitter(rng: &mut Rng, sigma_mm: f64, sigma_deg: f64) -> Rigid {
     Rigid::new(shift, axis_angle)
 }
 
-/// Pixels of a board's paper corners, if the whole board is in view and faces the camera.
+/// Pixels bounding a board region `[x0, y0, x1, y1]` (board mm), if it is wholly in
+/// view and faces the camera.
 pub fn board_in_view(
     camera: &CameraIntrinsics,
     camera_T_board: &Rigid,
-    board: &BoardLayout,
+    bounds_mm: [f64; 4],
     margin_px: f64,
 ) -> Option<[f64; 4]> {
     let facing = (camera_T_board.rotation * Vector3::z()).dot(&camera_T_board.translation.vector.normalize());
     if facing < 0.35 {
         return None; // seen at more than ~70° or from behind
     }
-    let [x0, y0, x1, y1] = board.paper_bounds_mm();
+    let [x0, y0, x1, y1] = bounds_mm;
     let [w, h] = [camera.image_size_px[0] as f64, camera.image_size_px[1] as f64];
     let mut bbox = [f64::MAX, f64::MAX, f64::MIN, f64::MIN];
     for (x, y) in [(x0, y0), (x1, y0), (x0, y1), (x1, y1)] {
@@ -186,8 +226,8 @@ fn boxes_apart(a: [f64; 4], b: [f64; 4], gap: f64) -> bool {
 /// Inputs of the scene besides the render spec.
 pub struct SceneInputs<'a> {
     pub spec: &'a RenderSpec,
-    pub probe_board: BoardLayout,
-    pub phantom_board: BoardLayout,
+    pub probe_board: PrintedBoard,
+    pub phantom_board: PrintedBoard,
     pub calibration_board: BoardLayout,
     pub sphere_centre_in_phantom_mm: [f64; 3],
     pub sphere_radius_mm: f64,
@@ -197,20 +237,32 @@ pub struct SceneInputs<'a> {
 /// Why a scene could not be laid out.
 #[derive(Debug, thiserror::Error)]
 pub enum SceneError {
-    #[error("could not place frame {frame} with both boards fully in view after {tries} tries: the boards are too large for this camera and distance")]
-    FrameDoesNotFit { frame: usize, tries: usize },
+    #[error("could not place frame {frame} after {tries} tries (probe board out of view {out_of_view}, phantom board out of view {phantom_out}, boards overlapping {overlapping}, too far or near {distance}, feature outside the fan {fan})")]
+    FrameDoesNotFit {
+        frame: usize,
+        tries: usize,
+        out_of_view: usize,
+        phantom_out: usize,
+        overlapping: usize,
+        distance: usize,
+        fan: usize,
+    },
     #[error("could not place calibration view {view} in the image after {tries} tries")]
     CalibrationViewDoesNotFit { view: usize, tries: usize },
+    #[error("the {board} board does not fit on the {plate_mm} mm plate the simulated lab mounts boards on")]
+    BoardTooLarge { board: &'static str, plate_mm: f64 },
+    #[error("centre_in_phantom_mm puts the sphere {off_mm:.1} mm from where the simulated lab has it: for this phantom board it is [{}, {}, {}]", expected[0], expected[1], expected[2])]
+    FeatureMisplaced { off_mm: f64, expected: [f64; 3] },
 }
 
 /// Where the camera and the phantom board stand in the world frame: the camera in
 /// front of the tank and above it, looking down at the scene; the phantom board
 /// beside the tank, turned 15° away from facing the camera squarely.
-pub fn lab_layout(board_distance_mm: [f64; 2], phantom_board: &BoardLayout) -> (Rigid, Rigid) {
+pub fn lab_layout(board_distance_mm: [f64; 2], phantom_board: &PrintedBoard) -> (Rigid, Rigid) {
     let [near, far] = board_distance_mm;
-    let target = Vector3::new(-80.0, -40.0, 70.0);
+    let target = Vector3::new(-100.0, -40.0, 70.0);
     let view_dir = Vector3::new(0.0, 520.0, -260.0).normalize();
-    let camera_position = target - view_dir * ((near + far) / 2.0 + 40.0);
+    let camera_position = target - view_dir * ((near + far) / 2.0 + 110.0);
     let z_c = view_dir;
     let x_c = z_c.cross(&Vector3::z()).normalize();
     let y_c = z_c.cross(&x_c);
@@ -219,8 +271,7 @@ pub fn lab_layout(board_distance_mm: [f64; 2], phantom_board: &BoardLayout) -> (
         rotation_from_columns(x_c, y_c, z_c),
     );
 
-    let pb = phantom_board;
-    let board_centre_world = Vector3::new(-175.0, -80.0, 0.0);
+    let board_centre_world = Vector3::new(-215.0, -80.0, 0.0);
     let to_camera = (camera_position - board_centre_world).normalize();
     let n = UnitQuaternion::from_axis_angle(&Vector3::z_axis(), 15f64.to_radians()) * to_camera;
     let z_p = -n;
@@ -228,11 +279,8 @@ pub fn lab_layout(board_distance_mm: [f64; 2], phantom_board: &BoardLayout) -> (
     let y_p = (down - z_p * down.dot(&z_p)).normalize();
     let x_p = y_p.cross(&z_p);
     let r_wp = rotation_from_columns(x_p, y_p, z_p);
-    let centre_in_board = Vector3::new(
-        (pb.inner_corners[0] as f64 - 1.0) * pb.square_mm / 2.0,
-        (pb.inner_corners[1] as f64 - 1.0) * pb.square_mm / 2.0,
-        0.0,
-    );
+    let centre = phantom_board.centre_mm();
+    let centre_in_board = Vector3::new(centre.x, centre.y, 0.0);
     let world_T_phantom = Rigid::from_parts(Translation3::from(board_centre_world - r_wp * centre_in_board), r_wp);
     (world_T_camera, world_T_phantom)
 }
@@ -262,14 +310,34 @@ pub fn build(inputs: &SceneInputs<'_>) -> Result<Scene, SceneError> {
     let (world_T_camera, world_T_phantom) = lab_layout(spec.board_distance_mm, &inputs.phantom_board);
     let camera_T_world = world_T_camera.inverse();
     let [near, far] = spec.board_distance_mm;
+    // The lab is laid out around the sphere at the world origin; the manifest says
+    // where the sphere is relative to the phantom board, and must agree.
     let sphere_centre_world = world_T_phantom * Point3::from(Vector3::from(inputs.sphere_centre_in_phantom_mm));
+    if sphere_centre_world.coords.norm() > 3.0 {
+        let expected = world_T_phantom.inverse() * Point3::origin();
+        return Err(SceneError::FeatureMisplaced {
+            off_mm: sphere_centre_world.coords.norm(),
+            expected: [expected.x, expected.y, expected.z].map(|v| (v * 10.0).round() / 10.0),
+        });
+    }
     let c = sphere_centre_world.coords;
+    let nominal_centre = Vector3::zeros();
     let radius = inputs.sphere_radius_mm;
     let tank = Tank {
-        floor_z_mm: c.z - 30.0,
+        floor_z_mm: -30.0,
         wall_x_mm: 75.0,
         wall_y_mm: 60.0,
     };
+    for (board, name) in [(&inputs.probe_board, "probe"), (&inputs.phantom_board, "phantom")] {
+        let [x0, y0, x1, y1] = board.paper_bounds_mm();
+        let [p0, q0, p1, q1] = plate_bounds(board);
+        if x0 < p0 || y0 < q0 || x1 > p1 || y1 > q1 {
+            return Err(SceneError::BoardTooLarge {
+                board: name,
+                plate_mm: 2.0 * PLATE_HALF_MM,
+            });
+        }
+    }
 
     let marker_T_image = match &spec.marker_T_image {
         Some(t) => true_transform(t),
@@ -277,7 +345,8 @@ pub fn build(inputs: &SceneInputs<'_>) -> Result<Scene, SceneError> {
     };
     let image_T_marker = marker_T_image.inverse();
     let camera_T_phantom = camera_T_world * world_T_phantom;
-    let phantom_box = board_in_view(&camera, &camera_T_phantom, &inputs.phantom_board, 12.0);
+    let phantom_box = board_in_view(&camera, &camera_T_phantom, plate_bounds(&inputs.phantom_board), 12.0);
+    let probe_plate = plate_bounds(&inputs.probe_board);
 
     let mut rng = Rng::fork(spec.seed, 1);
     let r_nominal = rotation_from_columns(Vector3::x(), -Vector3::z(), Vector3::y());
@@ -293,6 +362,7 @@ pub fn build(inputs: &SceneInputs<'_>) -> Result<Scene, SceneError> {
         };
         let tries = 400;
         let mut placed = None;
+        let (mut out_of_view, mut phantom_out, mut overlapping, mut too_far, mut fan) = (0, 0, 0, 0, 0);
         for _ in 0..tries {
             let u_c = bscan.width_mm() / 2.0 + rng.uniform(-30.0, 30.0);
             let v_c = rng.uniform(35.0, 90.0);
@@ -300,6 +370,7 @@ pub fn build(inputs: &SceneInputs<'_>) -> Result<Scene, SceneError> {
             if angle.abs() > bscan.half_fan_rad - 10f64.to_radians()
                 || r_polar + radius > bscan.convex_radius_mm + bscan.depth_mm
             {
+                fan += 1;
                 continue;
             }
             let sign = if rng.chance(0.5) { 1.0 } else { -1.0 };
@@ -322,7 +393,10 @@ pub fn build(inputs: &SceneInputs<'_>) -> Result<Scene, SceneError> {
                     rng.uniform(-sweep.rotation_z_deg, sweep.rotation_z_deg).to_radians(),
                 );
             let centre_in_image = Vector3::new(u_c, v_c, elevation);
-            let world_T_image = Rigid::from_parts(Translation3::from(c - rotation * centre_in_image), rotation);
+            let world_T_image = Rigid::from_parts(
+                Translation3::from(nominal_centre - rotation * centre_in_image),
+                rotation,
+            );
             let world_T_marker_bscan = world_T_image * image_T_marker;
             let (tremor_mm, tremor_deg) = if kind == FrameKind::Jerk {
                 (rng.uniform(2.0, 4.0) / 1.7, rng.uniform(1.0, 2.0) / 1.7)
@@ -331,27 +405,58 @@ pub fn build(inputs: &SceneInputs<'_>) -> Result<Scene, SceneError> {
             };
             let world_T_marker_photo = world_T_marker_bscan * jitter(&mut rng, tremor_mm, tremor_deg);
             let camera_T_marker = camera_T_world * world_T_marker_photo;
-            let Some(probe_box) = board_in_view(&camera, &camera_T_marker, &inputs.probe_board, 12.0) else {
+            let Some(probe_box) = board_in_view(&camera, &camera_T_marker, probe_plate, 12.0) else {
+                out_of_view += 1;
                 continue;
             };
-            let Some(phantom_box) = phantom_box else { continue };
+            let Some(phantom_box) = phantom_box else {
+                phantom_out += 1;
+                continue;
+            };
             if !boxes_apart(probe_box, phantom_box, 15.0) {
+                overlapping += 1;
                 continue;
             }
             let distance = camera_T_marker.translation.vector.norm();
             if distance < near || distance > far + 150.0 {
+                too_far += 1;
                 continue;
             }
+            let occluder = rng.chance(spec.occlusion_rate).then(|| {
+                let angle = rng.uniform(0.0, std::f64::consts::PI);
+                let (cx, cy) = (rng.uniform(-40.0, 40.0), rng.uniform(-40.0, 40.0));
+                let half = rng.uniform(35.0, 60.0);
+                Occluder {
+                    from_centre_mm: [cx - half * angle.cos(), cy - half * angle.sin()],
+                    to_centre_mm: [cx + half * angle.cos(), cy + half * angle.sin()],
+                    width_mm: rng.uniform(8.0, 14.0),
+                }
+            });
+            // Where the actual sphere is relative to this plane (the manifest's centre
+            // may sit a fraction of a millimetre from the nominal one).
+            let actual = world_T_image.inverse() * Point3::from(c);
             placed = Some(FramePlan {
                 kind,
                 world_T_marker_photo,
                 world_T_marker_bscan,
-                elevation_offset_mm: elevation,
-                centre_projection_px: [u_c / bscan.spacing_mm_per_px[0], v_c / bscan.spacing_mm_per_px[1]],
+                elevation_offset_mm: actual.z,
+                centre_projection_px: [
+                    actual.x / bscan.spacing_mm_per_px[0],
+                    actual.y / bscan.spacing_mm_per_px[1],
+                ],
+                occluder,
             });
             break;
         }
-        frames.push(placed.ok_or(SceneError::FrameDoesNotFit { frame, tries })?);
+        frames.push(placed.ok_or(SceneError::FrameDoesNotFit {
+            frame,
+            tries,
+            out_of_view,
+            phantom_out,
+            overlapping,
+            distance: too_far,
+            fan,
+        })?);
     }
 
     // Camera-calibration views: a plain board over the whole field of view.
@@ -379,7 +484,7 @@ pub fn build(inputs: &SceneInputs<'_>) -> Result<Scene, SceneError> {
                 calib_rng.uniform(-20.0, 20.0),
             );
             let pose = Rigid::from_parts(Translation3::from(centre - rotation * cb_centre), rotation);
-            if board_in_view(&camera, &pose, &cb, 15.0).is_some() {
+            if board_in_view(&camera, &pose, cb.paper_bounds_mm(), 15.0).is_some() {
                 placed = Some(pose);
                 break;
             }
@@ -395,8 +500,8 @@ pub fn build(inputs: &SceneInputs<'_>) -> Result<Scene, SceneError> {
         sphere_centre_world,
         sphere_radius_mm: radius,
         tank,
-        probe_board: inputs.probe_board,
-        phantom_board: inputs.phantom_board,
+        probe_board: inputs.probe_board.clone(),
+        phantom_board: inputs.phantom_board.clone(),
         bscan,
         frames,
         calibration_board: cb,
