@@ -20,6 +20,7 @@ pub mod board_pose;
 pub mod camera_calibration;
 pub mod camera_model;
 pub mod check;
+pub mod compare;
 pub mod corners;
 pub mod dataset;
 pub mod evaluate;

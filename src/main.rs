@@ -44,6 +44,20 @@ enum Command {
         #[arg(long, default_value_t = 0)]
         threads: usize,
     },
+    /// Run several experiments and lay them side by side (rigs as columns).
+    Compare {
+        #[arg(required = true)]
+        manifests: Vec<PathBuf>,
+        /// Output folder (runs, compare.md, compare.html). Default: a new runs/run-NNN.
+        #[arg(long)]
+        out: Option<PathBuf>,
+        #[arg(long, default_value = "datasets")]
+        datasets: PathBuf,
+        #[arg(long)]
+        force: bool,
+        #[arg(long)]
+        quiet: bool,
+    },
     /// Compare runs with the committed accuracy baselines; fail on regressions.
     Check {
         /// Run folders (as written by `run --out`) or summary.json files.
@@ -190,12 +204,15 @@ fn check(runs: Vec<PathBuf>, baselines: PathBuf, update: bool) -> ExitCode {
     }
 }
 
-fn run(manifests: Vec<PathBuf>, out: Option<PathBuf>, datasets: PathBuf, force: bool, quiet: bool) -> ExitCode {
+/// What a `run` did: its exit code, the manifests, and each dataset run (with its manifest's index).
+type RunOutcome = (u8, Vec<Manifest>, Vec<(usize, probecal::run::DatasetRun)>);
+
+fn run(manifests: Vec<PathBuf>, out: Option<PathBuf>, datasets: PathBuf, force: bool, quiet: bool) -> RunOutcome {
     let manifests = match load_all(&manifests) {
         Ok(m) => m,
         Err(e) => {
             eprintln!("error: {e}");
-            return ExitCode::from(2);
+            return (2, Vec::new(), Vec::new());
         }
     };
     let out = out.unwrap_or_else(next_run_folder);
@@ -206,7 +223,7 @@ fn run(manifests: Vec<PathBuf>, out: Option<PathBuf>, datasets: PathBuf, force: 
                 "error: {} exists already; pass --force to replace it, or choose another --out",
                 folder.display()
             );
-            return ExitCode::from(2);
+            return (2, Vec::new(), Vec::new());
         }
     }
     let mut log = |line: &str| {
@@ -215,19 +232,20 @@ fn run(manifests: Vec<PathBuf>, out: Option<PathBuf>, datasets: PathBuf, force: 
         }
     };
     let mut entries = Vec::new();
+    let mut runs = Vec::new();
     let mut failed = false;
     let mut gates_failed = false;
-    for m in &manifests {
+    for (index, m) in manifests.iter().enumerate() {
         let folder = out.join(&m.experiment);
         if folder.exists() {
             if let Err(e) = std::fs::remove_dir_all(&folder) {
                 eprintln!("error: cannot replace {}: {e}", folder.display());
-                return ExitCode::FAILURE;
+                return (1, Vec::new(), Vec::new());
             }
         }
         if let Err(e) = write_atomic(&folder.join("manifest.yaml"), m.text.as_bytes()) {
             eprintln!("error: {e}");
-            return ExitCode::FAILURE;
+            return (1, Vec::new(), Vec::new());
         }
         for d in &m.datasets {
             let started = std::time::SystemTime::now();
@@ -308,6 +326,7 @@ fn run(manifests: Vec<PathBuf>, out: Option<PathBuf>, datasets: PathBuf, force: 
                     .unwrap_or_else(|| "—".into()),
                 passed: run.gates_passed(),
             });
+            runs.push((index, run));
         }
     }
     match render_index(&entries) {
@@ -322,13 +341,41 @@ fn run(manifests: Vec<PathBuf>, out: Option<PathBuf>, datasets: PathBuf, force: 
             failed = true;
         }
     }
-    if failed {
-        ExitCode::FAILURE
+    let code = if failed {
+        1
     } else if gates_failed {
-        ExitCode::from(3)
+        3
     } else {
-        ExitCode::SUCCESS
+        0
+    };
+    (code, manifests, runs)
+}
+
+fn compare(manifests: Vec<PathBuf>, out: Option<PathBuf>, datasets: PathBuf, force: bool, quiet: bool) -> ExitCode {
+    let out = out.unwrap_or_else(next_run_folder);
+    let (code, manifests, runs) = run(manifests, Some(out.clone()), datasets, force, true);
+    if runs.is_empty() {
+        return ExitCode::from(code.max(1));
     }
+    let columns: Vec<probecal::compare::Column> = runs
+        .iter()
+        .map(|(i, r)| probecal::compare::column(&manifests[*i], r))
+        .collect();
+    let markdown = probecal::compare::markdown(&columns);
+    if !quiet {
+        println!("{markdown}");
+    }
+    let mut ok = write_atomic(&out.join("compare.md"), markdown.as_bytes()).map_err(|e| e.to_string());
+    if ok.is_ok() {
+        ok = probecal::compare::render_html(&columns)
+            .and_then(|html| write_atomic(&out.join("compare.html"), html.as_bytes()).map_err(|e| e.to_string()));
+    }
+    if let Err(e) = ok {
+        eprintln!("error: {e}");
+        return ExitCode::FAILURE;
+    }
+    println!("written to {} (compare.md, compare.html)", out.display());
+    ExitCode::from(code)
 }
 
 fn write_provenance(
@@ -372,8 +419,15 @@ fn main() -> ExitCode {
             threads,
         } => {
             probecal::parallel::set_threads(threads);
-            run(manifests, out, datasets, force, quiet)
+            ExitCode::from(run(manifests, out, datasets, force, quiet).0)
         }
+        Command::Compare {
+            manifests,
+            out,
+            datasets,
+            force,
+            quiet,
+        } => compare(manifests, out, datasets, force, quiet),
         Command::Check {
             runs,
             baselines,

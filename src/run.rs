@@ -9,10 +9,10 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use nalgebra::Point3;
+use opencv::prelude::MatTraitConst;
 
 use crate::arc_detection::{self, ArcFeature, ArcSettings};
-use crate::board::BoardLayout;
-use crate::board_pose::{self, FramePoses, RigLayout};
+use crate::board_pose::{self, FramePoses, RigBoards};
 use crate::camera_calibration::{self, CameraCalibration};
 use crate::camera_model::CameraIntrinsics;
 use crate::dataset::{self, FrameFiles};
@@ -20,7 +20,7 @@ use crate::evaluate::{self, Correspondence, EvaluationInputs, ThresholdRow, Trut
 use crate::geometry::{rigid_from_rows, rotation_angle_between_deg, Rigid};
 use crate::horn::{HornError, HornFit};
 use crate::image::{read_gray, read_gray_sized};
-use crate::manifest::{CameraSource, Dataset, DatasetSource, Manifest, Phantom, Rig};
+use crate::manifest::{CameraSource, Dataset, DatasetSource, Manifest, Phantom};
 use crate::parallel::parallel_map;
 use crate::synth;
 use crate::truth::GroundTruth;
@@ -111,6 +111,10 @@ pub struct FrameRecord {
     pub truth_probe_pose_error: Option<(f64, f64)>,
     /// Phantom board pose error (mm, degrees) against the truth.
     pub truth_phantom_pose_error: Option<(f64, f64)>,
+    /// Probe board position error along the camera's viewing axis, mm.
+    pub truth_probe_depth_error_mm: Option<f64>,
+    /// Size of the B-scan image, px (when it could be read).
+    pub bscan_size_px: Option<[usize; 2]>,
 }
 
 /// Camera intrinsics and, if calibrated here, the calibration.
@@ -180,22 +184,6 @@ impl DatasetRun {
     }
 }
 
-fn rig_layout(manifest: &Manifest) -> RigLayout {
-    let Rig::Checkerboard {
-        probe_board,
-        phantom_board,
-    } = &manifest.rig;
-    let layout = |b: &crate::manifest::Board| BoardLayout {
-        inner_corners: b.inner_corners,
-        square_mm: b.square_mm,
-        id_dots: b.id_dots,
-    };
-    RigLayout {
-        probe: layout(probe_board),
-        phantom: layout(phantom_board),
-    }
-}
-
 fn camera_stage(manifest: &Manifest, dataset: &str, folder: &Path) -> Result<CameraStage, RunError> {
     match &manifest.camera {
         CameraSource::IntrinsicsFile(path) => Ok(CameraStage {
@@ -230,7 +218,7 @@ fn camera_stage(manifest: &Manifest, dataset: &str, folder: &Path) -> Result<Cam
 fn process_frame(
     files: &FrameFiles,
     camera: &CameraIntrinsics,
-    rig: &RigLayout,
+    rig: &RigBoards,
     arc: &ArcSettings,
 ) -> Result<FrameRecord, RunError> {
     let mut record = FrameRecord {
@@ -244,6 +232,8 @@ fn process_frame(
         truth_elevation_offset_mm: None,
         truth_probe_pose_error: None,
         truth_phantom_pose_error: None,
+        truth_probe_depth_error_mm: None,
+        bscan_size_px: None,
     };
     let photo = match read_gray_sized(&files.camera_image, camera.image_size_px) {
         Ok(m) => m,
@@ -266,6 +256,7 @@ fn process_frame(
             return Ok(record);
         }
     };
+    record.bscan_size_px = Some([bscan.cols() as usize, bscan.rows() as usize]);
     match arc_detection::detect(&bscan, arc) {
         Ok(Ok(feature)) => record.arc = Some(feature),
         Ok(Err(reason)) => record.rejection = Some((Stage::Arc, reason)),
@@ -342,7 +333,7 @@ pub fn run_dataset(
     }
 
     let clock = Instant::now();
-    let rig = rig_layout(manifest);
+    let rig = RigBoards::from_manifest(&manifest.rig).map_err(|e| RunError::Unsupported(e.to_string()))?;
     let spacing = manifest.bscan_spacing_mm_per_px;
     let arc_settings = ArcSettings {
         spacing_mm_per_px: spacing,
@@ -465,6 +456,9 @@ pub fn run_dataset(
             if let (Some(poses), Ok(true_pose)) = (&f.poses, rigid_from_rows(&tf.camera_T_marker_photo)) {
                 let (dt, dr) = pose_error(&poses.camera_T_marker.camera_T_board, &true_pose);
                 f.truth_probe_pose_error = Some((dt, dr));
+                f.truth_probe_depth_error_mm = Some(
+                    (poses.camera_T_marker.camera_T_board.translation.vector.z - true_pose.translation.vector.z).abs(),
+                );
                 pose_t.push(dt);
                 pose_r.push(dr);
                 let (pt, pr) = pose_error(&poses.camera_T_phantom.camera_T_board, &t.camera_T_phantom);
