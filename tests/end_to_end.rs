@@ -287,3 +287,66 @@ fn recorded_folder_dataset_runs_without_truth() {
         "nothing is rendered for a recorded dataset"
     );
 }
+
+/// The ArUco rig on the same probe motion as the checkerboard rig, side by side.
+#[test]
+fn compare_checkerboard_and_aruco_on_the_same_motion() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let out = tmp("compare");
+    let datasets = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("end_to_end_datasets_compare");
+    let r = probecal()
+        .arg("compare")
+        .arg(root.join("experiments/hemisphere_checkerboard.yaml"))
+        .arg(root.join("experiments/hemisphere_aruco.yaml"))
+        .arg("--out")
+        .arg(&out)
+        .arg("--datasets")
+        .arg(&datasets)
+        .arg("--quiet")
+        .output()
+        .unwrap();
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let table = std::fs::read_to_string(out.join("compare.md")).unwrap();
+    assert!(
+        table.contains("hemisphere_checkerboard / dataset3 (checkerboard 11x11 squares of 13 mm)"),
+        "{table}"
+    );
+    assert!(
+        table.contains("hemisphere_aruco / dataset3 (ArUco DICT_4X4_50 4x4 markers of 30 mm)"),
+        "{table}"
+    );
+    for row in [
+        "frames used / total",
+        "probe board reprojection RMS (px)",
+        "BRE y Mean (mm)",
+        "truth: image corners mean (mm)",
+        "probe rotation error × lever arm (mm)",
+    ] {
+        assert!(table.contains(&format!("| {row} |")), "row `{row}` missing");
+    }
+    assert!(out.join("compare.html").is_file());
+    let aruco: Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("hemisphere_aruco/dataset3/summary.json")).unwrap())
+            .unwrap();
+    let corner = aruco["truth"]["corner_error_mm"]["mean"].as_f64().unwrap();
+    println!("ArUco rig: corner error {corner:.3} mm, frames {}", aruco["frames"]);
+    assert!(corner <= 1.5, "ArUco corner error {corner} mm");
+    // Same motion: the two datasets share their B-scans' probe poses.
+    let truth = |name: &str| -> Value {
+        serde_json::from_str(&std::fs::read_to_string(datasets.join(name).join("ground_truth.json")).unwrap()).unwrap()
+    };
+    let (a, b) = (
+        truth("hemisphere_checkerboard__dataset3"),
+        truth("hemisphere_aruco__dataset3"),
+    );
+    for k in [0, 17, 49] {
+        let pa = &a["frames"][k]["centre_projection_px"];
+        let pb = &b["frames"][k]["centre_projection_px"];
+        let d = (pa[0].as_f64().unwrap() - pb[0].as_f64().unwrap()).abs()
+            + (pa[1].as_f64().unwrap() - pb[1].as_f64().unwrap()).abs();
+        assert!(
+            d < 1.0,
+            "frame {k}: the feature is at different pixels in the two rigs' datasets"
+        );
+    }
+}
