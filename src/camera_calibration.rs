@@ -13,7 +13,7 @@ use opencv::prelude::*;
 
 use crate::board::BoardLayout;
 use crate::camera_model::CameraIntrinsics;
-use crate::corners::{detect_chessboard, image_points, object_points, SubPix};
+use crate::corners::{detect_chessboard_reduced, image_points, object_points, SubPix};
 use crate::image::read_gray;
 
 /// One calibration view and what became of it.
@@ -62,6 +62,10 @@ pub enum CalibrationError {
     #[error("opencv: {0}")]
     OpenCv(#[from] opencv::Error),
 }
+
+/// Views larger than this are searched reduced and refined at full size (images up
+/// to this size, like OpenCV's 640x480 samples, go through OpenCV's procedure as is).
+pub const SEARCH_MAX_SIDE_PX: i32 = 1000;
 
 /// Fewest usable views accepted for a calibration.
 pub const MIN_VIEWS: usize = 4;
@@ -146,7 +150,7 @@ pub fn calibrate(
             }
             _ => {}
         }
-        match detect_chessboard(&image, inner_corners, subpix)? {
+        match detect_chessboard_reduced(&image, inner_corners, subpix, SEARCH_MAX_SIDE_PX)? {
             Some(corners) => {
                 object.push(board_points.clone());
                 imagep.push(image_points(&corners));

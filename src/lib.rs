@@ -30,6 +30,7 @@ pub mod image;
 pub mod manifest;
 pub mod output;
 pub mod parallel;
+pub mod progress;
 pub mod provenance;
 pub mod report;
 pub mod rng;

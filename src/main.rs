@@ -399,6 +399,8 @@ fn write_provenance(
         threads: probecal::parallel::threads(),
         started_utc: rfc3339(started),
         elapsed_s: started.elapsed().map(|d| d.as_secs_f64()).unwrap_or(0.0),
+        timings_s: run.timings_s.iter().map(|(k, v)| (k.to_string(), *v)).collect(),
+        peak_memory_mb: probecal::provenance::peak_memory_mb(),
         inputs_sha256,
         inputs,
     };
@@ -409,6 +411,9 @@ fn write_provenance(
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    if let Command::Run { quiet: true, .. } | Command::Compare { quiet: true, .. } = &cli.command {
+        probecal::progress::set_quiet(true);
+    }
     match cli.command {
         Command::Run {
             manifests,

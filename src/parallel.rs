@@ -2,12 +2,16 @@
 //! the outputs do not depend on the number of threads.
 
 use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::OnceLock;
+
+use rayon::prelude::*;
 
 /// Worker threads; 0 means one per core.
 static THREADS: AtomicUsize = AtomicUsize::new(0);
+static POOL: OnceLock<rayon::ThreadPool> = OnceLock::new();
 
 /// Sets the number of worker threads (0: one per core), for probecal's own
-/// parallel loops and OpenCV's.
+/// parallel loops and OpenCV's. Takes effect if called before the first parallel loop.
 pub fn set_threads(n: usize) {
     THREADS.store(n, Ordering::Relaxed);
     let _ = opencv::core::set_num_threads(if n == 0 { -1 } else { n as i32 });
@@ -21,36 +25,25 @@ pub fn threads() -> usize {
     }
 }
 
-/// Runs `job(i)` for every `i` in `0..n` on the worker threads; results in index order.
-pub fn parallel_map<T: Send>(n: usize, job: impl Fn(usize) -> T + Sync) -> Vec<T> {
-    let threads = threads().min(n.max(1));
-    let next = AtomicUsize::new(0);
-    let mut results: Vec<(usize, T)> = std::thread::scope(|s| {
-        let handles: Vec<_> = (0..threads)
-            .map(|_| {
-                s.spawn(|| {
-                    let mut out = Vec::new();
-                    loop {
-                        let i = next.fetch_add(1, Ordering::Relaxed);
-                        if i >= n {
-                            break;
-                        }
-                        out.push((i, job(i)));
-                    }
-                    out
-                })
+fn pool() -> &'static rayon::ThreadPool {
+    POOL.get_or_init(|| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads())
+            .thread_name(|i| format!("probecal-{i}"))
+            .build()
+            .unwrap_or_else(|_| {
+                rayon::ThreadPoolBuilder::new()
+                    .num_threads(1)
+                    .build()
+                    .expect("a one-thread pool")
             })
-            .collect();
-        handles
-            .into_iter()
-            .flat_map(|h| match h.join() {
-                Ok(v) => v,
-                Err(panic) => std::panic::resume_unwind(panic),
-            })
-            .collect()
-    });
-    results.sort_by_key(|(i, _)| *i);
-    results.into_iter().map(|(_, t)| t).collect()
+    })
+}
+
+/// Runs `job(i)` for every `i` in `0..n` on the worker threads (rayon); results in
+/// index order, so nothing downstream depends on the thread count.
+pub fn parallel_map<T: Send>(n: usize, job: impl Fn(usize) -> T + Sync + Send) -> Vec<T> {
+    pool().install(|| (0..n).into_par_iter().map(job).collect())
 }
 
 #[cfg(test)]

@@ -31,6 +31,10 @@ pub struct Provenance {
     pub threads: usize,
     pub started_utc: String,
     pub elapsed_s: f64,
+    /// Seconds per stage of this dataset's run.
+    pub timings_s: Vec<(String, f64)>,
+    /// Peak resident memory of the process so far (Linux VmHWM), MB.
+    pub peak_memory_mb: Option<f64>,
     /// SHA-256 over the input files' own hashes, in path order.
     pub inputs_sha256: String,
     pub inputs: Vec<InputFile>,
@@ -107,6 +111,14 @@ pub fn opencv_version() -> String {
 }
 
 pub const GIT_COMMIT: &str = env!("PROBECAL_GIT_COMMIT");
+
+/// Peak resident memory of this process (VmHWM of /proc/self/status), MB.
+pub fn peak_memory_mb() -> Option<f64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kb: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb / 1024.0)
+}
 
 #[cfg(test)]
 mod tests {

@@ -346,11 +346,15 @@ pub fn run_dataset(
         min_points: manifest.arc_detection.min_points,
         fixed_radius_mm: (manifest.arc_detection.fit_radius == crate::manifest::FitRadius::Known).then_some(*radius_mm),
     };
+    let progress = crate::progress::Progress::new(files.len(), "board poses and arcs");
     let mut frames = parallel_map(files.len(), |i| {
-        process_frame(&files[i], &camera.intrinsics, &rig, &arc_settings)
+        let record = process_frame(&files[i], &camera.intrinsics, &rig, &arc_settings);
+        progress.inc();
+        record
     })
     .into_iter()
     .collect::<Result<Vec<_>, _>>()?;
+    progress.finish();
     timings.push(("frames (board poses and arcs)", clock.elapsed().as_secs_f64()));
 
     let clock = Instant::now();

@@ -218,6 +218,8 @@ fn render_into(manifest: &Manifest, spec: &RenderSpec, folder: &Path) -> Result<
         bubble_rate: spec.bscan.bubble_rate,
     };
 
+    let progress =
+        crate::progress::Progress::new(scene.camera_T_calibration_board.len() + scene.frames.len(), "rendering");
     let calibration_results = parallel_map(
         scene.camera_T_calibration_board.len(),
         |view| -> Result<(), SynthError> {
@@ -229,6 +231,7 @@ fn render_into(manifest: &Manifest, spec: &RenderSpec, folder: &Path) -> Result<
             };
             let image = camera_render::render_photo(&scene.camera, &rays, &[board], photometry, &mut rng)?;
             image.write_png(&calib_dir.join(format!("view_{view:03}.png")))?;
+            progress.inc();
             Ok(())
         },
     );
@@ -257,6 +260,7 @@ fn render_into(manifest: &Manifest, spec: &RenderSpec, folder: &Path) -> Result<
         let bubbles = bscan_render::draw_bubbles(&scene, &world_T_image, plan.kind, echo, &mut rng);
         let bscan = bscan_render::render_bscan(&scene, &world_T_image, &bubbles, echo, &mut rng)?;
         bscan.write_png(&frames_dir.join(format!("bscan_{k:03}.png")))?;
+        progress.inc();
         Ok(GroundTruthFrame {
             frame: k,
             kind: plan.kind,
@@ -268,6 +272,7 @@ fn render_into(manifest: &Manifest, spec: &RenderSpec, folder: &Path) -> Result<
             occluder: plan.occluder,
         })
     });
+    progress.finish();
     let truth_frames = frame_results.into_iter().collect::<Result<Vec<_>, _>>()?;
 
     let mut list = String::from("frame,camera_image,bscan_image\n");
