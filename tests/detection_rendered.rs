@@ -106,7 +106,7 @@ fn board_corners_and_identity_match_the_truth() {
     let mean = errors.iter().sum::<f64>() / errors.len() as f64;
     let max = errors.iter().cloned().fold(0.0, f64::max);
     println!(
-        "board corners: {} corners, error mean {mean:.4} px, max {max:.4} px",
+        "board corners: {} corners, error mean {mean:.4} px, max {max:.4} px; {occluded_rejected} occluded photos lost the probe board",
         errors.len()
     );
     // A wrong origin corner or a swapped board would give errors of tens of pixels.
@@ -215,4 +215,27 @@ fn rendering_is_deterministic() {
         std::fs::read(a.join("frames/bscan_001.png")).unwrap(),
         std::fs::read(folder.join("frames/bscan_001.png")).unwrap()
     );
+}
+
+/// Searching a reduced photo and refining at full size finds the same corners as
+/// OpenCV's full-size search (on the single-board calibration views).
+#[test]
+fn reduced_search_finds_the_same_corners() {
+    let (_, folder, _) = rendered();
+    let subpix = probecal::corners::SubPix::default();
+    let mut worst: f64 = 0.0;
+    for view in 0..4 {
+        let image = probecal::image::read_gray(&folder.join(format!("camera_calibration/view_{view:03}.png"))).unwrap();
+        let full = probecal::corners::detect_chessboard(&image, [9, 6], subpix)
+            .unwrap()
+            .expect("full size");
+        let reduced = probecal::corners::detect_chessboard_reduced(&image, [9, 6], subpix, 1000)
+            .unwrap()
+            .expect("reduced");
+        for (a, b) in full.iter().zip(&reduced) {
+            worst = worst.max(((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2)).sqrt());
+        }
+    }
+    println!("reduced vs full-size search: largest corner difference {worst:.4} px");
+    assert!(worst < 0.05, "corners differ by up to {worst} px");
 }

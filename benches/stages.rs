@@ -1,0 +1,109 @@
+//! Benchmarks of each stage on a fixed dataset (`cargo bench --bench stages`).
+//!
+//! The dataset is the default experiment's (experiments/hemisphere_checkerboard.yaml,
+//! seed 3, 50 frames), rendered into `datasets/` if it is not there yet. Each
+//! figure is the median of repeated runs; the full run also reports frames per
+//! second end to end and the process's peak memory.
+
+use std::hint::black_box;
+use std::path::Path;
+use std::time::Instant;
+
+use nalgebra::{Point3, Vector3};
+use probecal::board_pose::RigBoards;
+use probecal::manifest::{DatasetSource, Manifest};
+
+fn median_s(repeats: usize, mut f: impl FnMut()) -> f64 {
+    let mut times: Vec<f64> = (0..repeats)
+        .map(|_| {
+            let t = Instant::now();
+            f();
+            t.elapsed().as_secs_f64()
+        })
+        .collect();
+    times.sort_by(f64::total_cmp);
+    times[times.len() / 2]
+}
+
+fn main() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let manifest = Manifest::load(&root.join("experiments/hemisphere_checkerboard.yaml")).expect("default experiment");
+    let dataset = &manifest.datasets[0];
+    let DatasetSource::Render(spec) = &dataset.source else {
+        panic!("the default experiment renders")
+    };
+    let datasets = root.join("datasets");
+    let folder = probecal::synth::dataset_folder(&datasets, &manifest.experiment, &dataset.name);
+    let t = Instant::now();
+    let outcome = probecal::synth::ensure_rendered(&manifest, spec, &folder).expect("render");
+    println!(
+        "dataset: {:?} in {:.1} s ({})",
+        outcome,
+        t.elapsed().as_secs_f64(),
+        folder.display()
+    );
+
+    let cal = probecal::camera_calibration::calibrate_folder(&folder.join("camera_calibration"), [9, 6], 30.0).unwrap();
+    let camera = cal.intrinsics.clone();
+    let rig = RigBoards::from_manifest(&manifest.rig).unwrap();
+    let photo = probecal::image::read_gray(&folder.join("frames/camera_001.png")).unwrap();
+    let bscan = probecal::image::read_gray(&folder.join("frames/bscan_001.png")).unwrap();
+
+    let pose = median_s(15, || {
+        black_box(probecal::board_pose::estimate(&photo, &camera, &rig).unwrap().unwrap());
+    });
+    println!("camera pose (both boards) per image: {:.1} ms", pose * 1e3);
+    let decode = median_s(15, || {
+        black_box(probecal::image::read_gray(&folder.join("frames/camera_001.png")).unwrap());
+    });
+    println!("decode one camera PNG (1920x1080): {:.1} ms", decode * 1e3);
+    let settings = probecal::arc_detection::ArcSettings {
+        spacing_mm_per_px: [0.2, 0.2],
+        radius_mm: [8.25, 17.25],
+        min_span_deg: 40.0,
+        max_rms_px: 2.5,
+        min_points: 25,
+        fixed_radius_mm: Some(15.0),
+    };
+    let arc = median_s(15, || {
+        black_box(probecal::arc_detection::detect(&bscan, &settings).unwrap().unwrap());
+    });
+    println!("B-scan arc detection per image: {:.1} ms", arc * 1e3);
+
+    let truth =
+        probecal::geometry::rigid_from_axis_angle(Vector3::new(0.1, -0.2, 0.3), Vector3::new(10.0, 150.0, 25.0));
+    for n in [10usize, 100, 10_000] {
+        let mut rng = probecal::rng::Rng::new(n as u64);
+        let source: Vec<Point3<f64>> = (0..n)
+            .map(|_| Point3::new(rng.uniform(0.0, 160.0), rng.uniform(0.0, 120.0), 0.0))
+            .collect();
+        let target: Vec<Point3<f64>> = source
+            .iter()
+            .map(|p| truth * p + Vector3::new(rng.normal(0.0, 0.3), rng.normal(0.0, 0.3), rng.normal(0.0, 0.3)))
+            .collect();
+        let repeats = if n > 1000 { 101 } else { 1001 };
+        let horn = median_s(repeats, || {
+            black_box(probecal::horn::solve(&source, &target, probecal::horn::Variant::Rigid).unwrap());
+        });
+        println!("Horn, {n} pairs: {:.1} µs", horn * 1e6);
+    }
+
+    probecal::progress::set_quiet(true);
+    let frames = {
+        let list = probecal::dataset::load_frame_list(&folder).unwrap();
+        list.len()
+    };
+    let full = median_s(5, || {
+        black_box(probecal::run::run_dataset(&manifest, dataset, &datasets, &mut |_| {}).unwrap());
+    });
+    println!(
+        "full run from cached images ({} frames, camera calibration included): {:.2} s, {:.1} frames/s, {:.1} ms/frame",
+        frames,
+        full,
+        frames as f64 / full,
+        full * 1e3 / frames as f64
+    );
+    if let Some(mb) = probecal::provenance::peak_memory_mb() {
+        println!("peak memory of this process: {mb:.0} MB");
+    }
+}
