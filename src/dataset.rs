@@ -38,6 +38,12 @@ pub fn load_frame_list(folder: &Path) -> Result<Vec<FrameFiles>, DatasetError> {
         path: path.clone(),
         message: e.to_string(),
     })?;
+    parse_frame_list(folder, &text)
+}
+
+/// Parses frame-list text; paths are taken relative to `folder`.
+pub fn parse_frame_list(folder: &Path, text: &str) -> Result<Vec<FrameFiles>, DatasetError> {
+    let path = folder.join(FRAME_LIST);
     let mut lines = text.lines().enumerate();
     let header = lines.next().map(|(_, l)| l.trim()).unwrap_or("");
     if header != "frame,camera_image,bscan_image" {
