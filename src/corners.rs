@@ -25,18 +25,16 @@ impl Default for SubPix {
     }
 }
 
-/// Inner corners of a `cols x rows` chessboard in OpenCV's order, or `None` if not found.
-pub fn detect_chessboard(
-    image: &Mat,
-    inner_corners: [u32; 2],
-    subpix: SubPix,
-) -> opencv::Result<Option<Vec<[f64; 2]>>> {
+/// OpenCV's corner search (adaptive threshold, normalised image).
+fn find(image: &Mat, inner_corners: [u32; 2]) -> opencv::Result<Option<Vector<Point2f>>> {
     let pattern = Size::new(inner_corners[0] as i32, inner_corners[1] as i32);
     let mut corners = Vector::<Point2f>::new();
     let flags = calib3d::CALIB_CB_ADAPTIVE_THRESH | calib3d::CALIB_CB_NORMALIZE_IMAGE;
-    if !calib3d::find_chessboard_corners(image, pattern, &mut corners, flags)? {
-        return Ok(None);
-    }
+    Ok(calib3d::find_chessboard_corners(image, pattern, &mut corners, flags)?.then_some(corners))
+}
+
+/// `cornerSubPix` on `image` from the given starting corners.
+fn refine(image: &Mat, mut corners: Vector<Point2f>, subpix: SubPix) -> opencv::Result<Vec<[f64; 2]>> {
     let criteria = TermCriteria::new(
         TermCriteria_Type::EPS as i32 + TermCriteria_Type::COUNT as i32,
         subpix.max_iterations,
@@ -44,7 +42,19 @@ pub fn detect_chessboard(
     )?;
     let window = Size::new(subpix.half_window_px, subpix.half_window_px);
     imgproc::corner_sub_pix(image, &mut corners, window, Size::new(-1, -1), criteria)?;
-    Ok(Some(corners.iter().map(|p| [p.x as f64, p.y as f64]).collect()))
+    Ok(corners.iter().map(|p| [p.x as f64, p.y as f64]).collect())
+}
+
+/// Inner corners of a `cols x rows` chessboard in OpenCV's order, or `None` if not found.
+pub fn detect_chessboard(
+    image: &Mat,
+    inner_corners: [u32; 2],
+    subpix: SubPix,
+) -> opencv::Result<Option<Vec<[f64; 2]>>> {
+    match find(image, inner_corners)? {
+        Some(corners) => refine(image, corners, subpix).map(Some),
+        None => Ok(None),
+    }
 }
 
 /// Like [`detect_chessboard`], but the board is searched on a copy reduced to at
@@ -65,26 +75,16 @@ pub fn detect_chessboard_reduced(
     let mut reduced = Mat::default();
     let size = Size::new(image.cols() / factor, image.rows() / factor);
     imgproc::resize(image, &mut reduced, size, 0.0, 0.0, imgproc::INTER_AREA)?;
-    let pattern = Size::new(inner_corners[0] as i32, inner_corners[1] as i32);
-    let mut corners = Vector::<Point2f>::new();
-    let flags = calib3d::CALIB_CB_ADAPTIVE_THRESH | calib3d::CALIB_CB_NORMALIZE_IMAGE;
-    if !calib3d::find_chessboard_corners(&reduced, pattern, &mut corners, flags)? {
+    let Some(corners) = find(&reduced, inner_corners)? else {
         return Ok(None);
-    }
+    };
     // Pixel centres: x_full = (x_reduced + 0.5) * factor - 0.5.
     let f = factor as f32;
-    let mut full: Vector<Point2f> = corners
+    let full: Vector<Point2f> = corners
         .iter()
         .map(|p| Point2f::new((p.x + 0.5) * f - 0.5, (p.y + 0.5) * f - 0.5))
         .collect();
-    let criteria = TermCriteria::new(
-        TermCriteria_Type::EPS as i32 + TermCriteria_Type::COUNT as i32,
-        subpix.max_iterations,
-        subpix.epsilon_px,
-    )?;
-    let window = Size::new(subpix.half_window_px, subpix.half_window_px);
-    imgproc::corner_sub_pix(image, &mut full, window, Size::new(-1, -1), criteria)?;
-    Ok(Some(full.iter().map(|p| [p.x as f64, p.y as f64]).collect()))
+    refine(image, full, subpix).map(Some)
 }
 
 /// `Mat` of 3D object points for OpenCV calls.

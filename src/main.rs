@@ -20,43 +20,41 @@ struct Cli {
     command: Command,
 }
 
+/// What `run` and `compare` share.
+#[derive(clap::Args)]
+struct RunArgs {
+    /// Experiment manifests (YAML).
+    #[arg(required = true)]
+    manifests: Vec<PathBuf>,
+    /// Output folder: a subfolder per experiment and dataset, index.html (and for
+    /// `compare`, compare.md and compare.html). Default: a new runs/run-NNN.
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Where rendered datasets are cached.
+    #[arg(long, default_value = "datasets")]
+    datasets: PathBuf,
+    /// Replace an experiment's earlier output in --out.
+    #[arg(long)]
+    force: bool,
+    /// Print only errors and gate failures; no progress bars.
+    #[arg(long)]
+    quiet: bool,
+}
+
 #[derive(Subcommand)]
 enum Command {
     /// Run experiments end to end: render or read each dataset, calibrate, evaluate, report.
     Run {
-        /// Experiment manifests (YAML).
-        #[arg(required = true)]
-        manifests: Vec<PathBuf>,
-        /// Output folder; each experiment and dataset gets a subfolder, plus index.html.
-        /// Default: a new numbered folder under runs/.
-        #[arg(long)]
-        out: Option<PathBuf>,
-        /// Where rendered datasets are cached.
-        #[arg(long, default_value = "datasets")]
-        datasets: PathBuf,
-        /// Replace an experiment's earlier output in --out.
-        #[arg(long)]
-        force: bool,
-        /// Print only errors and gate failures.
-        #[arg(long)]
-        quiet: bool,
+        #[command(flatten)]
+        args: RunArgs,
         /// Worker threads (0: one per core). Outputs do not depend on it.
         #[arg(long, default_value_t = 0)]
         threads: usize,
     },
     /// Run several experiments and lay them side by side (rigs as columns).
     Compare {
-        #[arg(required = true)]
-        manifests: Vec<PathBuf>,
-        /// Output folder (runs, compare.md, compare.html). Default: a new runs/run-NNN.
-        #[arg(long)]
-        out: Option<PathBuf>,
-        #[arg(long, default_value = "datasets")]
-        datasets: PathBuf,
-        #[arg(long)]
-        force: bool,
-        #[arg(long)]
-        quiet: bool,
+        #[command(flatten)]
+        args: RunArgs,
     },
     /// Compare runs with the committed accuracy baselines; fail on regressions.
     Check {
@@ -411,28 +409,15 @@ fn write_provenance(
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
-    if let Command::Run { quiet: true, .. } | Command::Compare { quiet: true, .. } = &cli.command {
-        probecal::progress::set_quiet(true);
+    if let Command::Run { args, .. } | Command::Compare { args } = &cli.command {
+        probecal::progress::set_quiet(args.quiet);
     }
     match cli.command {
-        Command::Run {
-            manifests,
-            out,
-            datasets,
-            force,
-            quiet,
-            threads,
-        } => {
+        Command::Run { args, threads } => {
             probecal::parallel::set_threads(threads);
-            ExitCode::from(run(manifests, out, datasets, force, quiet).0)
+            ExitCode::from(run(args.manifests, args.out, args.datasets, args.force, args.quiet).0)
         }
-        Command::Compare {
-            manifests,
-            out,
-            datasets,
-            force,
-            quiet,
-        } => compare(manifests, out, datasets, force, quiet),
+        Command::Compare { args } => compare(args.manifests, args.out, args.datasets, args.force, args.quiet),
         Command::Check {
             runs,
             baselines,
