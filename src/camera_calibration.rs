@@ -121,7 +121,7 @@ pub fn calibrate(
     let mut object = Vector::<Vector<opencv::core::Point3f>>::new();
     let mut imagep = Vector::<Vector<opencv::core::Point2f>>::new();
     let mut size: Option<(PathBuf, Size)> = None;
-    let mut used_index = Vec::new();
+    let mut used_index: Vec<usize> = Vec::new();
     for path in images {
         let image = match read_gray(path) {
             Ok(m) => m,
@@ -186,20 +186,88 @@ pub fn calibrate(
         });
     }
     let image_size = size.map(|s| s.1).unwrap_or_default();
+    let mut solved = solve(&object, &imagep, image_size)?;
+    // A view whose corners disagree with the others (a corner pulled off by glare
+    // or the image edge) is dropped, once, and the camera solved again.
+    let mut sorted = solved.per_view.clone();
+    sorted.sort_by(f64::total_cmp);
+    let median = sorted[sorted.len() / 2];
+    let limit = (OUTLIER_VIEW_RATIO * median).max(OUTLIER_VIEW_FLOOR_PX);
+    let outliers: Vec<usize> = (0..solved.per_view.len())
+        .filter(|&i| solved.per_view[i] > limit)
+        .collect();
+    if !outliers.is_empty() && used_index.len() - outliers.len() >= MIN_VIEWS {
+        for &i in &outliers {
+            let view = &mut views[used_index[i]];
+            view.used = false;
+            view.reason = Some(format!(
+                "per-view RMS {:.3} px is above {limit:.3} px ({OUTLIER_VIEW_RATIO} times the median {median:.3} px): dropped and solved again",
+                solved.per_view[i]
+            ));
+            view.rms_px = Some(solved.per_view[i]);
+        }
+        let keep: Vec<usize> = (0..used_index.len()).filter(|i| !outliers.contains(i)).collect();
+        let object: Vector<Vector<opencv::core::Point3f>> =
+            keep.iter().map(|&i| object.get(i)).collect::<opencv::Result<_>>()?;
+        let imagep: Vector<Vector<opencv::core::Point2f>> =
+            keep.iter().map(|&i| imagep.get(i)).collect::<opencv::Result<_>>()?;
+        used_index = keep.iter().map(|&i| used_index[i]).collect();
+        solved = solve(&object, &imagep, image_size)?;
+    }
+    for (i, view_index) in used_index.iter().enumerate() {
+        views[*view_index].rms_px = Some(solved.per_view[i]);
+    }
+    let Solved {
+        camera_matrix: k,
+        distortion: d,
+        rms,
+        per_view,
+    } = solved;
+    Ok(CameraCalibration {
+        intrinsics: CameraIntrinsics {
+            image_size_px: [image_size.width as u32, image_size.height as u32],
+            camera_matrix: k,
+            distortion: d,
+            rms_px: Some(rms),
+            per_view_rms_px: per_view,
+        },
+        views,
+        inner_corners,
+        square_mm,
+    })
+}
+
+/// A view is an outlier above this multiple of the median per-view RMS...
+pub const OUTLIER_VIEW_RATIO: f64 = 3.0;
+/// ...and above this many pixels.
+pub const OUTLIER_VIEW_FLOOR_PX: f64 = 0.5;
+
+struct Solved {
+    camera_matrix: [[f64; 3]; 3],
+    distortion: [f64; 5],
+    rms: f64,
+    per_view: Vec<f64>,
+}
+
+/// `calibrateCamera` (flags 0) and the per-view RMS, as OpenCV's sample computes it.
+fn solve(
+    object: &Vector<Vector<opencv::core::Point3f>>,
+    imagep: &Vector<Vector<opencv::core::Point2f>>,
+    image_size: Size,
+) -> opencv::Result<Solved> {
     let mut camera_matrix = Mat::default();
     let mut distortion = Mat::default();
     let mut rvecs = Vector::<Mat>::new();
     let mut tvecs = Vector::<Mat>::new();
     let rms = calib3d::calibrate_camera_def(
-        &object,
-        &imagep,
+        object,
+        imagep,
         image_size,
         &mut camera_matrix,
         &mut distortion,
         &mut rvecs,
         &mut tvecs,
     )?;
-
     let mut k = [[0.0; 3]; 3];
     for (r, row) in k.iter_mut().enumerate() {
         for (c, v) in row.iter_mut().enumerate() {
@@ -207,13 +275,11 @@ pub fn calibrate(
         }
     }
     let mut d = [0.0; 5];
-    let dist_values = distortion.data_typed::<f64>()?;
-    for (i, v) in dist_values.iter().take(5).enumerate() {
+    for (i, v) in distortion.data_typed::<f64>()?.iter().take(5).enumerate() {
         d[i] = *v;
     }
-    // Per-view RMS, as OpenCV's sample computes it.
     let mut per_view = Vec::new();
-    for (i, view_index) in used_index.iter().enumerate() {
+    for i in 0..object.len() {
         let mut projected = Vector::<opencv::core::Point2f>::new();
         calib3d::project_points_def(
             &object.get(i)?,
@@ -229,21 +295,13 @@ pub fn calibrate(
             .zip(measured.iter())
             .map(|(p, m)| ((p.x - m.x) as f64).powi(2) + ((p.y - m.y) as f64).powi(2))
             .sum();
-        let view_rms = (sum / measured.len() as f64).sqrt();
-        views[*view_index].rms_px = Some(view_rms);
-        per_view.push(view_rms);
+        per_view.push((sum / measured.len() as f64).sqrt());
     }
-    Ok(CameraCalibration {
-        intrinsics: CameraIntrinsics {
-            image_size_px: [image_size.width as u32, image_size.height as u32],
-            camera_matrix: k,
-            distortion: d,
-            rms_px: Some(rms),
-            per_view_rms_px: per_view,
-        },
-        views,
-        inner_corners,
-        square_mm,
+    Ok(Solved {
+        camera_matrix: k,
+        distortion: d,
+        rms,
+        per_view,
     })
 }
 
