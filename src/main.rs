@@ -412,9 +412,13 @@ fn main() -> ExitCode {
     if let Command::Run { args, .. } | Command::Compare { args } = &cli.command {
         probecal::progress::set_quiet(args.quiet);
     }
+    // Every command runs with the same thread setting (OpenCV's included).
+    probecal::parallel::set_threads(match &cli.command {
+        Command::Run { threads, .. } => *threads,
+        _ => 0,
+    });
     match cli.command {
-        Command::Run { args, threads } => {
-            probecal::parallel::set_threads(threads);
+        Command::Run { args, .. } => {
             ExitCode::from(run(args.manifests, args.out, args.datasets, args.force, args.quiet).0)
         }
         Command::Compare { args } => compare(args.manifests, args.out, args.datasets, args.force, args.quiet),
