@@ -426,14 +426,17 @@ pub fn run_dataset(
         .position(|r| r.cutoff_mm == manifest.thresholds.calibration_cutoff_mm)
         .unwrap_or(0);
     if let Err(e) = &thresholds[primary].fit {
-        return Err(RunError::Solve {
+        return Err(RunError::Cutoff {
             dataset: name,
+            cutoff: crate::output::cutoff_label(thresholds[primary].cutoff_mm),
+            kept: thresholds[primary].frames.len(),
             source: e.clone(),
         });
     }
     timings.push(("calibration and evaluation", clock.elapsed().as_secs_f64()));
 
-    let truth_summary = truth.as_ref().map(|t| {
+    // The calibration's truth comparison exists whenever truth was given (its fit succeeded above).
+    let truth_summary = truth.as_ref().zip(thresholds[primary].truth).map(|(t, calibration)| {
         let mut arc_errors = Vec::new();
         let mut pose_t = Vec::new();
         let mut pose_r = Vec::new();
@@ -473,7 +476,7 @@ pub fn run_dataset(
         let k = &camera.intrinsics;
         let tk = &t.camera.camera_matrix;
         TruthSummary {
-            calibration: thresholds[primary].truth.expect("truth was given to the evaluation"),
+            calibration,
             camera_focal_error_px: (k.fx() - tk[0][0]).abs().max((k.fy() - tk[1][1]).abs()),
             camera_principal_error_px: ((k.cx() - tk[0][2]).powi(2) + (k.cy() - tk[1][2]).powi(2)).sqrt(),
             arc_centre_error_px: mean_max(&arc_errors),
