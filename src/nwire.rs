@@ -1,0 +1,475 @@
+//! N-wire (Z-fiducial) phantoms: geometry and B-scan segmentation.
+//!
+//! An N is three wires in one plane of the phantom: wire 1 and wire 3 parallel,
+//! wire 2 diagonal between them. A B-scan plane crossing the N shows three dots
+//! p1, p2, p3 on a line. With `alpha = |p2 - p1| / |p3 - p1|` (a ratio along a line,
+//! the same in pixels as in millimetres), the middle dot sits at
+//! `W12 + alpha (W32 - W12)` in the phantom frame, where W12 (W32) is the crossing
+//! of the infinite lines of wires 1 and 2 (3 and 2): similar triangles.
+
+use nalgebra::{Point3, Vector3};
+use serde::{Deserialize, Serialize};
+
+/// One wire, as a segment in the phantom frame (mm).
+#[derive(Debug, Clone, PartialEq)]
+pub struct WireSegment {
+    pub name: String,
+    pub front_in_phantom_mm: Point3<f64>,
+    pub back_in_phantom_mm: Point3<f64>,
+}
+
+impl WireSegment {
+    pub fn direction(&self) -> Vector3<f64> {
+        self.back_in_phantom_mm - self.front_in_phantom_mm
+    }
+}
+
+/// One N: wires 1, 2 (diagonal), 3, and the crossings W12 and W32.
+#[derive(Debug, Clone, PartialEq)]
+pub struct NWire {
+    pub wires: [WireSegment; 3],
+    pub w12_in_phantom_mm: Point3<f64>,
+    pub w32_in_phantom_mm: Point3<f64>,
+}
+
+/// Where two infinite lines cross (the midpoint of their closest points), and the
+/// distance between them at that point.
+fn crossing(a: &WireSegment, b: &WireSegment) -> Option<(Point3<f64>, f64)> {
+    let (p, u) = (a.front_in_phantom_mm, a.direction());
+    let (q, v) = (b.front_in_phantom_mm, b.direction());
+    let w = p - q;
+    let (aa, bb, cc, dd, ee) = (u.dot(&u), u.dot(&v), v.dot(&v), u.dot(&w), v.dot(&w));
+    let den = aa * cc - bb * bb;
+    if den.abs() < 1e-12 * aa * cc {
+        return None;
+    }
+    let s = (bb * ee - cc * dd) / den;
+    let t = (aa * ee - bb * dd) / den;
+    let on_a = p + u * s;
+    let on_b = q + v * t;
+    Some((Point3::from((on_a.coords + on_b.coords) / 2.0), (on_a - on_b).norm()))
+}
+
+impl NWire {
+    /// Checks the wires form an N: 1 and 3 parallel, 2 crossing both in one plane.
+    pub fn new(wires: [WireSegment; 3]) -> Result<NWire, String> {
+        for w in &wires {
+            if w.direction().norm() < 1e-9 {
+                return Err(format!("wire `{}` has equal end points", w.name));
+            }
+        }
+        let (d1, d3) = (wires[0].direction().normalize(), wires[2].direction().normalize());
+        if d1.cross(&d3).norm() > 1e-3 {
+            return Err(format!(
+                "wires `{}` and `{}` (the N's sides) are not parallel",
+                wires[0].name, wires[2].name
+            ));
+        }
+        let (w12, gap12) = crossing(&wires[0], &wires[1])
+            .ok_or_else(|| format!("wire `{}` is parallel to `{}`: not an N", wires[1].name, wires[0].name))?;
+        let (w32, gap32) = crossing(&wires[2], &wires[1])
+            .ok_or_else(|| format!("wire `{}` is parallel to `{}`: not an N", wires[1].name, wires[2].name))?;
+        if gap12 > 1e-3 || gap32 > 1e-3 {
+            return Err(format!(
+                "the diagonal wire `{}` does not lie in the plane of the side wires ({:.3} / {:.3} mm off)",
+                wires[1].name, gap12, gap32
+            ));
+        }
+        Ok(NWire {
+            wires,
+            w12_in_phantom_mm: w12,
+            w32_in_phantom_mm: w32,
+        })
+    }
+
+    /// The middle dot's position in the phantom frame from the three dots' pixels.
+    pub fn middle_in_phantom_mm(&self, dots_px: &[[f64; 2]; 3]) -> Point3<f64> {
+        let alpha = middle_ratio(dots_px);
+        self.w12_in_phantom_mm + (self.w32_in_phantom_mm - self.w12_in_phantom_mm) * alpha
+    }
+
+    /// Distance between the side wires, mm.
+    pub fn width_mm(&self) -> f64 {
+        let d = self.wires[0].direction().normalize();
+        let w = self.wires[2].front_in_phantom_mm - self.wires[0].front_in_phantom_mm;
+        (w - d * w.dot(&d)).norm()
+    }
+}
+
+/// `|p2 - p1| / |p3 - p1|`.
+pub fn middle_ratio(dots_px: &[[f64; 2]; 3]) -> f64 {
+    let d = |a: [f64; 2], b: [f64; 2]| ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2)).sqrt();
+    d(dots_px[1], dots_px[0]) / d(dots_px[2], dots_px[0])
+}
+
+/// Settings of the dot segmentation.
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct Segmentation {
+    /// Pixels brighter than this grey level belong to a dot.
+    pub threshold_grey: u8,
+    /// Fewest pixels of a dot.
+    pub min_dot_px: usize,
+    /// A dot's centre is weighted by the grey levels above this fraction of its peak
+    /// (0: every pixel above the threshold), so a comet tail does not pull it.
+    pub core_fraction: f64,
+    /// Radius of the disk of the morphological opening applied first (0: none).
+    pub opening_radius_px: u32,
+    /// How many of the brightest spots are considered.
+    pub max_candidates: usize,
+    /// Largest distance of the middle dot from the line through the outer two.
+    pub collinear_tolerance_mm: f64,
+    /// Largest tilt of a row of dots from the image's horizontal.
+    pub max_row_angle_deg: f64,
+    /// Largest angle between the rows of one frame.
+    pub max_row_angle_difference_deg: f64,
+    /// Region searched `[u, v, width, height]` px; absent: the configuration's clip
+    /// rectangle, or the whole image.
+    pub clip_rectangle_px: Option<[usize; 4]>,
+    /// Which image row holds the first pattern of the phantom definition.
+    pub first_pattern_row: RowOrder,
+    /// On which side of a row the pattern's wire 1 appears.
+    pub first_wire_side: Side,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum RowOrder {
+    Top,
+    Bottom,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Side {
+    Left,
+    Right,
+}
+
+impl Default for Segmentation {
+    fn default() -> Self {
+        // Set on the fCal 2.0 recordings: the dimmest true dots peak near 50 grey
+        // levels on a black background; comet tails below a dot are dimmer and off
+        // the row's line.
+        Segmentation {
+            threshold_grey: 25,
+            min_dot_px: 4,
+            core_fraction: 0.5,
+            opening_radius_px: 3,
+            max_candidates: 20,
+            collinear_tolerance_mm: 0.6,
+            max_row_angle_deg: 40.0,
+            max_row_angle_difference_deg: 10.0,
+            clip_rectangle_px: None,
+            first_pattern_row: RowOrder::Top,
+            first_wire_side: Side::Right,
+        }
+    }
+}
+
+/// A bright spot: its intensity-weighted centre and strength.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Spot {
+    pub centre_px: [f64; 2],
+    pub pixels: usize,
+    /// Sum of grey levels above the threshold.
+    pub weight: f64,
+}
+
+/// The dots of one frame, per pattern: `[wire 1, wire 2, wire 3]` pixels.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FrameDots {
+    pub patterns: Vec<[[f64; 2]; 3]>,
+}
+
+/// Grey-level morphological opening with a disk (erosion, then dilation): removes
+/// bright structures thinner than the disk (speckle, the streaks of comet tails)
+/// and keeps the dots' shape.
+pub fn open_image(pixels: &[u8], width: usize, height: usize, radius_px: u32) -> Result<Vec<u8>, opencv::Error> {
+    use opencv::core::{Mat, Point, Size, BORDER_CONSTANT};
+    use opencv::imgproc;
+    use opencv::prelude::*;
+    let src = Mat::new_rows_cols_with_data(height as i32, width as i32, pixels)?;
+    let d = 2 * radius_px as i32 + 1;
+    let kernel = imgproc::get_structuring_element(imgproc::MORPH_ELLIPSE, Size::new(d, d), Point::new(-1, -1))?;
+    let mut out = Mat::default();
+    imgproc::morphology_ex(
+        &src,
+        &mut out,
+        imgproc::MORPH_OPEN,
+        &kernel,
+        Point::new(-1, -1),
+        1,
+        BORDER_CONSTANT,
+        imgproc::morphology_default_border_value()?,
+    )?;
+    Ok(out.data_bytes()?.to_vec())
+}
+
+/// Bright spots in the clip rectangle, strongest first. Spots are the connected
+/// regions above the threshold in `pixels`; their centres are weighted by
+/// `centre_pixels` (e.g. the opened image), falling back to `pixels` where that
+/// leaves nothing.
+pub fn find_spots(
+    pixels: &[u8],
+    centre_pixels: &[u8],
+    width: usize,
+    height: usize,
+    clip: [usize; 4],
+    settings: &Segmentation,
+) -> Vec<Spot> {
+    let [u0, v0, w, h] = clip;
+    let (u1, v1) = ((u0 + w).min(width), (v0 + h).min(height));
+    let t = settings.threshold_grey;
+    let mut seen = vec![false; width * height];
+    let mut spots = Vec::new();
+    let mut stack = Vec::new();
+    for v in v0..v1 {
+        for u in u0..u1 {
+            let i = v * width + u;
+            if seen[i] || pixels[i] <= t {
+                continue;
+            }
+            seen[i] = true;
+            stack.push(i);
+            let mut members = Vec::new();
+            while let Some(j) = stack.pop() {
+                members.push(j);
+                let (ju, jv) = (j % width, j / width);
+                for dv in -1i64..=1 {
+                    for du in -1i64..=1 {
+                        let (nu, nv) = (ju as i64 + du, jv as i64 + dv);
+                        if nu < u0 as i64 || nv < v0 as i64 || nu >= u1 as i64 || nv >= v1 as i64 {
+                            continue;
+                        }
+                        let k = nv as usize * width + nu as usize;
+                        if !seen[k] && pixels[k] > t {
+                            seen[k] = true;
+                            stack.push(k);
+                        }
+                    }
+                }
+            }
+            if members.len() < settings.min_dot_px {
+                continue;
+            }
+            let weight: f64 = members.iter().map(|&j| f64::from(pixels[j] - t)).sum();
+            // The centre from the dot's core: grey levels above a fraction of its peak.
+            let centre = |grey: &[u8]| {
+                let peak = members.iter().map(|&j| grey[j]).max().unwrap_or(t);
+                let level = (f64::from(peak) * settings.core_fraction).max(f64::from(t));
+                let (mut sw, mut su, mut sv) = (0.0, 0.0, 0.0);
+                for &j in &members {
+                    let w = f64::from(grey[j]) - level;
+                    if w > 0.0 {
+                        sw += w;
+                        su += w * (j % width) as f64;
+                        sv += w * (j / width) as f64;
+                    }
+                }
+                (sw, su, sv)
+            };
+            let (mut sw, mut su, mut sv) = centre(centre_pixels);
+            if sw <= 0.0 {
+                (sw, su, sv) = centre(pixels);
+            }
+            if sw > 0.0 {
+                spots.push(Spot {
+                    centre_px: [su / sw, sv / sw],
+                    pixels: members.len(),
+                    weight,
+                });
+            }
+        }
+    }
+    spots.sort_by(|a, b| {
+        b.weight
+            .total_cmp(&a.weight)
+            .then(a.centre_px[0].total_cmp(&b.centre_px[0]))
+    });
+    spots.truncate(settings.max_candidates);
+    spots
+}
+
+/// A candidate row: three spots (indices, sorted by u) on a line.
+#[derive(Debug, Clone, Copy)]
+struct Row {
+    spots: [usize; 3],
+    angle_rad: f64,
+    weight: f64,
+    mean_v: f64,
+}
+
+/// Finds one row of three collinear dots per pattern and assigns them to the wires.
+///
+/// `widths_px` is the expected distance between the outer dots of each pattern
+/// (side-wire distance over the approximate pixel size); a row may be up to 1.6x
+/// longer (a plane crossing the wires obliquely) and 0.85x shorter.
+pub fn segment(
+    spots: &[Spot],
+    patterns: usize,
+    widths_px: (f64, f64),
+    spacing_mm_per_px: f64,
+    settings: &Segmentation,
+) -> Result<FrameDots, String> {
+    if spots.len() < 3 * patterns {
+        return Err(format!(
+            "{} bright spots above grey level {}, {} needed for {patterns} N-wires",
+            spots.len(),
+            settings.threshold_grey,
+            3 * patterns
+        ));
+    }
+    let tolerance_px = settings.collinear_tolerance_mm / spacing_mm_per_px;
+    let max_angle = settings.max_row_angle_deg.to_radians();
+    let mut rows = Vec::new();
+    let n = spots.len();
+    for a in 0..n {
+        for b in a + 1..n {
+            for c in b + 1..n {
+                let mut idx = [a, b, c];
+                idx.sort_by(|&i, &j| spots[i].centre_px[0].total_cmp(&spots[j].centre_px[0]));
+                let [p, q, r] = idx.map(|i| spots[i].centre_px);
+                let (dx, dy) = (r[0] - p[0], r[1] - p[1]);
+                let length = (dx * dx + dy * dy).sqrt();
+                if length < 0.85 * widths_px.0 || length > 1.6 * widths_px.1 {
+                    continue;
+                }
+                let angle = dy.atan2(dx);
+                if angle.abs() > max_angle {
+                    continue;
+                }
+                let off = ((q[0] - p[0]) * dy - (q[1] - p[1]) * dx).abs() / length;
+                if off > tolerance_px {
+                    continue;
+                }
+                rows.push(Row {
+                    spots: idx,
+                    angle_rad: angle,
+                    weight: idx.iter().map(|&i| spots[i].weight).sum(),
+                    mean_v: (p[1] + q[1] + r[1]) / 3.0,
+                });
+            }
+        }
+    }
+    if rows.len() < patterns {
+        return Err(format!(
+            "{} rows of 3 collinear dots among {} spots, {patterns} needed",
+            rows.len(),
+            spots.len()
+        ));
+    }
+    rows.sort_by(|a, b| b.weight.total_cmp(&a.weight));
+    rows.truncate(60);
+    // The strongest set of disjoint, parallel rows.
+    let max_diff = settings.max_row_angle_difference_deg.to_radians();
+    let mut best: Option<(f64, Vec<usize>)> = None;
+    let mut chosen = Vec::new();
+    search(&rows, patterns, max_diff, 0, &mut chosen, &mut best);
+    let (_, picked) = best.ok_or_else(|| {
+        format!(
+            "no {patterns} disjoint, parallel rows of 3 collinear dots (of {} candidate rows)",
+            rows.len()
+        )
+    })?;
+    let mut picked: Vec<Row> = picked.into_iter().map(|i| rows[i]).collect();
+    picked.sort_by(|a, b| a.mean_v.total_cmp(&b.mean_v));
+    if settings.first_pattern_row == RowOrder::Bottom {
+        picked.reverse();
+    }
+    let patterns = picked
+        .iter()
+        .map(|row| {
+            let mut dots = row.spots.map(|i| spots[i].centre_px);
+            if settings.first_wire_side == Side::Right {
+                dots.reverse();
+            }
+            dots
+        })
+        .collect();
+    Ok(FrameDots { patterns })
+}
+
+fn search(
+    rows: &[Row],
+    wanted: usize,
+    max_diff: f64,
+    start: usize,
+    chosen: &mut Vec<usize>,
+    best: &mut Option<(f64, Vec<usize>)>,
+) {
+    if chosen.len() == wanted {
+        let weight: f64 = chosen.iter().map(|&i| rows[i].weight).sum();
+        if best.as_ref().is_none_or(|(w, _)| weight > *w) {
+            *best = Some((weight, chosen.clone()));
+        }
+        return;
+    }
+    for i in start..rows.len() {
+        let row = &rows[i];
+        let fits = chosen.iter().all(|&j| {
+            let other = &rows[j];
+            (row.angle_rad - other.angle_rad).abs() <= max_diff && row.spots.iter().all(|s| !other.spots.contains(s))
+        });
+        if fits {
+            chosen.push(i);
+            search(rows, wanted, max_diff, i + 1, chosen, best);
+            chosen.pop();
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn wire(x0: f64, x1: f64, z: f64) -> WireSegment {
+        WireSegment {
+            name: String::new(),
+            front_in_phantom_mm: Point3::new(x0, 0.0, z),
+            back_in_phantom_mm: Point3::new(x1, 40.0, z),
+        }
+    }
+
+    #[test]
+    fn middle_dot_follows_similar_triangles() {
+        let n = NWire::new([wire(30.0, 30.0, 20.0), wire(55.0, 35.0, 20.0), wire(60.0, 60.0, 20.0)]).unwrap();
+        assert!((n.w12_in_phantom_mm - Point3::new(30.0, 50.0, 20.0)).norm() < 1e-9);
+        assert!((n.w32_in_phantom_mm - Point3::new(60.0, -10.0, 20.0)).norm() < 1e-9);
+        // A plane y = 12 crosses the wires at x = 30, 49, 60.
+        let x = n.middle_in_phantom_mm(&[[300.0, 5.0], [490.0, 5.0], [600.0, 5.0]]);
+        assert!((x - Point3::new(49.0, 12.0, 20.0)).norm() < 1e-9);
+        assert!((n.width_mm() - 30.0).abs() < 1e-12);
+        assert!(NWire::new([wire(30.0, 30.0, 20.0), wire(55.0, 35.0, 25.0), wire(60.0, 60.0, 20.0)]).is_err());
+    }
+
+    #[test]
+    fn segments_three_rows_and_skips_a_tail() {
+        let (w, h) = (200usize, 120usize);
+        let mut img = vec![0u8; w * h];
+        let mut dot = |u: usize, v: usize, level: u8| {
+            for dv in 0..3 {
+                for du in 0..3 {
+                    img[(v + dv) * w + u + du] = level;
+                }
+            }
+        };
+        for (row, v) in [20usize, 55, 90].iter().enumerate() {
+            dot(30, *v, 200);
+            dot(80 + 10 * row, *v + 1, 180);
+            dot(150, *v + 2, 160);
+        }
+        dot(80, 30, 60); // a comet tail under the first row's middle dot
+        let settings = Segmentation {
+            min_dot_px: 4,
+            ..Segmentation::default()
+        };
+        let spots = find_spots(&img, &img, w, h, [0, 0, w, h], &settings);
+        assert_eq!(spots.len(), 10);
+        let dots = segment(&spots, 3, (110.0, 130.0), 0.1, &settings).unwrap();
+        assert_eq!(dots.patterns.len(), 3);
+        // First pattern on the top row, wire 1 on the right.
+        assert!((dots.patterns[0][0][0] - 151.0).abs() < 1e-9 && (dots.patterns[0][0][1] - 23.0).abs() < 1e-9);
+        assert!((dots.patterns[2][1][0] - 101.0).abs() < 1e-9);
+    }
+}

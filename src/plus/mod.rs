@@ -1,0 +1,5 @@
+//! Files of the PLUS toolkit: tracked sequence files and device-set configurations.
+
+pub mod config;
+pub mod result;
+pub mod sequence;
