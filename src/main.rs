@@ -5,7 +5,8 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
-use probecal::manifest::Manifest;
+use probecal::manifest::tracked::TrackedManifest;
+use probecal::manifest::{Experiment, Manifest};
 use probecal::output::{bre_table_text, cutoff_label, threshold_table_text, write_atomic, write_dataset_run};
 use probecal::report::{render_index, IndexEntry};
 
@@ -113,11 +114,11 @@ fn parse_board(text: &str) -> Result<[u32; 2], String> {
     Ok([c, r])
 }
 
-fn load_all(paths: &[PathBuf]) -> Result<Vec<Manifest>, String> {
+fn load_all(paths: &[PathBuf]) -> Result<Vec<Experiment>, String> {
     let mut manifests = Vec::new();
     let mut errors = Vec::new();
     for p in paths {
-        match Manifest::load(p) {
+        match Experiment::load(p) {
             Ok(m) => manifests.push(m),
             Err(e) => errors.push(e.to_string()),
         }
@@ -206,7 +207,7 @@ fn check(runs: Vec<PathBuf>, baselines: PathBuf, update: bool) -> ExitCode {
 type RunOutcome = (u8, Vec<Manifest>, Vec<(usize, probecal::run::DatasetRun)>);
 
 fn run(manifests: Vec<PathBuf>, out: Option<PathBuf>, datasets: PathBuf, force: bool, quiet: bool) -> RunOutcome {
-    let manifests = match load_all(&manifests) {
+    let experiments = match load_all(&manifests) {
         Ok(m) => m,
         Err(e) => {
             eprintln!("error: {e}");
@@ -214,8 +215,8 @@ fn run(manifests: Vec<PathBuf>, out: Option<PathBuf>, datasets: PathBuf, force: 
         }
     };
     let out = out.unwrap_or_else(next_run_folder);
-    for m in &manifests {
-        let folder = out.join(&m.experiment);
+    for m in &experiments {
+        let folder = out.join(m.experiment());
         if folder.exists() && !force {
             eprintln!(
                 "error: {} exists already; pass --force to replace it, or choose another --out",
@@ -233,18 +234,37 @@ fn run(manifests: Vec<PathBuf>, out: Option<PathBuf>, datasets: PathBuf, force: 
     let mut runs = Vec::new();
     let mut failed = false;
     let mut gates_failed = false;
-    for (index, m) in manifests.iter().enumerate() {
-        let folder = out.join(&m.experiment);
+    let mut manifests = Vec::new();
+    for experiment in &experiments {
+        let folder = out.join(experiment.experiment());
         if folder.exists() {
             if let Err(e) = std::fs::remove_dir_all(&folder) {
                 eprintln!("error: cannot replace {}: {e}", folder.display());
                 return (1, Vec::new(), Vec::new());
             }
         }
-        if let Err(e) = write_atomic(&folder.join("manifest.yaml"), m.text.as_bytes()) {
+        if let Err(e) = write_atomic(&folder.join("manifest.yaml"), experiment.text().as_bytes()) {
             eprintln!("error: {e}");
             return (1, Vec::new(), Vec::new());
         }
+        let m = match experiment {
+            Experiment::Camera(m) => m.as_ref(),
+            Experiment::Tracked(m) => {
+                match run_tracked(m, &folder, quiet) {
+                    Ok((entry, passed)) => {
+                        gates_failed |= !passed;
+                        entries.push(entry);
+                    }
+                    Err(e) => {
+                        eprintln!("error: {e}");
+                        failed = true;
+                    }
+                }
+                continue;
+            }
+        };
+        manifests.push(m.clone());
+        let index = manifests.len() - 1;
         for d in &m.datasets {
             let started = std::time::SystemTime::now();
             log(&format!("== {} / {}", m.experiment, d.name));
@@ -349,6 +369,110 @@ fn run(manifests: Vec<PathBuf>, out: Option<PathBuf>, datasets: PathBuf, force: 
     (code, manifests, runs)
 }
 
+/// Runs a tracker-sequence experiment into `folder`: its index entry and whether its gates passed.
+fn run_tracked(m: &TrackedManifest, folder: &Path, quiet: bool) -> Result<(IndexEntry, bool), String> {
+    let started = std::time::SystemTime::now();
+    if !quiet {
+        eprintln!("== {} / {}", m.experiment, m.dataset);
+    }
+    let run = probecal::tracked::run(&m.inputs(), m.min_frames).map_err(|e| format!("{}: {e}", m.path.display()))?;
+    let plus = match &m.plus_result {
+        Some(p) => Some(probecal::plus::result::PlusResult::read(p).map_err(|e| e.to_string())?),
+        None => None,
+    };
+    let run_folder = folder.join(&m.dataset);
+    let summary = probecal::tracked_output::write(&run, m, plus.as_ref(), &run_folder).map_err(|e| e.to_string())?;
+    write_tracked_provenance(m, &run_folder, started).map_err(|e| e.to_string())?;
+    let gates = probecal::tracked_output::gates(&run, m);
+    for g in gates.iter().filter(|g| !g.passed) {
+        eprintln!(
+            "GATE FAILED: {} / {}: {} = {} exceeds {}",
+            m.experiment,
+            m.dataset,
+            g.name,
+            g.value.map(|v| format!("{v:.3}")).unwrap_or_else(|| "missing".into()),
+            g.limit
+        );
+    }
+    let f3 = |v: &serde_json::Value| v.as_f64().map(|x| format!("{x:.3}")).unwrap_or_else(|| "—".into());
+    if !quiet {
+        println!(
+            "\n{} / {}: calibration frames segmented {}/{}, validation {}/{}; tracker offset {:.0} ms",
+            m.experiment,
+            m.dataset,
+            summary["frames"]["calibration"]["segmented"],
+            summary["frames"]["calibration"]["total"],
+            summary["frames"]["validation"]["segmented"],
+            summary["frames"]["validation"]["total"],
+            run.time_offset_s * 1000.0
+        );
+        println!("ImageToProbe\n{}", run.fit.image_to_probe.matrix());
+        println!(
+            "validation PRE3D: {} ± {} mm (best 95 %, n = {}); all points {} ± {} mm (n = {})",
+            f3(&summary["validation"]["pre3d_mm"]["mean"]),
+            f3(&summary["validation"]["pre3d_mm"]["std"]),
+            summary["validation"]["pre3d_mm"]["n"],
+            f3(&summary["validation"]["pre3d_all_mm"]["mean"]),
+            f3(&summary["validation"]["pre3d_all_mm"]["std"]),
+            summary["validation"]["pre3d_all_mm"]["n"],
+        );
+        if !summary["plus_result"].is_null() {
+            println!(
+                "PLUS's result: published {} mm; on our dots {} mm",
+                f3(&summary["plus_result"]["published_validation_pre3d_mm"]["mean"]),
+                f3(&summary["plus_result"]["validation_pre3d_on_our_dots_mm"]["mean"]),
+            );
+        }
+        println!("written to {}", run_folder.display());
+    }
+    let passed = gates.iter().all(|g| g.passed);
+    Ok((
+        IndexEntry {
+            experiment: m.experiment.clone(),
+            dataset: m.dataset.clone(),
+            link: format!("{}/{}/report.html", m.experiment, m.dataset),
+            frames: format!(
+                "{} / {}",
+                summary["frames"]["calibration"]["segmented"], summary["frames"]["calibration"]["total"]
+            ),
+            bre_mean: format!("PRE3D {}", f3(&summary["validation"]["pre3d_mm"]["mean"])),
+            truth_corner: "—".into(),
+            passed,
+        },
+        passed,
+    ))
+}
+
+fn write_tracked_provenance(
+    m: &TrackedManifest,
+    folder: &Path,
+    started: std::time::SystemTime,
+) -> Result<(), probecal::output::OutputError> {
+    use probecal::provenance::{hash_inputs, opencv_version, rfc3339, Provenance, GIT_COMMIT};
+    let (inputs_sha256, inputs) = hash_inputs(&m.input_files());
+    let provenance = Provenance {
+        probecal_version: env!("CARGO_PKG_VERSION"),
+        git_commit: GIT_COMMIT,
+        opencv_version: opencv_version(),
+        command: std::env::args().collect(),
+        manifest: m.path.to_string_lossy().to_string(),
+        manifest_sha256: m.sha256.clone(),
+        dataset: m.dataset.clone(),
+        dataset_folder: m.calibration_sequence.to_string_lossy().to_string(),
+        seed: None,
+        threads: probecal::parallel::threads(),
+        started_utc: rfc3339(started),
+        elapsed_s: started.elapsed().map(|d| d.as_secs_f64()).unwrap_or(0.0),
+        timings_s: Vec::new(),
+        peak_memory_mb: probecal::provenance::peak_memory_mb(),
+        inputs_sha256,
+        inputs,
+    };
+    let text =
+        serde_json::to_string_pretty(&provenance).map_err(|e| probecal::output::OutputError::Report(e.to_string()))?;
+    write_atomic(&folder.join("provenance.json"), text.as_bytes())
+}
+
 fn compare(manifests: Vec<PathBuf>, out: Option<PathBuf>, datasets: PathBuf, force: bool, quiet: bool) -> ExitCode {
     let out = out.unwrap_or_else(next_run_folder);
     let (code, manifests, runs) = run(manifests, Some(out.clone()), datasets, force, true);
@@ -430,7 +554,14 @@ fn main() -> ExitCode {
         Command::Validate { manifests } => match load_all(&manifests) {
             Ok(ms) => {
                 for m in ms {
-                    println!("{}: ok ({} dataset(s))", m.path.display(), m.datasets.len());
+                    match m {
+                        Experiment::Camera(m) => println!("{}: ok ({} dataset(s))", m.path.display(), m.datasets.len()),
+                        Experiment::Tracked(m) => println!(
+                            "{}: ok (tracked sequence, {} N-wires)",
+                            m.path.display(),
+                            m.nwires.len()
+                        ),
+                    }
                 }
                 ExitCode::SUCCESS
             }
@@ -447,7 +578,10 @@ fn main() -> ExitCode {
                     return ExitCode::from(2);
                 }
             };
-            for m in &manifests {
+            for m in manifests.iter().filter_map(|m| match m {
+                Experiment::Camera(m) => Some(m),
+                Experiment::Tracked(_) => None,
+            }) {
                 if let Err(e) = probecal::run::synth_only(m, &datasets, &mut |l| eprintln!("{l}")) {
                     eprintln!("error: {}: {e}", m.path.display());
                     return ExitCode::FAILURE;

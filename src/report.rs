@@ -406,3 +406,121 @@ pub fn render_index(entries: &[IndexEntry]) -> Result<String, String> {
         .and_then(|t| t.render("index.html", &ctx))
         .map_err(|e| error_chain(&e))
 }
+
+const TRACKED_TEMPLATE: &str = include_str!("../templates/tracked.html.tera");
+
+/// The page of a tracked (sequence-file) run, from its summary.
+pub fn render_tracked(
+    run: &crate::tracked::TrackedRun,
+    manifest: &crate::manifest::tracked::TrackedManifest,
+    summary: &serde_json::Value,
+) -> Result<String, crate::output::OutputError> {
+    use crate::tracked::Role;
+    let f3 = |v: &serde_json::Value| v.as_f64().map(|x| format!("{x:.3}")).unwrap_or_else(|| "—".into());
+    let mut ctx = tera::Context::new();
+    ctx.insert("experiment", &manifest.experiment);
+    ctx.insert("dataset", &manifest.dataset);
+    ctx.insert("description", &manifest.description);
+    ctx.insert(
+        "calibration_sequence",
+        &manifest.calibration_sequence.display().to_string(),
+    );
+    ctx.insert(
+        "validation_sequence",
+        &manifest
+            .validation_sequence
+            .as_ref()
+            .map(|p| p.display().to_string())
+            .unwrap_or_else(|| "—".into()),
+    );
+    ctx.insert("plus_config", &manifest.plus_config.display().to_string());
+    ctx.insert("nwires", &manifest.nwires.len());
+    ctx.insert("model", &format!("{:?}", manifest.model));
+    ctx.insert("constraints", &run.constraints);
+    ctx.insert("kept", &run.fit.inlier.iter().filter(|k| **k).count());
+    ctx.insert("time_offset_ms", &format!("{:.0}", run.time_offset_s * 1000.0));
+    ctx.insert("probecal_version", env!("CARGO_PKG_VERSION"));
+    ctx.insert("opencv_version", &crate::provenance::opencv_version());
+    let (cs, ct) = run.segmented(Role::Calibration);
+    let (vs, vt) = run.segmented(Role::Validation);
+    ctx.insert("cal_segmented", &cs);
+    ctx.insert("cal_total", &ct);
+    ctx.insert("val_segmented", &vs);
+    ctx.insert("val_total", &vt);
+    let rejected: Vec<serde_json::Value> = run
+        .frames
+        .iter()
+        .filter_map(|f| {
+            f.rejected.as_ref().map(|r| {
+                serde_json::json!({"sequence": format!("{:?}", f.role).to_lowercase(), "frame": f.index, "reason": r})
+            })
+        })
+        .collect();
+    ctx.insert("rejected", &rejected);
+    let m = run.fit.image_to_probe.matrix();
+    let matrix_text = (0..4)
+        .map(|r| {
+            (0..4)
+                .map(|c| format!("{:>13.6}", m[(r, c)]))
+                .collect::<Vec<_>>()
+                .join(" ")
+        })
+        .collect::<Vec<_>>()
+        .join("\n");
+    ctx.insert("matrix_text", &matrix_text);
+    let s = run.fit.image_to_probe.spacing_mm_per_px;
+    ctx.insert("spacing_u", &format!("{:.5}", s[0]));
+    ctx.insert("spacing_v", &format!("{:.5}", s[1]));
+    let e = crate::geometry::euler_zyx_deg(&run.fit.image_to_probe.probe_T_image);
+    ctx.insert("euler", &format!("[{:.2}, {:.2}, {:.2}]", e[0], e[1], e[2]));
+    let t = run.fit.image_to_probe.probe_T_image.translation.vector;
+    ctx.insert("translation", &format!("[{:.2}, {:.2}, {:.2}]", t.x, t.y, t.z));
+    let row = |estimate: &str, frames: &str, best: &serde_json::Value, all: &serde_json::Value| {
+        serde_json::json!({
+            "estimate": estimate, "frames": frames,
+            "mean": f3(&best["mean"]), "std": f3(&best["std"]), "n": best["n"],
+            "mean_all": f3(&all["mean"]), "std_all": f3(&all["std"]), "n_all": all["n"],
+        })
+    };
+    let mut pre3d = vec![
+        row(
+            "probecal",
+            "validation",
+            &summary["validation"]["pre3d_mm"],
+            &summary["validation"]["pre3d_all_mm"],
+        ),
+        row(
+            "probecal",
+            "calibration",
+            &summary["calibration"]["pre3d_mm"],
+            &summary["calibration"]["pre3d_all_mm"],
+        ),
+    ];
+    let plus = &summary["plus_result"];
+    if !plus.is_null() {
+        pre3d.push(row(
+            "PLUS's ImageToProbe, our dots",
+            "validation",
+            &plus["validation_pre3d_on_our_dots_mm"],
+            &plus["validation_pre3d_all_on_our_dots_mm"],
+        ));
+        pre3d.push(serde_json::json!({
+            "estimate": "PLUS as published (its own dots)", "frames": "validation",
+            "mean": f3(&plus["published_validation_pre3d_mm"]["mean"]), "std": f3(&plus["published_validation_pre3d_mm"]["std"]),
+            "n": "—", "mean_all": "—", "std_all": "—", "n_all": "—",
+        }));
+    }
+    ctx.insert("pre3d", &pre3d);
+    let gates: Vec<serde_json::Value> = summary["gates"]
+        .as_array()
+        .cloned()
+        .unwrap_or_default()
+        .into_iter()
+        .map(|g| serde_json::json!({"name": g["name"], "value": f3(&g["value"]), "limit": g["limit"], "passed": g["passed"]}))
+        .collect();
+    ctx.insert("gates", &gates);
+    let mut t = tera::Tera::default();
+    t.add_raw_template("tracked.html", TRACKED_TEMPLATE)
+        .and_then(|_| t.render("tracked.html", &ctx))
+        .map_err(|e| crate::output::OutputError::Report(error_chain(&e)))
+}

@@ -8,6 +8,7 @@
 
 pub mod locate;
 pub mod raw;
+pub mod tracked;
 
 use std::fmt;
 use std::path::{Path, PathBuf};
@@ -130,14 +131,14 @@ pub struct Manifest {
     pub datasets: Vec<Dataset>,
 }
 
-struct Checker<'a> {
-    file: &'a Path,
-    text: &'a str,
-    errors: Vec<ManifestError>,
+pub(crate) struct Checker<'a> {
+    pub(crate) file: &'a Path,
+    pub(crate) text: &'a str,
+    pub(crate) errors: Vec<ManifestError>,
 }
 
 impl Checker<'_> {
-    fn fail(&mut self, field: &str, message: impl Into<String>) {
+    pub(crate) fn fail(&mut self, field: &str, message: impl Into<String>) {
         self.errors.push(ManifestError {
             file: self.file.to_path_buf(),
             field: field.to_string(),
@@ -146,7 +147,7 @@ impl Checker<'_> {
         });
     }
 
-    fn positive(&mut self, field: &str, value: f64) {
+    pub(crate) fn positive(&mut self, field: &str, value: f64) {
         if !(value.is_finite() && value > 0.0) {
             self.fail(
                 field,
@@ -155,19 +156,19 @@ impl Checker<'_> {
         }
     }
 
-    fn at_least(&mut self, field: &str, value: f64, min: f64) {
+    pub(crate) fn at_least(&mut self, field: &str, value: f64, min: f64) {
         if !(value.is_finite() && value >= min) {
             self.fail(field, format!("must be at least {min}, got {value}"));
         }
     }
 
-    fn finite(&mut self, field: &str, values: &[f64]) {
+    pub(crate) fn finite(&mut self, field: &str, values: &[f64]) {
         if values.iter().any(|v| !v.is_finite()) {
             self.fail(field, "must hold finite numbers");
         }
     }
 
-    fn range(&mut self, field: &str, range: [f64; 2]) {
+    pub(crate) fn range(&mut self, field: &str, range: [f64; 2]) {
         if !(range[0].is_finite() && range[1].is_finite() && range[0] > 0.0 && range[0] < range[1]) {
             self.fail(
                 field,
@@ -186,7 +187,7 @@ impl Checker<'_> {
         self.positive(&format!("{field}.square_mm"), board.square_mm);
     }
 
-    fn existing(&mut self, field: &str, base: &Path, value: &str, want_dir: bool) -> PathBuf {
+    pub(crate) fn existing(&mut self, field: &str, base: &Path, value: &str, want_dir: bool) -> PathBuf {
         let path = base.join(value);
         let ok = if want_dir { path.is_dir() } else { path.is_file() };
         if !ok {
@@ -197,7 +198,7 @@ impl Checker<'_> {
     }
 }
 
-fn sha256_hex(bytes: &[u8]) -> String {
+pub(crate) fn sha256_hex(bytes: &[u8]) -> String {
     let digest = Sha256::digest(bytes);
     digest.iter().map(|b| format!("{b:02x}")).collect()
 }
@@ -216,6 +217,86 @@ fn strip_position<'a>(message: &'a str, field: &str) -> &'a str {
         .unwrap_or(message)
 }
 
+/// Deserialises YAML into `T`, locating an error by file, field path and line.
+pub(crate) fn deserialize_located<T: serde::de::DeserializeOwned>(
+    path: &Path,
+    text: &str,
+) -> Result<T, ManifestErrors> {
+    let deserializer = serde_yaml::Deserializer::from_str(text);
+    serde_path_to_error::deserialize(deserializer).map_err(|e| {
+        let field = e.path().to_string();
+        // serde_path_to_error writes `?` for a segment it could not name (syntax errors).
+        let field = field
+            .split('.')
+            .take_while(|s| *s != "?" && !s.is_empty())
+            .collect::<Vec<_>>()
+            .join(".");
+        let inner = e.inner();
+        let line = inner
+            .location()
+            .map(|l| l.line())
+            .or_else(|| locate::line_of(text, &field));
+        ManifestErrors(vec![ManifestError {
+            file: path.to_path_buf(),
+            message: strip_position(&inner.to_string(), &field).to_string(),
+            field,
+            line,
+        }])
+    })
+}
+
+/// A manifest of either kind: camera-tracked (rendered or recorded photos and
+/// B-scans) or tracker-sequence (`tracking:` names a PLUS sequence file).
+#[derive(Debug, Clone, PartialEq)]
+pub enum Experiment {
+    Camera(Box<Manifest>),
+    Tracked(Box<tracked::TrackedManifest>),
+}
+
+impl Experiment {
+    /// Reads a manifest, telling the kinds apart by a top-level `tracking` key.
+    pub fn load(path: &Path) -> Result<Experiment, ManifestErrors> {
+        let text = std::fs::read_to_string(path).map_err(|e| {
+            ManifestErrors(vec![ManifestError {
+                file: path.to_path_buf(),
+                field: String::new(),
+                line: None,
+                message: format!("cannot read the manifest: {e}"),
+            }])
+        })?;
+        let is_tracked = serde_yaml::from_str::<serde_yaml::Value>(&text)
+            .ok()
+            .and_then(|v| v.as_mapping().map(|m| m.contains_key("tracking")))
+            .unwrap_or(false);
+        if is_tracked {
+            tracked::TrackedManifest::from_text(path, &text).map(|m| Experiment::Tracked(Box::new(m)))
+        } else {
+            Manifest::from_text(path, &text).map(|m| Experiment::Camera(Box::new(m)))
+        }
+    }
+
+    pub fn experiment(&self) -> &str {
+        match self {
+            Experiment::Camera(m) => &m.experiment,
+            Experiment::Tracked(m) => &m.experiment,
+        }
+    }
+
+    pub fn path(&self) -> &Path {
+        match self {
+            Experiment::Camera(m) => &m.path,
+            Experiment::Tracked(m) => &m.path,
+        }
+    }
+
+    pub fn text(&self) -> &str {
+        match self {
+            Experiment::Camera(m) => &m.text,
+            Experiment::Tracked(m) => &m.text,
+        }
+    }
+}
+
 impl Manifest {
     /// Reads, parses and validates a manifest file.
     pub fn load(path: &Path) -> Result<Manifest, ManifestErrors> {
@@ -232,27 +313,7 @@ impl Manifest {
 
     /// Parses and validates manifest text; `path` names it in errors and anchors relative paths.
     pub fn from_text(path: &Path, text: &str) -> Result<Manifest, ManifestErrors> {
-        let deserializer = serde_yaml::Deserializer::from_str(text);
-        let raw: raw::RawManifest = serde_path_to_error::deserialize(deserializer).map_err(|e| {
-            let field = e.path().to_string();
-            // serde_path_to_error writes `?` for a segment it could not name (syntax errors).
-            let field = field
-                .split('.')
-                .take_while(|s| *s != "?" && !s.is_empty())
-                .collect::<Vec<_>>()
-                .join(".");
-            let inner = e.inner();
-            let line = inner
-                .location()
-                .map(|l| l.line())
-                .or_else(|| locate::line_of(text, &field));
-            ManifestErrors(vec![ManifestError {
-                file: path.to_path_buf(),
-                message: strip_position(&inner.to_string(), &field).to_string(),
-                field,
-                line,
-            }])
-        })?;
+        let raw: raw::RawManifest = deserialize_located(path, text)?;
         let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
         let mut c = Checker {
             file: path,

@@ -371,7 +371,7 @@ fn shipped_experiments_validate() {
     for entry in std::fs::read_dir(&dir).expect("experiments folder") {
         let path = entry.expect("entry").path();
         if path.extension().is_some_and(|e| e == "yaml") {
-            if let Err(e) = Manifest::load(&path) {
+            if let Err(e) = super::Experiment::load(&path) {
                 panic!("{e}");
             }
             count += 1;

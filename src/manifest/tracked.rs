@@ -1,0 +1,414 @@
+//! Manifests of tracker-sequence experiments: poses from a PLUS sequence file
+//! instead of the camera stage, an N-wire phantom from a PLUS configuration.
+//!
+//! ```yaml
+//! experiment: plus_fcal2_nwire
+//! tracking:
+//!   plus_sequence:
+//!     dataset: fcal2_3nwires
+//!     calibration: path/to/calibration.igs.mha
+//!     validation: path/to/validation.igs.mha
+//! phantom:
+//!   nwire:
+//!     plus_config: path/to/PlusDeviceSet.xml
+//! ```
+
+use std::path::{Path, PathBuf};
+
+use nalgebra::Matrix4;
+use serde::{Deserialize, Serialize};
+
+use super::{deserialize_located, sha256_hex, Checker, ManifestErrors};
+use crate::nwire::{NWire, Segmentation};
+use crate::plus::config::PlusConfig;
+use crate::tracked::{ConstraintModel, TimeOffset, TrackedInputs};
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawTrackedManifest {
+    experiment: String,
+    #[serde(default)]
+    description: String,
+    #[serde(with = "serde_yaml::with::singleton_map")]
+    tracking: Tracking,
+    #[serde(with = "serde_yaml::with::singleton_map")]
+    phantom: TrackedPhantom,
+    #[serde(default)]
+    bscan: TrackedBscan,
+    #[serde(default)]
+    solve: TrackedSolve,
+    #[serde(default)]
+    thresholds: TrackedThresholds,
+    /// PLUS's own result file (`ProbeCalibrationResult` XML), for comparison only.
+    #[serde(default)]
+    compare_with_plus_result: Option<String>,
+}
+
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+#[serde(rename_all = "snake_case", deny_unknown_fields)]
+enum Tracking {
+    PlusSequence(PlusSequence),
+}
+
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+struct PlusSequence {
+    /// Names the run's subfolder.
+    dataset: String,
+    /// Sequence file (`.mha` / `.igs.mha`) of the calibration frames.
+    calibration: String,
+    /// Sequence file of held-out validation frames (PRE3D is reported on them).
+    #[serde(default)]
+    validation: Option<String>,
+    #[serde(default = "default_probe")]
+    probe_transform: String,
+    #[serde(default = "default_reference")]
+    reference_transform: String,
+    /// The tracker's lag behind the images: seconds, or `estimate` (from the calibration frames).
+    #[serde(default = "default_offset")]
+    time_offset_s: OffsetSetting,
+}
+
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+#[serde(untagged)]
+enum OffsetSetting {
+    Seconds(f64),
+    Word(String),
+}
+
+fn default_probe() -> String {
+    "ProbeToTracker".into()
+}
+fn default_reference() -> String {
+    "ReferenceToTracker".into()
+}
+fn default_offset() -> OffsetSetting {
+    OffsetSetting::Word("estimate".into())
+}
+
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+#[serde(rename_all = "snake_case", deny_unknown_fields)]
+enum TrackedPhantom {
+    /// N-wire patterns and `PhantomToReference` from a PLUS device-set configuration.
+    Nwire {
+        plus_config: String,
+        /// Name of the phantom frame and the reference (the tracked marker on the phantom).
+        #[serde(default = "default_phantom_frame")]
+        phantom_frame: String,
+        #[serde(default = "default_reference_frame")]
+        reference_frame: String,
+    },
+}
+
+fn default_phantom_frame() -> String {
+    "Phantom".into()
+}
+fn default_reference_frame() -> String {
+    "Reference".into()
+}
+
+#[derive(Debug, Clone, Default, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields, default)]
+struct TrackedBscan {
+    /// Approximate pixel size for the segmentation; absent: the configuration's
+    /// `ApproximateSpacingMmPerPixel`.
+    approximate_spacing_mm_per_px: Option<f64>,
+    segmentation: Segmentation,
+}
+
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields, default)]
+struct TrackedSolve {
+    constraints: ConstraintModel,
+    /// Drop constraints above mean + k SD and refit; absent: keep all.
+    reject_sd: Option<f64>,
+    /// Also correct the phantom's registration from the calibration frames.
+    refine_phantom_registration: bool,
+}
+
+impl Default for TrackedSolve {
+    fn default() -> Self {
+        // PLUS's outlier rule (mean + 3 SD) and its constraints (middle dots).
+        TrackedSolve {
+            constraints: ConstraintModel::MiddlePoints,
+            reject_sd: Some(3.0),
+            refine_phantom_registration: false,
+        }
+    }
+}
+
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields, default)]
+struct TrackedThresholds {
+    min_frames: usize,
+    gates: TrackedGates,
+    regression: TrackedRegression,
+}
+
+impl Default for TrackedThresholds {
+    fn default() -> Self {
+        TrackedThresholds {
+            min_frames: 10,
+            gates: TrackedGates::default(),
+            regression: TrackedRegression::default(),
+        }
+    }
+}
+
+/// Accuracy gates of a tracked run.
+#[derive(Debug, Clone, Default, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct TrackedGates {
+    /// Validation PRE3D (PLUS convention: mean of the best 95 %), mm.
+    pub pre3d_mm: Option<f64>,
+}
+
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct TrackedRegression {
+    pub pre3d_mm: f64,
+    pub frames_rejected: f64,
+}
+
+impl Default for TrackedRegression {
+    fn default() -> Self {
+        // Runs are deterministic; 0.02 mm is well below what a worse segmentation does.
+        TrackedRegression {
+            pre3d_mm: 0.02,
+            frames_rejected: 2.0,
+        }
+    }
+}
+
+/// A validated tracker-sequence experiment.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TrackedManifest {
+    pub path: PathBuf,
+    pub sha256: String,
+    pub text: String,
+    pub experiment: String,
+    pub description: String,
+    pub dataset: String,
+    pub plus_config: PathBuf,
+    pub calibration_sequence: PathBuf,
+    pub validation_sequence: Option<PathBuf>,
+    pub probe_transform: String,
+    pub reference_transform: String,
+    pub time_offset: TimeOffset,
+    pub nwires: Vec<NWire>,
+    pub reference_T_phantom: Matrix4<f64>,
+    pub spacing_guess_mm_per_px: f64,
+    pub clip_rectangle_px: Option<[usize; 4]>,
+    pub segmentation: Segmentation,
+    pub model: ConstraintModel,
+    pub reject_sd: Option<f64>,
+    pub refine_phantom: bool,
+    pub min_frames: usize,
+    pub gates: TrackedGates,
+    pub regression: TrackedRegression,
+    pub plus_result: Option<PathBuf>,
+}
+
+impl TrackedManifest {
+    pub fn from_text(path: &Path, text: &str) -> Result<TrackedManifest, ManifestErrors> {
+        let raw: RawTrackedManifest = deserialize_located(path, text)?;
+        let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
+        let mut c = Checker {
+            file: path,
+            text,
+            errors: Vec::new(),
+        };
+        if raw.experiment.trim().is_empty() || raw.experiment.contains(['/', '\\']) {
+            c.fail(
+                "experiment",
+                "must be a non-empty name without slashes (it names the run folder)",
+            );
+        }
+        let Tracking::PlusSequence(seq) = &raw.tracking;
+        let f = "tracking.plus_sequence";
+        if seq.dataset.trim().is_empty() || seq.dataset.contains(['/', '\\']) || seq.dataset.starts_with('.') {
+            c.fail(&format!("{f}.dataset"), "must be a non-empty name without slashes");
+        }
+        let calibration_sequence = c.existing(&format!("{f}.calibration"), &base, &seq.calibration, false);
+        let validation_sequence = seq
+            .validation
+            .as_ref()
+            .map(|v| c.existing(&format!("{f}.validation"), &base, v, false));
+        let time_offset = match &seq.time_offset_s {
+            OffsetSetting::Seconds(s) if s.is_finite() && s.abs() <= 1.0 => TimeOffset::Fixed(*s),
+            OffsetSetting::Word(w) if w == "estimate" => TimeOffset::Estimate {
+                range_s: 0.1,
+                step_s: 0.005,
+            },
+            other => {
+                c.fail(
+                    &format!("{f}.time_offset_s"),
+                    format!("must be `estimate` or seconds between -1 and 1, got {other:?}"),
+                );
+                TimeOffset::Fixed(0.0)
+            }
+        };
+        let TrackedPhantom::Nwire {
+            plus_config,
+            phantom_frame,
+            reference_frame,
+        } = &raw.phantom;
+        let config_field = "phantom.nwire.plus_config";
+        let plus_config = c.existing(config_field, &base, plus_config, false);
+        let mut nwires = Vec::new();
+        let mut reference_T_phantom = Matrix4::identity();
+        let mut config_spacing = None;
+        let mut clip_rectangle_px = None;
+        if plus_config.is_file() {
+            match PlusConfig::read(&plus_config) {
+                Ok(config) => {
+                    if config.nwires.is_empty() {
+                        c.fail(
+                            config_field,
+                            format!("{}: no N-wire `Pattern` in `PhantomDefinition`", plus_config.display()),
+                        );
+                    }
+                    nwires = config.nwires.clone();
+                    match config.transform(phantom_frame, reference_frame) {
+                        Ok(m) => reference_T_phantom = m,
+                        Err(e) => c.fail(config_field, e.to_string()),
+                    }
+                    config_spacing = config.approximate_spacing_mm_per_px;
+                    clip_rectangle_px = config.clip_rectangle_px.map(|(o, s)| [o[0], o[1], s[0], s[1]]);
+                }
+                Err(e) => c.fail(config_field, e.to_string()),
+            }
+        }
+        let spacing_guess_mm_per_px = match raw.bscan.approximate_spacing_mm_per_px.or(config_spacing) {
+            Some(s) => {
+                c.positive("bscan.approximate_spacing_mm_per_px", s);
+                s
+            }
+            None => {
+                c.fail(
+                    "bscan.approximate_spacing_mm_per_px",
+                    "is needed: the configuration has no `ApproximateSpacingMmPerPixel`",
+                );
+                1.0
+            }
+        };
+        let seg = &raw.bscan.segmentation;
+        let sf = "bscan.segmentation";
+        c.positive(&format!("{sf}.collinear_tolerance_mm"), seg.collinear_tolerance_mm);
+        if !(0.0..1.0).contains(&seg.core_fraction) {
+            c.fail(
+                &format!("{sf}.core_fraction"),
+                format!("must be a fraction in [0, 1), got {}", seg.core_fraction),
+            );
+        }
+        if !(seg.max_row_angle_deg > 0.0 && seg.max_row_angle_deg < 90.0) {
+            c.fail(
+                &format!("{sf}.max_row_angle_deg"),
+                format!("must be between 0 and 90 degrees, got {}", seg.max_row_angle_deg),
+            );
+        }
+        c.at_least(
+            &format!("{sf}.max_row_angle_difference_deg"),
+            seg.max_row_angle_difference_deg,
+            0.0,
+        );
+        if seg.max_candidates < 3 * nwires.len().max(1) || seg.max_candidates > 40 {
+            c.fail(
+                &format!("{sf}.max_candidates"),
+                format!(
+                    "must be between {} (3 per N-wire) and 40, got {}",
+                    3 * nwires.len().max(1),
+                    seg.max_candidates
+                ),
+            );
+        }
+        if let Some(r) = seg.clip_rectangle_px {
+            if r[2] == 0 || r[3] == 0 {
+                c.fail(&format!("{sf}.clip_rectangle_px"), "has zero width or height");
+            }
+            clip_rectangle_px = Some(r);
+        }
+        if let Some(k) = raw.solve.reject_sd {
+            c.positive("solve.reject_sd", k);
+        }
+        if raw.thresholds.min_frames < 3 {
+            c.fail(
+                "thresholds.min_frames",
+                format!("at least 3 frames are needed, got {}", raw.thresholds.min_frames),
+            );
+        }
+        if let Some(g) = raw.thresholds.gates.pre3d_mm {
+            c.positive("thresholds.gates.pre3d_mm", g);
+        }
+        c.at_least(
+            "thresholds.regression.pre3d_mm",
+            raw.thresholds.regression.pre3d_mm,
+            0.0,
+        );
+        c.at_least(
+            "thresholds.regression.frames_rejected",
+            raw.thresholds.regression.frames_rejected,
+            0.0,
+        );
+        let plus_result = raw
+            .compare_with_plus_result
+            .as_ref()
+            .map(|p| c.existing("compare_with_plus_result", &base, p, false));
+        if !c.errors.is_empty() {
+            return Err(ManifestErrors(c.errors));
+        }
+        Ok(TrackedManifest {
+            path: path.to_path_buf(),
+            sha256: sha256_hex(text.as_bytes()),
+            text: text.to_string(),
+            experiment: raw.experiment,
+            description: raw.description,
+            dataset: seq.dataset.clone(),
+            plus_config,
+            calibration_sequence,
+            validation_sequence,
+            probe_transform: seq.probe_transform.clone(),
+            reference_transform: seq.reference_transform.clone(),
+            time_offset,
+            nwires,
+            reference_T_phantom,
+            spacing_guess_mm_per_px,
+            clip_rectangle_px,
+            segmentation: raw.bscan.segmentation,
+            model: raw.solve.constraints,
+            reject_sd: raw.solve.reject_sd,
+            refine_phantom: raw.solve.refine_phantom_registration,
+            min_frames: raw.thresholds.min_frames,
+            gates: raw.thresholds.gates,
+            regression: raw.thresholds.regression,
+            plus_result,
+        })
+    }
+
+    /// The tracked pipeline's inputs.
+    pub fn inputs(&self) -> TrackedInputs {
+        TrackedInputs {
+            calibration_sequence: self.calibration_sequence.clone(),
+            validation_sequence: self.validation_sequence.clone(),
+            probe_transform: self.probe_transform.clone(),
+            reference_transform: self.reference_transform.clone(),
+            reference_T_phantom: self.reference_T_phantom,
+            nwires: self.nwires.clone(),
+            spacing_guess_mm_per_px: self.spacing_guess_mm_per_px,
+            clip_rectangle_px: self.clip_rectangle_px,
+            segmentation: self.segmentation.clone(),
+            model: self.model,
+            reject_sd: self.reject_sd,
+            time_offset: self.time_offset,
+            refine_phantom: self.refine_phantom,
+        }
+    }
+
+    /// Every input file, for hashing.
+    pub fn input_files(&self) -> Vec<PathBuf> {
+        let mut files = vec![self.plus_config.clone(), self.calibration_sequence.clone()];
+        files.extend(self.validation_sequence.clone());
+        files.extend(self.plus_result.clone());
+        files
+    }
+}

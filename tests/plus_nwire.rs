@@ -1,0 +1,169 @@
+//! PLUS's fCal 2.0 triple N-wire recordings (`../shared/data/plus-fcal2.0-3nwires`):
+//! the sequence reader against the file's known header, the N-wire geometry
+//! against the configuration, the whole tracked experiment against PLUS's own
+//! result, and broken sequence files.
+#![allow(non_snake_case)]
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use nalgebra::Point3;
+use probecal::plus::config::PlusConfig;
+use probecal::plus::sequence::{FrameFault, Sequence};
+
+fn data(name: &str) -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../shared/data/plus-fcal2.0-3nwires")
+        .join(name)
+}
+
+const CALIBRATION: &str = "fCal_Test_Calibration_3NWires_fCal2.0.igs.mha";
+const VALIDATION: &str = "fCal_Test_Validation_3NWires_fCal2.0.igs.mha";
+const CONFIG: &str = "PlusDeviceSet_fCal_Sim_SpatialCalibration_2.0.xml";
+
+#[test]
+fn sequence_reader_matches_the_header() {
+    let s = Sequence::read(&data(CALIBRATION)).unwrap();
+    assert_eq!((s.width, s.height, s.frames.len()), (820, 616, 190));
+    assert_eq!(s.header["UltrasoundImageOrientation"].value, "MFA");
+    // Frame 0, written in the header as 0.214041 -0.922145 0.322235 284.342 ...
+    let t = s.transform(0, "ProbeToTracker").unwrap();
+    let m = t.to_homogeneous();
+    assert!((m[(0, 3)] - 284.342).abs() < 1e-9 && (m[(2, 3)] + 13.1385).abs() < 1e-9);
+    assert!((m[(0, 0)] - 0.214041).abs() < 1e-4);
+    assert_eq!(s.frame_field(0, "Timestamp"), Some("2572.905343"));
+    // The pixels decompress to the declared size and are not blank.
+    let frame = s.pixels(189);
+    assert_eq!(frame.len(), 820 * 616);
+    assert!(frame.iter().filter(|&&p| p > 100).count() > 200);
+    let v = Sequence::read(&data(VALIDATION)).unwrap();
+    assert_eq!(v.frames.len(), 103);
+}
+
+#[test]
+fn nwire_crossings_of_the_shared_configuration() {
+    let config = PlusConfig::read(&data(CONFIG)).unwrap();
+    assert_eq!(config.nwires.len(), 3);
+    // Pattern 1 (z = 20): wire 1 is x = 30, the diagonal runs (55, 0) -> (35, 40), wire 3 is x = 60.
+    let expected = [
+        ((30.0, 50.0, 20.0), (60.0, -10.0, 20.0)),
+        ((30.0, -10.0, 10.0), (60.0, 50.0, 10.0)),
+        ((35.0, 53.333333333, 0.0), (60.0, -13.333333333, 0.0)),
+    ];
+    for (n, (w12, w32)) in config.nwires.iter().zip(expected) {
+        assert!(
+            (n.w12_in_phantom_mm - Point3::new(w12.0, w12.1, w12.2)).norm() < 1e-6,
+            "{:?}",
+            n.w12_in_phantom_mm
+        );
+        assert!(
+            (n.w32_in_phantom_mm - Point3::new(w32.0, w32.1, w32.2)).norm() < 1e-6,
+            "{:?}",
+            n.w32_in_phantom_mm
+        );
+    }
+    let reference_T_phantom = config.transform("Phantom", "Reference").unwrap();
+    assert!((reference_T_phantom[(0, 3)] - 15.6642).abs() < 1e-9);
+    assert!((config.approximate_spacing_mm_per_px.unwrap() - 0.078).abs() < 1e-12);
+}
+
+/// The default tracked experiment, run by the command line.
+#[test]
+fn experiment_beats_plus_on_its_own_data() {
+    let out = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("plus_run");
+    let r = Command::new(env!("CARGO_BIN_EXE_probecal"))
+        .args(["run", "--quiet", "--force", "--out"])
+        .arg(&out)
+        .arg(Path::new(env!("CARGO_MANIFEST_DIR")).join("experiments/plus_fcal2_nwire.yaml"))
+        .output()
+        .unwrap();
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let folder = out.join("plus_fcal2_nwire/fcal2_3nwires");
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(folder.join("summary.json")).unwrap()).unwrap();
+    let pre3d = summary["validation"]["pre3d_mm"]["mean"].as_f64().unwrap();
+    let all = summary["validation"]["pre3d_all_mm"]["mean"].as_f64().unwrap();
+    println!("validation PRE3D {pre3d:.4} mm (best 95 %), {all:.4} mm (all)");
+    assert!(
+        pre3d < 0.5399,
+        "validation PRE3D {pre3d} mm is not below PLUS's 0.5399 mm"
+    );
+    assert!(all >= pre3d);
+    // PLUS segmented 184 of 190 calibration frames.
+    assert!(summary["frames"]["calibration"]["segmented"].as_u64().unwrap() >= 184);
+    assert_eq!(summary["validation"]["pre3d_mm"]["n"].as_u64().unwrap(), 294);
+    // The pixel size comes out near PLUS's 0.0803 x 0.0745 mm.
+    let s = &summary["image_to_probe"]["spacing_mm_per_px"];
+    assert!((s[0].as_f64().unwrap() - 0.0803).abs() < 0.002 && (s[1].as_f64().unwrap() - 0.0745).abs() < 0.002);
+    for f in ["ImageToProbe.xml", "ImageToProbe.tfm", "frames.csv", "report.html"] {
+        assert!(folder.join(f).is_file(), "{f}");
+    }
+}
+
+/// The first `frames` frames of the calibration sequence as a new file, with the
+/// header edited by `edit` and the compressed data cut by `cut` bytes.
+fn broken_copy(name: &str, edit: impl Fn(String) -> String, cut: usize) -> PathBuf {
+    let bytes = std::fs::read(data(CALIBRATION)).unwrap();
+    let marker = b"ElementDataFile = LOCAL\n";
+    let at = bytes.windows(marker.len()).position(|w| w == marker).unwrap() + marker.len();
+    let header = edit(String::from_utf8(bytes[..at].to_vec()).unwrap());
+    let mut out = header.into_bytes();
+    out.extend_from_slice(&bytes[at..bytes.len() - cut]);
+    let path = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(name);
+    std::fs::write(&path, out).unwrap();
+    path
+}
+
+#[test]
+fn broken_sequences_give_clear_errors() {
+    let truncated = broken_copy("truncated.igs.mha", |h| h, 200_000);
+    let e = Sequence::read(&truncated).unwrap_err().to_string();
+    assert!(e.contains("truncated.igs.mha") && e.contains("truncated"), "{e}");
+
+    let mismatch = broken_copy(
+        "mismatch.igs.mha",
+        |h| h.replace("DimSize = 820 616 190", "DimSize = 820 616 191"),
+        0,
+    );
+    let e = Sequence::read(&mismatch).unwrap_err().to_string();
+    assert!(e.contains("mismatch.igs.mha:") && e.contains("DimSize"), "{e}");
+
+    let status = broken_copy(
+        "status.igs.mha",
+        |h| {
+            h.replacen(
+                "Seq_Frame0005_ProbeToTrackerTransformStatus = OK",
+                "Seq_Frame0005_ProbeToTrackerTransformStatus = INVALID",
+                1,
+            )
+        },
+        0,
+    );
+    let s = Sequence::read(&status).unwrap();
+    let e = s.transform(5, "ProbeToTracker").unwrap_err();
+    assert!(matches!(e, FrameFault::Status { frame: 5, .. }), "{e}");
+    assert_eq!(
+        e.to_string(),
+        "frame 5: `ProbeToTrackerTransformStatus` is INVALID, not OK"
+    );
+
+    let nan = broken_copy(
+        "nan.igs.mha",
+        |h| {
+            let key = "Seq_Frame0007_ProbeToTrackerTransform = ";
+            let start = h.find(key).unwrap() + key.len();
+            let end = start + h[start..].find(' ').unwrap();
+            format!("{}nan{}", &h[..start], &h[end..])
+        },
+        0,
+    );
+    let e = Sequence::read(&nan)
+        .unwrap()
+        .transform(7, "ProbeToTracker")
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("frame 7") && e.contains("non-finite") && e.contains("line "),
+        "{e}"
+    );
+}
