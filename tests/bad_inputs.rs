@@ -158,7 +158,122 @@ fn run(dir: &Path) -> Vec<String> {
     ]
 }
 
+fn plus_data(name: &str) -> PathBuf {
+    root().join("../shared/data/plus-fcal2.0-3nwires").join(name)
+}
+
+/// A tracker-sequence experiment (named like the camera ones, so its frame table
+/// is found at the same place) over a copy of PLUS's calibration sequence whose
+/// header is edited by `edit` and whose data is cut by `cut` bytes.
+fn tracked(dir: &Path, edit: fn(String) -> String, cut: usize, manifest_edit: (&str, &str)) {
+    std::fs::create_dir_all(dir).unwrap();
+    let bytes = std::fs::read(plus_data("fCal_Test_Calibration_3NWires_fCal2.0.igs.mha")).unwrap();
+    let marker = b"ElementDataFile = LOCAL\n";
+    let at = bytes.windows(marker.len()).position(|w| w == marker).unwrap() + marker.len();
+    let mut out = edit(String::from_utf8(bytes[..at].to_vec()).unwrap()).into_bytes();
+    out.extend_from_slice(&bytes[at..bytes.len() - cut]);
+    std::fs::write(dir.join("calibration.igs.mha"), out).unwrap();
+    let config = plus_data("PlusDeviceSet_fCal_Sim_SpatialCalibration_2.0.xml");
+    let text = format!(
+        "experiment: lab_run\ntracking:\n  plus_sequence:\n    dataset: session\n    calibration: calibration.igs.mha\n    time_offset_s: 0.0\nphantom:\n  nwire:\n    plus_config: {}\n",
+        config.display()
+    );
+    let edited = text.replacen(manifest_edit.0, manifest_edit.1, 1);
+    assert!(
+        manifest_edit.0 == manifest_edit.1 || edited != text,
+        "case edit `{}` did not apply",
+        manifest_edit.0
+    );
+    std::fs::write(dir.join("experiment.yaml"), edited).unwrap();
+}
+
+fn no_edit(h: String) -> String {
+    h
+}
+
 const CASES: &[Case] = &[
+    // Tracker sequences (PLUS files).
+    Case {
+        name: "tracked: sequence file missing",
+        setup: |d| tracked(d, no_edit, 0, ("calibration.igs.mha", "gone.igs.mha")),
+        args: validate,
+        code: 2,
+        expect: "experiment.yaml:5: field `tracking.plus_sequence.calibration`: file",
+        in_output: "stderr",
+    },
+    Case {
+        name: "tracked: time offset neither seconds nor estimate",
+        setup: |d| tracked(d, no_edit, 0, ("time_offset_s: 0.0", "time_offset_s: soon")),
+        args: validate,
+        code: 2,
+        expect: "experiment.yaml:6: field `tracking.plus_sequence.time_offset_s`: must be `estimate` or seconds",
+        in_output: "stderr",
+    },
+    Case {
+        name: "tracked: sequence data cut off",
+        setup: |d| tracked(d, no_edit, 300_000, ("dataset: session", "dataset: session")),
+        args: run,
+        code: 1,
+        expect: "calibration.igs.mha:8: data truncated: `CompressedDataSize` says 1205020 bytes, the file has 905020",
+        in_output: "stderr",
+    },
+    Case {
+        name: "tracked: frame count differs from DimSize",
+        setup: |d| {
+            tracked(
+                d,
+                |h| h.replace("DimSize = 820 616 190", "DimSize = 820 616 180"),
+                0,
+                ("dataset: session", "dataset: session"),
+            )
+        },
+        args: run,
+        code: 1,
+        expect: "frame count mismatch: `DimSize` has 180 frames, the header describes 190",
+        in_output: "stderr",
+    },
+    Case {
+        name: "tracked: a transform marked INVALID rejects its frame only",
+        setup: |d| {
+            tracked(
+                d,
+                |h| {
+                    h.replacen(
+                        "Seq_Frame0005_ProbeToTrackerTransformStatus = OK",
+                        "Seq_Frame0005_ProbeToTrackerTransformStatus = INVALID",
+                        1,
+                    )
+                },
+                0,
+                ("dataset: session", "dataset: session"),
+            )
+        },
+        args: run,
+        code: 0,
+        expect: "frame 5: `ProbeToTrackerTransformStatus` is INVALID, not OK",
+        in_output: "frames",
+    },
+    Case {
+        name: "tracked: a NaN in a pose matrix rejects its frame only",
+        setup: |d| {
+            tracked(
+                d,
+                |h| {
+                    h.replacen(
+                        "Seq_Frame0009_ProbeToTrackerTransform = 0.216028",
+                        "Seq_Frame0009_ProbeToTrackerTransform = nan",
+                        1,
+                    )
+                },
+                0,
+                ("dataset: session", "dataset: session"),
+            )
+        },
+        args: run,
+        code: 0,
+        expect: "is not a rigid transform: matrix has a non-finite entry",
+        in_output: "frames",
+    },
     // Manifests: each names the file, the field and the line; nothing runs.
     Case {
         name: "unknown key",
