@@ -178,18 +178,21 @@ fn committed_baselines_cover_every_default_experiment() {
     for entry in std::fs::read_dir(root.join("experiments")).unwrap() {
         let path = entry.unwrap().path();
         if path.extension().is_some_and(|e| e == "yaml") {
-            let manifest = probecal::manifest::Manifest::load(&path).unwrap();
+            let experiment = probecal::manifest::Experiment::load(&path).unwrap();
             let baseline = probecal::check::load_baseline(&probecal::check::baseline_path(
                 &root.join("experiments/baselines"),
-                &manifest.experiment,
+                experiment.experiment(),
             ))
             .unwrap_or_else(|e| panic!("{e}"));
-            for d in &manifest.datasets {
+            let datasets: Vec<String> = match &experiment {
+                probecal::manifest::Experiment::Camera(m) => m.datasets.iter().map(|d| d.name.clone()).collect(),
+                probecal::manifest::Experiment::Tracked(m) => vec![m.dataset.clone()],
+            };
+            for d in datasets {
                 assert!(
-                    baseline.datasets.contains_key(&d.name),
-                    "baseline of {} lacks dataset {}",
-                    manifest.experiment,
-                    d.name
+                    baseline.datasets.contains_key(&d),
+                    "baseline of {} lacks dataset {d}",
+                    experiment.experiment()
                 );
             }
         }
