@@ -8,7 +8,7 @@
 //! Levenberg–Marquardt refinement then fits all eight unknowns, and constraints
 //! whose residual exceeds mean + k SD are dropped and the fit repeated.
 
-use nalgebra::{DVector, Matrix3, Matrix4, Point3, Vector3};
+use nalgebra::{DVector, Matrix4, Point3, Vector3};
 
 use crate::geometry::{rigid_from_axis_angle, Rigid};
 use crate::horn::{self, HornError, Variant};
@@ -31,10 +31,6 @@ pub struct Constraint {
 }
 
 impl Constraint {
-    pub fn pixel(&self) -> [f64; 2] {
-        self.pixel
-    }
-
     /// The 3D residual (probe frame, mm) of a pixel mapped by `model`, with the
     /// phantom's registration corrected by `phantom_correction` (phantom frame).
     pub fn residual_with(&self, model: &ImageToProbe, phantom_correction: &Rigid) -> Vector3<f64> {
@@ -250,23 +246,6 @@ pub fn refine(
         iterations,
         sd,
     })
-}
-
-/// Nearest rotation (SVD) of a 3x3 matrix.
-pub fn nearest_rotation(m: &Matrix3<f64>) -> Matrix3<f64> {
-    let svd = m.svd(true, true);
-    match (svd.u, svd.v_t) {
-        (Some(u), Some(v_t)) => {
-            let mut r = u * v_t;
-            if r.determinant() < 0.0 {
-                let mut u = u;
-                u.column_mut(2).neg_mut();
-                r = u * v_t;
-            }
-            r
-        }
-        _ => Matrix3::identity(),
-    }
 }
 
 #[cfg(test)]

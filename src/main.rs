@@ -382,7 +382,16 @@ fn run_tracked(m: &TrackedManifest, folder: &Path, quiet: bool) -> Result<(Index
     };
     let run_folder = folder.join(&m.dataset);
     let summary = probecal::tracked_output::write(&run, m, plus.as_ref(), &run_folder).map_err(|e| e.to_string())?;
-    write_tracked_provenance(m, &run_folder, started).map_err(|e| e.to_string())?;
+    probecal::provenance::Provenance::new(
+        &m.path,
+        &m.sha256,
+        &m.dataset,
+        &m.calibration_sequence,
+        &m.input_files(),
+        started,
+    )
+    .write(&run_folder)
+    .map_err(|e| e.to_string())?;
     let gates = probecal::tracked_output::gates(&run, m);
     for g in gates.iter().filter(|g| !g.passed) {
         eprintln!(
@@ -443,36 +452,6 @@ fn run_tracked(m: &TrackedManifest, folder: &Path, quiet: bool) -> Result<(Index
     ))
 }
 
-fn write_tracked_provenance(
-    m: &TrackedManifest,
-    folder: &Path,
-    started: std::time::SystemTime,
-) -> Result<(), probecal::output::OutputError> {
-    use probecal::provenance::{hash_inputs, opencv_version, rfc3339, Provenance, GIT_COMMIT};
-    let (inputs_sha256, inputs) = hash_inputs(&m.input_files());
-    let provenance = Provenance {
-        probecal_version: env!("CARGO_PKG_VERSION"),
-        git_commit: GIT_COMMIT,
-        opencv_version: opencv_version(),
-        command: std::env::args().collect(),
-        manifest: m.path.to_string_lossy().to_string(),
-        manifest_sha256: m.sha256.clone(),
-        dataset: m.dataset.clone(),
-        dataset_folder: m.calibration_sequence.to_string_lossy().to_string(),
-        seed: None,
-        threads: probecal::parallel::threads(),
-        started_utc: rfc3339(started),
-        elapsed_s: started.elapsed().map(|d| d.as_secs_f64()).unwrap_or(0.0),
-        timings_s: Vec::new(),
-        peak_memory_mb: probecal::provenance::peak_memory_mb(),
-        inputs_sha256,
-        inputs,
-    };
-    let text =
-        serde_json::to_string_pretty(&provenance).map_err(|e| probecal::output::OutputError::Report(e.to_string()))?;
-    write_atomic(&folder.join("provenance.json"), text.as_bytes())
-}
-
 fn compare(manifests: Vec<PathBuf>, out: Option<PathBuf>, datasets: PathBuf, force: bool, quiet: bool) -> ExitCode {
     let out = out.unwrap_or_else(next_run_folder);
     let (code, manifests, runs) = run(manifests, Some(out.clone()), datasets, force, true);
@@ -506,29 +485,17 @@ fn write_provenance(
     folder: &Path,
     started: std::time::SystemTime,
 ) -> Result<(), probecal::output::OutputError> {
-    use probecal::provenance::{hash_inputs, opencv_version, rfc3339, Provenance, GIT_COMMIT};
-    let (inputs_sha256, inputs) = hash_inputs(&run.input_files);
-    let provenance = Provenance {
-        probecal_version: env!("CARGO_PKG_VERSION"),
-        git_commit: GIT_COMMIT,
-        opencv_version: opencv_version(),
-        command: std::env::args().collect(),
-        manifest: manifest.path.to_string_lossy().to_string(),
-        manifest_sha256: manifest.sha256.clone(),
-        dataset: run.dataset.clone(),
-        dataset_folder: run.dataset_folder.to_string_lossy().to_string(),
-        seed: run.seed,
-        threads: probecal::parallel::threads(),
-        started_utc: rfc3339(started),
-        elapsed_s: started.elapsed().map(|d| d.as_secs_f64()).unwrap_or(0.0),
-        timings_s: run.timings_s.iter().map(|(k, v)| (k.to_string(), *v)).collect(),
-        peak_memory_mb: probecal::provenance::peak_memory_mb(),
-        inputs_sha256,
-        inputs,
-    };
-    let text =
-        serde_json::to_string_pretty(&provenance).map_err(|e| probecal::output::OutputError::Report(e.to_string()))?;
-    write_atomic(&folder.join("provenance.json"), text.as_bytes())
+    let mut provenance = probecal::provenance::Provenance::new(
+        &manifest.path,
+        &manifest.sha256,
+        &run.dataset,
+        &run.dataset_folder,
+        &run.input_files,
+        started,
+    );
+    provenance.seed = run.seed;
+    provenance.timings_s = run.timings_s.iter().map(|(k, v)| (k.to_string(), *v)).collect();
+    provenance.write(folder)
 }
 
 fn main() -> ExitCode {

@@ -40,6 +40,45 @@ pub struct Provenance {
     pub inputs: Vec<InputFile>,
 }
 
+impl Provenance {
+    /// The provenance of a run of `manifest` over `inputs`, started at `started`
+    /// (no seed, no stage timings: set them where the run has them).
+    pub fn new(
+        manifest: &Path,
+        manifest_sha256: &str,
+        dataset: &str,
+        dataset_folder: &Path,
+        input_files: &[PathBuf],
+        started: SystemTime,
+    ) -> Provenance {
+        let (inputs_sha256, inputs) = hash_inputs(input_files);
+        Provenance {
+            probecal_version: env!("CARGO_PKG_VERSION"),
+            git_commit: GIT_COMMIT,
+            opencv_version: opencv_version(),
+            command: std::env::args().collect(),
+            manifest: manifest.to_string_lossy().to_string(),
+            manifest_sha256: manifest_sha256.to_string(),
+            dataset: dataset.to_string(),
+            dataset_folder: dataset_folder.to_string_lossy().to_string(),
+            seed: None,
+            threads: crate::parallel::threads(),
+            started_utc: rfc3339(started),
+            elapsed_s: started.elapsed().map(|d| d.as_secs_f64()).unwrap_or(0.0),
+            timings_s: Vec::new(),
+            peak_memory_mb: peak_memory_mb(),
+            inputs_sha256,
+            inputs,
+        }
+    }
+
+    /// Writes `provenance.json` into `folder`.
+    pub fn write(&self, folder: &Path) -> Result<(), crate::output::OutputError> {
+        let text = serde_json::to_string_pretty(self).map_err(|e| crate::output::OutputError::Report(e.to_string()))?;
+        crate::output::write_atomic(&folder.join("provenance.json"), text.as_bytes())
+    }
+}
+
 /// SHA-256 of a file, streamed.
 pub fn file_sha256(path: &Path) -> std::io::Result<(u64, String)> {
     let mut file = std::fs::File::open(path)?;

@@ -345,11 +345,13 @@ pub fn constraints(frame: &TrackedFrame, nwires: &[NWire], model: ConstraintMode
     out
 }
 
-/// PRE3D of each pattern's middle dot in one frame, mm.
+/// PRE3D of each pattern's middle dot in one frame, mm: the middle dot's pixel
+/// mapped into the probe frame by `image_to_probe` against its position from the
+/// phantom geometry (registration corrected by `phantom_correction`).
 pub fn pre3d(
     frame: &TrackedFrame,
     nwires: &[NWire],
-    image_to_probe: &ImageToProbe,
+    image_to_probe: impl Fn([f64; 2]) -> Point3<f64>,
     phantom_correction: &crate::geometry::Rigid,
 ) -> Vec<f64> {
     let Some(probe_T_phantom) = frame.probe_T_phantom else {
@@ -362,7 +364,7 @@ pub fn pre3d(
         .zip(nwires)
         .map(|(dots, nwire)| {
             let expected: Point3<f64> = probe_T_phantom.transform_point(&nwire.middle_in_phantom_mm(dots));
-            (image_to_probe.apply(dots[1]) - expected).norm()
+            (image_to_probe(dots[1]) - expected).norm()
         })
         .collect()
 }
@@ -452,7 +454,12 @@ pub fn run(inputs: &TrackedInputs, min_frames: usize) -> Result<TrackedRun, Trac
     }
     let (closed_form, fit, constraints) = calibrate(&frames, inputs)?;
     for f in frames.iter_mut().filter(|f| f.rejected.is_none()) {
-        f.pre3d_mm = pre3d(f, &inputs.nwires, &fit.image_to_probe, &fit.phantom_correction);
+        f.pre3d_mm = pre3d(
+            f,
+            &inputs.nwires,
+            |pixel| fit.image_to_probe.apply(pixel),
+            &fit.phantom_correction,
+        );
     }
     Ok(TrackedRun {
         frames,

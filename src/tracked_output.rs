@@ -21,17 +21,11 @@ pub fn pre3d_of_matrix(
     image_to_probe: &Matrix4<f64>,
     role: Role,
 ) -> Vec<f64> {
+    let map = |pixel: [f64; 2]| image_to_probe.transform_point(&nalgebra::Point3::new(pixel[0], pixel[1], 0.0));
     run.frames
         .iter()
         .filter(|f| f.role == role && f.rejected.is_none())
-        .flat_map(|f| {
-            let probe_T_phantom = f.probe_T_phantom.unwrap_or_else(Matrix4::identity);
-            f.dots_px.iter().zip(&manifest.nwires).map(move |(dots, nwire)| {
-                let expected = probe_T_phantom.transform_point(&nwire.middle_in_phantom_mm(dots));
-                let mapped = image_to_probe.transform_point(&nalgebra::Point3::new(dots[1][0], dots[1][1], 0.0));
-                (mapped - expected).norm()
-            })
-        })
+        .flat_map(|f| crate::tracked::pre3d(f, &manifest.nwires, map, &run.fit.phantom_correction))
         .collect()
 }
 

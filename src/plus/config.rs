@@ -49,35 +49,27 @@ impl PlusConfig {
     }
 
     pub fn parse(path: &Path, text: &str) -> Result<PlusConfig, ConfigError> {
-        let doc = roxmltree::Document::parse(text).map_err(|e| ConfigError {
-            path: path.to_path_buf(),
-            line: Some(e.pos().row as usize),
-            message: format!("not well-formed XML: {e}"),
-        })?;
+        let doc = parse_xml(path, text)?;
         let x = Xml { path, doc: &doc };
-        let line_of = |node: roxmltree::Node| x.line(node);
-        let fail = |node: roxmltree::Node, message: String| x.fail(node, message);
-        let attr = |node: roxmltree::Node<'_, '_>, name: &str| x.attr(node, name).map(str::to_string);
-        let numbers = |node: roxmltree::Node, name: &str, count: usize| x.numbers(node, name, count);
 
         let mut transforms = Vec::new();
         for node in doc.descendants().filter(|n| n.has_tag_name("CoordinateDefinitions")) {
             for t in node.children().filter(|n| n.has_tag_name("Transform")) {
-                let m = numbers(t, "Matrix", 16)?;
+                let m = x.numbers(t, "Matrix", 16)?;
                 transforms.push(FixedTransform {
-                    from: attr(t, "From")?.to_string(),
-                    to: attr(t, "To")?.to_string(),
+                    from: x.attr(t, "From")?.to_string(),
+                    to: x.attr(t, "To")?.to_string(),
                     matrix: Matrix4::from_fn(|r, c| m[r * 4 + c]),
-                    line: line_of(t),
+                    line: x.line(t),
                 });
             }
         }
 
         let mut nwires = Vec::new();
         for pattern in doc.descendants().filter(|n| n.has_tag_name("Pattern")) {
-            let kind = attr(pattern, "Type")?;
+            let kind = x.attr(pattern, "Type")?;
             if kind != "NWire" {
-                return Err(fail(
+                return Err(x.fail(
                     pattern,
                     format!("pattern type `{kind}`: only NWire patterns are supported"),
                 ));
@@ -86,8 +78,8 @@ impl PlusConfig {
                 .children()
                 .filter(|n| n.has_tag_name("Wire"))
                 .map(|w| {
-                    let front = numbers(w, "EndPointFront", 3)?;
-                    let back = numbers(w, "EndPointBack", 3)?;
+                    let front = x.numbers(w, "EndPointFront", 3)?;
+                    let back = x.numbers(w, "EndPointBack", 3)?;
                     Ok(WireSegment {
                         name: w.attribute("Name").unwrap_or("").to_string(),
                         front_in_phantom_mm: Point3::new(front[0], front[1], front[2]),
@@ -96,9 +88,9 @@ impl PlusConfig {
                 })
                 .collect::<Result<_, ConfigError>>()?;
             let [w1, w2, w3]: [WireSegment; 3] = wires.try_into().map_err(|w: Vec<WireSegment>| {
-                fail(pattern, format!("an N-wire needs 3 wires, this one has {}", w.len()))
+                x.fail(pattern, format!("an N-wire needs 3 wires, this one has {}", w.len()))
             })?;
-            let nwire = NWire::new([w1, w2, w3]).map_err(|e| fail(pattern, e))?;
+            let nwire = NWire::new([w1, w2, w3]).map_err(|e| x.fail(pattern, e))?;
             nwires.push(nwire);
         }
 
@@ -108,19 +100,16 @@ impl PlusConfig {
             .descendants()
             .find(|n| n.has_tag_name("Segmentation") && n.attribute("ApproximateSpacingMmPerPixel").is_some())
         {
-            let s = numbers(seg, "ApproximateSpacingMmPerPixel", 1)?[0];
+            let s = x.numbers(seg, "ApproximateSpacingMmPerPixel", 1)?[0];
             if s <= 0.0 {
-                return Err(fail(
-                    seg,
-                    format!("`ApproximateSpacingMmPerPixel` must be positive, got {s}"),
-                ));
+                return Err(x.fail(seg, format!("`ApproximateSpacingMmPerPixel` must be positive, got {s}")));
             }
             approximate_spacing_mm_per_px = Some(s);
             if seg.attribute("ClipRectangleOrigin").is_some() {
-                let o = numbers(seg, "ClipRectangleOrigin", 2)?;
-                let z = numbers(seg, "ClipRectangleSize", 2)?;
+                let o = x.numbers(seg, "ClipRectangleOrigin", 2)?;
+                let z = x.numbers(seg, "ClipRectangleSize", 2)?;
                 if o.iter().chain(&z).any(|v| *v < 0.0) {
-                    return Err(fail(seg, "the clip rectangle has a negative coordinate".into()));
+                    return Err(x.fail(seg, "the clip rectangle has a negative coordinate".into()));
                 }
                 clip_rectangle_px = Some(([o[0] as usize, o[1] as usize], [z[0] as usize, z[1] as usize]));
             }
@@ -154,17 +143,27 @@ impl PlusConfig {
     }
 }
 
-struct Xml<'a, 'input> {
-    path: &'a Path,
-    doc: &'a roxmltree::Document<'input>,
+/// Parses XML, a syntax error naming the file and line.
+pub(crate) fn parse_xml<'input>(path: &Path, text: &'input str) -> Result<roxmltree::Document<'input>, ConfigError> {
+    roxmltree::Document::parse(text).map_err(|e| ConfigError {
+        path: path.to_path_buf(),
+        line: Some(e.pos().row as usize),
+        message: format!("not well-formed XML: {e}"),
+    })
+}
+
+/// Attribute access with errors that name the file and the element's line.
+pub(crate) struct Xml<'a, 'input> {
+    pub(crate) path: &'a Path,
+    pub(crate) doc: &'a roxmltree::Document<'input>,
 }
 
 impl Xml<'_, '_> {
-    fn line(&self, node: roxmltree::Node) -> usize {
+    pub(crate) fn line(&self, node: roxmltree::Node) -> usize {
         self.doc.text_pos_at(node.range().start).row as usize
     }
 
-    fn fail(&self, node: roxmltree::Node, message: String) -> ConfigError {
+    pub(crate) fn fail(&self, node: roxmltree::Node, message: String) -> ConfigError {
         ConfigError {
             path: self.path.to_path_buf(),
             line: Some(self.line(node)),
@@ -172,12 +171,12 @@ impl Xml<'_, '_> {
         }
     }
 
-    fn attr<'n>(&self, node: roxmltree::Node<'n, '_>, name: &str) -> Result<&'n str, ConfigError> {
+    pub(crate) fn attr<'n>(&self, node: roxmltree::Node<'n, '_>, name: &str) -> Result<&'n str, ConfigError> {
         node.attribute(name)
             .ok_or_else(|| self.fail(node, format!("<{}> has no attribute `{name}`", node.tag_name().name())))
     }
 
-    fn numbers(&self, node: roxmltree::Node, name: &str, count: usize) -> Result<Vec<f64>, ConfigError> {
+    pub(crate) fn numbers(&self, node: roxmltree::Node, name: &str, count: usize) -> Result<Vec<f64>, ConfigError> {
         let text = self.attr(node, name)?;
         let values: Vec<f64> = text
             .split_whitespace()

@@ -5,7 +5,7 @@ use std::path::Path;
 
 use nalgebra::Matrix4;
 
-use super::config::ConfigError;
+use super::config::{parse_xml, ConfigError, Xml};
 
 #[derive(Debug, Clone, PartialEq)]
 pub struct PlusResult {
@@ -18,14 +18,13 @@ pub struct PlusResult {
 
 impl PlusResult {
     pub fn read(path: &Path) -> Result<PlusResult, ConfigError> {
-        let fail = |line: Option<usize>, message: String| ConfigError {
+        let text = std::fs::read_to_string(path).map_err(|e| ConfigError {
             path: path.to_path_buf(),
-            line,
-            message,
-        };
-        let text = std::fs::read_to_string(path).map_err(|e| fail(None, format!("cannot read: {e}")))?;
-        let doc = roxmltree::Document::parse(&text)
-            .map_err(|e| fail(Some(e.pos().row as usize), format!("not well-formed XML: {e}")))?;
+            line: None,
+            message: format!("cannot read: {e}"),
+        })?;
+        let doc = parse_xml(path, &text)?;
+        let x = Xml { path, doc: &doc };
         let transform = doc
             .descendants()
             .find(|n| {
@@ -33,21 +32,12 @@ impl PlusResult {
                     && n.attribute("From") == Some("Image")
                     && n.attribute("To") == Some("Probe")
             })
-            .ok_or_else(|| fail(None, "no <Transform From=\"Image\" To=\"Probe\">".into()))?;
-        let line = doc.text_pos_at(transform.range().start).row as usize;
-        let numbers: Vec<f64> = transform
-            .attribute("Matrix")
-            .unwrap_or("")
-            .split_whitespace()
-            .map(|s| s.parse::<f64>())
-            .collect::<Result<_, _>>()
-            .map_err(|_| fail(Some(line), "`Matrix` holds a non-number".into()))?;
-        if numbers.len() != 16 {
-            return Err(fail(
-                Some(line),
-                format!("`Matrix` has {} numbers, 16 expected", numbers.len()),
-            ));
-        }
+            .ok_or_else(|| ConfigError {
+                path: path.to_path_buf(),
+                line: None,
+                message: "no <Transform From=\"Image\" To=\"Probe\">".into(),
+            })?;
+        let numbers = x.numbers(transform, "Matrix", 16)?;
         let stats = doc
             .descendants()
             .find(|n| n.has_tag_name("ReprojectionError3DStatistics"));

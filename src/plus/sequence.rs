@@ -14,8 +14,6 @@ use std::collections::BTreeMap;
 use std::io::Read;
 use std::path::{Path, PathBuf};
 
-use nalgebra::Matrix4;
-
 use crate::geometry::{rigid_from_rows, Rigid};
 
 /// Why a sequence file could not be read.
@@ -350,10 +348,11 @@ impl Sequence {
         if numbers.len() != 16 {
             return Err(not_rigid(format!("{} numbers, a 4x4 matrix needs 16", numbers.len())));
         }
-        let rows = std::array::from_fn(|r| std::array::from_fn(|c| numbers[r * 4 + c]));
-        // Trackers write 6 significant digits: allow for that in the rotation check.
-        let m = Matrix4::from_fn(|r, c| numbers[r * 4 + c]);
-        let rotation = m.fixed_view::<3, 3>(0, 0).into_owned();
+        let mut rows: [[f64; 4]; 4] = std::array::from_fn(|r| std::array::from_fn(|c| numbers[r * 4 + c]));
+        // Trackers write 6 significant digits: a rotation that is orthonormal to that
+        // precision is snapped onto the nearest orthonormal matrix (a mirror stays a
+        // mirror and is refused below) before the strict check.
+        let rotation = nalgebra::Matrix3::from_fn(|r, c| rows[r][c]);
         let off = (rotation.transpose() * rotation - nalgebra::Matrix3::identity())
             .abs()
             .max();
@@ -361,13 +360,11 @@ impl Sequence {
             let svd = rotation.svd(true, true);
             if let (Some(u), Some(v_t)) = (svd.u, svd.v_t) {
                 let fixed = u * v_t;
-                let mut rows_fixed: [[f64; 4]; 4] = rows;
-                for (r, row) in rows_fixed.iter_mut().take(3).enumerate() {
+                for (r, row) in rows.iter_mut().take(3).enumerate() {
                     for (c, v) in row.iter_mut().take(3).enumerate() {
                         *v = fixed[(r, c)];
                     }
                 }
-                return rigid_from_rows(&rows_fixed).map_err(|e| not_rigid(e.to_string()));
             }
         }
         rigid_from_rows(&rows).map_err(|e| not_rigid(e.to_string()))
