@@ -17,53 +17,166 @@ use serde::Serialize;
 
 use crate::geometry::{pixel_to_image_mm, rotation_angle_between_deg, Rigid};
 use crate::horn::{self, HornError, HornFit, Variant};
+use crate::image_to_probe::{self, Constraint, Target};
 use crate::manifest::CutoffRule;
+
+/// One segmented feature of a frame: its pixel and where it lies in the phantom.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Observed {
+    pub pixel: [f64; 2],
+    pub target_in_phantom: Target,
+}
 
 /// One usable frame's measurements.
 #[derive(Debug, Clone)]
 pub struct Correspondence {
     pub frame: usize,
-    pub feature_px: [f64; 2],
+    /// One feature (hemisphere, pin head) or several (wire dots).
+    pub features: Vec<Observed>,
     pub camera_T_marker: Rigid,
     pub camera_T_phantom: Rigid,
 }
 
 impl Correspondence {
-    pub fn point_in_marker(&self, feature_in_phantom: &Point3<f64>) -> Point3<f64> {
-        self.camera_T_marker.inverse() * (self.camera_T_phantom * feature_in_phantom)
+    /// A frame with one point feature.
+    pub fn point(
+        frame: usize,
+        pixel: [f64; 2],
+        feature_in_phantom: Point3<f64>,
+        camera_T_marker: Rigid,
+        camera_T_phantom: Rigid,
+    ) -> Correspondence {
+        Correspondence {
+            frame,
+            features: vec![Observed {
+                pixel,
+                target_in_phantom: Target::Point(feature_in_phantom),
+            }],
+            camera_T_marker,
+            camera_T_phantom,
+        }
     }
 
-    /// The feature pixel back-projected into the phantom frame through a calibration.
-    pub fn reconstruct_in_phantom(&self, calibration: &HornFit, spacing: [f64; 2]) -> Point3<f64> {
-        let in_image = pixel_to_image_mm(self.feature_px, spacing);
+    pub fn marker_T_phantom(&self) -> Rigid {
+        self.camera_T_marker.inverse() * self.camera_T_phantom
+    }
+
+    /// A feature pixel back-projected into the phantom frame through a calibration.
+    pub fn reconstruct_in_phantom(&self, pixel: [f64; 2], calibration: &HornFit, spacing: [f64; 2]) -> Point3<f64> {
+        let in_image = pixel_to_image_mm(pixel, spacing);
         self.camera_T_phantom.inverse() * (self.camera_T_marker * calibration.apply(&in_image))
+    }
+
+    /// Residual of each feature in the phantom frame (mm): to its point, or
+    /// perpendicular to its line.
+    pub fn residuals_in_phantom(&self, calibration: &HornFit, spacing: [f64; 2]) -> Vec<Vector3<f64>> {
+        self.features
+            .iter()
+            .map(|f| {
+                let p = self.reconstruct_in_phantom(f.pixel, calibration, spacing);
+                match f.target_in_phantom {
+                    Target::Point(q) => p - q,
+                    Target::Line(q, d) => {
+                        let w = p - q;
+                        w - d * w.dot(&d)
+                    }
+                }
+            })
+            .collect()
     }
 }
 
 /// Solves `marker_T_image` (and a scale, for the similarity variant) from frames.
+/// Point features alone: Horn's closed form. With line features (wires): rigid
+/// Levenberg–Marquardt from `start`.
 pub fn solve(
     frames: &[Correspondence],
-    feature_in_phantom: &Point3<f64>,
     spacing: [f64; 2],
     variant: Variant,
+    start: Option<&Rigid>,
 ) -> Result<HornFit, HornError> {
-    let points_in_image: Vec<Point3<f64>> = frames
+    let all_points = frames
         .iter()
-        .map(|f| pixel_to_image_mm(f.feature_px, spacing))
+        .flat_map(|f| &f.features)
+        .all(|o| matches!(o.target_in_phantom, Target::Point(_)));
+    if all_points {
+        let mut points_in_image = Vec::new();
+        let mut points_in_marker = Vec::new();
+        for f in frames {
+            let marker_T_phantom = f.marker_T_phantom();
+            for o in &f.features {
+                if let Target::Point(p) = o.target_in_phantom {
+                    points_in_image.push(pixel_to_image_mm(o.pixel, spacing));
+                    points_in_marker.push(marker_T_phantom * p);
+                }
+            }
+        }
+        return horn::solve(&points_in_image, &points_in_marker, variant);
+    }
+    let Some(start) = start else {
+        return Err(HornError::Refinement(
+            "line features need a start (solve.initial_marker_T_image)".into(),
+        ));
+    };
+    let constraints: Vec<Constraint> = frames
+        .iter()
+        .flat_map(|f| {
+            let marker_T_phantom = f.marker_T_phantom().to_homogeneous();
+            f.features.iter().map(move |o| Constraint {
+                pixel: o.pixel,
+                probe_T_phantom: marker_T_phantom,
+                target_in_phantom: o.target_in_phantom,
+            })
+        })
         .collect();
-    let points_in_marker: Vec<Point3<f64>> = frames.iter().map(|f| f.point_in_marker(feature_in_phantom)).collect();
-    horn::solve(&points_in_image, &points_in_marker, variant)
+    // Six unknowns; each line feature gives two equations, a point three.
+    let equations: usize = frames
+        .iter()
+        .flat_map(|f| &f.features)
+        .map(|o| match o.target_in_phantom {
+            Target::Point(_) => 3,
+            Target::Line(..) => 2,
+        })
+        .sum();
+    if equations < 9 {
+        return Err(HornError::TooFewPairs(constraints.len()));
+    }
+    let (marker_T_image, rms) =
+        image_to_probe::refine_rigid(start, spacing, &constraints).map_err(|e| HornError::Refinement(e.to_string()))?;
+    Ok(HornFit {
+        target_T_source: marker_T_image,
+        scale: 1.0,
+        rms_residual_mm: rms,
+    })
 }
 
-/// Per-axis BRE of one frame, mm: `[|dx|, |dy|, |dz|]` and the 3D distance.
-pub fn bre(
-    frame: &Correspondence,
-    calibration: &HornFit,
-    feature_in_phantom: &Point3<f64>,
-    spacing: [f64; 2],
-) -> ([f64; 3], f64) {
-    let d: Vector3<f64> = frame.reconstruct_in_phantom(calibration, spacing) - feature_in_phantom;
-    ([d.x.abs(), d.y.abs(), d.z.abs()], d.norm())
+/// Per-axis BRE of one frame, mm: `[|dx|, |dy|, |dz|]` and the 3D distance, of its
+/// features' residuals in the phantom frame (averaged over its features).
+pub fn bre(frame: &Correspondence, calibration: &HornFit, spacing: [f64; 2]) -> ([f64; 3], f64) {
+    let residuals = frame.residuals_in_phantom(calibration, spacing);
+    let n = residuals.len().max(1) as f64;
+    let mut axes = [0.0; 3];
+    let mut norm = 0.0;
+    for d in &residuals {
+        axes[0] += d.x.abs() / n;
+        axes[1] += d.y.abs() / n;
+        axes[2] += d.z.abs() / n;
+        norm += d.norm() / n;
+    }
+    (axes, norm)
+}
+
+/// The largest per-axis BRE of any feature of a frame, and the largest 3D distance.
+fn worst_feature(frame: &Correspondence, calibration: &HornFit, spacing: [f64; 2]) -> ([f64; 3], f64) {
+    frame
+        .residuals_in_phantom(calibration, spacing)
+        .iter()
+        .fold(([0.0; 3], 0.0), |(a, n), d| {
+            (
+                [a[0].max(d.x.abs()), a[1].max(d.y.abs()), a[2].max(d.z.abs())],
+                f64::max(n, d.norm()),
+            )
+        })
 }
 
 /// Std (n − 1), mean, min, max of one axis, mm.
@@ -174,7 +287,8 @@ pub struct ThresholdRow {
 
 /// What the evaluation needs besides the frames.
 pub struct EvaluationInputs<'a> {
-    pub feature_in_phantom: Point3<f64>,
+    /// Where the line fit starts (wire phantoms).
+    pub start: Option<Rigid>,
     pub spacing: [f64; 2],
     pub cutoffs_mm: &'a [f64],
     pub rule: CutoffRule,
@@ -206,7 +320,7 @@ pub fn select_below(
         if kept.len() < inputs.min_frames {
             return (kept.clone(), Err(HornError::TooFewPairs(kept.len())));
         }
-        let fit = match solve(&kept, &inputs.feature_in_phantom, inputs.spacing, inputs.variant) {
+        let fit = match solve(&kept, inputs.spacing, inputs.variant, inputs.start.as_ref()) {
             Ok(fit) => fit,
             Err(e) => return (kept, Err(e)),
         };
@@ -214,7 +328,7 @@ pub fn select_below(
             .iter()
             .enumerate()
             .map(|(i, f)| {
-                let (axes, norm) = bre(f, &fit, &inputs.feature_in_phantom, inputs.spacing);
+                let (axes, norm) = worst_feature(f, &fit, inputs.spacing);
                 (i, rule_value(&axes, norm, inputs.rule))
             })
             .max_by(|a, b| a.1.total_cmp(&b.1));
@@ -235,9 +349,11 @@ pub fn threshold_table(frames: &[Correspondence], inputs: &EvaluationInputs<'_>)
         let (kept, fit) = select_below(frames, cutoff, inputs);
         let (stats, truth) = match &fit {
             Ok(fit) => {
+                // One sample per feature (the thesis's one per frame, for one feature a frame).
                 let values: Vec<[f64; 3]> = kept
                     .iter()
-                    .map(|f| bre(f, fit, &inputs.feature_in_phantom, inputs.spacing).0)
+                    .flat_map(|f| f.residuals_in_phantom(fit, inputs.spacing))
+                    .map(|d| [d.x.abs(), d.y.abs(), d.z.abs()])
                     .collect();
                 let truth = inputs
                     .truth
@@ -287,19 +403,14 @@ mod tests {
                 let t = feature.coords - phantom_T_image_rot * in_image.coords;
                 let phantom_T_image = Rigid::from_parts(t.into(), phantom_T_image_rot);
                 let camera_T_marker = camera_T_phantom * phantom_T_image * marker_T_image.inverse();
-                Correspondence {
-                    frame: k,
-                    feature_px: px,
-                    camera_T_marker,
-                    camera_T_phantom,
-                }
+                Correspondence::point(k, px, feature, camera_T_marker, camera_T_phantom)
             })
             .collect();
-        let fit = solve(&frames, &feature, spacing, Variant::Rigid).unwrap();
+        let fit = solve(&frames, spacing, Variant::Rigid, None).unwrap();
         let cmp = compare_with_truth(&fit, &marker_T_image, [800, 600], spacing);
         assert!(cmp.corner_error_max_mm < 1e-8, "{cmp:?}");
         for f in &frames {
-            assert!(bre(f, &fit, &feature, spacing).1 < 1e-8);
+            assert!(bre(f, &fit, spacing).1 < 1e-8);
         }
     }
 }

@@ -21,6 +21,9 @@ pub enum HornError {
     NotFinite(usize),
     #[error("{0} points are collinear or coincident: the rotation about their line is undetermined")]
     Degenerate(&'static str),
+    /// The nonlinear fit used for line targets (wires) failed.
+    #[error("point-to-line refinement: {0}")]
+    Refinement(String),
 }
 
 /// Result of a fit.

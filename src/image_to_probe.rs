@@ -248,6 +248,32 @@ pub fn refine(
     })
 }
 
+/// A rigid `probe_T_image` with the pixel spacing trusted, refined by
+/// Levenberg–Marquardt on point and line constraints from `start`. Returns the fit
+/// and its RMS residual (mm).
+pub fn refine_rigid(start: &Rigid, spacing: [f64; 2], constraints: &[Constraint]) -> Result<(Rigid, f64), LmError> {
+    let model_at = |x: &DVector<f64>| {
+        let delta = rigid_from_axis_angle(Vector3::new(x[0], x[1], x[2]), Vector3::zeros());
+        ImageToProbe {
+            probe_T_image: Rigid::from_parts(
+                (start.translation.vector + Vector3::new(x[3], x[4], x[5])).into(),
+                delta.rotation * start.rotation,
+            ),
+            spacing_mm_per_px: spacing,
+        }
+    };
+    let refs: Vec<&Constraint> = constraints.iter().collect();
+    let mut steps = DVector::from_element(6, 1e-5);
+    for k in 0..3 {
+        steps[k] = 1e-7;
+    }
+    let out = lm::minimise(DVector::zeros(6), &steps, 200, |x| {
+        residuals(&model_at(x), &Rigid::identity(), &refs)
+    })?;
+    let rms = (out.cost / constraints.len().max(1) as f64).sqrt();
+    Ok((model_at(&out.x).probe_T_image, rms))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -277,6 +303,34 @@ mod tests {
         let start = closed_form(&constraints).unwrap();
         let fit = refine(&start, &constraints, Some(3.0), false).unwrap();
         assert!(!fit.inlier[7]);
+        // The rigid refinement with the spacing trusted, from a start 5 mm and 3° off, on lines.
+        let lines: Vec<Constraint> = constraints
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| *i != 7)
+            .map(|(i, c)| {
+                let Target::Point(p) = c.target_in_phantom else {
+                    unreachable!()
+                };
+                let direction = [Vector3::x(), Vector3::y(), Vector3::z()][i % 3];
+                Constraint {
+                    target_in_phantom: Target::Line(p + direction * 7.0, direction),
+                    ..*c
+                }
+            })
+            .collect();
+        let start =
+            truth.probe_T_image * rigid_from_axis_angle(Vector3::new(0.03, -0.04, 0.02), Vector3::new(5.0, -3.0, 2.0));
+        let (rigid, rms) = refine_rigid(&start, truth.spacing_mm_per_px, &lines).unwrap();
+        let refined = ImageToProbe {
+            probe_T_image: rigid,
+            spacing_mm_per_px: truth.spacing_mm_per_px,
+        };
+        assert!(rms < 0.3, "{rms}");
+        for pixel in [[0.0, 0.0], [820.0, 616.0]] {
+            let e = (refined.apply(pixel) - truth.apply(pixel)).norm();
+            assert!(e < 0.2, "{e}");
+        }
         let s = fit.image_to_probe.spacing_mm_per_px;
         assert!((s[0] - 0.0803).abs() < 4e-4 && (s[1] - 0.0745).abs() < 4e-4, "{s:?}");
         for pixel in [[0.0, 0.0], [820.0, 616.0]] {

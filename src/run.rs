@@ -22,8 +22,10 @@ use crate::horn::{HornError, HornFit};
 use crate::image::{read_gray, read_gray_sized};
 use crate::manifest::{CameraSource, Dataset, DatasetSource, Manifest, Phantom};
 use crate::parallel::parallel_map;
+use crate::spot_detection::{self, Spot, SpotSettings};
 use crate::synth;
 use crate::truth::GroundTruth;
+use crate::wire_matching::{self, FrameDots, WireAxis};
 
 #[derive(Debug, thiserror::Error)]
 pub enum RunError {
@@ -82,6 +84,10 @@ pub enum Stage {
     BoardPose,
     BscanImage,
     Arc,
+    /// The pin head of the point phantom.
+    Spot,
+    /// Wire dots, or their pairing with the wires.
+    Wires,
 }
 
 impl Stage {
@@ -91,6 +97,8 @@ impl Stage {
             Stage::BoardPose => "board pose",
             Stage::BscanImage => "B-scan image",
             Stage::Arc => "arc detection",
+            Stage::Spot => "pin-head detection",
+            Stage::Wires => "wire dots",
         }
     }
 }
@@ -102,6 +110,12 @@ pub struct FrameRecord {
     pub rejection: Option<(Stage, String)>,
     pub poses: Option<FramePoses>,
     pub arc: Option<ArcFeature>,
+    /// Compact echoes found (point and wire phantoms), strongest first.
+    pub spots: Vec<Spot>,
+    /// The feature pixels used: the arc's centre, the pin head, the wire dots.
+    pub features_px: Vec<[f64; 2]>,
+    /// Wire phantoms: the wire of each feature.
+    pub wire_labels: Vec<String>,
     /// All-frames BRE `[x, y, z]` and 3D distance, mm (used frames).
     pub bre_mm: Option<([f64; 3], f64)>,
     /// Truth: frame kind and errors of the detections (rendered data).
@@ -162,7 +176,8 @@ pub struct DatasetRun {
     pub truth: Option<TruthSummary>,
     pub gates: Vec<GateResult>,
     pub spacing_mm_per_px: [f64; 2],
-    pub feature_in_phantom_mm: [f64; 3],
+    /// The phantom's point feature (hemisphere centre, pin head); `None` for wires.
+    pub feature_in_phantom_mm: Option<[f64; 3]>,
     pub timings_s: Vec<(&'static str, f64)>,
     /// Every file the run read (for provenance).
     pub input_files: Vec<PathBuf>,
@@ -215,17 +230,42 @@ fn camera_stage(manifest: &Manifest, dataset: &str, folder: &Path) -> Result<Cam
     }
 }
 
+/// The B-scan feature detector of a phantom.
+#[derive(Debug, Clone, Copy)]
+enum Detector {
+    Arc(ArcSettings),
+    PinHead(SpotSettings),
+    WireDots(SpotSettings),
+}
+
+/// Two pin-head candidates closer in strength than this make the pin head ambiguous.
+const PIN_HEAD_MIN_STRENGTH_RATIO: f64 = 1.5;
+
+/// The echoes that look like a pin head of radius `r`: no wider across the beam
+/// than the head plus the beam's blur, followed by a comet tail (the head's
+/// reverberation) along the beam. Strongest first.
+fn pin_head_candidates(spots: &[Spot], r: f64) -> Vec<Spot> {
+    spots
+        .iter()
+        .filter(|s| s.width_mm <= 2.0 * r + 1.0 && s.length_mm >= 2.0 * r + 1.5)
+        .cloned()
+        .collect()
+}
+
 fn process_frame(
     files: &FrameFiles,
     camera: &CameraIntrinsics,
     rig: &RigBoards,
-    arc: &ArcSettings,
+    detector: &Detector,
 ) -> Result<FrameRecord, RunError> {
     let mut record = FrameRecord {
         files: files.clone(),
         rejection: None,
         poses: None,
         arc: None,
+        spots: Vec::new(),
+        features_px: Vec::new(),
+        wire_labels: Vec::new(),
         bre_mm: None,
         truth_kind: None,
         truth_arc_centre_error_px: None,
@@ -257,10 +297,66 @@ fn process_frame(
         }
     };
     record.bscan_size_px = Some([bscan.cols() as usize, bscan.rows() as usize]);
-    match arc_detection::detect(&bscan, arc) {
-        Ok(Ok(feature)) => record.arc = Some(feature),
-        Ok(Err(reason)) => record.rejection = Some((Stage::Arc, reason)),
-        Err(e) => record.rejection = Some((Stage::BscanImage, e.to_string())),
+    let spots = match detector {
+        Detector::Arc(arc) => {
+            match arc_detection::detect(&bscan, arc) {
+                Ok(Ok(feature)) => {
+                    record.features_px = vec![feature.centre_px];
+                    record.arc = Some(feature);
+                }
+                Ok(Err(reason)) => record.rejection = Some((Stage::Arc, reason)),
+                Err(e) => record.rejection = Some((Stage::BscanImage, e.to_string())),
+            }
+            return Ok(record);
+        }
+        Detector::PinHead(settings) | Detector::WireDots(settings) => match spot_detection::detect(&bscan, settings) {
+            Ok(spots) => spots,
+            Err(e) => {
+                record.rejection = Some((Stage::BscanImage, e.to_string()));
+                return Ok(record);
+            }
+        },
+    };
+    record.spots = spots.spots.clone();
+    let px = |p: [f64; 2]| format!("({:.0}, {:.0})", p[0], p[1]);
+    match detector {
+        Detector::PinHead(settings) => match pin_head_candidates(&spots.spots, settings.object_radius_mm).as_slice() {
+            [] => {
+                record.rejection = Some((
+                    Stage::Spot,
+                    format!(
+                        "no echo as wide as the pin head with a comet tail behind it ({} compact echoes, {} surface echoes)",
+                        spots.spots.len(),
+                        spots.surfaces
+                    ),
+                ))
+            }
+            [first, second, ..] if first.strength < PIN_HEAD_MIN_STRENGTH_RATIO * second.strength => {
+                record.rejection = Some((
+                    Stage::Spot,
+                    format!(
+                        "ambiguous: compact echoes of similar strength at {} and {} px",
+                        px(first.echo_px),
+                        px(second.echo_px)
+                    ),
+                ))
+            }
+            [first, ..] => record.features_px = vec![first.centre_px],
+        },
+        _ => {
+            if spots.spots.len() < 2 {
+                record.rejection = Some((
+                    Stage::Wires,
+                    format!(
+                        "{} compact echoes, at least 2 wire dots are needed ({} surface echoes)",
+                        spots.spots.len(),
+                        spots.surfaces
+                    ),
+                ));
+            } else {
+                record.features_px = spots.spots.iter().map(|s| s.centre_px).collect();
+            }
+        }
     }
     Ok(record)
 }
@@ -283,15 +379,6 @@ pub fn run_dataset(
 ) -> Result<DatasetRun, RunError> {
     let name = dataset.name.clone();
     let mut timings = Vec::new();
-    let Phantom::Hemisphere {
-        centre_in_phantom_mm,
-        radius_mm,
-    } = &manifest.phantom
-    else {
-        return Err(RunError::Unsupported(
-            "only the hemisphere phantom can be run in this version".into(),
-        ));
-    };
     let clock = Instant::now();
     let (folder, rendered) = match &dataset.source {
         DatasetSource::Render(spec) => {
@@ -335,20 +422,46 @@ pub fn run_dataset(
     let clock = Instant::now();
     let rig = RigBoards::from_manifest(&manifest.rig).map_err(|e| RunError::Unsupported(e.to_string()))?;
     let spacing = manifest.bscan_spacing_mm_per_px;
-    let arc_settings = ArcSettings {
-        spacing_mm_per_px: spacing,
-        radius_mm: [
-            manifest.arc_detection.radius_fraction[0] * radius_mm,
-            manifest.arc_detection.radius_fraction[1] * radius_mm,
-        ],
-        min_span_deg: manifest.arc_detection.min_span_deg,
-        max_rms_px: manifest.arc_detection.max_rms_px,
-        min_points: manifest.arc_detection.min_points,
-        fixed_radius_mm: (manifest.arc_detection.fit_radius == crate::manifest::FitRadius::Known).then_some(*radius_mm),
+    let (detector, point_feature) = match &manifest.phantom {
+        Phantom::Hemisphere {
+            centre_in_phantom_mm,
+            radius_mm,
+        } => (
+            Detector::Arc(ArcSettings {
+                spacing_mm_per_px: spacing,
+                radius_mm: [
+                    manifest.arc_detection.radius_fraction[0] * radius_mm,
+                    manifest.arc_detection.radius_fraction[1] * radius_mm,
+                ],
+                min_span_deg: manifest.arc_detection.min_span_deg,
+                max_rms_px: manifest.arc_detection.max_rms_px,
+                min_points: manifest.arc_detection.min_points,
+                fixed_radius_mm: (manifest.arc_detection.fit_radius == crate::manifest::FitRadius::Known)
+                    .then_some(*radius_mm),
+            }),
+            Some(*centre_in_phantom_mm),
+        ),
+        Phantom::Point {
+            position_in_phantom_mm,
+            head_radius_mm,
+        } => (
+            Detector::PinHead(SpotSettings {
+                spacing_mm_per_px: spacing,
+                object_radius_mm: *head_radius_mm,
+            }),
+            Some(*position_in_phantom_mm),
+        ),
+        Phantom::FourWire { wire_diameter_mm, .. } => (
+            Detector::WireDots(SpotSettings {
+                spacing_mm_per_px: spacing,
+                object_radius_mm: wire_diameter_mm / 2.0,
+            }),
+            None,
+        ),
     };
-    let progress = crate::progress::Progress::new(files.len(), "board poses and arcs");
+    let progress = crate::progress::Progress::new(files.len(), "board poses and B-scan features");
     let mut frames = parallel_map(files.len(), |i| {
-        let record = process_frame(&files[i], &camera.intrinsics, &rig, &arc_settings);
+        let record = process_frame(&files[i], &camera.intrinsics, &rig, &detector);
         progress.inc();
         record
     })
@@ -358,20 +471,82 @@ pub fn run_dataset(
     timings.push(("frames (board poses and arcs)", clock.elapsed().as_secs_f64()));
 
     let clock = Instant::now();
-    let feature = Point3::from(nalgebra::Vector3::from(*centre_in_phantom_mm));
-    let correspondences: Vec<Correspondence> = frames
-        .iter()
-        .filter(|f| f.rejection.is_none())
-        .filter_map(|f| {
-            let (poses, arc) = (f.poses.as_ref()?, f.arc.as_ref()?);
-            Some(Correspondence {
-                frame: f.files.frame,
-                feature_px: arc.centre_px,
-                camera_T_marker: poses.camera_T_marker.camera_T_board,
-                camera_T_phantom: poses.camera_T_phantom.camera_T_board,
+    let usable = |f: &FrameRecord| f.rejection.is_none() && f.poses.is_some() && !f.features_px.is_empty();
+    let min_frames = manifest.thresholds.min_frames;
+    let variant = match manifest.solve_variant {
+        crate::manifest::SolveVariant::Rigid => crate::horn::Variant::Rigid,
+        crate::manifest::SolveVariant::Similarity => crate::horn::Variant::Similarity,
+    };
+    let correspondences: Vec<Correspondence> = match (&manifest.phantom, point_feature) {
+        (_, Some(feature)) => frames
+            .iter()
+            .filter(|f| usable(f))
+            .filter_map(|f| {
+                let poses = f.poses.as_ref()?;
+                Some(Correspondence::point(
+                    f.files.frame,
+                    f.features_px[0],
+                    Point3::from(nalgebra::Vector3::from(feature)),
+                    poses.camera_T_marker.camera_T_board,
+                    poses.camera_T_phantom.camera_T_board,
+                ))
             })
-        })
-        .collect();
+            .collect(),
+        (Phantom::FourWire { wires, .. }, None) => {
+            let axes: Vec<WireAxis> = wires
+                .iter()
+                .map(|w| WireAxis {
+                    name: w.name.clone(),
+                    start_in_phantom_mm: Point3::from(w.start_in_phantom_mm),
+                    end_in_phantom_mm: Point3::from(w.end_in_phantom_mm),
+                })
+                .collect();
+            let dots: Vec<FrameDots> = frames
+                .iter()
+                .filter(|f| usable(f))
+                .filter_map(|f| {
+                    let poses = f.poses.as_ref()?;
+                    Some(FrameDots {
+                        frame: f.files.frame,
+                        dots_px: f.features_px.clone(),
+                        camera_T_marker: poses.camera_T_marker.camera_T_board,
+                        camera_T_phantom: poses.camera_T_phantom.camera_T_board,
+                    })
+                })
+                .collect();
+            let start = manifest.initial_marker_T_image.ok_or_else(|| {
+                RunError::Unsupported("the four_wire phantom needs solve.initial_marker_T_image".into())
+            })?;
+            let matching =
+                wire_matching::match_and_solve(&dots, &axes, &start, spacing, min_frames).map_err(|source| {
+                    RunError::Solve {
+                        dataset: name.clone(),
+                        source,
+                    }
+                })?;
+            log(&format!(
+                "wires: {} frames paired in {} rounds, {} left out",
+                matching.correspondences.len(),
+                matching.rounds,
+                matching.rejected.len()
+            ));
+            for f in frames.iter_mut() {
+                if let Some((_, reason)) = matching.rejected.iter().find(|(k, _)| *k == f.files.frame) {
+                    f.rejection = Some((Stage::Wires, reason.clone()));
+                }
+                if let Some((_, labels)) = matching.labels.iter().find(|(k, _)| *k == f.files.frame) {
+                    f.wire_labels = labels.clone();
+                }
+                if let Some(c) = matching.correspondences.iter().find(|c| c.frame == f.files.frame) {
+                    f.features_px = c.features.iter().map(|o| o.pixel).collect();
+                }
+            }
+            matching.correspondences
+        }
+        (_, None) => return Err(RunError::Unsupported("phantom without features".into())),
+    };
+    // Where line fits start: the manifest's guess, refined on all frames below.
+    let mut start = manifest.initial_marker_T_image;
     let min_frames = manifest.thresholds.min_frames;
     if correspondences.len() < min_frames {
         let reasons = frames
@@ -391,18 +566,17 @@ pub fn run_dataset(
             reasons,
         });
     }
-    let variant = match manifest.solve_variant {
-        crate::manifest::SolveVariant::Rigid => crate::horn::Variant::Rigid,
-        crate::manifest::SolveVariant::Similarity => crate::horn::Variant::Similarity,
-    };
     let all_frames_fit =
-        evaluate::solve(&correspondences, &feature, spacing, variant).map_err(|source| RunError::Solve {
+        evaluate::solve(&correspondences, spacing, variant, start.as_ref()).map_err(|source| RunError::Solve {
             dataset: name.clone(),
             source,
         })?;
+    if start.is_some() {
+        start = Some(all_frames_fit.target_T_source);
+    }
     for f in frames.iter_mut() {
         if let Some(c) = correspondences.iter().find(|c| c.frame == f.files.frame) {
-            f.bre_mm = Some(evaluate::bre(c, &all_frames_fit, &feature, spacing));
+            f.bre_mm = Some(evaluate::bre(c, &all_frames_fit, spacing));
         }
     }
 
@@ -412,7 +586,7 @@ pub fn run_dataset(
         source,
     })?;
     let inputs = EvaluationInputs {
-        feature_in_phantom: feature,
+        start,
         spacing,
         cutoffs_mm: &manifest.thresholds.bre_cutoffs_mm,
         rule: manifest.thresholds.cutoff_rule,
@@ -445,10 +619,24 @@ pub fn run_dataset(
             let Some(tf) = t.frame(f.files.frame) else { continue };
             f.truth_kind = Some(tf.kind.clone());
             f.truth_elevation_offset_mm = Some(tf.elevation_offset_mm);
-            if let Some(arc) = &f.arc {
-                let e = ((arc.centre_px[0] - tf.centre_projection_px[0]).powi(2)
-                    + (arc.centre_px[1] - tf.centre_projection_px[1]).powi(2))
-                .sqrt();
+            let distance = |a: [f64; 2], b: [f64; 2]| ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2)).sqrt();
+            // The feature pixels against the truth: the centre's projection, or each
+            // paired wire dot against its wire's true dot.
+            let error = if f.wire_labels.is_empty() {
+                f.features_px.first().map(|p| distance(*p, tf.centre_projection_px))
+            } else {
+                let errors: Vec<f64> = f
+                    .features_px
+                    .iter()
+                    .zip(&f.wire_labels)
+                    .filter_map(|(p, label)| {
+                        let dot = tf.wire_dots_px.iter().find(|d| &d.wire == label)?;
+                        Some(distance(*p, dot.pixel))
+                    })
+                    .collect();
+                (!errors.is_empty()).then(|| errors.iter().sum::<f64>() / errors.len() as f64)
+            };
+            if let Some(e) = error {
                 f.truth_arc_centre_error_px = Some(e);
                 if f.rejection.is_none() && tf.kind == "normal" {
                     arc_errors.push(e);
@@ -515,7 +703,7 @@ pub fn run_dataset(
         truth: truth_summary,
         gates,
         spacing_mm_per_px: spacing,
-        feature_in_phantom_mm: *centre_in_phantom_mm,
+        feature_in_phantom_mm: point_feature,
         timings_s: timings,
         input_files,
         seed,

@@ -16,6 +16,15 @@ pub struct TruthFrame {
     pub camera_T_marker_photo: [[f64; 4]; 4],
     pub elevation_offset_mm: f64,
     pub centre_projection_px: [f64; 2],
+    #[serde(default)]
+    pub wire_dots_px: Vec<WireDot>,
+}
+
+/// Where a wire's axis crosses a B-scan plane.
+#[derive(Debug, Clone, serde::Serialize, Deserialize)]
+pub struct WireDot {
+    pub wire: String,
+    pub pixel: [f64; 2],
 }
 
 #[derive(Debug, Clone, Deserialize)]

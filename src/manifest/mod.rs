@@ -128,6 +128,8 @@ pub struct Manifest {
     pub arc_detection: ArcDetection,
     pub thresholds: Thresholds,
     pub solve_variant: SolveVariant,
+    /// A rough `marker_T_image` that starts the wire fit (`solve.initial_marker_T_image`).
+    pub initial_marker_T_image: Option<crate::geometry::Rigid>,
     pub datasets: Vec<Dataset>,
 }
 
@@ -337,18 +339,78 @@ fn validate(c: &mut Checker<'_>, base: &Path, raw: raw::RawManifest, path: &Path
         );
     }
     match &raw.phantom {
-        Phantom::Hemisphere { centre_in_phantom_mm, radius_mm } => {
+        Phantom::Hemisphere {
+            centre_in_phantom_mm,
+            radius_mm,
+        } => {
             c.finite("phantom.hemisphere.centre_in_phantom_mm", centre_in_phantom_mm);
             c.positive("phantom.hemisphere.radius_mm", *radius_mm);
         }
-        Phantom::Point { .. } => c.fail(
-            "phantom.point",
-            "the point phantom is described but this version of probecal has no B-scan detector for it; use `hemisphere`",
-        ),
-        Phantom::FourWire { .. } => c.fail(
-            "phantom.four_wire",
-            "the 4-wire phantom is described but this version of probecal has no B-scan detector for it; use `hemisphere`",
-        ),
+        Phantom::Point {
+            position_in_phantom_mm,
+            head_radius_mm,
+        } => {
+            c.finite("phantom.point.position_in_phantom_mm", position_in_phantom_mm);
+            c.positive("phantom.point.head_radius_mm", *head_radius_mm);
+        }
+        Phantom::FourWire {
+            wires,
+            wire_diameter_mm,
+        } => {
+            c.positive("phantom.four_wire.wire_diameter_mm", *wire_diameter_mm);
+            if wires.len() < 3 {
+                c.fail(
+                    "phantom.four_wire.wires",
+                    format!(
+                        "needs at least 3 wires, not all parallel (got {}): dots on parallel wires leave the position along them unknown",
+                        wires.len()
+                    ),
+                );
+            }
+            let mut directions = Vec::new();
+            for (i, w) in wires.iter().enumerate() {
+                let field = format!("phantom.four_wire.wires[{i}]");
+                c.finite(&format!("{field}.start_in_phantom_mm"), &w.start_in_phantom_mm);
+                c.finite(&format!("{field}.end_in_phantom_mm"), &w.end_in_phantom_mm);
+                let d = nalgebra::Vector3::from(w.end_in_phantom_mm) - nalgebra::Vector3::from(w.start_in_phantom_mm);
+                if d.norm().is_nan() || d.norm() <= 1.0 {
+                    c.fail(
+                        &format!("{field}.end_in_phantom_mm"),
+                        "must be at least 1 mm from the start",
+                    );
+                } else {
+                    directions.push(d.normalize());
+                }
+                if wires[..i].iter().any(|o| o.name == w.name) {
+                    c.fail(&format!("{field}.name"), format!("`{}` names two wires", w.name));
+                }
+            }
+            if wires.len() >= 3
+                && directions.len() == wires.len()
+                && directions.iter().all(|d| d.cross(&directions[0]).norm() < 1e-3)
+            {
+                c.fail(
+                    "phantom.four_wire.wires",
+                    "all wires are parallel: the position along them cannot be found",
+                );
+            }
+            if raw.solve.initial_marker_T_image.is_none() {
+                c.fail(
+                    "solve.initial_marker_T_image",
+                    "the four_wire phantom needs a rough marker_T_image to match dots to wires (rotation_deg, translation_mm)",
+                );
+            }
+            if raw.solve.variant != SolveVariant::Rigid {
+                c.fail(
+                    "solve.variant",
+                    "the four_wire phantom is solved rigid (the pixel spacing is trusted)",
+                );
+            }
+        }
+    }
+    if let Some(t) = &raw.solve.initial_marker_T_image {
+        c.finite("solve.initial_marker_T_image.rotation_deg", &t.rotation_deg);
+        c.finite("solve.initial_marker_T_image.translation_mm", &t.translation_mm);
     }
     match &raw.rig {
         Rig::Checkerboard {
@@ -592,8 +654,21 @@ fn validate(c: &mut Checker<'_>, base: &Path, raw: raw::RawManifest, path: &Path
             regression: t.regression.clone(),
         },
         solve_variant: raw.solve.variant,
+        initial_marker_T_image: raw
+            .solve
+            .initial_marker_T_image
+            .as_ref()
+            .map(crate::synth::scene::true_transform),
         datasets,
     }
+}
+
+/// The point a wire phantom is laid out around: the mean of its wires' midpoints.
+pub fn wires_centre(wires: &[(nalgebra::Point3<f64>, nalgebra::Point3<f64>)]) -> nalgebra::Point3<f64> {
+    let sum = wires.iter().fold(nalgebra::Vector3::zeros(), |acc, (a, b)| {
+        acc + (a.coords + b.coords) / 2.0
+    });
+    nalgebra::Point3::from(sum / wires.len().max(1) as f64)
 }
 
 fn validate_render(c: &mut Checker<'_>, field: &str, spec: &RenderSpec) {

@@ -32,6 +32,10 @@ pub struct Solve {
     /// `rigid` trusts the B-scan pixel spacing; `similarity` also estimates an
     /// isotropic scale on it (Horn's variant with scale, the thesis's eq. 4).
     pub variant: SolveVariant,
+    /// A rough `marker_T_image` (e.g. from the probe clip's drawing) that starts the
+    /// wire fit: dots are matched to the wires it predicts, then refined. Needed by
+    /// the 4-wire phantom; a few millimetres and degrees off is enough.
+    pub initial_marker_T_image: Option<TrueTransform>,
 }
 
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize, Serialize)]
@@ -51,10 +55,21 @@ pub enum Phantom {
         centre_in_phantom_mm: [f64; 3],
         radius_mm: f64,
     },
-    /// A pin head in a silicone block.
-    Point { position_in_phantom_mm: [f64; 3] },
-    /// Two crossing and two parallel wires.
+    /// A pin head in a silicone block; the feature is the head's centre.
+    Point {
+        position_in_phantom_mm: [f64; 3],
+        /// The head's radius: its echo comes from the surface facing the probe, one
+        /// radius before the centre along the beam.
+        #[serde(default = "default_head_radius")]
+        head_radius_mm: f64,
+    },
+    /// Two crossing and two parallel wires: each B-scan dot lies on its wire's
+    /// axis; where the plane passes a crossing, on the crossing point.
     FourWire { wires: Vec<Wire>, wire_diameter_mm: f64 },
+}
+
+fn default_head_radius() -> f64 {
+    1.0
 }
 
 #[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
@@ -362,6 +377,8 @@ pub struct Sweep {
     /// Hand motion between the photo and the B-scan.
     pub tremor_mm: f64,
     pub tremor_deg: f64,
+    /// Wire phantoms: how far along the wires (either way from their middle) the plane travels.
+    pub wire_travel_mm: f64,
 }
 
 impl Default for Sweep {
@@ -373,6 +390,7 @@ impl Default for Sweep {
             elevation_offset_sd_mm: 0.5,
             tremor_mm: 0.1,
             tremor_deg: 0.03,
+            wire_travel_mm: 12.0,
         }
     }
 }

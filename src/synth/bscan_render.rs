@@ -10,7 +10,7 @@
 
 use nalgebra::{Point3, Vector3};
 
-use super::scene::{FrameKind, Scene};
+use super::scene::{FrameKind, Scene, Shape};
 use crate::geometry::Rigid;
 use crate::image::{gaussian_blur_f32, Gray8, ImageError};
 use crate::rng::Rng;
@@ -42,7 +42,12 @@ pub fn draw_bubbles(
 ) -> Vec<Bubble> {
     let mut bubbles = Vec::new();
     let geometry = &scene.bscan;
-    let c = scene.sphere_centre_world.coords;
+    let c = scene.feature_centre_world.coords;
+    let keep_off = match &scene.shape {
+        Shape::Hemisphere { radius_mm } => radius_mm + 1.5,
+        Shape::Point { head_radius_mm } => head_radius_mm + 4.0,
+        Shape::Wires { .. } => 4.0,
+    };
     let normal = world_T_image.rotation * Vector3::z();
     if rng.chance(model.bubble_rate) {
         for _ in 0..1 + rng.below(4) {
@@ -51,7 +56,7 @@ pub fn draw_bubbles(
             let v = rng.uniform(8.0, geometry.depth_mm * 0.8);
             let e = rng.uniform(-0.5, 0.5) * model.slice_thickness_mm;
             let p = world_T_image * Point3::new(u, v, e);
-            if (p.coords - c).norm() > scene.sphere_radius_mm + 1.5 && p.z > scene.tank.floor_z_mm + 2.0 {
+            if (p.coords - c).norm() > keep_off && p.z > scene.tank.floor_z_mm + 2.0 {
                 bubbles.push(Bubble {
                     centre_world_mm: p.coords.into(),
                     radius_mm: rng.uniform(0.3, 0.9),
@@ -60,17 +65,51 @@ pub fn draw_bubbles(
         }
     }
     if kind == FrameKind::DomeBubbles {
-        // Stuck on the dome near where the plane cuts it.
-        for _ in 0..3 + rng.below(4) {
-            let around = rng.uniform(-60f64, 60.0).to_radians();
-            let in_plane = world_T_image.rotation * Vector3::new(around.sin(), -around.cos(), 0.0);
-            let dir = (in_plane + normal * rng.uniform(-0.08, 0.08)).normalize();
-            let r = rng.uniform(0.6, 1.4);
-            let p = c + dir * (scene.sphere_radius_mm + r);
-            bubbles.push(Bubble {
-                centre_world_mm: p.into(),
-                radius_mm: r,
-            });
+        match &scene.shape {
+            Shape::Hemisphere { radius_mm } => {
+                // Stuck on the dome near where the plane cuts it.
+                for _ in 0..3 + rng.below(4) {
+                    let around = rng.uniform(-60f64, 60.0).to_radians();
+                    let in_plane = world_T_image.rotation * Vector3::new(around.sin(), -around.cos(), 0.0);
+                    let dir = (in_plane + normal * rng.uniform(-0.08, 0.08)).normalize();
+                    let r = rng.uniform(0.6, 1.4);
+                    let p = c + dir * (radius_mm + r);
+                    bubbles.push(Bubble {
+                        centre_world_mm: p.into(),
+                        radius_mm: r,
+                    });
+                }
+            }
+            Shape::Point { head_radius_mm } => {
+                // Caught on the pin and the block around the head.
+                for _ in 0..2 + rng.below(3) {
+                    let around = rng.uniform(0.0, std::f64::consts::TAU);
+                    let distance = head_radius_mm + rng.uniform(2.5, 6.0);
+                    let in_plane = world_T_image.rotation * Vector3::new(around.cos(), around.sin(), 0.0);
+                    let p = c + in_plane * distance + normal * rng.uniform(-0.3, 0.3);
+                    bubbles.push(Bubble {
+                        centre_world_mm: p.into(),
+                        radius_mm: rng.uniform(0.4, 0.9),
+                    });
+                }
+            }
+            Shape::Wires { wires_world, radius_mm } => {
+                // Stuck on the wires near where the plane crosses them.
+                for _ in 0..2 + rng.below(3) {
+                    let (a, b) = &wires_world[rng.below(wires_world.len())];
+                    let Some(p) = super::scene::segment_in_plane(world_T_image, a, b) else {
+                        continue;
+                    };
+                    let around = rng.uniform(0.0, std::f64::consts::TAU);
+                    let r = rng.uniform(0.4, 0.8);
+                    let offset = Vector3::new(around.cos(), around.sin(), 0.0) * (radius_mm + r + 0.3);
+                    let p = world_T_image * (p + offset);
+                    bubbles.push(Bubble {
+                        centre_world_mm: p.coords.into(),
+                        radius_mm: r,
+                    });
+                }
+            }
         }
     }
     bubbles
@@ -84,6 +123,145 @@ fn ray_sphere(origin: &Vector3<f64>, dir: &Vector3<f64>, centre: &Vector3<f64>, 
     (disc >= 0.0).then(|| -b - disc.sqrt())
 }
 
+/// First intersection distance of a ray with a cylinder around the segment `a`–`b`,
+/// within the segment, and the cosine of the incidence.
+fn ray_cylinder(
+    origin: &Vector3<f64>,
+    dir: &Vector3<f64>,
+    a: &Vector3<f64>,
+    b: &Vector3<f64>,
+    radius: f64,
+) -> Option<(f64, f64)> {
+    let length = (b - a).norm();
+    let axis = (b - a) / length;
+    let w = origin - a;
+    let d_perp = dir - axis * dir.dot(&axis);
+    let w_perp = w - axis * w.dot(&axis);
+    let qa = d_perp.norm_squared();
+    if qa < 1e-12 {
+        return None;
+    }
+    let qb = 2.0 * d_perp.dot(&w_perp);
+    let qc = w_perp.norm_squared() - radius * radius;
+    let disc = qb * qb - 4.0 * qa * qc;
+    if disc < 0.0 {
+        return None;
+    }
+    let lambda = (-qb - disc.sqrt()) / (2.0 * qa);
+    let hit = origin + dir * lambda;
+    let along = (hit - a).dot(&axis);
+    if lambda <= 0.0 || along < 0.0 || along > length {
+        return None;
+    }
+    let normal = ((hit - a) - axis * along) / radius;
+    Some((lambda, dir.dot(&normal).abs()))
+}
+
+/// Where a ray meets a horizontal surface at height `z` inside `[x0, x1] x [y0, y1]`
+/// (world frame), coming from above.
+fn ray_surface(origin: &Vector3<f64>, dir: &Vector3<f64>, z: f64, bounds: [f64; 4]) -> Option<f64> {
+    if dir.z > -1e-6 || origin.z < z {
+        return None;
+    }
+    let lambda = (z - origin.z) / dir.z;
+    let hit = origin + dir * lambda;
+    let [x0, x1, y0, y1] = bounds;
+    (hit.x > x0 && hit.x < x1 && hit.y > y0 && hit.y < y1).then_some(lambda)
+}
+
+/// The point phantom's silicone block (top surface height below the pin head) and
+/// the weights lying on it, relative to the head; the wire box's floor below the wires.
+const BLOCK_TOP_BELOW_HEAD_MM: f64 = 12.0;
+const WEIGHTS_ON_BLOCK_MM: [[f64; 3]; 2] = [[-24.0, 1.5, 3.5], [27.0, -2.0, 3.0]];
+const PIN_RADIUS_MM: f64 = 0.3;
+const WIRE_BOX_FLOOR_BELOW_MM: f64 = 20.0;
+
+fn gauss(x: f64, sigma: f64) -> f64 {
+    (-(x / sigma).powi(2) / 2.0).exp()
+}
+
+/// The echo (summed over several reflections) and where the beam is blocked, for one
+/// ray through the phantom's parts other than the hemisphere.
+fn phantom_echo(scene: &Scene, origin: &Vector3<f64>, dir: &Vector3<f64>, r: f64, near_mm: f64) -> (f64, f64) {
+    let c = scene.feature_centre_world.coords;
+    let mut echo = 0.0;
+    let mut blocked_at = f64::INFINITY;
+    match &scene.shape {
+        Shape::Hemisphere { .. } => {}
+        Shape::Point { head_radius_mm } => {
+            if let Some(lambda) = ray_sphere(origin, dir, &c, *head_radius_mm).filter(|l| *l > near_mm) {
+                let n = (origin + dir * lambda - c) / *head_radius_mm;
+                let strength = 0.25 + 0.75 * dir.dot(&n).abs().powi(2);
+                echo += 1.8 * strength * gauss(r - lambda, AXIAL_SIGMA_MM);
+                // The comet tail: reverberation inside the head, fading with depth.
+                for k in 1..=8 {
+                    let at = lambda + 2.0 * head_radius_mm + 0.6 * k as f64;
+                    echo += 0.9 * strength * 0.68f64.powi(k) * gauss(r - at, AXIAL_SIGMA_MM);
+                }
+                blocked_at = lambda + 2.0 * head_radius_mm;
+            }
+            let block_top = c.z - BLOCK_TOP_BELOW_HEAD_MM;
+            // The pin, from the head down into the block.
+            let pin_top = c - Vector3::z() * *head_radius_mm;
+            let pin_bottom = Vector3::new(c.x, c.y, block_top);
+            if let Some((lambda, incidence)) = ray_cylinder(origin, dir, &pin_top, &pin_bottom, PIN_RADIUS_MM) {
+                if lambda < blocked_at {
+                    echo += 0.35 * (0.2 + 0.8 * incidence) * gauss(r - lambda, AXIAL_SIGMA_MM);
+                }
+            }
+            for w in WEIGHTS_ON_BLOCK_MM {
+                let centre = Vector3::new(c.x + w[0], c.y + w[1], block_top + w[2]);
+                if let Some(lambda) = ray_sphere(origin, dir, &centre, w[2]).filter(|l| *l > near_mm) {
+                    if lambda < blocked_at {
+                        let n = (origin + dir * lambda - centre) / w[2];
+                        echo += 1.5 * (0.2 + 0.8 * dir.dot(&n).abs().powi(2)) * gauss(r - lambda, AXIAL_SIGMA_MM);
+                        blocked_at = lambda + AXIAL_SIGMA_MM * 2.0;
+                    }
+                }
+            }
+            let bounds = [c.x - 40.0, c.x + 40.0, c.y - 30.0, c.y + 30.0];
+            if let Some(lambda) = ray_surface(origin, dir, block_top, bounds) {
+                if lambda < blocked_at {
+                    echo += 0.6 * (0.3 + 0.7 * dir.z.powi(2)) * gauss(r - lambda, AXIAL_SIGMA_MM * 1.5);
+                    // Silicone attenuates: what lies below is fainter but not hidden.
+                    if r > lambda {
+                        echo += 0.01;
+                    }
+                }
+            }
+        }
+        Shape::Wires { wires_world, radius_mm } => {
+            let mut hits: Vec<(f64, f64)> = wires_world
+                .iter()
+                .filter_map(|(a, b)| ray_cylinder(origin, dir, &a.coords, &b.coords, *radius_mm))
+                .filter(|(l, _)| *l > near_mm)
+                .collect();
+            hits.sort_by(|a, b| a.0.total_cmp(&b.0));
+            if let Some(&(first, _)) = hits.first() {
+                blocked_at = first + 2.0 * radius_mm;
+            }
+            for (lambda, incidence) in hits {
+                let strength = 0.3 + 0.7 * incidence.powi(2);
+                echo += 1.6 * strength * gauss(r - lambda, AXIAL_SIGMA_MM);
+                // A wire thicker than the wavelength rings: echoes from inside the wire.
+                for (k, level) in [0.55, 0.3, 0.15].iter().enumerate() {
+                    let at = lambda + 1.1 * (k + 1) as f64;
+                    echo += level * strength * gauss(r - at, AXIAL_SIGMA_MM);
+                }
+            }
+            let floor = c.z - WIRE_BOX_FLOOR_BELOW_MM;
+            let bounds = [c.x - 45.0, c.x + 45.0, c.y - 45.0, c.y + 45.0];
+            if let Some(lambda) = ray_surface(origin, dir, floor, bounds) {
+                if lambda < blocked_at {
+                    echo += 0.7 * (0.3 + 0.7 * dir.z.powi(2)) * gauss(r - lambda, AXIAL_SIGMA_MM * 1.5);
+                    blocked_at = lambda + 2.0 * AXIAL_SIGMA_MM;
+                }
+            }
+        }
+    }
+    (echo, blocked_at)
+}
+
 /// Renders one B-scan.
 pub fn render_bscan(
     scene: &Scene,
@@ -95,8 +273,11 @@ pub fn render_bscan(
     let g = &scene.bscan;
     let (w, h) = (g.width_px, g.height_px);
     let [sx, sy] = g.spacing_mm_per_px;
-    let c = scene.sphere_centre_world.coords;
-    let radius = scene.sphere_radius_mm;
+    let c = scene.feature_centre_world.coords;
+    let hemisphere_radius = match scene.shape {
+        Shape::Hemisphere { radius_mm } => Some(radius_mm),
+        _ => None,
+    };
     let tank = scene.tank;
     let rotation = world_T_image.rotation;
     let normal = rotation * Vector3::z();
@@ -139,7 +320,9 @@ pub fn render_bscan(
             for &(e, weight) in &offsets {
                 let origin = apex_world.coords + normal * e;
                 let mut blocked_at = f64::INFINITY;
-                if let Some(lambda) = ray_sphere(&origin, &dir, &c, radius) {
+                if let Some((radius, lambda)) =
+                    hemisphere_radius.and_then(|radius| Some((radius, ray_sphere(&origin, &dir, &c, radius)?)))
+                {
                     let hit = origin + dir * lambda;
                     if lambda > g.convex_radius_mm && hit.z >= c.z - 0.5 {
                         let n = (hit - c) / radius;
@@ -148,6 +331,11 @@ pub fn render_bscan(
                         e_sum += weight * 1.6 * strength * (-((r - lambda) / AXIAL_SIGMA_MM).powi(2) / 2.0).exp();
                         blocked_at = lambda + 2.0 * AXIAL_SIGMA_MM;
                     }
+                }
+                if hemisphere_radius.is_none() {
+                    let (echo, blocked) = phantom_echo(scene, &origin, &dir, r, g.convex_radius_mm);
+                    e_sum += weight * echo;
+                    blocked_at = blocked;
                 }
                 if dir.z < -1e-6 {
                     let lambda_floor = (tank.floor_z_mm - origin.z) / dir.z;

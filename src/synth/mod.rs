@@ -12,7 +12,6 @@ pub mod scene;
 
 use std::path::{Path, PathBuf};
 
-use nalgebra::Point3;
 use serde::Serialize;
 
 use crate::board::BoardLayout;
@@ -57,8 +56,7 @@ pub struct RenderInputs {
     pub rig: Rig,
     pub calibration_board: [u32; 2],
     pub calibration_square_mm: f64,
-    pub sphere_centre_in_phantom_mm: [f64; 3],
-    pub sphere_radius_mm: f64,
+    pub phantom: Phantom,
     pub spacing_mm_per_px: [f64; 2],
 }
 
@@ -66,8 +64,6 @@ pub struct RenderInputs {
 struct Lab {
     rig: RigBoards,
     calibration: BoardLayout,
-    centre: [f64; 3],
-    radius: f64,
 }
 
 fn lab(manifest: &Manifest) -> Result<Lab, SynthError> {
@@ -88,21 +84,7 @@ fn lab(manifest: &Manifest) -> Result<Lab, SynthError> {
             id_dots: 0,
         },
     };
-    let Phantom::Hemisphere {
-        centre_in_phantom_mm,
-        radius_mm,
-    } = &manifest.phantom
-    else {
-        return Err(SynthError::Unsupported {
-            what: "a hemisphere phantom",
-        });
-    };
-    Ok(Lab {
-        rig,
-        calibration,
-        centre: *centre_in_phantom_mm,
-        radius: *radius_mm,
-    })
+    Ok(Lab { rig, calibration })
 }
 
 /// The exact inputs of a dataset render.
@@ -114,8 +96,7 @@ pub fn render_inputs(manifest: &Manifest, spec: &RenderSpec) -> Result<RenderInp
         rig: manifest.rig.clone(),
         calibration_board: lab.calibration.inner_corners,
         calibration_square_mm: lab.calibration.square_mm,
-        sphere_centre_in_phantom_mm: lab.centre,
-        sphere_radius_mm: lab.radius,
+        phantom: manifest.phantom.clone(),
         spacing_mm_per_px: manifest.bscan_spacing_mm_per_px,
     })
 }
@@ -167,6 +148,9 @@ struct GroundTruthFrame {
     camera_T_marker_bscan: [[f64; 4]; 4],
     elevation_offset_mm: f64,
     centre_projection_px: [f64; 2],
+    /// Wire phantoms: where each wire's axis crosses the B-scan plane, px.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    wire_dots_px: Vec<crate::truth::WireDot>,
     bubbles: Vec<Bubble>,
     occluder: Option<scene::Occluder>,
 }
@@ -178,8 +162,7 @@ struct GroundTruthFile {
     camera: CameraIntrinsics,
     marker_T_image: [[f64; 4]; 4],
     camera_T_phantom: [[f64; 4]; 4],
-    sphere_centre_in_phantom_mm: [f64; 3],
-    sphere_radius_mm: f64,
+    phantom: Phantom,
     bscan_size_px: [usize; 2],
     bscan_apex_mm: [f64; 2],
     frames: Vec<GroundTruthFrame>,
@@ -187,20 +170,14 @@ struct GroundTruthFile {
 }
 
 fn render_into(manifest: &Manifest, spec: &RenderSpec, folder: &Path) -> Result<(), SynthError> {
-    let Lab {
-        rig,
-        calibration,
-        centre,
-        radius,
-    } = lab(manifest)?;
+    let Lab { rig, calibration } = lab(manifest)?;
     let calibration_board = crate::board::PrintedBoard::Checkerboard(calibration);
     let scene = scene::build(&SceneInputs {
         spec,
         probe_board: rig.probe,
         phantom_board: rig.phantom,
         calibration_board: calibration,
-        sphere_centre_in_phantom_mm: centre,
-        sphere_radius_mm: radius,
+        phantom: &manifest.phantom,
         spacing_mm_per_px: manifest.bscan_spacing_mm_per_px,
     })?;
     let frames_dir = folder.join("frames");
@@ -259,6 +236,21 @@ fn render_into(manifest: &Manifest, spec: &RenderSpec, folder: &Path) -> Result<
         let world_T_image: Rigid = plan.world_T_marker_bscan * scene.marker_T_image;
         let bubbles = bscan_render::draw_bubbles(&scene, &world_T_image, plan.kind, echo, &mut rng);
         let bscan = bscan_render::render_bscan(&scene, &world_T_image, &bubbles, echo, &mut rng)?;
+        let wire_dots_px = match (&manifest.phantom, &scene.shape) {
+            (Phantom::FourWire { wires, .. }, scene::Shape::Wires { wires_world, .. }) => wires
+                .iter()
+                .zip(wires_world)
+                .filter_map(|(w, (a, b))| {
+                    let p = scene::segment_in_plane(&world_T_image, a, b)?;
+                    let [sx, sy] = scene.bscan.spacing_mm_per_px;
+                    Some(crate::truth::WireDot {
+                        wire: w.name.clone(),
+                        pixel: [p.x / sx, p.y / sy],
+                    })
+                })
+                .collect(),
+            _ => Vec::new(),
+        };
         bscan.write_png(&frames_dir.join(format!("bscan_{k:03}.png")))?;
         progress.inc();
         Ok(GroundTruthFrame {
@@ -268,6 +260,7 @@ fn render_into(manifest: &Manifest, spec: &RenderSpec, folder: &Path) -> Result<
             camera_T_marker_bscan: to_rows(&(scene.camera_T_world * plan.world_T_marker_bscan)),
             elevation_offset_mm: plan.elevation_offset_mm,
             centre_projection_px: plan.centre_projection_px,
+            wire_dots_px,
             bubbles,
             occluder: plan.occluder,
         })
@@ -282,16 +275,13 @@ fn render_into(manifest: &Manifest, spec: &RenderSpec, folder: &Path) -> Result<
     let list_path = folder.join(FRAME_LIST);
     std::fs::write(&list_path, list).map_err(io_err(&list_path))?;
 
-    let centre_world = scene.world_T_phantom * Point3::from(nalgebra::Vector3::from(centre));
-    debug_assert!((centre_world - scene.sphere_centre_world).norm() < 1e-9);
     let truth = GroundTruthFile {
         generator_version: GENERATOR_VERSION,
         seed: spec.seed,
         camera: scene.camera.clone(),
         marker_T_image: to_rows(&scene.marker_T_image),
         camera_T_phantom: to_rows(&camera_T_phantom),
-        sphere_centre_in_phantom_mm: centre,
-        sphere_radius_mm: radius,
+        phantom: manifest.phantom.clone(),
         bscan_size_px: [scene.bscan.width_px, scene.bscan.height_px],
         bscan_apex_mm: scene.bscan.apex_mm,
         frames: truth_frames,

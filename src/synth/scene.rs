@@ -1,9 +1,9 @@
 //! The simulated lab: where the camera, the boards, the tank and the probe are.
 //!
-//! World frame W (used only here and in the renderers): origin at the sphere
-//! centre, z up (towards the probe), x to the camera's right. The phantom board is
+//! World frame W (used only here and in the renderers): origin at the phantom's
+//! feature (sphere centre, pin head, centre of the wires), z up (towards the probe), x to the camera's right. The phantom board is
 //! fixed beside the tank facing the camera; the probe board is on the probe casing,
-//! parallel to the B-scan plane. The probe sweeps over the hemisphere with tilts
+//! parallel to the B-scan plane. The probe sweeps over the phantom with tilts
 //! about the image's X (lateral) and Y (beam) axes and a small rotation about Z.
 
 use nalgebra::{Matrix3, Point3, Rotation3, Translation3, UnitQuaternion, Vector3};
@@ -24,10 +24,81 @@ pub enum FrameKind {
     OffCentre,
     /// The probe moved between the photo and the B-scan.
     Jerk,
-    /// Air bubbles stuck on the dome add bright echoes at the arc.
+    /// Air bubbles stuck on the phantom add bright echoes beside the feature.
     DomeBubbles,
-    /// The plane misses the hemisphere: no arc.
+    /// The plane misses the feature.
     Missing,
+}
+
+/// The phantom's echoing parts in the world frame, laid out around its feature at
+/// the world origin.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Shape {
+    /// A hemisphere, dome up, its centre the feature.
+    Hemisphere { radius_mm: f64 },
+    /// A pin head (a small sphere) on a pin in a silicone block; the head's centre is the feature.
+    Point { head_radius_mm: f64 },
+    /// Straight wires of one diameter, end points in the world frame.
+    Wires {
+        wires_world: Vec<(Point3<f64>, Point3<f64>)>,
+        radius_mm: f64,
+    },
+}
+
+impl Shape {
+    /// From the manifest's phantom: the shape in the world frame and the feature
+    /// the lab is laid out around (phantom frame).
+    pub fn from_phantom(phantom: &crate::manifest::Phantom, world_T_phantom: &Rigid) -> (Shape, [f64; 3]) {
+        use crate::manifest::Phantom;
+        match phantom {
+            Phantom::Hemisphere {
+                centre_in_phantom_mm,
+                radius_mm,
+            } => (Shape::Hemisphere { radius_mm: *radius_mm }, *centre_in_phantom_mm),
+            Phantom::Point {
+                position_in_phantom_mm,
+                head_radius_mm,
+            } => (
+                Shape::Point {
+                    head_radius_mm: *head_radius_mm,
+                },
+                *position_in_phantom_mm,
+            ),
+            Phantom::FourWire {
+                wires,
+                wire_diameter_mm,
+            } => {
+                let ends: Vec<(Point3<f64>, Point3<f64>)> = wires
+                    .iter()
+                    .map(|w| (Point3::from(w.start_in_phantom_mm), Point3::from(w.end_in_phantom_mm)))
+                    .collect();
+                let centre = crate::manifest::wires_centre(&ends);
+                let wires_world = ends
+                    .iter()
+                    .map(|(a, b)| (world_T_phantom * a, world_T_phantom * b))
+                    .collect();
+                (
+                    Shape::Wires {
+                        wires_world,
+                        radius_mm: wire_diameter_mm / 2.0,
+                    },
+                    [centre.x, centre.y, centre.z],
+                )
+            }
+        }
+    }
+}
+
+/// Where a line segment meets a plane given as `world_T_image` (image z = 0), in
+/// image millimetres, if it does.
+pub fn segment_in_plane(world_T_image: &Rigid, a: &Point3<f64>, b: &Point3<f64>) -> Option<Point3<f64>> {
+    let image_T_world = world_T_image.inverse();
+    let (p, q) = (image_T_world * a, image_T_world * b);
+    if (p.z > 0.0) == (q.z > 0.0) || (q.z - p.z).abs() < 1e-12 {
+        return None;
+    }
+    let t = p.z / (p.z - q.z);
+    Some(p + (q - p) * t)
 }
 
 /// The probe's convex array and the B-scan raster.
@@ -91,9 +162,9 @@ pub struct FramePlan {
     pub world_T_marker_photo: Rigid,
     /// Probe marker pose when the B-scan was taken.
     pub world_T_marker_bscan: Rigid,
-    /// Signed distance from the B-scan plane to the sphere centre, mm.
+    /// Signed distance from the B-scan plane to the feature's centre, mm.
     pub elevation_offset_mm: f64,
-    /// Pixel of the sphere centre's projection onto the B-scan plane.
+    /// Pixel of the feature centre's projection onto the B-scan plane.
     pub centre_projection_px: [f64; 2],
     /// Something (a finger, a cable) across the probe board in the photo.
     pub occluder: Option<Occluder>,
@@ -143,8 +214,9 @@ pub struct Scene {
     pub camera_T_world: Rigid,
     pub world_T_phantom: Rigid,
     pub marker_T_image: Rigid,
-    pub sphere_centre_world: Point3<f64>,
-    pub sphere_radius_mm: f64,
+    /// The phantom's feature (sphere centre, pin head, centre of the wires), world frame.
+    pub feature_centre_world: Point3<f64>,
+    pub shape: Shape,
     pub tank: Tank,
     pub probe_board: PrintedBoard,
     pub phantom_board: PrintedBoard,
@@ -229,8 +301,7 @@ pub struct SceneInputs<'a> {
     pub probe_board: PrintedBoard,
     pub phantom_board: PrintedBoard,
     pub calibration_board: BoardLayout,
-    pub sphere_centre_in_phantom_mm: [f64; 3],
-    pub sphere_radius_mm: f64,
+    pub phantom: &'a crate::manifest::Phantom,
     pub spacing_mm_per_px: [f64; 2],
 }
 
@@ -251,8 +322,12 @@ pub enum SceneError {
     CalibrationViewDoesNotFit { view: usize, tries: usize },
     #[error("the {board} board does not fit on the {plate_mm} mm plate the simulated lab mounts boards on")]
     BoardTooLarge { board: &'static str, plate_mm: f64 },
-    #[error("centre_in_phantom_mm puts the sphere {off_mm:.1} mm from where the simulated lab has it: for this phantom board it is [{}, {}, {}]", expected[0], expected[1], expected[2])]
-    FeatureMisplaced { off_mm: f64, expected: [f64; 3] },
+    #[error("the phantom's {what} is {off_mm:.1} mm from where the simulated lab has it: for this phantom board it is [{}, {}, {}] (phantom frame)", expected[0], expected[1], expected[2])]
+    FeatureMisplaced {
+        what: &'static str,
+        off_mm: f64,
+        expected: [f64; 3],
+    },
 }
 
 /// Where the camera and the phantom board stand in the world frame: the camera in
@@ -310,19 +385,30 @@ pub fn build(inputs: &SceneInputs<'_>) -> Result<Scene, SceneError> {
     let (world_T_camera, world_T_phantom) = lab_layout(spec.board_distance_mm, &inputs.phantom_board);
     let camera_T_world = world_T_camera.inverse();
     let [near, far] = spec.board_distance_mm;
-    // The lab is laid out around the sphere at the world origin; the manifest says
-    // where the sphere is relative to the phantom board, and must agree.
-    let sphere_centre_world = world_T_phantom * Point3::from(Vector3::from(inputs.sphere_centre_in_phantom_mm));
-    if sphere_centre_world.coords.norm() > 3.0 {
+    // The lab is laid out around the feature at the world origin; the manifest says
+    // where the feature is relative to the phantom board, and must agree.
+    let (shape, feature_in_phantom) = Shape::from_phantom(inputs.phantom, &world_T_phantom);
+    let feature_centre_world = world_T_phantom * Point3::from(Vector3::from(feature_in_phantom));
+    if feature_centre_world.coords.norm() > 3.0 {
         let expected = world_T_phantom.inverse() * Point3::origin();
         return Err(SceneError::FeatureMisplaced {
-            off_mm: sphere_centre_world.coords.norm(),
+            what: match shape {
+                Shape::Hemisphere { .. } => "sphere centre",
+                Shape::Point { .. } => "pin head",
+                Shape::Wires { .. } => "centre of the wires (mean of their midpoints)",
+            },
+            off_mm: feature_centre_world.coords.norm(),
             expected: [expected.x, expected.y, expected.z].map(|v| (v * 10.0).round() / 10.0),
         });
     }
-    let c = sphere_centre_world.coords;
+    let c = feature_centre_world.coords;
     let nominal_centre = Vector3::zeros();
-    let radius = inputs.sphere_radius_mm;
+    // How far the feature's echoes reach from its centre in the image.
+    let radius = match &shape {
+        Shape::Hemisphere { radius_mm } => *radius_mm,
+        Shape::Point { head_radius_mm } => head_radius_mm + 6.0,
+        Shape::Wires { .. } => 0.0,
+    };
     let tank = Tank {
         floor_z_mm: -30.0,
         wall_x_mm: 75.0,
@@ -364,7 +450,12 @@ pub fn build(inputs: &SceneInputs<'_>) -> Result<Scene, SceneError> {
         let mut placed = None;
         let (mut out_of_view, mut phantom_out, mut overlapping, mut too_far, mut fan) = (0, 0, 0, 0, 0);
         for _ in 0..tries {
-            let u_c = bscan.width_mm() / 2.0 + rng.uniform(-30.0, 30.0);
+            let lateral_mm = if matches!(shape, Shape::Wires { .. }) {
+                10.0
+            } else {
+                30.0
+            };
+            let u_c = bscan.width_mm() / 2.0 + rng.uniform(-lateral_mm, lateral_mm);
             let v_c = rng.uniform(35.0, 90.0);
             let (r_polar, angle) = bscan.polar(u_c, v_c);
             if angle.abs() > bscan.half_fan_rad - 10f64.to_radians()
@@ -374,9 +465,21 @@ pub fn build(inputs: &SceneInputs<'_>) -> Result<Scene, SceneError> {
                 continue;
             }
             let sign = if rng.chance(0.5) { 1.0 } else { -1.0 };
-            let elevation = match kind {
-                FrameKind::OffCentre => sign * rng.uniform(7.0, 11.0),
-                FrameKind::Missing => sign * rng.uniform(radius + 1.5, radius + 6.0),
+            let elevation = match (&shape, kind) {
+                (Shape::Hemisphere { .. }, FrameKind::OffCentre) => sign * rng.uniform(7.0, 11.0),
+                (Shape::Hemisphere { radius_mm }, FrameKind::Missing) => {
+                    sign * rng.uniform(radius_mm + 1.5, radius_mm + 6.0)
+                }
+                // Still in the beam's slice, but beside the head.
+                (Shape::Point { head_radius_mm }, FrameKind::OffCentre) => {
+                    sign * rng.uniform(0.6, 1.0) * (head_radius_mm + spec.bscan.slice_thickness_mm / 2.0)
+                }
+                (Shape::Point { head_radius_mm }, FrameKind::Missing) => {
+                    sign * rng.uniform(head_radius_mm + 3.0, head_radius_mm + 8.0)
+                }
+                // Along the wires: anywhere over the middle of the phantom, or past their ends.
+                (Shape::Wires { .. }, FrameKind::Missing) => sign * rng.uniform(45.0, 60.0),
+                (Shape::Wires { .. }, _) => rng.uniform(-sweep.wire_travel_mm, sweep.wire_travel_mm),
                 _ => rng.normal(0.0, sweep.elevation_offset_sd_mm),
             };
             let rotation = r_nominal
@@ -397,6 +500,21 @@ pub fn build(inputs: &SceneInputs<'_>) -> Result<Scene, SceneError> {
                 Translation3::from(nominal_centre - rotation * centre_in_image),
                 rotation,
             );
+            if let (Shape::Wires { wires_world, .. }, false) = (&shape, kind == FrameKind::Missing) {
+                // Every wire must cross the plane inside the fan, away from its edges.
+                let all_inside = wires_world.iter().all(|(a, b)| {
+                    segment_in_plane(&world_T_image, a, b).is_some_and(|p| {
+                        let (r, angle) = bscan.polar(p.x, p.y);
+                        angle.abs() < bscan.half_fan_rad - 5f64.to_radians()
+                            && r > bscan.convex_radius_mm + 10.0
+                            && r < bscan.convex_radius_mm + bscan.depth_mm - 10.0
+                    })
+                });
+                if !all_inside {
+                    fan += 1;
+                    continue;
+                }
+            }
             let world_T_marker_bscan = world_T_image * image_T_marker;
             let (tremor_mm, tremor_deg) = if kind == FrameKind::Jerk {
                 (rng.uniform(2.0, 4.0) / 1.7, rng.uniform(1.0, 2.0) / 1.7)
@@ -497,8 +615,8 @@ pub fn build(inputs: &SceneInputs<'_>) -> Result<Scene, SceneError> {
         camera_T_world,
         world_T_phantom,
         marker_T_image,
-        sphere_centre_world,
-        sphere_radius_mm: radius,
+        feature_centre_world,
+        shape,
         tank,
         probe_board: inputs.probe_board.clone(),
         phantom_board: inputs.phantom_board.clone(),
