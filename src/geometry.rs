@@ -90,6 +90,17 @@ pub fn euler_zyx_deg(transform: &Rigid) -> [f64; 3] {
 }
 
 /// The B-scan pixel `(u, v)` as a point of the image frame, millimetres.
+/// Where the line through `p` and `q` (image frame, mm) meets the image plane
+/// z = 0: the parameter `t` along `p → q` (0 at `p`, 1 at `q`) and the point.
+/// `None` when the line runs parallel to the plane.
+pub fn line_meets_image_plane(p: &Point3<f64>, q: &Point3<f64>) -> Option<(f64, Point3<f64>)> {
+    if (q.z - p.z).abs() < 1e-12 {
+        return None;
+    }
+    let t = p.z / (p.z - q.z);
+    Some((t, p + (q - p) * t))
+}
+
 pub fn pixel_to_image_mm(pixel: [f64; 2], spacing_mm_per_px: [f64; 2]) -> Point3<f64> {
     Point3::new(pixel[0] * spacing_mm_per_px[0], pixel[1] * spacing_mm_per_px[1], 0.0)
 }

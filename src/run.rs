@@ -238,6 +238,13 @@ enum Detector {
     WireDots(SpotSettings),
 }
 
+/// Where a phantom's features lie: one known point, or on known wires.
+#[derive(Debug, Clone, Copy)]
+enum Targets<'a> {
+    Point([f64; 3]),
+    Wires(&'a [crate::manifest::Wire]),
+}
+
 /// Two pin-head candidates closer in strength than this make the pin head ambiguous.
 const PIN_HEAD_MIN_STRENGTH_RATIO: f64 = 1.5;
 
@@ -422,7 +429,7 @@ pub fn run_dataset(
     let clock = Instant::now();
     let rig = RigBoards::from_manifest(&manifest.rig).map_err(|e| RunError::Unsupported(e.to_string()))?;
     let spacing = manifest.bscan_spacing_mm_per_px;
-    let (detector, point_feature) = match &manifest.phantom {
+    let (detector, targets) = match &manifest.phantom {
         Phantom::Hemisphere {
             centre_in_phantom_mm,
             radius_mm,
@@ -439,7 +446,7 @@ pub fn run_dataset(
                 fixed_radius_mm: (manifest.arc_detection.fit_radius == crate::manifest::FitRadius::Known)
                     .then_some(*radius_mm),
             }),
-            Some(*centre_in_phantom_mm),
+            Targets::Point(*centre_in_phantom_mm),
         ),
         Phantom::Point {
             position_in_phantom_mm,
@@ -449,14 +456,17 @@ pub fn run_dataset(
                 spacing_mm_per_px: spacing,
                 object_radius_mm: *head_radius_mm,
             }),
-            Some(*position_in_phantom_mm),
+            Targets::Point(*position_in_phantom_mm),
         ),
-        Phantom::FourWire { wire_diameter_mm, .. } => (
+        Phantom::FourWire {
+            wire_diameter_mm,
+            wires,
+        } => (
             Detector::WireDots(SpotSettings {
                 spacing_mm_per_px: spacing,
                 object_radius_mm: wire_diameter_mm / 2.0,
             }),
-            None,
+            Targets::Wires(wires),
         ),
     };
     let progress = crate::progress::Progress::new(files.len(), "board poses and B-scan features");
@@ -477,8 +487,8 @@ pub fn run_dataset(
         crate::manifest::SolveVariant::Rigid => crate::horn::Variant::Rigid,
         crate::manifest::SolveVariant::Similarity => crate::horn::Variant::Similarity,
     };
-    let correspondences: Vec<Correspondence> = match (&manifest.phantom, point_feature) {
-        (_, Some(feature)) => frames
+    let correspondences: Vec<Correspondence> = match targets {
+        Targets::Point(feature) => frames
             .iter()
             .filter(|f| usable(f))
             .filter_map(|f| {
@@ -492,7 +502,7 @@ pub fn run_dataset(
                 ))
             })
             .collect(),
-        (Phantom::FourWire { wires, .. }, None) => {
+        Targets::Wires(wires) => {
             let axes: Vec<WireAxis> = wires
                 .iter()
                 .map(|w| WireAxis {
@@ -543,7 +553,6 @@ pub fn run_dataset(
             }
             matching.correspondences
         }
-        (_, None) => return Err(RunError::Unsupported("phantom without features".into())),
     };
     // Where line fits start: the manifest's guess, refined on all frames below.
     let mut start = manifest.initial_marker_T_image;
@@ -703,7 +712,10 @@ pub fn run_dataset(
         truth: truth_summary,
         gates,
         spacing_mm_per_px: spacing,
-        feature_in_phantom_mm: point_feature,
+        feature_in_phantom_mm: match targets {
+            Targets::Point(p) => Some(p),
+            Targets::Wires(_) => None,
+        },
         timings_s: timings,
         input_files,
         seed,

@@ -14,7 +14,7 @@
 use nalgebra::{Point3, Vector3};
 
 use crate::evaluate::{self, Correspondence, Observed};
-use crate::geometry::{pixel_to_image_mm, Rigid};
+use crate::geometry::{line_meets_image_plane, pixel_to_image_mm, Rigid};
 use crate::horn::{HornError, HornFit, Variant};
 use crate::image_to_probe::Target;
 
@@ -68,11 +68,7 @@ fn predict(wires: &[WireAxis], image_T_phantom: &Rigid) -> Vec<Option<[f64; 2]>>
         .map(|w| {
             let p = image_T_phantom * w.start_in_phantom_mm;
             let q = image_T_phantom * w.end_in_phantom_mm;
-            if (q.z - p.z).abs() < 1e-9 {
-                return None;
-            }
-            let t = p.z / (p.z - q.z);
-            let hit = p + (q - p) * t;
+            let (_, hit) = line_meets_image_plane(&p, &q)?;
             Some([hit.x, hit.y])
         })
         .collect()

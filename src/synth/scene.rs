@@ -93,12 +93,8 @@ impl Shape {
 /// image millimetres, if it does.
 pub fn segment_in_plane(world_T_image: &Rigid, a: &Point3<f64>, b: &Point3<f64>) -> Option<Point3<f64>> {
     let image_T_world = world_T_image.inverse();
-    let (p, q) = (image_T_world * a, image_T_world * b);
-    if (p.z > 0.0) == (q.z > 0.0) || (q.z - p.z).abs() < 1e-12 {
-        return None;
-    }
-    let t = p.z / (p.z - q.z);
-    Some(p + (q - p) * t)
+    let (t, point) = crate::geometry::line_meets_image_plane(&(image_T_world * a), &(image_T_world * b))?;
+    (0.0..=1.0).contains(&t).then_some(point)
 }
 
 /// The probe's convex array and the B-scan raster.
