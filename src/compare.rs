@@ -141,14 +141,25 @@ pub fn column(manifest: &Manifest, run: &DatasetRun) -> Column {
         values.push(("phantom board rotation error (°)".into(), mm(phantom_r)));
         values.push(("lever arm board → image centre (mm)".into(), format!("{lever:.1}")));
         values.push(("probe rotation error × lever arm (mm)".into(), mm(lever_effect)));
+        let depth = if run.camera.tracker.is_some() {
+            String::new()
+        } else {
+            format!(
+                ", {} mm of it along the camera's viewing axis (depth is what a monocular camera measures worst),",
+                mm(probe_depth)
+            )
+        };
+        let (who, marker) = if run.camera.tracker.is_some() {
+            ("tracker's", "marker")
+        } else {
+            ("photo's", "board")
+        };
         explanation = format!(
-            "The probe board's pose is off by {} mm on average, {} mm of it along the camera's viewing axis \
-             (depth is what a monocular camera measures worst), and by {}°. Over the {lever:.0} mm lever arm \
-             from the board to the image centre that rotation alone moves B-scan points by {} mm; the phantom \
-             board adds {} mm and {}°. The calibration solved from these frames places the image corners \
-             {:.3} mm from the truth.",
+            "The probe {marker}'s pose (the {who}) is off by {} mm on average{depth} and by {}°. Over the \
+             {lever:.0} mm lever arm from the {marker} to the image centre that rotation alone moves B-scan \
+             points by {} mm; the phantom {marker} adds {} mm and {}°. The calibration solved from these \
+             frames places the image corners {:.3} mm from the truth.",
             mm(probe_t),
-            mm(probe_depth),
             mm(probe_r),
             mm(lever_effect),
             mm(phantom_t),
@@ -159,7 +170,10 @@ pub fn column(manifest: &Manifest, run: &DatasetRun) -> Column {
     Column {
         experiment: run.experiment.clone(),
         dataset: run.dataset.clone(),
-        rig: rig_label(&manifest.rig),
+        rig: match &manifest.camera {
+            crate::manifest::CameraSource::TrackerCsv(t) => format!("tracker poses from {}", t.file),
+            _ => rig_label(&manifest.rig),
+        },
         values,
         explanation,
     }

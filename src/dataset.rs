@@ -1,6 +1,7 @@
 //! A dataset folder: `frames.csv` (frame, camera_image, bscan_image; paths
 //! relative to the folder), the images it names, and optionally
 //! `camera_calibration/` with board views. Rendered and recorded datasets share it.
+//! A dataset tracked without a camera may leave `camera_image` empty.
 
 use std::path::{Path, PathBuf};
 
@@ -11,7 +12,8 @@ pub const FRAME_LIST: &str = "frames.csv";
 #[derive(Debug, Clone, PartialEq)]
 pub struct FrameFiles {
     pub frame: usize,
-    pub camera_image: PathBuf,
+    /// `None` where the frame has no photo (poses from a tracker).
+    pub camera_image: Option<PathBuf>,
     pub bscan_image: PathBuf,
 }
 
@@ -76,12 +78,12 @@ pub fn parse_frame_list(folder: &Path, text: &str) -> Result<Vec<FrameFiles>, Da
         if frames.iter().any(|f| f.frame == frame) {
             return Err(fail(format!("frame {frame} is listed twice")));
         }
-        if fields[1].is_empty() || fields[2].is_empty() {
-            return Err(fail("camera_image and bscan_image must both be given".into()));
+        if fields[2].is_empty() {
+            return Err(fail("bscan_image must be given".into()));
         }
         frames.push(FrameFiles {
             frame,
-            camera_image: folder.join(fields[1]),
+            camera_image: (!fields[1].is_empty()).then(|| folder.join(fields[1])),
             bscan_image: folder.join(fields[2]),
         });
     }
@@ -123,6 +125,12 @@ mod tests {
         assert!(dup.unwrap_err().to_string().contains(":3: frame 0 is listed twice"));
         let (_, header) = with_list("header", "id,cam,us\n");
         assert!(matches!(header.unwrap_err(), DatasetError::Header { .. }));
+        let (dir, no_photo) = with_list("nophoto", "frame,camera_image,bscan_image\n0,,b0.png\n");
+        let no_photo = no_photo.unwrap();
+        assert_eq!(no_photo[0].camera_image, None);
+        assert_eq!(no_photo[0].bscan_image, dir.join("b0.png"));
+        let (_, no_bscan) = with_list("nobscan", "frame,camera_image,bscan_image\n0,c0.png,\n");
+        assert!(no_bscan.unwrap_err().to_string().contains(":2: bscan_image must be given"));
         let (_, empty) = with_list("empty", "frame,camera_image,bscan_image\n");
         assert!(matches!(empty.unwrap_err(), DatasetError::Empty { .. }));
     }

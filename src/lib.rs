@@ -43,5 +43,6 @@ pub mod spot_detection;
 pub mod synth;
 pub mod tracked;
 pub mod tracked_output;
+pub mod tracker_poses;
 pub mod truth;
 pub mod wire_matching;

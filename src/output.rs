@@ -77,7 +77,9 @@ pub fn frames_table(run: &DatasetRun) -> PolarsResult<DataFrame> {
         ),
         Column::new(
             "camera_image".into(),
-            f.iter().map(|r| rel(&r.files.camera_image)).collect::<Vec<_>>(),
+            f.iter()
+                .map(|r| r.files.camera_image.as_deref().map(rel))
+                .collect::<Vec<Option<String>>>(),
         ),
         Column::new(
             "bscan_image".into(),
@@ -197,7 +199,7 @@ pub fn summary(run: &DatasetRun, manifest: &crate::manifest::Manifest) -> Value 
             *entry = json!(entry.as_u64().unwrap_or(0) + 1);
         }
     }
-    let k = &run.camera.intrinsics;
+    let k = run.camera.intrinsics.as_ref();
     let mut out = json!({
         "experiment": run.experiment,
         "dataset": run.dataset,
@@ -207,9 +209,10 @@ pub fn summary(run: &DatasetRun, manifest: &crate::manifest::Manifest) -> Value 
         "frames": {"total": run.frames.len(), "used": used, "rejected": run.frames.len() - used, "rejected_by_stage": rejections},
         "camera": {
             "source": run.camera.source,
-            "fx_px": k.fx(), "fy_px": k.fy(), "cx_px": k.cx(), "cy_px": k.cy(),
-            "distortion": k.distortion,
-            "rms_px": k.rms_px,
+            "fx_px": k.map(|k| k.fx()), "fy_px": k.map(|k| k.fy()),
+            "cx_px": k.map(|k| k.cx()), "cy_px": k.map(|k| k.cy()),
+            "distortion": k.map(|k| k.distortion),
+            "rms_px": k.and_then(|k| k.rms_px),
             "views_used": run.camera.calibration.as_ref().map(|c| c.views.iter().filter(|v| v.used).count()),
             "views_total": run.camera.calibration.as_ref().map(|c| c.views.len()),
         },

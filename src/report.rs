@@ -160,22 +160,21 @@ pub fn bre_figure(run: &DatasetRun) -> Result<String, String> {
 pub fn context(run: &DatasetRun, manifest: &crate::manifest::Manifest) -> RunContext {
     let fit = run.primary_fit();
     let primary = &run.thresholds[run.primary];
-    let k = &run.camera.intrinsics;
-    let mut camera = vec![
-        kv("source", run.camera.source.clone()),
-        kv("fx, fy (px)", format!("{:.2}, {:.2}", k.fx(), k.fy())),
-        kv("cx, cy (px)", format!("{:.2}, {:.2}", k.cx(), k.cy())),
-        kv(
+    let mut camera = vec![kv("source", run.camera.source.clone())];
+    if let Some(k) = &run.camera.intrinsics {
+        camera.push(kv("fx, fy (px)", format!("{:.2}, {:.2}", k.fx(), k.fy())));
+        camera.push(kv("cx, cy (px)", format!("{:.2}, {:.2}", k.cx(), k.cy())));
+        camera.push(kv(
             "k1, k2, p1, p2, k3",
             k.distortion
                 .iter()
                 .map(|v| format!("{v:.5}"))
                 .collect::<Vec<_>>()
                 .join(", "),
-        ),
-    ];
-    if let Some(rms) = k.rms_px {
-        camera.push(kv("RMS reprojection error (px)", format!("{rms:.3}")));
+        ));
+        if let Some(rms) = k.rms_px {
+            camera.push(kv("RMS reprojection error (px)", format!("{rms:.3}")));
+        }
     }
     if let Some(cal) = &run.camera.calibration {
         camera.push(kv(
@@ -245,11 +244,10 @@ pub fn context(run: &DatasetRun, manifest: &crate::manifest::Manifest) -> RunCon
         ));
         truth.push(kv("rotation error (°)", mm(c.rotation_error_deg)));
         truth.push(kv("translation error (mm)", mm(c.translation_error_mm)));
-        truth.push(kv("camera focal length error (px)", mm(tr.camera_focal_error_px)));
-        truth.push(kv(
-            "camera principal point error (px)",
-            mm(tr.camera_principal_error_px),
-        ));
+        if let (Some(focal), Some(principal)) = (tr.camera_focal_error_px, tr.camera_principal_error_px) {
+            truth.push(kv("camera focal length error (px)", mm(focal)));
+            truth.push(kv("camera principal point error (px)", mm(principal)));
+        }
         if let Some((mean, max)) = tr.arc_centre_error_px {
             truth.push(kv(
                 "arc centre vs sphere-centre projection, normal frames: mean / max (px)",

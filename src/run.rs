@@ -24,6 +24,7 @@ use crate::manifest::{CameraSource, Dataset, DatasetSource, Manifest, Phantom};
 use crate::parallel::parallel_map;
 use crate::spot_detection::{self, Spot, SpotSettings};
 use crate::synth;
+use crate::tracker_poses::{TrackedFrame, TrackerPoses};
 use crate::truth::GroundTruth;
 use crate::wire_matching::{self, FrameDots, WireAxis};
 
@@ -68,6 +69,11 @@ pub enum RunError {
         dataset: String,
         source: crate::truth::TruthError,
     },
+    #[error("dataset `{dataset}`: {source}")]
+    TrackerPoses {
+        dataset: String,
+        source: crate::tracker_poses::TrackerPosesError,
+    },
     #[error("{0}")]
     Unsupported(String),
     #[error("opencv: {0}")]
@@ -88,6 +94,8 @@ pub enum Stage {
     Spot,
     /// Wire dots, or their pairing with the wires.
     Wires,
+    /// The tracker gave no pose.
+    TrackerPose,
 }
 
 impl Stage {
@@ -99,6 +107,7 @@ impl Stage {
             Stage::Arc => "arc detection",
             Stage::Spot => "pin-head detection",
             Stage::Wires => "wire dots",
+            Stage::TrackerPose => "tracker pose",
         }
     }
 }
@@ -108,7 +117,10 @@ impl Stage {
 pub struct FrameRecord {
     pub files: FrameFiles,
     pub rejection: Option<(Stage, String)>,
+    /// Board poses from the photo (camera stage).
     pub poses: Option<FramePoses>,
+    /// Poses from a tracker instead (no camera).
+    pub tracked: Option<TrackedFrame>,
     pub arc: Option<ArcFeature>,
     /// Compact echoes found (point and wire phantoms), strongest first.
     pub spots: Vec<Spot>,
@@ -131,12 +143,35 @@ pub struct FrameRecord {
     pub bscan_size_px: Option<[usize; 2]>,
 }
 
-/// Camera intrinsics and, if calibrated here, the calibration.
+impl FrameRecord {
+    /// `(camera_T_marker, camera_T_phantom)`, from the photo or the tracker (whose
+    /// frame takes the camera's place).
+    pub fn pose_pair(&self) -> Option<(Rigid, Rigid)> {
+        match (&self.poses, &self.tracked) {
+            (Some(p), _) => Some((p.camera_T_marker.camera_T_board, p.camera_T_phantom.camera_T_board)),
+            (None, Some(t)) => Some((t.tracker_T_marker, t.tracker_T_phantom)),
+            (None, None) => None,
+        }
+    }
+}
+
+/// Camera intrinsics and, if calibrated here, the calibration; or the tracker
+/// that replaces the camera.
 #[derive(Debug, Clone)]
 pub struct CameraStage {
-    pub intrinsics: CameraIntrinsics,
+    /// `None` when the poses come from a tracker.
+    pub intrinsics: Option<CameraIntrinsics>,
     pub calibration: Option<CameraCalibration>,
     pub source: String,
+    pub tracker: Option<TrackerSource>,
+}
+
+/// A tracker's poses and the names of the probe's and the phantom's transforms.
+#[derive(Debug, Clone)]
+pub struct TrackerSource {
+    pub poses: TrackerPoses,
+    pub probe_transform: String,
+    pub reference_transform: String,
 }
 
 /// An accuracy gate's verdict.
@@ -152,8 +187,9 @@ pub struct GateResult {
 #[derive(Debug, Clone)]
 pub struct TruthSummary {
     pub calibration: TruthComparison,
-    pub camera_focal_error_px: f64,
-    pub camera_principal_error_px: f64,
+    /// `None` without a camera (tracker poses).
+    pub camera_focal_error_px: Option<f64>,
+    pub camera_principal_error_px: Option<f64>,
     pub arc_centre_error_px: Option<(f64, f64)>,
     pub probe_pose_translation_error_mm: Option<(f64, f64)>,
     pub probe_pose_rotation_error_deg: Option<(f64, f64)>,
@@ -202,13 +238,34 @@ impl DatasetRun {
 fn camera_stage(manifest: &Manifest, dataset: &str, folder: &Path) -> Result<CameraStage, RunError> {
     match &manifest.camera {
         CameraSource::IntrinsicsFile(path) => Ok(CameraStage {
-            intrinsics: CameraIntrinsics::load(path).map_err(|source| RunError::Intrinsics {
+            intrinsics: Some(CameraIntrinsics::load(path).map_err(|source| RunError::Intrinsics {
                 dataset: dataset.into(),
                 source,
-            })?,
+            })?),
             calibration: None,
             source: format!("file {}", path.display()),
+            tracker: None,
         }),
+        CameraSource::TrackerCsv(csv) => {
+            let poses =
+                TrackerPoses::read(&folder.join(&csv.file)).map_err(|source| RunError::TrackerPoses {
+                    dataset: dataset.into(),
+                    source,
+                })?;
+            Ok(CameraStage {
+                intrinsics: None,
+                calibration: None,
+                source: format!(
+                    "no camera: tracker poses {} and {} from the dataset's {}",
+                    csv.probe_transform, csv.reference_transform, csv.file
+                ),
+                tracker: Some(TrackerSource {
+                    poses,
+                    probe_transform: csv.probe_transform.clone(),
+                    reference_transform: csv.reference_transform.clone(),
+                }),
+            })
+        }
         CameraSource::Calibrate { images: given, board } => {
             let images = given.clone().unwrap_or_else(|| folder.join("camera_calibration"));
             // Described without machine-specific paths: the outputs must not depend on them.
@@ -222,9 +279,10 @@ fn camera_stage(manifest: &Manifest, dataset: &str, folder: &Path) -> Result<Cam
                     source,
                 })?;
             Ok(CameraStage {
-                intrinsics: calibration.intrinsics.clone(),
+                intrinsics: Some(calibration.intrinsics.clone()),
                 source: format!("calibrated from {described}"),
                 calibration: Some(calibration),
+                tracker: None,
             })
         }
     }
@@ -261,7 +319,7 @@ fn pin_head_candidates(spots: &[Spot], r: f64) -> Vec<Spot> {
 
 fn process_frame(
     files: &FrameFiles,
-    camera: &CameraIntrinsics,
+    camera: &CameraStage,
     rig: &RigBoards,
     detector: &Detector,
 ) -> Result<FrameRecord, RunError> {
@@ -269,6 +327,7 @@ fn process_frame(
         files: files.clone(),
         rejection: None,
         poses: None,
+        tracked: None,
         arc: None,
         spots: Vec::new(),
         features_px: Vec::new(),
@@ -282,19 +341,35 @@ fn process_frame(
         truth_probe_depth_error_mm: None,
         bscan_size_px: None,
     };
-    let photo = match read_gray_sized(&files.camera_image, camera.image_size_px) {
-        Ok(m) => m,
-        Err(e) => {
-            record.rejection = Some((Stage::CameraImage, e.to_string()));
-            return Ok(record);
+    match (&camera.intrinsics, &camera.tracker) {
+        (Some(intrinsics), _) => {
+            let Some(photo_file) = &files.camera_image else {
+                record.rejection = Some((Stage::CameraImage, "the frame list names no camera image".into()));
+                return Ok(record);
+            };
+            let photo = match read_gray_sized(photo_file, intrinsics.image_size_px) {
+                Ok(m) => m,
+                Err(e) => {
+                    record.rejection = Some((Stage::CameraImage, e.to_string()));
+                    return Ok(record);
+                }
+            };
+            match board_pose::estimate(&photo, intrinsics, rig)? {
+                Ok(poses) => record.poses = Some(poses),
+                Err(reason) => {
+                    record.rejection = Some((Stage::BoardPose, reason));
+                    return Ok(record);
+                }
+            }
         }
-    };
-    match board_pose::estimate(&photo, camera, rig)? {
-        Ok(poses) => record.poses = Some(poses),
-        Err(reason) => {
-            record.rejection = Some((Stage::BoardPose, reason));
-            return Ok(record);
-        }
+        (None, Some(t)) => match t.poses.frame(files.frame, &t.probe_transform, &t.reference_transform) {
+            Ok(tracked) => record.tracked = Some(tracked),
+            Err(reason) => {
+                record.rejection = Some((Stage::TrackerPose, reason));
+                return Ok(record);
+            }
+        },
+        (None, None) => return Err(RunError::Unsupported("neither a camera nor a tracker gives the poses".into())),
     }
     let bscan = match read_gray(&files.bscan_image) {
         Ok(m) => m,
@@ -416,13 +491,13 @@ pub fn run_dataset(
     let clock = Instant::now();
     let camera = camera_stage(manifest, &name, &folder)?;
     timings.push(("camera calibration", clock.elapsed().as_secs_f64()));
-    if let Some(rms) = camera.intrinsics.rms_px {
+    if let Some((k, rms)) = camera.intrinsics.as_ref().and_then(|k| Some((k, k.rms_px?))) {
         log(&format!(
             "camera: fx {:.2} fy {:.2} cx {:.2} cy {:.2} px, RMS {rms:.3} px",
-            camera.intrinsics.fx(),
-            camera.intrinsics.fy(),
-            camera.intrinsics.cx(),
-            camera.intrinsics.cy()
+            k.fx(),
+            k.fy(),
+            k.cx(),
+            k.cy()
         ));
     }
 
@@ -471,7 +546,7 @@ pub fn run_dataset(
     };
     let progress = crate::progress::Progress::new(files.len(), "board poses and B-scan features");
     let mut frames = parallel_map(files.len(), |i| {
-        let record = process_frame(&files[i], &camera.intrinsics, &rig, &detector);
+        let record = process_frame(&files[i], &camera, &rig, &detector);
         progress.inc();
         record
     })
@@ -481,7 +556,7 @@ pub fn run_dataset(
     timings.push(("frames (board poses and arcs)", clock.elapsed().as_secs_f64()));
 
     let clock = Instant::now();
-    let usable = |f: &FrameRecord| f.rejection.is_none() && f.poses.is_some() && !f.features_px.is_empty();
+    let usable = |f: &FrameRecord| f.rejection.is_none() && f.pose_pair().is_some() && !f.features_px.is_empty();
     let min_frames = manifest.thresholds.min_frames;
     let variant = match manifest.solve_variant {
         crate::manifest::SolveVariant::Rigid => crate::horn::Variant::Rigid,
@@ -492,13 +567,13 @@ pub fn run_dataset(
             .iter()
             .filter(|f| usable(f))
             .filter_map(|f| {
-                let poses = f.poses.as_ref()?;
+                let (camera_T_marker, camera_T_phantom) = f.pose_pair()?;
                 Some(Correspondence::point(
                     f.files.frame,
                     f.features_px[0],
                     Point3::from(nalgebra::Vector3::from(feature)),
-                    poses.camera_T_marker.camera_T_board,
-                    poses.camera_T_phantom.camera_T_board,
+                    camera_T_marker,
+                    camera_T_phantom,
                 ))
             })
             .collect(),
@@ -515,12 +590,12 @@ pub fn run_dataset(
                 .iter()
                 .filter(|f| usable(f))
                 .filter_map(|f| {
-                    let poses = f.poses.as_ref()?;
+                    let (camera_T_marker, camera_T_phantom) = f.pose_pair()?;
                     Some(FrameDots {
                         frame: f.files.frame,
                         dots_px: f.features_px.clone(),
-                        camera_T_marker: poses.camera_T_marker.camera_T_board,
-                        camera_T_phantom: poses.camera_T_phantom.camera_T_board,
+                        camera_T_marker,
+                        camera_T_phantom,
                     })
                 })
                 .collect();
@@ -657,25 +732,38 @@ pub fn run_dataset(
                     rotation_angle_between_deg(est, truth),
                 )
             };
-            if let (Some(poses), Ok(true_pose)) = (&f.poses, rigid_from_rows(&tf.camera_T_marker_photo)) {
-                let (dt, dr) = pose_error(&poses.camera_T_marker.camera_T_board, &true_pose);
+            // A photo's pose is compared with the marker when the photo was taken; a
+            // tracker's with the marker at the B-scan (it is synchronised with it).
+            let true_marker = if f.tracked.is_some() {
+                &tf.camera_T_marker_bscan
+            } else {
+                &tf.camera_T_marker_photo
+            };
+            if let (Some((camera_T_marker, camera_T_phantom)), Ok(true_pose)) =
+                (f.pose_pair(), rigid_from_rows(true_marker))
+            {
+                let (dt, dr) = pose_error(&camera_T_marker, &true_pose);
                 f.truth_probe_pose_error = Some((dt, dr));
-                f.truth_probe_depth_error_mm = Some(
-                    (poses.camera_T_marker.camera_T_board.translation.vector.z - true_pose.translation.vector.z).abs(),
-                );
+                f.truth_probe_depth_error_mm =
+                    Some((camera_T_marker.translation.vector.z - true_pose.translation.vector.z).abs());
                 pose_t.push(dt);
                 pose_r.push(dr);
-                let (pt, pr) = pose_error(&poses.camera_T_phantom.camera_T_board, &t.camera_T_phantom);
+                let (pt, pr) = pose_error(&camera_T_phantom, &t.camera_T_phantom);
                 f.truth_phantom_pose_error = Some((pt, pr));
                 phantom_t.push(pt);
             }
         }
-        let k = &camera.intrinsics;
         let tk = &t.camera.camera_matrix;
         TruthSummary {
             calibration,
-            camera_focal_error_px: (k.fx() - tk[0][0]).abs().max((k.fy() - tk[1][1]).abs()),
-            camera_principal_error_px: ((k.cx() - tk[0][2]).powi(2) + (k.cy() - tk[1][2]).powi(2)).sqrt(),
+            camera_focal_error_px: camera
+                .intrinsics
+                .as_ref()
+                .map(|k| (k.fx() - tk[0][0]).abs().max((k.fy() - tk[1][1]).abs())),
+            camera_principal_error_px: camera
+                .intrinsics
+                .as_ref()
+                .map(|k| ((k.cx() - tk[0][2]).powi(2) + (k.cy() - tk[1][2]).powi(2)).sqrt()),
             arc_centre_error_px: mean_max(&arc_errors),
             probe_pose_translation_error_mm: mean_max(&pose_t),
             probe_pose_rotation_error_deg: mean_max(&pose_r),
@@ -686,14 +774,18 @@ pub fn run_dataset(
     let gates = evaluate_gates(manifest, &thresholds[primary], truth_summary.as_ref());
     let mut input_files = vec![manifest.path.clone(), folder.join(crate::dataset::FRAME_LIST)];
     for f in &files {
-        input_files.push(f.camera_image.clone());
+        if camera.intrinsics.is_some() {
+            input_files.extend(f.camera_image.clone());
+        }
         input_files.push(f.bscan_image.clone());
     }
     if let Some(cal) = &camera.calibration {
         input_files.extend(cal.views.iter().map(|v| v.image.clone()));
     }
-    if let CameraSource::IntrinsicsFile(path) = &manifest.camera {
-        input_files.push(path.clone());
+    match &manifest.camera {
+        CameraSource::IntrinsicsFile(path) => input_files.push(path.clone()),
+        CameraSource::TrackerCsv(csv) => input_files.push(folder.join(&csv.file)),
+        CameraSource::Calibrate { .. } => {}
     }
     let seed = match &dataset.source {
         DatasetSource::Render(spec) => Some(spec.seed),

@@ -14,6 +14,8 @@ pub struct TruthFrame {
     pub frame: usize,
     pub kind: String,
     pub camera_T_marker_photo: [[f64; 4]; 4],
+    /// The marker when the B-scan was taken (the hand moves between photo and B-scan).
+    pub camera_T_marker_bscan: [[f64; 4]; 4],
     pub elevation_offset_mm: f64,
     pub centre_projection_px: [f64; 2],
     #[serde(default)]

@@ -46,6 +46,7 @@ fn lab() -> &'static PathBuf {
         assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
         std::fs::create_dir_all(lab.join("shared")).unwrap();
         copy_dir(&rendered.join("frames"), &lab.join("shared/frames"));
+        std::fs::copy(rendered.join("tracker_poses.csv"), lab.join("shared/tracker_poses.csv")).unwrap();
         lab
     })
 }
@@ -123,6 +124,26 @@ fn replace_photo(dir: &Path, bytes: Option<Vec<u8>>, bscan: bool) {
     if let Some(b) = bytes {
         std::fs::write(dir.join("session/local").join(name), b).unwrap();
     }
+}
+
+/// The standard case with poses from `session/poses.csv` (the rendered tracker's
+/// poses, edited by `edit`) instead of the camera.
+fn tracker_csv(dir: &Path, edit: fn(String) -> String) {
+    with_manifest(
+        dir,
+        "camera:\n  intrinsics_file: ../camera.yml\n",
+        "poses:\n  tracker_csv: {file: poses.csv}\n",
+    );
+    let text = std::fs::read_to_string(lab().join("shared/tracker_poses.csv")).unwrap();
+    std::fs::write(dir.join("session/poses.csv"), edit(text)).unwrap();
+}
+
+/// Line `n` (1-based) of a text, edited.
+fn edit_line(text: &str, n: usize, edit: impl Fn(&str) -> String) -> String {
+    text.lines()
+        .enumerate()
+        .map(|(i, l)| if i + 1 == n { edit(l) } else { l.to_string() } + "\n")
+        .collect()
 }
 
 fn shared(name: &str) -> Vec<u8> {
@@ -272,6 +293,51 @@ const CASES: &[Case] = &[
         args: run,
         code: 0,
         expect: "is not a rigid transform: matrix has a non-finite entry",
+        in_output: "frames",
+    },
+    // Poses from a tracker CSV.
+    Case {
+        name: "tracker CSV: camera and poses both given",
+        setup: |d| with_manifest(d, "bscan:\n", "poses:\n  tracker_csv: {file: poses.csv}\nbscan:\n"),
+        args: validate,
+        code: 2,
+        expect: "experiment.yaml:10: field `poses`: give `camera` (poses from photos) or `poses` (from a tracker), not both",
+        in_output: "stderr",
+    },
+    Case {
+        name: "tracker CSV: file missing from the dataset",
+        setup: |d| {
+            tracker_csv(d, |t| t);
+            std::fs::remove_file(d.join("session/poses.csv")).unwrap();
+        },
+        args: validate,
+        code: 2,
+        expect: "field `poses.tracker_csv.file`: dataset `session`",
+        in_output: "stderr",
+    },
+    Case {
+        name: "tracker CSV: a scaled matrix names its line",
+        setup: |d| {
+            // Line 4 is frame 1's ProbeToTracker; its m00 doubled.
+            tracker_csv(d, |t| {
+                edit_line(&t, 4, |l| {
+                    let mut f: Vec<String> = l.split(',').map(String::from).collect();
+                    f[2] = format!("{}", 2.0 * f[2].parse::<f64>().unwrap());
+                    f.join(",")
+                })
+            })
+        },
+        args: run,
+        code: 1,
+        expect: "poses.csv:4: ProbeToTracker of frame 1: the rotation part is not orthonormal",
+        in_output: "stderr",
+    },
+    Case {
+        name: "tracker CSV: a frame without poses is rejected with its reason",
+        setup: |d| tracker_csv(d, |t| t.lines().filter(|l| !l.starts_with("2,")).map(|l| format!("{l}\n")).collect()),
+        args: run,
+        code: 0,
+        expect: "tracker pose,poses.csv has no ProbeToTracker for frame 2",
         in_output: "frames",
     },
     // Manifests: each names the file, the field and the line; nothing runs.

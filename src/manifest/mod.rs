@@ -17,7 +17,7 @@ use sha2::{Digest, Sha256};
 
 pub use raw::{
     ArcDetection, ArucoBoard, Board, BscanRender, CameraCalibrationBoard, FitRadius, Gates, Phantom, Regression,
-    RenderSpec, Rig, SolveVariant, Sweep, TrueCamera, TrueTransform, Wire,
+    RenderSpec, Rig, SolveVariant, Sweep, TrackerCsv, TrackerNoise, TrueCamera, TrueTransform, Wire,
 };
 
 /// A manifest problem, located.
@@ -64,7 +64,7 @@ impl fmt::Display for ManifestErrors {
 
 impl std::error::Error for ManifestErrors {}
 
-/// Where the camera intrinsics come from.
+/// Where the poses come from: a camera (and its intrinsics), or a tracker.
 #[derive(Debug, Clone, PartialEq)]
 pub enum CameraSource {
     /// An OpenCV FileStorage YAML/XML file (`camera_matrix`, `distortion_coefficients`).
@@ -75,7 +75,12 @@ pub enum CameraSource {
         images: Option<PathBuf>,
         board: CameraCalibrationBoard,
     },
+    /// No camera: each dataset folder has a CSV of tracker poses (`poses.tracker_csv`).
+    TrackerCsv(TrackerCsv),
 }
+
+/// The file every rendered dataset writes its simulated tracker's poses to.
+pub const RENDERED_TRACKER_POSES: &str = "tracker_poses.csv";
 
 /// Where a dataset's frames come from.
 #[derive(Debug, Clone, PartialEq)]
@@ -488,28 +493,33 @@ fn validate(c: &mut Checker<'_>, base: &Path, raw: raw::RawManifest, path: &Path
             c.fail("rig.aruco.min_markers", "must be at least 1");
         }
     }
-    let camera = match (&raw.camera.intrinsics_file, &raw.camera.calibrate) {
-        (Some(file), None) => CameraSource::IntrinsicsFile(c.existing("camera.intrinsics_file", base, file, false)),
-        (None, Some(cal)) => {
-            c.board(
-                "camera.calibrate",
-                &Board {
-                    inner_corners: cal.inner_corners,
-                    square_mm: cal.square_mm,
-                    id_dots: 0,
-                },
-            );
-            let images = cal
-                .images
-                .as_ref()
-                .map(|f| c.existing("camera.calibrate.images", base, f, true));
-            CameraSource::Calibrate {
-                images,
-                board: cal.clone(),
+    let camera = match (&raw.camera, &raw.poses) {
+        (Some(camera), None) => camera_source(c, base, camera),
+        (None, Some(poses)) => {
+            let t = &poses.tracker_csv;
+            let f = "poses.tracker_csv";
+            if t.file.trim().is_empty() {
+                c.fail(&format!("{f}.file"), "must name a file inside each dataset folder");
             }
+            for (field, name) in [("probe_transform", &t.probe_transform), ("reference_transform", &t.reference_transform)] {
+                if name.trim().is_empty() || name.contains(',') {
+                    c.fail(&format!("{f}.{field}"), "must be a transform name without commas");
+                }
+            }
+            if t.probe_transform == t.reference_transform {
+                c.fail(
+                    &format!("{f}.reference_transform"),
+                    "must differ from probe_transform: the probe and the phantom carry different markers",
+                );
+            }
+            CameraSource::TrackerCsv(t.clone())
         }
-        _ => {
-            c.fail("camera", "give exactly one of `intrinsics_file` or `calibrate`");
+        (Some(_), Some(_)) => {
+            c.fail("poses", "give `camera` (poses from photos) or `poses` (from a tracker), not both");
+            CameraSource::IntrinsicsFile(PathBuf::new())
+        }
+        (None, None) => {
+            c.fail("camera", "is needed (or `poses.tracker_csv` for poses from a tracker)");
             CameraSource::IntrinsicsFile(PathBuf::new())
         }
     };
@@ -634,6 +644,25 @@ fn validate(c: &mut Checker<'_>, base: &Path, raw: raw::RawManifest, path: &Path
         }
     }
 
+    if let CameraSource::TrackerCsv(t) = &camera {
+        for (i, d) in datasets.iter().enumerate() {
+            match &d.source {
+                DatasetSource::Folder(folder) if !folder.join(&t.file).is_file() => c.fail(
+                    "poses.tracker_csv.file",
+                    format!("dataset `{}` ({}) has no {}", d.name, folder.display(), t.file),
+                ),
+                DatasetSource::Render(_) if t.file != RENDERED_TRACKER_POSES => c.fail(
+                    "poses.tracker_csv.file",
+                    format!(
+                        "datasets[{i}] is rendered, and rendered datasets write their tracker's poses to `{RENDERED_TRACKER_POSES}`, not `{}`",
+                        t.file
+                    ),
+                ),
+                _ => {}
+            }
+        }
+    }
+
     Manifest {
         path: path.to_path_buf(),
         sha256: sha256_hex(text.as_bytes()),
@@ -671,6 +700,35 @@ pub fn wires_centre(wires: &[(nalgebra::Point3<f64>, nalgebra::Point3<f64>)]) ->
     nalgebra::Point3::from(sum / wires.len().max(1) as f64)
 }
 
+/// The camera section: an intrinsics file, or a calibration from board views.
+fn camera_source(c: &mut Checker<'_>, base: &Path, camera: &raw::RawCamera) -> CameraSource {
+    match (&camera.intrinsics_file, &camera.calibrate) {
+        (Some(file), None) => CameraSource::IntrinsicsFile(c.existing("camera.intrinsics_file", base, file, false)),
+        (None, Some(cal)) => {
+            c.board(
+                "camera.calibrate",
+                &Board {
+                    inner_corners: cal.inner_corners,
+                    square_mm: cal.square_mm,
+                    id_dots: 0,
+                },
+            );
+            let images = cal
+                .images
+                .as_ref()
+                .map(|f| c.existing("camera.calibrate.images", base, f, true));
+            CameraSource::Calibrate {
+                images,
+                board: cal.clone(),
+            }
+        }
+        _ => {
+            c.fail("camera", "give exactly one of `intrinsics_file` or `calibrate`");
+            CameraSource::IntrinsicsFile(PathBuf::new())
+        }
+    }
+}
+
 fn validate_render(c: &mut Checker<'_>, field: &str, spec: &RenderSpec) {
     if spec.frames < 3 {
         c.fail(
@@ -699,6 +757,8 @@ fn validate_render(c: &mut Checker<'_>, field: &str, spec: &RenderSpec) {
     c.at_least(&format!("{field}.camera.noise_grey_levels"), cam.noise_grey_levels, 0.0);
     c.at_least(&format!("{field}.camera.blur_sigma_px"), cam.blur_sigma_px, 0.0);
     c.range(&format!("{field}.board_distance_mm"), spec.board_distance_mm);
+    c.at_least(&format!("{field}.tracker.position_sd_mm"), spec.tracker.position_sd_mm, 0.0);
+    c.at_least(&format!("{field}.tracker.rotation_sd_deg"), spec.tracker.rotation_sd_deg, 0.0);
     let s = &spec.sweep;
     for (name, v) in [
         ("tilt_x_deg", s.tilt_x_deg),

@@ -16,7 +16,12 @@ pub struct RawManifest {
     pub phantom: Phantom,
     #[serde(with = "serde_yaml::with::singleton_map")]
     pub rig: Rig,
-    pub camera: RawCamera,
+    /// The camera that photographs both boards; absent when `poses` come from a tracker.
+    #[serde(default)]
+    pub camera: Option<RawCamera>,
+    /// Poses from a tracker instead of the camera stage.
+    #[serde(default)]
+    pub poses: Option<RawPoses>,
     pub bscan: RawBscan,
     #[serde(default)]
     pub thresholds: RawThresholds,
@@ -142,6 +147,34 @@ pub struct RawCamera {
     /// OpenCV FileStorage file with `camera_matrix` and `distortion_coefficients`.
     pub intrinsics_file: Option<String>,
     pub calibrate: Option<CameraCalibrationBoard>,
+}
+
+/// Where the poses come from when not from the camera.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RawPoses {
+    pub tracker_csv: TrackerCsv,
+}
+
+/// A plain CSV of 4x4 matrices per frame (see [`crate::tracker_poses`]).
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct TrackerCsv {
+    /// File name inside each dataset folder (rendered datasets write `tracker_poses.csv`).
+    pub file: String,
+    /// `tracker_T_marker`: the probe's marker.
+    #[serde(default = "default_probe_transform")]
+    pub probe_transform: String,
+    /// `tracker_T_phantom`: the phantom's reference marker, the frame of the phantom geometry.
+    #[serde(default = "default_reference_transform")]
+    pub reference_transform: String,
+}
+
+fn default_probe_transform() -> String {
+    "ProbeToTracker".into()
+}
+fn default_reference_transform() -> String {
+    "ReferenceToTracker".into()
 }
 
 /// Camera calibration from views of a plain checkerboard.
@@ -318,6 +351,30 @@ pub struct RenderSpec {
     /// The true calibration; absent: the probe casing's nominal mount for the board size.
     #[serde(default)]
     pub marker_T_image: Option<TrueTransform>,
+    /// The simulated tracker whose poses are written to `tracker_poses.csv`.
+    #[serde(default)]
+    pub tracker: TrackerNoise,
+}
+
+/// Noise of the simulated optical tracker, per marker pose and frame (Gaussian).
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct TrackerNoise {
+    /// SD of each translation component, mm.
+    pub position_sd_mm: f64,
+    /// SD of the rotation about each axis, degrees.
+    pub rotation_sd_deg: f64,
+}
+
+impl Default for TrackerNoise {
+    fn default() -> Self {
+        // An optical tracker's marker pose: ~0.25 mm RMS over the three axes, and the
+        // rotation jitter of a ~60 mm marker.
+        TrackerNoise {
+            position_sd_mm: 0.15,
+            rotation_sd_deg: 0.1,
+        }
+    }
 }
 
 fn default_occlusion() -> f64 {

@@ -77,8 +77,9 @@ fn lab(manifest: &Manifest) -> Result<Lab, SynthError> {
             square_mm: board.square_mm,
             id_dots: 0,
         },
-        // A file gives the intrinsics; the views are still rendered for inspection.
-        crate::manifest::CameraSource::IntrinsicsFile(_) => BoardLayout {
+        // A file gives the intrinsics, or a tracker the poses; the views are still
+        // rendered for inspection.
+        crate::manifest::CameraSource::IntrinsicsFile(_) | crate::manifest::CameraSource::TrackerCsv(_) => BoardLayout {
             inner_corners: [9, 6],
             square_mm: 30.0,
             id_dots: 0,
@@ -274,6 +275,7 @@ fn render_into(manifest: &Manifest, spec: &RenderSpec, folder: &Path) -> Result<
     }
     let list_path = folder.join(FRAME_LIST);
     std::fs::write(&list_path, list).map_err(io_err(&list_path))?;
+    write_tracker_poses(spec, &scene, camera_T_phantom, folder)?;
 
     let truth = GroundTruthFile {
         generator_version: GENERATOR_VERSION,
@@ -294,6 +296,36 @@ fn render_into(manifest: &Manifest, spec: &RenderSpec, folder: &Path) -> Result<
     })?;
     std::fs::write(&truth_path, text).map_err(io_err(&truth_path))?;
     Ok(())
+}
+
+/// The simulated optical tracker: its frame is the camera's, its poses are the
+/// marker's at the moment of the B-scan and the phantom's, each with Gaussian
+/// noise of the spec's size (in the marker's own frame), from a stream of its own.
+fn write_tracker_poses(
+    spec: &RenderSpec,
+    scene: &scene::Scene,
+    camera_T_phantom: Rigid,
+    folder: &Path,
+) -> Result<(), SynthError> {
+    let noise = &spec.tracker;
+    let jitter = |rng: &mut Rng| {
+        let r = noise.rotation_sd_deg.to_radians();
+        let t = noise.position_sd_mm;
+        crate::geometry::rigid_from_axis_angle(
+            nalgebra::Vector3::new(rng.normal(0.0, r), rng.normal(0.0, r), rng.normal(0.0, r)),
+            nalgebra::Vector3::new(rng.normal(0.0, t), rng.normal(0.0, t), rng.normal(0.0, t)),
+        )
+    };
+    let mut rows = Vec::new();
+    for (k, plan) in scene.frames.iter().enumerate() {
+        let mut rng = Rng::fork(spec.seed, 20_000 + k as u64);
+        let tracker_T_marker = scene.camera_T_world * plan.world_T_marker_bscan * jitter(&mut rng);
+        let tracker_T_phantom = camera_T_phantom * jitter(&mut rng);
+        rows.push((k, "ProbeToTracker", tracker_T_marker));
+        rows.push((k, "ReferenceToTracker", tracker_T_phantom));
+    }
+    let path = folder.join(crate::manifest::RENDERED_TRACKER_POSES);
+    crate::tracker_poses::write(&path, &rows).map_err(io_err(&path))
 }
 
 /// Where a rendered dataset lives.
