@@ -130,7 +130,10 @@ mod tests {
         assert_eq!(no_photo[0].camera_image, None);
         assert_eq!(no_photo[0].bscan_image, dir.join("b0.png"));
         let (_, no_bscan) = with_list("nobscan", "frame,camera_image,bscan_image\n0,c0.png,\n");
-        assert!(no_bscan.unwrap_err().to_string().contains(":2: bscan_image must be given"));
+        assert!(no_bscan
+            .unwrap_err()
+            .to_string()
+            .contains(":2: bscan_image must be given"));
         let (_, empty) = with_list("empty", "frame,camera_image,bscan_image\n");
         assert!(matches!(empty.unwrap_err(), DatasetError::Empty { .. }));
     }

@@ -431,7 +431,11 @@ pub fn render_tracked(
             .map(|p| p.display().to_string())
             .unwrap_or_else(|| "—".into()),
     );
-    ctx.insert("plus_config", &manifest.plus_config.display().to_string());
+    let definition = match &manifest.plus_config {
+        Some(path) => path.display().to_string(),
+        None => "the manifest's patterns".to_string(),
+    };
+    ctx.insert("plus_config", &definition);
     ctx.insert("nwires", &manifest.nwires.len());
     ctx.insert("model", &format!("{:?}", manifest.model));
     ctx.insert("constraints", &run.constraints);

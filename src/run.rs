@@ -247,11 +247,10 @@ fn camera_stage(manifest: &Manifest, dataset: &str, folder: &Path) -> Result<Cam
             tracker: None,
         }),
         CameraSource::TrackerCsv(csv) => {
-            let poses =
-                TrackerPoses::read(&folder.join(&csv.file)).map_err(|source| RunError::TrackerPoses {
-                    dataset: dataset.into(),
-                    source,
-                })?;
+            let poses = TrackerPoses::read(&folder.join(&csv.file)).map_err(|source| RunError::TrackerPoses {
+                dataset: dataset.into(),
+                source,
+            })?;
             Ok(CameraStage {
                 intrinsics: None,
                 calibration: None,
@@ -369,7 +368,11 @@ fn process_frame(
                 return Ok(record);
             }
         },
-        (None, None) => return Err(RunError::Unsupported("neither a camera nor a tracker gives the poses".into())),
+        (None, None) => {
+            return Err(RunError::Unsupported(
+                "neither a camera nor a tracker gives the poses".into(),
+            ))
+        }
     }
     let bscan = match read_gray(&files.bscan_image) {
         Ok(m) => m,

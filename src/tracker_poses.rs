@@ -149,9 +149,24 @@ impl TrackerPoses {
     }
 }
 
-/// A tracker's 4x4 matrix as a rigid transform: last row `[0 0 0 1]`, rotation
-/// orthonormal within [`ORTHONORMAL_TOLERANCE`] and not a reflection.
+/// A tracker's 4x4 matrix as a rigid transform: see [`check_near_rigid`]; the
+/// rotation is then made exactly orthonormal.
 fn rigid_from_tracker_rows(m: &[[f64; 4]; 4]) -> Result<Rigid, String> {
+    check_near_rigid(m, ORTHONORMAL_TOLERANCE)?;
+    let r = Matrix3::from_fn(|i, j| m[i][j]);
+    let rotation = Rotation3::from_matrix_eps(&r, 1e-12, 100, Rotation3::identity());
+    Ok(rigid_from_parts(
+        rotation.matrix(),
+        &Vector3::new(m[0][3], m[1][3], m[2][3]),
+    ))
+}
+
+/// Whether a 4x4 matrix written with a few decimals is a rigid transform: last row
+/// `[0 0 0 1]`, rotation orthonormal within `tolerance` and not a reflection.
+pub fn check_near_rigid(m: &[[f64; 4]; 4], tolerance: f64) -> Result<(), String> {
+    if m.iter().flatten().any(|v| !v.is_finite()) {
+        return Err("the matrix has a non-finite entry".into());
+    }
     let last = m[3];
     if last[0].abs() > 1e-9 || last[1].abs() > 1e-9 || last[2].abs() > 1e-9 || (last[3] - 1.0).abs() > 1e-9 {
         return Err(format!(
@@ -161,16 +176,15 @@ fn rigid_from_tracker_rows(m: &[[f64; 4]; 4]) -> Result<Rigid, String> {
     }
     let r = Matrix3::from_fn(|i, j| m[i][j]);
     let off = (r.transpose() * r - Matrix3::identity()).abs().max();
-    if off > ORTHONORMAL_TOLERANCE {
+    if off > tolerance {
         return Err(format!(
-            "the rotation part is not orthonormal (|RᵀR − I| = {off:.1e}, tolerance {ORTHONORMAL_TOLERANCE:.0e}); is the matrix scaled or sheared?"
+            "the rotation part is not orthonormal (|RᵀR − I| = {off:.1e}, tolerance {tolerance:.0e}); is the matrix scaled or sheared?"
         ));
     }
     if r.determinant() < 0.0 {
         return Err("the rotation part is a reflection (det R < 0)".into());
     }
-    let rotation = Rotation3::from_matrix_eps(&r, 1e-12, 100, Rotation3::identity());
-    Ok(rigid_from_parts(rotation.matrix(), &Vector3::new(m[0][3], m[1][3], m[2][3])))
+    Ok(())
 }
 
 /// Writes poses as a tracker-pose CSV, full precision.
@@ -210,7 +224,10 @@ mod tests {
         assert!((f.tracker_T_marker.to_homogeneous() - a.to_homogeneous()).abs().max() < 1e-12);
         assert!((f.tracker_T_phantom.to_homogeneous() - b.to_homogeneous()).abs().max() < 1e-12);
         let missing = read.frame(4, "ProbeToTracker", "ReferenceToTracker").unwrap_err();
-        assert!(missing.contains("poses.csv has no ProbeToTracker for frame 4"), "{missing}");
+        assert!(
+            missing.contains("poses.csv has no ProbeToTracker for frame 4"),
+            "{missing}"
+        );
         std::fs::remove_dir_all(&dir).unwrap();
     }
 
@@ -240,12 +257,27 @@ mod tests {
         let cases: Vec<(String, &str)> = vec![
             ("frame,matrix\n".into(), "t.csv:1: the header must be"),
             (format!("{HEADER}\n0,P,1,2\n"), "t.csv:2: expected 18"),
-            (format!("{HEADER}\n{}", row(0, "P", scaled)), "t.csv:2: P of frame 0: the rotation part is not orthonormal"),
+            (
+                format!("{HEADER}\n{}", row(0, "P", scaled)),
+                "t.csv:2: P of frame 0: the rotation part is not orthonormal",
+            ),
             (format!("{HEADER}\n{}", row(0, "P", mirrored)), "reflection"),
-            (format!("{HEADER}\n{}", row(0, "P", projective)), "last row must be 0 0 0 1"),
-            (format!("{HEADER}\n{}", row(0, "P", id).replace(",1,0,0,0", ",nan,0,0,0")), "m00 = `nan` is not a finite number"),
-            (format!("{HEADER}\n{}{}", row(0, "P", id), row(0, "P", id)), "t.csv:3: P of frame 0 is given twice"),
-            (format!("{HEADER}\n{}", row(0, "P", id).replacen('0', "x", 1)), "frame `x` is not a whole number"),
+            (
+                format!("{HEADER}\n{}", row(0, "P", projective)),
+                "last row must be 0 0 0 1",
+            ),
+            (
+                format!("{HEADER}\n{}", row(0, "P", id).replace(",1,0,0,0", ",nan,0,0,0")),
+                "m00 = `nan` is not a finite number",
+            ),
+            (
+                format!("{HEADER}\n{}{}", row(0, "P", id), row(0, "P", id)),
+                "t.csv:3: P of frame 0 is given twice",
+            ),
+            (
+                format!("{HEADER}\n{}", row(0, "P", id).replacen('0', "x", 1)),
+                "frame `x` is not a whole number",
+            ),
             (format!("{HEADER}\n\n"), "holds no poses"),
         ];
         for (text, want) in cases {

@@ -301,7 +301,8 @@ const CASES: &[Case] = &[
         setup: |d| with_manifest(d, "bscan:\n", "poses:\n  tracker_csv: {file: poses.csv}\nbscan:\n"),
         args: validate,
         code: 2,
-        expect: "experiment.yaml:10: field `poses`: give `camera` (poses from photos) or `poses` (from a tracker), not both",
+        expect:
+            "experiment.yaml:10: field `poses`: give `camera` (poses from photos) or `poses` (from a tracker), not both",
         in_output: "stderr",
     },
     Case {
@@ -334,7 +335,14 @@ const CASES: &[Case] = &[
     },
     Case {
         name: "tracker CSV: a frame without poses is rejected with its reason",
-        setup: |d| tracker_csv(d, |t| t.lines().filter(|l| !l.starts_with("2,")).map(|l| format!("{l}\n")).collect()),
+        setup: |d| {
+            tracker_csv(d, |t| {
+                t.lines()
+                    .filter(|l| !l.starts_with("2,"))
+                    .map(|l| format!("{l}\n"))
+                    .collect()
+            })
+        },
         args: run,
         code: 0,
         expect: "tracker pose,poses.csv has no ProbeToTracker for frame 2",

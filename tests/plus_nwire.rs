@@ -67,6 +67,68 @@ fn nwire_crossings_of_the_shared_configuration() {
     assert!((config.approximate_spacing_mm_per_px.unwrap() - 0.078).abs() < 1e-12);
 }
 
+/// The same phantom written out in a manifest's YAML gives the same inputs as the
+/// PLUS device set; a YAML N that is not an N is refused with its field.
+#[test]
+fn nwire_phantom_from_yaml_matches_the_plus_configuration() {
+    use probecal::manifest::tracked::TrackedManifest;
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let load = |p: &Path| {
+        let text = std::fs::read_to_string(p).unwrap();
+        TrackedManifest::from_text(p, &text)
+    };
+    let from_plus = load(&root.join("experiments/plus_fcal2_nwire.yaml")).unwrap().inputs();
+    let yaml_path = root.join("tests/fixtures/fcal2_nwire_yaml.yaml");
+    let from_yaml = load(&yaml_path).unwrap().inputs();
+    assert_eq!(from_yaml.nwires.len(), 3);
+    for (a, b) in from_yaml.nwires.iter().zip(&from_plus.nwires) {
+        assert!((a.w12_in_phantom_mm - b.w12_in_phantom_mm).norm() < 1e-9);
+        assert!((a.w32_in_phantom_mm - b.w32_in_phantom_mm).norm() < 1e-9);
+        for (u, v) in a.wires.iter().zip(&b.wires) {
+            assert_eq!(u, v);
+        }
+    }
+    assert_eq!(from_yaml.reference_T_phantom, from_plus.reference_T_phantom);
+    assert_eq!(from_yaml.spacing_guess_mm_per_px, from_plus.spacing_guess_mm_per_px);
+    assert_eq!(from_yaml.clip_rectangle_px, from_plus.clip_rectangle_px);
+    // The clip rectangle is written in the YAML's segmentation, read from the device set otherwise.
+    let mut segmentation = from_yaml.segmentation.clone();
+    segmentation.clip_rectangle_px = None;
+    assert_eq!(segmentation, from_plus.segmentation);
+
+    let text = std::fs::read_to_string(&yaml_path).unwrap();
+    let cases = [
+        // Pattern 2's right side made diagonal: not an N.
+        (
+            "back_in_phantom_mm: [60.0, 40.0, 10.0]",
+            "back_in_phantom_mm: [70.0, 40.0, 10.0]",
+            "field `phantom.nwire.patterns[1].wires`: wires `4:G3_g3` and `6:M3_m3` (the N's sides) are not parallel",
+        ),
+        // A scaled registration.
+        (
+            "[-0.0167397, -0.0153548, -0.999742, 15.6642]",
+            "[-0.0334794, -0.0307096, -1.999484, 15.6642]",
+            "field `phantom.nwire.reference_T_phantom`: the rotation part is not orthonormal",
+        ),
+        // Both a device set and patterns.
+        (
+            "    approximate_spacing_mm_per_px: 0.078\n",
+            "    plus_config: x.xml\n",
+            "field `phantom.nwire`: give exactly one of `plus_config`",
+        ),
+    ];
+    for (from, to, want) in cases {
+        let edited = text.replacen(from, to, 1);
+        assert_ne!(edited, text, "edit `{from}` did not apply");
+        let err = TrackedManifest::from_text(&yaml_path, &edited).unwrap_err().to_string();
+        assert!(err.contains(want), "expected `{want}` in:\n{err}");
+        assert!(
+            err.contains("fcal2_nwire_yaml.yaml:"),
+            "the error names the file and line: {err}"
+        );
+    }
+}
+
 /// The default tracked experiment, run by the command line.
 #[test]
 fn experiment_beats_plus_on_its_own_data() {

@@ -11,7 +11,9 @@ fn root() -> &'static Path {
 /// The small hemisphere fixture with its camera replaced by the tracker's poses,
 /// with tracker noise `sd_mm` / `sd_deg`, run through `probecal run`.
 fn run_with_tracker(name: &str, sd_mm: f64, sd_deg: f64) -> (PathBuf, serde_json::Value) {
-    let work = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("tracker_csv").join(name);
+    let work = PathBuf::from(env!("CARGO_TARGET_TMPDIR"))
+        .join("tracker_csv")
+        .join(name);
     let _ = std::fs::remove_dir_all(&work);
     std::fs::create_dir_all(&work).unwrap();
     let text = std::fs::read_to_string(root().join("tests/fixtures/hemisphere_small.yaml")).unwrap();
@@ -22,9 +24,14 @@ fn run_with_tracker(name: &str, sd_mm: f64, sd_deg: f64) -> (PathBuf, serde_json
         )
         .replace(
             "      calibration_views: 8\n",
-            &format!("      calibration_views: 8\n      tracker: {{position_sd_mm: {sd_mm}, rotation_sd_deg: {sd_deg}}}\n"),
+            &format!(
+                "      calibration_views: 8\n      tracker: {{position_sd_mm: {sd_mm}, rotation_sd_deg: {sd_deg}}}\n"
+            ),
         );
-    assert!(edited.contains("tracker_csv") && edited.contains("position_sd_mm"), "fixture edit did not apply");
+    assert!(
+        edited.contains("tracker_csv") && edited.contains("position_sd_mm"),
+        "fixture edit did not apply"
+    );
     let manifest = work.join("experiment.yaml");
     std::fs::write(&manifest, edited).unwrap();
     let out = Command::new(env!("CARGO_BIN_EXE_probecal"))
@@ -48,7 +55,10 @@ fn exact_tracker_poses_are_read_in_the_right_frames() {
     let (folder, summary) = run_with_tracker("exact", 0.0, 0.0);
     // No camera stage: no intrinsics, no photo read.
     assert!(summary["camera"]["fx_px"].is_null(), "{}", summary["camera"]);
-    assert!(summary["camera"]["source"].as_str().unwrap().contains("tracker_poses.csv"));
+    assert!(summary["camera"]["source"]
+        .as_str()
+        .unwrap()
+        .contains("tracker_poses.csv"));
     // With a noise-free tracker each pose is the true one (the marker at the B-scan):
     // any mix-up of frames, transposition or inversion would show here.
     let frames = std::fs::read_to_string(folder.join("frames.csv")).unwrap();
@@ -59,7 +69,11 @@ fn exact_tracker_poses_are_read_in_the_right_frames() {
     for line in frames.lines().skip(1) {
         let f: Vec<&str> = line.split(',').collect();
         if let (Ok(mm), Ok(deg)) = (f[pose_mm].parse::<f64>(), f[pose_deg].parse::<f64>()) {
-            assert!(mm < 1e-9 && deg < 1e-6, "frame {}: pose off by {mm} mm, {deg} deg", f[0]);
+            assert!(
+                mm < 1e-9 && deg < 1e-6,
+                "frame {}: pose off by {mm} mm, {deg} deg",
+                f[0]
+            );
             checked += 1;
         }
     }

@@ -501,7 +501,10 @@ fn validate(c: &mut Checker<'_>, base: &Path, raw: raw::RawManifest, path: &Path
             if t.file.trim().is_empty() {
                 c.fail(&format!("{f}.file"), "must name a file inside each dataset folder");
             }
-            for (field, name) in [("probe_transform", &t.probe_transform), ("reference_transform", &t.reference_transform)] {
+            for (field, name) in [
+                ("probe_transform", &t.probe_transform),
+                ("reference_transform", &t.reference_transform),
+            ] {
                 if name.trim().is_empty() || name.contains(',') {
                     c.fail(&format!("{f}.{field}"), "must be a transform name without commas");
                 }
@@ -515,7 +518,10 @@ fn validate(c: &mut Checker<'_>, base: &Path, raw: raw::RawManifest, path: &Path
             CameraSource::TrackerCsv(t.clone())
         }
         (Some(_), Some(_)) => {
-            c.fail("poses", "give `camera` (poses from photos) or `poses` (from a tracker), not both");
+            c.fail(
+                "poses",
+                "give `camera` (poses from photos) or `poses` (from a tracker), not both",
+            );
             CameraSource::IntrinsicsFile(PathBuf::new())
         }
         (None, None) => {
@@ -757,8 +763,16 @@ fn validate_render(c: &mut Checker<'_>, field: &str, spec: &RenderSpec) {
     c.at_least(&format!("{field}.camera.noise_grey_levels"), cam.noise_grey_levels, 0.0);
     c.at_least(&format!("{field}.camera.blur_sigma_px"), cam.blur_sigma_px, 0.0);
     c.range(&format!("{field}.board_distance_mm"), spec.board_distance_mm);
-    c.at_least(&format!("{field}.tracker.position_sd_mm"), spec.tracker.position_sd_mm, 0.0);
-    c.at_least(&format!("{field}.tracker.rotation_sd_deg"), spec.tracker.rotation_sd_deg, 0.0);
+    c.at_least(
+        &format!("{field}.tracker.position_sd_mm"),
+        spec.tracker.position_sd_mm,
+        0.0,
+    );
+    c.at_least(
+        &format!("{field}.tracker.rotation_sd_deg"),
+        spec.tracker.rotation_sd_deg,
+        0.0,
+    );
     let s = &spec.sweep;
     for (name, v) in [
         ("tilt_x_deg", s.tilt_x_deg),

@@ -12,6 +12,20 @@
 //!   nwire:
 //!     plus_config: path/to/PlusDeviceSet.xml
 //! ```
+//!
+//! or the phantom written out (each N: side, diagonal, side; phantom frame, mm):
+//!
+//! ```yaml
+//! phantom:
+//!   nwire:
+//!     approximate_spacing_mm_per_px: 0.078
+//!     patterns:
+//!       - wires:
+//!           - {name: w1, front_in_phantom_mm: [30, 0, 20], back_in_phantom_mm: [30, 40, 20]}
+//!           - {name: w2, front_in_phantom_mm: [55, 0, 20], back_in_phantom_mm: [35, 40, 20]}
+//!           - {name: w3, front_in_phantom_mm: [60, 0, 20], back_in_phantom_mm: [60, 40, 20]}
+//!     reference_T_phantom: [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]]
+//! ```
 
 use std::path::{Path, PathBuf};
 
@@ -19,9 +33,12 @@ use nalgebra::Matrix4;
 use serde::{Deserialize, Serialize};
 
 use super::{deserialize_located, sha256_hex, Checker, ManifestErrors};
-use crate::nwire::{NWire, Segmentation};
+use nalgebra::Point3;
+
+use crate::nwire::{NWire, Segmentation, WireSegment};
 use crate::plus::config::PlusConfig;
 use crate::tracked::{ConstraintModel, TimeOffset, TrackedInputs};
+use crate::tracker_poses::{check_near_rigid, ORTHONORMAL_TOLERANCE};
 
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -89,15 +106,41 @@ fn default_offset() -> OffsetSetting {
 #[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(rename_all = "snake_case", deny_unknown_fields)]
 enum TrackedPhantom {
-    /// N-wire patterns and `PhantomToReference` from a PLUS device-set configuration.
+    /// N-wire patterns and `PhantomToReference` from a PLUS device-set
+    /// configuration (`plus_config`), or written out here (`patterns` and
+    /// `reference_T_phantom`).
     Nwire {
-        plus_config: String,
+        #[serde(default)]
+        plus_config: Option<String>,
+        /// Each N: three wires (side, diagonal, side) in the phantom frame, mm.
+        #[serde(default)]
+        patterns: Option<Vec<RawNWirePattern>>,
+        /// `reference_T_phantom` (PLUS's `PhantomToReference`), a 4x4 row-major matrix.
+        #[serde(default)]
+        reference_T_phantom: Option<[[f64; 4]; 4]>,
+        /// Approximate pixel size the segmentation starts from.
+        #[serde(default)]
+        approximate_spacing_mm_per_px: Option<f64>,
         /// Name of the phantom frame and the reference (the tracked marker on the phantom).
         #[serde(default = "default_phantom_frame")]
         phantom_frame: String,
         #[serde(default = "default_reference_frame")]
         reference_frame: String,
     },
+}
+
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+struct RawNWirePattern {
+    wires: [RawNWireWire; 3],
+}
+
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+struct RawNWireWire {
+    name: String,
+    front_in_phantom_mm: [f64; 3],
+    back_in_phantom_mm: [f64; 3],
 }
 
 fn default_phantom_frame() -> String {
@@ -189,7 +232,8 @@ pub struct TrackedManifest {
     pub experiment: String,
     pub description: String,
     pub dataset: String,
-    pub plus_config: PathBuf,
+    /// The PLUS device set the phantom came from (`None`: written in the manifest).
+    pub plus_config: Option<PathBuf>,
     pub calibration_sequence: PathBuf,
     pub validation_sequence: Option<PathBuf>,
     pub probe_transform: String,
@@ -250,34 +294,96 @@ impl TrackedManifest {
         };
         let TrackedPhantom::Nwire {
             plus_config,
+            patterns,
+            reference_T_phantom: given_reference_T_phantom,
+            approximate_spacing_mm_per_px: phantom_spacing,
             phantom_frame,
             reference_frame,
         } = &raw.phantom;
-        let config_field = "phantom.nwire.plus_config";
-        let plus_config = c.existing(config_field, &base, plus_config, false);
         let mut nwires = Vec::new();
         let mut reference_T_phantom = Matrix4::identity();
-        let mut config_spacing = None;
+        let mut config_spacing = *phantom_spacing;
         let mut clip_rectangle_px = None;
-        if plus_config.is_file() {
-            match PlusConfig::read(&plus_config) {
-                Ok(config) => {
-                    if config.nwires.is_empty() {
+        let mut config_file = None;
+        match (plus_config, patterns) {
+            (Some(plus_config), None) => {
+                let config_field = "phantom.nwire.plus_config";
+                for (given, name) in [
+                    (given_reference_T_phantom.is_some(), "reference_T_phantom"),
+                    (phantom_spacing.is_some(), "approximate_spacing_mm_per_px"),
+                ] {
+                    if given {
                         c.fail(
-                            config_field,
-                            format!("{}: no N-wire `Pattern` in `PhantomDefinition`", plus_config.display()),
+                            &format!("phantom.nwire.{name}"),
+                            "comes from plus_config; give it only with `patterns`",
                         );
                     }
-                    nwires = config.nwires.clone();
-                    match config.transform(phantom_frame, reference_frame) {
-                        Ok(m) => reference_T_phantom = m,
+                }
+                let plus_config = c.existing(config_field, &base, plus_config, false);
+                if plus_config.is_file() {
+                    match PlusConfig::read(&plus_config) {
+                        Ok(config) => {
+                            if config.nwires.is_empty() {
+                                c.fail(
+                                    config_field,
+                                    format!("{}: no N-wire `Pattern` in `PhantomDefinition`", plus_config.display()),
+                                );
+                            }
+                            nwires = config.nwires.clone();
+                            match config.transform(phantom_frame, reference_frame) {
+                                Ok(m) => reference_T_phantom = m,
+                                Err(e) => c.fail(config_field, e.to_string()),
+                            }
+                            config_spacing = config.approximate_spacing_mm_per_px;
+                            clip_rectangle_px = config.clip_rectangle_px.map(|(o, s)| [o[0], o[1], s[0], s[1]]);
+                        }
                         Err(e) => c.fail(config_field, e.to_string()),
                     }
-                    config_spacing = config.approximate_spacing_mm_per_px;
-                    clip_rectangle_px = config.clip_rectangle_px.map(|(o, s)| [o[0], o[1], s[0], s[1]]);
                 }
-                Err(e) => c.fail(config_field, e.to_string()),
+                config_file = Some(plus_config);
             }
+            (None, Some(patterns)) => {
+                if patterns.is_empty() {
+                    c.fail("phantom.nwire.patterns", "lists no N-wire");
+                }
+                for (i, p) in patterns.iter().enumerate() {
+                    let segments = p.wires.clone().map(|w| WireSegment {
+                        name: w.name,
+                        front_in_phantom_mm: Point3::from(w.front_in_phantom_mm),
+                        back_in_phantom_mm: Point3::from(w.back_in_phantom_mm),
+                    });
+                    if segments.iter().any(|w| {
+                        w.front_in_phantom_mm
+                            .iter()
+                            .chain(w.back_in_phantom_mm.iter())
+                            .any(|v| !v.is_finite())
+                    }) {
+                        c.fail(
+                            &format!("phantom.nwire.patterns[{i}].wires"),
+                            "has a non-finite end point",
+                        );
+                        continue;
+                    }
+                    match NWire::new(segments) {
+                        Ok(n) => nwires.push(n),
+                        Err(e) => c.fail(&format!("phantom.nwire.patterns[{i}].wires"), e),
+                    }
+                }
+                match given_reference_T_phantom {
+                    Some(rows) => match check_near_rigid(rows, ORTHONORMAL_TOLERANCE) {
+                        Ok(()) => reference_T_phantom = Matrix4::from_fn(|r, k| rows[r][k]),
+                        Err(e) => c.fail("phantom.nwire.reference_T_phantom", e),
+                    },
+                    None => c.fail(
+                        "phantom.nwire.reference_T_phantom",
+                        "is needed with `patterns`: the phantom's pose on its reference marker (PLUS's PhantomToReference)",
+                    ),
+                }
+            }
+            _ => c.fail(
+                "phantom.nwire",
+                "give exactly one of `plus_config` (a PLUS device set) or `patterns` with `reference_T_phantom`",
+            ),
         }
         let spacing_guess_mm_per_px = match raw.bscan.approximate_spacing_mm_per_px.or(config_spacing) {
             Some(s) => {
@@ -287,7 +393,7 @@ impl TrackedManifest {
             None => {
                 c.fail(
                     "bscan.approximate_spacing_mm_per_px",
-                    "is needed: the configuration has no `ApproximateSpacingMmPerPixel`",
+                    "is needed: neither the configuration nor the phantom gives `approximate_spacing_mm_per_px`",
                 );
                 1.0
             }
@@ -364,7 +470,7 @@ impl TrackedManifest {
             experiment: raw.experiment,
             description: raw.description,
             dataset: seq.dataset.clone(),
-            plus_config,
+            plus_config: config_file,
             calibration_sequence,
             validation_sequence,
             probe_transform: seq.probe_transform.clone(),
@@ -406,7 +512,8 @@ impl TrackedManifest {
 
     /// Every input file, for hashing.
     pub fn input_files(&self) -> Vec<PathBuf> {
-        let mut files = vec![self.plus_config.clone(), self.calibration_sequence.clone()];
+        let mut files: Vec<PathBuf> = self.plus_config.iter().cloned().collect();
+        files.push(self.calibration_sequence.clone());
         files.extend(self.validation_sequence.clone());
         files.extend(self.plus_result.clone());
         files

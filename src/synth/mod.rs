@@ -79,11 +79,13 @@ fn lab(manifest: &Manifest) -> Result<Lab, SynthError> {
         },
         // A file gives the intrinsics, or a tracker the poses; the views are still
         // rendered for inspection.
-        crate::manifest::CameraSource::IntrinsicsFile(_) | crate::manifest::CameraSource::TrackerCsv(_) => BoardLayout {
-            inner_corners: [9, 6],
-            square_mm: 30.0,
-            id_dots: 0,
-        },
+        crate::manifest::CameraSource::IntrinsicsFile(_) | crate::manifest::CameraSource::TrackerCsv(_) => {
+            BoardLayout {
+                inner_corners: [9, 6],
+                square_mm: 30.0,
+                id_dots: 0,
+            }
+        }
     };
     Ok(Lab { rig, calibration })
 }
