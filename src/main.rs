@@ -81,6 +81,23 @@ enum Command {
         #[arg(long, default_value = "datasets")]
         datasets: PathBuf,
     },
+    /// The thesis's σ-table and a Monte Carlo accuracy study of every estimator
+    /// (renders the manifest's first dataset once per seed).
+    Study {
+        manifest: PathBuf,
+        /// Seeds rendered (0: the σ-table only).
+        #[arg(long, default_value_t = 50)]
+        seeds: u64,
+        #[arg(long, default_value_t = 1000)]
+        first_seed: u64,
+        #[arg(long, default_value = "reports/study")]
+        out: PathBuf,
+        #[arg(long, default_value = "datasets")]
+        datasets: PathBuf,
+        /// Keep the rendered datasets (they are removed after each seed's run).
+        #[arg(long)]
+        keep_datasets: bool,
+    },
     /// Calibrate a camera from chessboard images; writes OpenCV FileStorage YAML.
     CalibrateCamera {
         /// Image files and/or folders of images.
@@ -96,6 +113,40 @@ enum Command {
         #[arg(long)]
         out: PathBuf,
     },
+}
+
+fn study(manifest: &Path, seeds: u64, first_seed: u64, out: &Path, datasets: &Path, keep: bool) -> ExitCode {
+    let manifest = match probecal::manifest::Manifest::load(manifest) {
+        Ok(m) => m,
+        Err(e) => {
+            eprintln!("error: {e}");
+            return ExitCode::from(2);
+        }
+    };
+    probecal::progress::set_quiet(true);
+    let sigma = probecal::study::sigma_table(50, 200, 1);
+    let seeds: Vec<u64> = (first_seed..first_seed + seeds).collect();
+    let monte_carlo = if seeds.is_empty() {
+        None
+    } else {
+        match probecal::study::monte_carlo(&manifest, &seeds, datasets, keep, &mut |l| eprintln!("{l}")) {
+            Ok(m) => Some(m),
+            Err(e) => {
+                eprintln!("error: {e}");
+                return ExitCode::FAILURE;
+            }
+        }
+    };
+    match probecal::study::write(out, &sigma, monte_carlo.as_ref()) {
+        Ok(()) => {
+            eprintln!("written to {}", out.display());
+            ExitCode::SUCCESS
+        }
+        Err(e) => {
+            eprintln!("error: {e}");
+            ExitCode::FAILURE
+        }
+    }
 }
 
 fn parse_board(text: &str) -> Result<[u32; 2], String> {
@@ -347,7 +398,16 @@ fn run(manifests: Vec<PathBuf>, out: Option<PathBuf>, datasets: PathBuf, force: 
             runs.push((index, run));
         }
     }
-    match render_index(&entries) {
+    // A study written into the same folder (`probecal study --out <out>/study`) is linked too.
+    let studies: Vec<(String, String)> = if out.join("study/study.html").is_file() {
+        vec![(
+            "study/study.html".into(),
+            "The thesis's σ-table and the Monte Carlo accuracy study of every estimator".into(),
+        )]
+    } else {
+        Vec::new()
+    };
+    match render_index(&entries, &studies) {
         Ok(html) => {
             if let Err(e) = write_atomic(&out.join("index.html"), html.as_bytes()) {
                 eprintln!("error: {e}");
@@ -537,6 +597,14 @@ fn main() -> ExitCode {
                 ExitCode::from(2)
             }
         },
+        Command::Study {
+            manifest,
+            seeds,
+            first_seed,
+            out,
+            datasets,
+            keep_datasets,
+        } => study(&manifest, seeds, first_seed, &out, &datasets, keep_datasets),
         Command::Synth { manifests, datasets } => {
             let manifests = match load_all(&manifests) {
                 Ok(m) => m,

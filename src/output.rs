@@ -237,6 +237,34 @@ pub fn summary(run: &DatasetRun, manifest: &crate::manifest::Manifest) -> Value 
         "gates": run.gates,
         "regression_tolerances": manifest.thresholds.regression,
     });
+    if !run.methods.is_empty() {
+        out["methods"] = run
+            .methods
+            .iter()
+            .map(|m| {
+                json!({
+                    "name": m.name,
+                    "description": m.description,
+                    "frames_used": m.frames_used,
+                    "marker_T_image": to_rows(&m.marker_T_image),
+                    "spacing_mm_per_px": m.spacing_mm_per_px,
+                    "truth": m.truth.map(|t| json!({
+                        "corner_error_mm": {"mean": t.corner_error_mean_mm, "max": t.corner_error_max_mm},
+                        "rotation_error_deg": t.rotation_error_deg,
+                    })),
+                })
+            })
+            .collect();
+    }
+    if let Some(v) = &run.validation {
+        out["validation"] = json!({
+            "protocol": "frames of the calibration cut-off; PRE by leave-one-out; CR over random half-splits; bootstrap percentile intervals (2.5 %, 97.5 %)",
+            "pre_loo_mm": v.leave_one_out.summary,
+            "cr_mm": v.reproducibility.cr_mm,
+            "cr_calibrations": v.reproducibility.calibrations,
+            "bootstrap": v.bootstrap,
+        });
+    }
     if let Some(t) = &run.truth {
         let pair = |v: Option<(f64, f64)>| v.map(|(mean, max)| json!({"mean": mean, "max": max}));
         out["truth"] = json!({

@@ -87,6 +87,9 @@ pub struct RunContext {
     pub gates: Vec<Gate>,
     pub rejected: Vec<Rejected>,
     pub bre_figure_svg: String,
+    /// Other estimators on the same frames: name, description, frames, truth errors.
+    pub methods: Vec<StatRow>,
+    pub validation: Vec<KeyValue>,
 }
 
 fn stat_rows(stats: &BreStats) -> Vec<StatRow> {
@@ -154,6 +157,54 @@ pub fn bre_figure(run: &DatasetRun) -> Result<String, String> {
         root.present().map_err(|e| e.to_string())?;
     }
     Ok(svg)
+}
+
+fn validation_rows(run: &DatasetRun) -> Vec<KeyValue> {
+    let Some(v) = &run.validation else { return Vec::new() };
+    let b = &v.bootstrap;
+    let iv = |i: crate::validation::Interval| format!("[{}, {}]", mm(i.low), mm(i.high));
+    let mut rows = vec![
+        kv(
+            "PRE, leave-one-out: mean (PRA) ± SD (mm)",
+            format!(
+                "{} ± {} (n = {})",
+                mm(v.leave_one_out.summary.mean),
+                mm(v.leave_one_out.summary.std),
+                v.leave_one_out.summary.n
+            ),
+        ),
+        kv(
+            "CR: corners and centre over half-split calibrations (mm)",
+            format!(
+                "{} ({} calibrations)",
+                mm(v.reproducibility.cr_mm),
+                v.reproducibility.calibrations
+            ),
+        ),
+    ];
+    for (k, axis) in ["x", "y", "z"].iter().enumerate() {
+        rows.push(kv(
+            &format!("bootstrap 95 % interval: translation {axis} (mm)"),
+            iv(b.translation_mm[k]),
+        ));
+    }
+    for (k, name) in ["roll x", "pitch y", "yaw z"].iter().enumerate() {
+        rows.push(kv(
+            &format!("bootstrap 95 % interval: {name} (°)"),
+            iv(b.euler_zyx_deg[k]),
+        ));
+    }
+    for (k, axis) in ["x", "y", "z"].iter().enumerate() {
+        rows.push(kv(
+            &format!("bootstrap 95 % interval: BRE mean {axis} (mm)"),
+            iv(b.bre_mean_mm[k]),
+        ));
+    }
+    rows.push(kv(
+        "bootstrap: image corners moved, 95th percentile (mm)",
+        format!("{} ({} resamples)", mm(b.corner_shift_p95_mm), b.resamples),
+    ));
+    rows
 }
 
 /// Prepares the page's context.
@@ -356,6 +407,23 @@ pub fn context(run: &DatasetRun, manifest: &crate::manifest::Manifest) -> RunCon
             })
             .collect(),
         bre_figure_svg: bre_figure(run).unwrap_or_else(|e| format!("<p>figure not drawn: {e}</p>")),
+        methods: run
+            .methods
+            .iter()
+            .map(|m| StatRow {
+                parameter: m.name.to_string(),
+                values: vec![
+                    m.description.clone(),
+                    m.frames_used.to_string(),
+                    m.truth
+                        .map(|t| mm(t.corner_error_mean_mm))
+                        .unwrap_or_else(|| "—".into()),
+                    m.truth.map(|t| mm(t.corner_error_max_mm)).unwrap_or_else(|| "—".into()),
+                    m.truth.map(|t| mm(t.rotation_error_deg)).unwrap_or_else(|| "—".into()),
+                ],
+            })
+            .collect(),
+        validation: validation_rows(run),
     }
 }
 
@@ -395,10 +463,11 @@ pub struct IndexEntry {
     pub passed: bool,
 }
 
-/// The index page linking every dataset run.
-pub fn render_index(entries: &[IndexEntry]) -> Result<String, String> {
+/// The index page linking every dataset run, and `studies` (link, title) beside them.
+pub fn render_index(entries: &[IndexEntry], studies: &[(String, String)]) -> Result<String, String> {
     let mut ctx = tera::Context::new();
     ctx.insert("entries", entries);
+    ctx.insert("studies", studies);
     ctx.insert("probecal_version", env!("CARGO_PKG_VERSION"));
     tera()
         .and_then(|t| t.render("index.html", &ctx))

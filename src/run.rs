@@ -26,6 +26,7 @@ use crate::spot_detection::{self, Spot, SpotSettings};
 use crate::synth;
 use crate::tracker_poses::{TrackedFrame, TrackerPoses};
 use crate::truth::GroundTruth;
+use crate::validation;
 use crate::wire_matching::{self, FrameDots, WireAxis};
 
 #[derive(Debug, thiserror::Error)]
@@ -196,6 +197,26 @@ pub struct TruthSummary {
     pub phantom_pose_translation_error_mm: Option<(f64, f64)>,
 }
 
+/// One estimator's calibration beside the thesis's (robust, refined, sphere fit).
+#[derive(Debug, Clone)]
+pub struct MethodResult {
+    pub name: &'static str,
+    pub description: String,
+    pub frames_used: usize,
+    pub marker_T_image: Rigid,
+    /// Pixel size the calibration maps with (estimated by the scale refinement).
+    pub spacing_mm_per_px: [f64; 2],
+    pub truth: Option<TruthComparison>,
+}
+
+/// Leave-one-out PRE, CR and bootstrap intervals of the primary calibration's frames.
+#[derive(Debug, Clone)]
+pub struct ValidationSummary {
+    pub leave_one_out: validation::LeaveOneOut,
+    pub reproducibility: validation::Reproducibility,
+    pub bootstrap: validation::Bootstrap,
+}
+
 /// Everything one dataset's run produced.
 #[derive(Debug)]
 pub struct DatasetRun {
@@ -214,6 +235,9 @@ pub struct DatasetRun {
     pub spacing_mm_per_px: [f64; 2],
     /// The phantom's point feature (hemisphere centre, pin head); `None` for wires.
     pub feature_in_phantom_mm: Option<[f64; 3]>,
+    /// Other estimators on the same frames (point phantoms).
+    pub methods: Vec<MethodResult>,
+    pub validation: Option<ValidationSummary>,
     pub timings_s: Vec<(&'static str, f64)>,
     /// Every file the run read (for provenance).
     pub input_files: Vec<PathBuf>,
@@ -774,6 +798,51 @@ pub fn run_dataset(
         }
     });
 
+    let clock = Instant::now();
+    let truth_transform = truth.as_ref().map(|t| (t.marker_T_image, t.bscan_size_px));
+    let image_size_px = truth_transform
+        .map(|(_, size)| size)
+        .or_else(|| frames.iter().find_map(|f| f.bscan_size_px))
+        .unwrap_or([0, 0]);
+    let fit_inputs = validation::FitInputs {
+        spacing,
+        variant,
+        start: start.as_ref(),
+        image_size_px,
+    };
+    let primary_frames: Vec<Correspondence> = correspondences
+        .iter()
+        .filter(|c| thresholds[primary].frames.contains(&c.frame))
+        .cloned()
+        .collect();
+    let validation = match validation_stage(manifest, &primary_frames, &thresholds[primary], &fit_inputs) {
+        Ok(v) => Some(v),
+        Err(e) => {
+            log(&format!("validation metrics skipped: {e}"));
+            None
+        }
+    };
+    let methods = match targets {
+        Targets::Point(feature) => {
+            let sphere = match &manifest.phantom {
+                Phantom::Hemisphere { radius_mm, .. } => Some(*radius_mm),
+                _ => None,
+            };
+            methods_stage(
+                manifest,
+                &frames,
+                &correspondences,
+                &thresholds[primary],
+                &fit_inputs,
+                (feature, sphere),
+                truth_transform,
+                log,
+            )
+        }
+        Targets::Wires(_) => Vec::new(),
+    };
+    timings.push(("methods and validation metrics", clock.elapsed().as_secs_f64()));
+
     let gates = evaluate_gates(manifest, &thresholds[primary], truth_summary.as_ref());
     let mut input_files = vec![manifest.path.clone(), folder.join(crate::dataset::FRAME_LIST)];
     for f in &files {
@@ -811,10 +880,230 @@ pub fn run_dataset(
             Targets::Point(p) => Some(p),
             Targets::Wires(_) => None,
         },
+        methods,
+        validation,
         timings_s: timings,
         input_files,
         seed,
     })
+}
+
+fn validation_stage(
+    manifest: &Manifest,
+    frames: &[Correspondence],
+    primary: &ThresholdRow,
+    inputs: &validation::FitInputs<'_>,
+) -> Result<ValidationSummary, HornError> {
+    let full = primary.fit.clone()?;
+    let v = &manifest.validation;
+    Ok(ValidationSummary {
+        leave_one_out: validation::leave_one_out(frames, inputs)?,
+        reproducibility: validation::reproducibility(frames, inputs, v.cr_half_splits, v.seed)?,
+        bootstrap: validation::bootstrap(frames, &full, inputs, v.bootstrap_resamples, v.seed)?,
+    })
+}
+
+/// Ground-truth error of a calibration that maps pixels with `spacing` (the truth
+/// maps them with the manifest's `truth_spacing`).
+fn truth_of(
+    marker_T_image: &Rigid,
+    spacing: [f64; 2],
+    truth_spacing: [f64; 2],
+    truth: Option<(Rigid, [usize; 2])>,
+) -> Option<TruthComparison> {
+    let (t, size) = truth?;
+    let (w, h) = ((size[0].max(1) - 1) as f64, (size[1].max(1) - 1) as f64);
+    let distances: Vec<f64> = [[0.0, 0.0], [w, 0.0], [0.0, h], [w, h], [w / 2.0, h / 2.0]]
+        .iter()
+        .map(|p| {
+            (marker_T_image * crate::geometry::pixel_to_image_mm(*p, spacing)
+                - t * crate::geometry::pixel_to_image_mm(*p, truth_spacing))
+            .norm()
+        })
+        .collect();
+    Some(TruthComparison {
+        corner_error_mean_mm: distances.iter().sum::<f64>() / distances.len() as f64,
+        corner_error_max_mm: distances.iter().cloned().fold(0.0, f64::max),
+        rotation_error_deg: rotation_angle_between_deg(marker_T_image, &t),
+        translation_error_mm: (marker_T_image.translation.vector - t.translation.vector).norm(),
+    })
+}
+
+#[allow(clippy::too_many_arguments)]
+fn methods_stage(
+    manifest: &Manifest,
+    records: &[FrameRecord],
+    frames: &[Correspondence],
+    thesis: &ThresholdRow,
+    inputs: &validation::FitInputs<'_>,
+    (feature, sphere_radius): ([f64; 3], Option<f64>),
+    truth: Option<(Rigid, [usize; 2])>,
+    log: &mut dyn FnMut(&str),
+) -> Vec<MethodResult> {
+    let spacing = inputs.spacing;
+    let truth_of = |m: &Rigid, s: [f64; 2]| truth_of(m, s, spacing, truth);
+    let mut out = Vec::new();
+    if let Ok(fit) = &thesis.fit {
+        out.push(MethodResult {
+            name: "cutoff_worst_first",
+            description: format!(
+                "the reported calibration: Horn on the feature centres, frames above {} mm removed worst first, re-solving after each",
+                crate::output::cutoff_label(thesis.cutoff_mm)
+            ),
+            frames_used: thesis.frames.len(),
+            marker_T_image: fit.target_T_source,
+            spacing_mm_per_px: spacing,
+            truth: truth_of(&fit.target_T_source, spacing),
+        });
+    }
+    // The thesis's own procedure: one Horn fit on all frames, every frame whose BRE
+    // under it exceeds the cut-off dropped at once, Horn again.
+    if thesis.cutoff_mm.is_finite() {
+        if let Ok(all) = evaluate::solve(frames, spacing, inputs.variant, None) {
+            let kept: Vec<Correspondence> = frames
+                .iter()
+                .filter(|f| {
+                    let (axes, norm) = evaluate::bre(f, &all, spacing);
+                    let value = match manifest.thresholds.cutoff_rule {
+                        crate::manifest::CutoffRule::MaxAxis => axes.iter().cloned().fold(0.0, f64::max),
+                        crate::manifest::CutoffRule::Norm => norm,
+                    };
+                    value < thesis.cutoff_mm
+                })
+                .cloned()
+                .collect();
+            if let Ok(fit) = evaluate::solve(&kept, spacing, inputs.variant, None) {
+                out.push(MethodResult {
+                    name: "thesis_one_shot",
+                    description: format!(
+                        "the thesis's procedure: Horn on all frames, every frame above {} mm dropped at once, Horn again",
+                        crate::output::cutoff_label(thesis.cutoff_mm)
+                    ),
+                    frames_used: kept.len(),
+                    marker_T_image: fit.target_T_source,
+                    spacing_mm_per_px: spacing,
+                    truth: truth_of(&fit.target_T_source, spacing),
+                });
+            }
+        }
+    }
+    let mut ransac = None;
+    for method in [crate::robust::RobustMethod::Ransac, crate::robust::RobustMethod::Lmeds] {
+        let settings = crate::robust::RobustSettings {
+            method,
+            ..manifest.robust
+        };
+        match crate::robust::solve(frames, spacing, inputs.variant, &settings) {
+            Ok(r) => {
+                let used = r.inliers.iter().filter(|k| **k).count();
+                let name = match method {
+                    crate::robust::RobustMethod::Ransac => "ransac",
+                    crate::robust::RobustMethod::Lmeds => "lmeds",
+                };
+                out.push(MethodResult {
+                    name,
+                    description: format!(
+                        "{} over frames (samples of 3, Horn inside), inlier threshold {:.3} mm{}",
+                        name.to_uppercase(),
+                        r.threshold_mm,
+                        if settings.threshold_mm.is_some() && method == crate::robust::RobustMethod::Ransac {
+                            " (manifest)"
+                        } else {
+                            " (from the data)"
+                        }
+                    ),
+                    frames_used: used,
+                    marker_T_image: r.fit.target_T_source,
+                    spacing_mm_per_px: spacing,
+                    truth: truth_of(&r.fit.target_T_source, spacing),
+                });
+                if method == crate::robust::RobustMethod::Ransac {
+                    ransac = Some(r);
+                }
+            }
+            Err(e) => log(&format!("{method:?}: {e}")),
+        }
+    }
+    let Some(ransac) = ransac else { return out };
+    let inliers: Vec<&Correspondence> = frames
+        .iter()
+        .zip(&ransac.inliers)
+        .filter(|(_, k)| **k)
+        .map(|(f, _)| f)
+        .collect();
+    // Levenberg–Marquardt with the pixel size as two more unknowns.
+    let constraints: Vec<crate::image_to_probe::Constraint> = inliers
+        .iter()
+        .flat_map(|f| {
+            let marker_T_phantom = f.marker_T_phantom().to_homogeneous();
+            f.features.iter().map(move |o| crate::image_to_probe::Constraint {
+                pixel: o.pixel,
+                probe_T_phantom: marker_T_phantom,
+                target_in_phantom: o.target_in_phantom,
+            })
+        })
+        .collect();
+    let start = crate::image_to_probe::ImageToProbe {
+        probe_T_image: ransac.fit.target_T_source,
+        spacing_mm_per_px: spacing,
+    };
+    match crate::image_to_probe::refine(&start, &constraints, None, false) {
+        Ok(fit) => {
+            let m = &fit.image_to_probe;
+            out.push(MethodResult {
+                name: "ransac_lm_scales",
+                description: format!(
+                    "RANSAC's frames, Levenberg–Marquardt with the pixel size as unknowns ({:.4} x {:.4} mm/px)",
+                    m.spacing_mm_per_px[0], m.spacing_mm_per_px[1]
+                ),
+                frames_used: inliers.len(),
+                marker_T_image: m.probe_T_image,
+                spacing_mm_per_px: m.spacing_mm_per_px,
+                truth: truth_of(&m.probe_T_image, m.spacing_mm_per_px),
+            });
+        }
+        Err(e) => log(&format!("LM with pixel scales: {e}")),
+    }
+    let Some(radius_mm) = sphere_radius else { return out };
+    let arcs: Vec<crate::sphere_fit::ArcFrame> = inliers
+        .iter()
+        .filter_map(|c| {
+            let record = records.iter().find(|r| r.files.frame == c.frame)?;
+            Some(crate::sphere_fit::ArcFrame {
+                frame: c.frame,
+                edge_px: record.arc.as_ref()?.arc_points_px.clone(),
+                camera_T_marker: c.camera_T_marker,
+                camera_T_phantom: c.camera_T_phantom,
+            })
+        })
+        .collect();
+    let settings = crate::sphere_fit::SphereSettings {
+        centre_in_phantom_mm: Point3::from(nalgebra::Vector3::from(feature)),
+        radius_mm,
+        spacing_mm_per_px: spacing,
+        elevation_prior_sd_mm: manifest.sphere_fit.elevation_prior_sd_mm,
+        fit_radius_offset: manifest.sphere_fit.fit_radius_offset,
+        points_per_frame: 20.0,
+    };
+    match crate::sphere_fit::refine(&ransac.fit.target_T_source, &arcs, &settings) {
+        Ok(fit) => out.push(MethodResult {
+            name: "ransac_sphere_fit",
+            description: format!(
+                "RANSAC's frames, every arc edge point on the sphere (LM; elevation prior {}, edge offset {:.3} mm)",
+                settings
+                    .elevation_prior_sd_mm
+                    .map(|s| format!("{s} mm"))
+                    .unwrap_or_else(|| "none".into()),
+                fit.radius_offset_mm
+            ),
+            frames_used: arcs.len(),
+            marker_T_image: fit.marker_T_image,
+            spacing_mm_per_px: spacing,
+            truth: truth_of(&fit.marker_T_image, spacing),
+        }),
+        Err(e) => log(&format!("sphere fit: {e}")),
+    }
+    out
 }
 
 fn evaluate_gates(manifest: &Manifest, primary: &ThresholdRow, truth: Option<&TruthSummary>) -> Vec<GateResult> {

@@ -135,6 +135,9 @@ pub struct Manifest {
     pub solve_variant: SolveVariant,
     /// A rough `marker_T_image` that starts the wire fit (`solve.initial_marker_T_image`).
     pub initial_marker_T_image: Option<crate::geometry::Rigid>,
+    pub robust: crate::robust::RobustSettings,
+    pub sphere_fit: raw::SphereFitOptions,
+    pub validation: raw::ValidationOptions,
     pub datasets: Vec<Dataset>,
 }
 
@@ -413,6 +416,24 @@ fn validate(c: &mut Checker<'_>, base: &Path, raw: raw::RawManifest, path: &Path
             }
         }
     }
+    let r = &raw.solve.robust;
+    if let Some(t) = r.threshold_mm {
+        c.positive("solve.robust.threshold_mm", t);
+    }
+    c.at_least("solve.robust.samples", r.samples as f64, 1.0);
+    if let Some(sd) = raw.solve.sphere_fit.elevation_prior_sd_mm {
+        c.positive("solve.sphere_fit.elevation_prior_sd_mm", sd);
+    }
+    c.at_least(
+        "solve.validation.bootstrap_resamples",
+        raw.solve.validation.bootstrap_resamples as f64,
+        20.0,
+    );
+    c.at_least(
+        "solve.validation.cr_half_splits",
+        raw.solve.validation.cr_half_splits as f64,
+        1.0,
+    );
     if let Some(t) = &raw.solve.initial_marker_T_image {
         c.finite("solve.initial_marker_T_image.rotation_deg", &t.rotation_deg);
         c.finite("solve.initial_marker_T_image.translation_mm", &t.translation_mm);
@@ -694,6 +715,9 @@ fn validate(c: &mut Checker<'_>, base: &Path, raw: raw::RawManifest, path: &Path
             .initial_marker_T_image
             .as_ref()
             .map(crate::synth::scene::true_transform),
+        robust: raw.solve.robust,
+        sphere_fit: raw.solve.sphere_fit.clone(),
+        validation: raw.solve.validation.clone(),
         datasets,
     }
 }

@@ -41,6 +41,49 @@ pub struct Solve {
     /// wire fit: dots are matched to the wires it predicts, then refined. Needed by
     /// the 4-wire phantom; a few millimetres and degrees off is enough.
     pub initial_marker_T_image: Option<TrueTransform>,
+    /// RANSAC / LMedS over frames, reported beside the thesis's cut-offs.
+    pub robust: crate::robust::RobustSettings,
+    /// The hemisphere's arc edge points fitted to the sphere (no elevation bias).
+    pub sphere_fit: SphereFitOptions,
+    /// Bootstrap resamples and CR half-splits of the validation metrics.
+    pub validation: ValidationOptions,
+}
+
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct SphereFitOptions {
+    /// Prior spread of the plane's distance from the sphere centre (mm); absent: none.
+    pub elevation_prior_sd_mm: Option<f64>,
+    /// Estimate a constant offset of the echo edge from the sphere surface.
+    pub fit_radius_offset: bool,
+}
+
+impl Default for SphereFitOptions {
+    fn default() -> Self {
+        // A careful sweep keeps the plane within about a millimetre of the centre.
+        SphereFitOptions {
+            elevation_prior_sd_mm: Some(1.0),
+            fit_radius_offset: true,
+        }
+    }
+}
+
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ValidationOptions {
+    pub bootstrap_resamples: usize,
+    pub cr_half_splits: usize,
+    pub seed: u64,
+}
+
+impl Default for ValidationOptions {
+    fn default() -> Self {
+        ValidationOptions {
+            bootstrap_resamples: 200,
+            cr_half_splits: 10,
+            seed: 7,
+        }
+    }
 }
 
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize, Serialize)]
