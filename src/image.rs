@@ -66,6 +66,15 @@ impl Gray8 {
     }
 }
 
+/// PNG bytes of a colour image given as BGR bytes, row-major.
+pub fn encode_png_bgr(bgr: &[u8], width: usize, height: usize) -> Result<Vec<u8>, ImageError> {
+    let flat = Mat::new_rows_cols_with_data(height as i32, width as i32 * 3, bgr)?;
+    let mat = flat.reshape(3, height as i32)?;
+    let mut buffer = Vector::<u8>::new();
+    imgcodecs::imencode(".png", &mat, &mut buffer, &Vector::new())?;
+    Ok(buffer.to_vec())
+}
+
 /// Reads an image file as 8-bit grey, saying exactly what is wrong with a bad one.
 pub fn read_gray(path: &Path) -> Result<Mat, ImageError> {
     let meta = std::fs::metadata(path).map_err(|_| ImageError::Missing {

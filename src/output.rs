@@ -346,6 +346,10 @@ pub fn write_dataset_run(
     write_atomic(&folder.join("report_context.json"), context_json.as_bytes())?;
     let html = crate::report::render_html(&context).map_err(|e| OutputError::Report(e.to_string()))?;
     write_atomic(&folder.join("report.html"), html.as_bytes())?;
+    let tex = crate::report::render_tex(&context).map_err(OutputError::Report)?;
+    write_atomic(&folder.join("report.tex"), tex.as_bytes())?;
+    let png = crate::report::bre_figure_png(run).map_err(OutputError::Report)?;
+    write_atomic(&folder.join("bre_per_frame.png"), &png)?;
     if let Some(cal) = &run.camera.calibration {
         let path = folder.join("camera_intrinsics.yml");
         cal.intrinsics

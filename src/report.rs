@@ -112,6 +112,53 @@ fn kv(key: &str, value: String) -> KeyValue {
 
 /// Per-frame BRE along x, y, z (all-frames calibration) as an inline SVG.
 pub fn bre_figure(run: &DatasetRun) -> Result<String, String> {
+    // Text is laid out with the same font as the PNG's.
+    register_font()?;
+    let mut svg = String::new();
+    {
+        let root = SVGBackend::with_string(&mut svg, (760, 320)).into_drawing_area();
+        draw_bre(&root, run)?;
+    }
+    Ok(svg)
+}
+
+/// The per-frame BRE plot as a PNG (for LaTeX, which cannot include SVG), twice
+/// the SVG's size. Text needs a TrueType font: Debian's DejaVu Sans.
+pub fn bre_figure_png(run: &DatasetRun) -> Result<Vec<u8>, String> {
+    register_font()?;
+    let (w, h) = (1520u32, 640u32);
+    let mut rgb = vec![0u8; (w * h * 3) as usize];
+    {
+        let root = BitMapBackend::with_buffer(&mut rgb, (w, h)).into_drawing_area();
+        draw_bre(&root, run)?;
+    }
+    // RGB to OpenCV's BGR, then PNG.
+    for px in rgb.chunks_exact_mut(3) {
+        px.swap(0, 2);
+    }
+    crate::image::encode_png_bgr(&rgb, w as usize, h as usize).map_err(|e| e.to_string())
+}
+
+/// Where the bitmap figures' font is read from.
+pub const FIGURE_FONT: &str = "/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf";
+
+fn register_font() -> Result<(), String> {
+    static FONT: std::sync::OnceLock<Result<(), String>> = std::sync::OnceLock::new();
+    FONT.get_or_init(|| {
+        let bytes =
+            std::fs::read(FIGURE_FONT).map_err(|e| format!("{FIGURE_FONT}: {e} (install fonts-dejavu-core)"))?;
+        // The font lives as long as the program: figures are drawn until it ends.
+        let bytes: &'static [u8] = Box::leak(bytes.into_boxed_slice());
+        plotters::style::register_font("sans-serif", plotters::style::FontStyle::Normal, bytes)
+            .map_err(|_| format!("{FIGURE_FONT}: not a TrueType font"))
+    })
+    .clone()
+}
+
+fn draw_bre<DB: DrawingBackend>(
+    root: &DrawingArea<DB, plotters::coord::Shift>,
+    run: &DatasetRun,
+) -> Result<(), String> {
     let points: Vec<(usize, [f64; 3])> = run
         .frames
         .iter()
@@ -119,44 +166,51 @@ pub fn bre_figure(run: &DatasetRun) -> Result<String, String> {
         .collect();
     let max_frame = run.frames.iter().map(|f| f.files.frame).max().unwrap_or(1) as f64;
     let max_bre = points.iter().flat_map(|p| p.1).fold(0.5f64, f64::max) * 1.1;
-    let mut svg = String::new();
-    {
-        let root = SVGBackend::with_string(&mut svg, (760, 320)).into_drawing_area();
-        root.fill(&WHITE).map_err(|e| e.to_string())?;
-        let mut chart = ChartBuilder::on(&root)
-            .margin(12)
-            .x_label_area_size(36)
-            .y_label_area_size(52)
-            .build_cartesian_2d(-0.5..max_frame + 0.5, 0.0..max_bre)
-            .map_err(|e| e.to_string())?;
+    let scale = root.dim_in_pixel().0 as f64 / 760.0;
+    let px = |v: f64| (v * scale).round() as u32;
+    let font = ("sans-serif", 13.0 * scale);
+    root.fill(&WHITE).map_err(|e| e.to_string())?;
+    let mut chart = ChartBuilder::on(root)
+        .margin(px(12.0))
+        .x_label_area_size(px(36.0))
+        .y_label_area_size(px(52.0))
+        .build_cartesian_2d(-0.5..max_frame + 0.5, 0.0..max_bre)
+        .map_err(|e| e.to_string())?;
+    chart
+        .configure_mesh()
+        .x_desc("frame")
+        .y_desc("BRE (mm)")
+        .label_style(font)
+        .axis_desc_style(font)
+        .light_line_style(RGBColor(235, 235, 235))
+        .draw()
+        .map_err(|e| e.to_string())?;
+    let colours = [RGBColor(200, 40, 40), RGBColor(40, 140, 40), RGBColor(40, 70, 200)];
+    for (axis, (name, colour)) in ["x", "y", "z"].iter().zip(colours).enumerate() {
+        let series: Vec<(f64, f64)> = points.iter().map(|(f, b)| (*f as f64, b[axis])).collect();
+        let width = px(1.0);
+        let legend_len = px(16.0) as i32;
+        let legend_width = px(2.0);
         chart
-            .configure_mesh()
-            .x_desc("frame")
-            .y_desc("BRE (mm)")
-            .light_line_style(RGBColor(235, 235, 235))
-            .draw()
-            .map_err(|e| e.to_string())?;
-        let colours = [RGBColor(200, 40, 40), RGBColor(40, 140, 40), RGBColor(40, 70, 200)];
-        for (axis, (name, colour)) in ["x", "y", "z"].iter().zip(colours).enumerate() {
-            let series: Vec<(f64, f64)> = points.iter().map(|(f, b)| (*f as f64, b[axis])).collect();
-            chart
-                .draw_series(LineSeries::new(series.clone(), colour.stroke_width(1)))
-                .map_err(|e| e.to_string())?
-                .label(*name)
-                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], colour.stroke_width(2)));
-            chart
-                .draw_series(series.iter().map(|p| Circle::new(*p, 3, colour.filled())))
-                .map_err(|e| e.to_string())?;
-        }
+            .draw_series(LineSeries::new(series.clone(), colour.stroke_width(width)))
+            .map_err(|e| e.to_string())?
+            .label(*name)
+            .legend(move |(x, y)| {
+                PathElement::new(vec![(x, y), (x + legend_len, y)], colour.stroke_width(legend_width))
+            });
         chart
-            .configure_series_labels()
-            .border_style(BLACK)
-            .background_style(WHITE.mix(0.9))
-            .draw()
+            .draw_series(series.iter().map(|p| Circle::new(*p, px(3.0), colour.filled())))
             .map_err(|e| e.to_string())?;
-        root.present().map_err(|e| e.to_string())?;
     }
-    Ok(svg)
+    chart
+        .configure_series_labels()
+        .label_font(font)
+        .border_style(BLACK)
+        .background_style(WHITE.mix(0.9))
+        .draw()
+        .map_err(|e| e.to_string())?;
+    root.present().map_err(|e| e.to_string())?;
+    Ok(())
 }
 
 fn validation_rows(run: &DatasetRun) -> Vec<KeyValue> {
@@ -429,8 +483,71 @@ pub fn context(run: &DatasetRun, manifest: &crate::manifest::Manifest) -> RunCon
 
 fn tera() -> Result<tera::Tera, tera::Error> {
     let mut t = tera::Tera::default();
-    t.add_raw_templates(vec![("run.html", RUN_TEMPLATE), ("index.html", INDEX_TEMPLATE)])?;
+    t.add_raw_templates(vec![
+        ("run.html", RUN_TEMPLATE),
+        ("index.html", INDEX_TEMPLATE),
+        ("run.tex", RUN_TEX_TEMPLATE),
+    ])?;
+    t.register_filter("tex", tex_filter);
     Ok(t)
+}
+
+const RUN_TEX_TEMPLATE: &str = include_str!("../templates/run.tex.tera");
+
+/// Text made safe for LaTeX: its special characters escaped, and the symbols the
+/// reports use written as LaTeX commands (pdflatex's inputenc lacks most of them).
+pub fn tex_escape(text: &str) -> String {
+    let mut out = String::with_capacity(text.len());
+    for c in text.chars() {
+        match c {
+            '\\' => out.push_str("\\textbackslash{}"),
+            '{' | '}' | '$' | '&' | '#' | '_' | '%' => {
+                out.push('\\');
+                out.push(c);
+            }
+            '^' => out.push_str("\\textasciicircum{}"),
+            '~' => out.push_str("\\textasciitilde{}"),
+            '<' => out.push_str("\\textless{}"),
+            '>' => out.push_str("\\textgreater{}"),
+            '°' => out.push_str("\\textdegree{}"),
+            '±' => out.push_str("\\ensuremath{\\pm}"),
+            '×' => out.push_str("\\ensuremath{\\times}"),
+            '·' => out.push_str("\\ensuremath{\\cdot}"),
+            '−' => out.push_str("\\ensuremath{-}"),
+            '—' => out.push_str("---"),
+            '–' => out.push_str("--"),
+            '…' => out.push_str("\\ldots{}"),
+            '∞' => out.push_str("\\ensuremath{\\infty}"),
+            '≈' => out.push_str("\\ensuremath{\\approx}"),
+            '≤' => out.push_str("\\ensuremath{\\le}"),
+            '≥' => out.push_str("\\ensuremath{\\ge}"),
+            '→' => out.push_str("\\ensuremath{\\rightarrow}"),
+            '←' => out.push_str("\\ensuremath{\\leftarrow}"),
+            'σ' => out.push_str("\\ensuremath{\\sigma}"),
+            'µ' | 'μ' => out.push_str("\\ensuremath{\\mu}"),
+            '²' => out.push_str("\\ensuremath{^2}"),
+            'ᵀ' => out.push_str("\\ensuremath{^T}"),
+            '\'' | '’' => out.push('\''),
+            _ => out.push(c),
+        }
+    }
+    out
+}
+
+fn tex_filter(value: &tera::Value, _: &std::collections::HashMap<String, tera::Value>) -> tera::Result<tera::Value> {
+    let text = match value {
+        tera::Value::String(s) => s.clone(),
+        other => other.to_string(),
+    };
+    Ok(tera::Value::String(tex_escape(&text)))
+}
+
+/// The run's report as LaTeX (its figure, `bre_per_frame.png`, is written beside it).
+pub fn render_tex(context: &RunContext) -> Result<String, String> {
+    let ctx = tera::Context::from_serialize(context).map_err(|e| error_chain(&e))?;
+    tera()
+        .and_then(|t| t.render("run.tex", &ctx))
+        .map_err(|e| error_chain(&e))
 }
 
 fn error_chain(e: &tera::Error) -> String {

@@ -1,0 +1,141 @@
+//! The reports in their real readers: the LaTeX report compiled by Debian's
+//! pdflatex, the HTML page rendered by headless Chromium (screenshot, console,
+//! DOM). Both tools are installed by `scripts/setup.sh`.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::sync::OnceLock;
+
+use opencv::core::{mean_std_dev, Mat};
+use opencv::prelude::*;
+
+/// The small fixture, with special characters in its description, run once.
+fn run_folder() -> &'static PathBuf {
+    static RUN: OnceLock<PathBuf> = OnceLock::new();
+    RUN.get_or_init(|| {
+        let work = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("report_formats");
+        let _ = std::fs::remove_dir_all(&work);
+        std::fs::create_dir_all(&work).unwrap();
+        let fixture = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/hemisphere_small.yaml");
+        let text = std::fs::read_to_string(&fixture).unwrap();
+        let edited = text.replace(
+            "description: Test fixture, 14 frames and 8 camera-calibration views.",
+            "description: \"Test fixture: 100% of #1 & $2, a_b {c} ~d ^e \\\\f <g> — 0.5 ± 0.1 mm, 3°\"",
+        );
+        assert_ne!(edited, text, "fixture edit did not apply");
+        let manifest = work.join("special.yaml");
+        std::fs::write(&manifest, edited).unwrap();
+        let out = Command::new(env!("CARGO_BIN_EXE_probecal"))
+            .arg("run")
+            .arg(&manifest)
+            .arg("--out")
+            .arg(work.join("out"))
+            .arg("--datasets")
+            .arg(PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("end_to_end_datasets"))
+            .arg("--quiet")
+            .output()
+            .unwrap();
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        work.join("out/hemisphere_small/small")
+    })
+}
+
+#[test]
+fn latex_report_compiles_with_pdflatex() {
+    let folder = run_folder();
+    let tex = std::fs::read_to_string(folder.join("report.tex")).unwrap();
+    // Special characters are escaped, not passed through.
+    assert!(
+        tex.contains(r"100\% of \#1 \& \$2, a\_b \{c\} \textasciitilde{}d"),
+        "{}",
+        &tex[..600]
+    );
+    assert!(tex.contains(r"hemisphere\_small"));
+    assert!(folder.join("bre_per_frame.png").is_file());
+    let out = Command::new("pdflatex")
+        .args(["-interaction=nonstopmode", "-halt-on-error", "report.tex"])
+        .current_dir(folder)
+        .output()
+        .expect("pdflatex is installed (scripts/setup.sh)");
+    let log = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "pdflatex failed:\n{log}");
+    // "Output written on report.pdf (N pages, ...)"
+    let pages: usize = log
+        .split("Output written on report.pdf (")
+        .nth(1)
+        .and_then(|rest| rest.split(' ').next())
+        .and_then(|n| n.parse().ok())
+        .unwrap_or(0);
+    assert!(pages >= 2, "{pages} pages:\n{log}");
+    let pdf = std::fs::read(folder.join("report.pdf")).unwrap();
+    assert!(pdf.starts_with(b"%PDF"));
+    assert!(!log.contains("Missing character"), "{log}");
+}
+
+fn chromium(args: &[&str], profile: &Path) -> std::process::Output {
+    Command::new("chromium")
+        .args([
+            "--headless",
+            "--no-sandbox",
+            "--disable-gpu",
+            "--disable-quic",
+            "--no-first-run",
+            "--disable-background-networking",
+            "--disable-component-update",
+            "--disable-sync",
+            "--hide-scrollbars",
+        ])
+        .arg(format!("--user-data-dir={}", profile.display()))
+        .args(args)
+        .output()
+        .expect("chromium is installed (scripts/setup.sh)")
+}
+
+#[test]
+fn html_report_renders_in_headless_chromium() {
+    let folder = run_folder();
+    let page = format!("file://{}", folder.join("report.html").display());
+    let profile = folder.join("chromium-profile");
+    let _ = std::fs::remove_dir_all(&profile);
+    // The DOM as the browser built it, with the console on stderr.
+    let dom = chromium(&["--enable-logging=stderr", "--v=0", "--dump-dom", &page], &profile);
+    let html = String::from_utf8_lossy(&dom.stdout);
+    let console = String::from_utf8_lossy(&dom.stderr);
+    assert!(dom.status.success(), "{console}");
+    let errors: Vec<&str> = console
+        .lines()
+        .filter(|l| l.contains("CONSOLE") || l.contains("Uncaught"))
+        .collect();
+    assert!(errors.is_empty(), "console messages: {errors:?}");
+    // The BRE table is there with its four rows of three numbers.
+    let table = html.split("id=\"bre-table\"").nth(1).expect("BRE table in the DOM");
+    let body = table.split("</table>").next().unwrap();
+    for row in ["Std.", "Mean", "Min", "Max"] {
+        assert!(body.contains(row), "row {row} missing: {body}");
+    }
+    let numbers = body
+        .split("<td>")
+        .skip(1)
+        .filter(|c| c.split('<').next().is_some_and(|v| v.trim().parse::<f64>().is_ok()))
+        .count();
+    assert_eq!(numbers, 12, "{body}");
+    assert!(html.contains("<svg"), "the BRE figure is inline SVG");
+    // A screenshot: the page is drawn, not blank.
+    let shot = folder.join("report_screenshot.png");
+    let _ = std::fs::remove_file(&shot);
+    let out = chromium(
+        &[
+            &format!("--screenshot={}", shot.display()),
+            "--window-size=1280,2400",
+            &page,
+        ],
+        &profile,
+    );
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let image = opencv::imgcodecs::imread(shot.to_str().unwrap(), opencv::imgcodecs::IMREAD_GRAYSCALE).unwrap();
+    assert_eq!((image.cols(), image.rows()), (1280, 2400));
+    let (mut mean, mut sd) = (Mat::default(), Mat::default());
+    mean_std_dev(&image, &mut mean, &mut sd, &opencv::core::no_array()).unwrap();
+    let sd = *sd.at::<f64>(0).unwrap();
+    assert!(sd > 10.0, "the screenshot looks blank (grey SD {sd})");
+}
