@@ -44,6 +44,7 @@ pub mod sphere_fit;
 pub mod spot_detection;
 pub mod study;
 pub mod synth;
+pub mod thesis;
 pub mod tracked;
 pub mod tracked_output;
 pub mod tracker_poses;

@@ -399,14 +399,25 @@ fn run(manifests: Vec<PathBuf>, out: Option<PathBuf>, datasets: PathBuf, force: 
         }
     }
     // A study written into the same folder (`probecal study --out <out>/study`) is linked too.
-    let studies: Vec<(String, String)> = if out.join("study/study.html").is_file() {
-        vec![(
+    let mut studies: Vec<(String, String)> = Vec::new();
+    // The thesis's results chapter, from whichever of its experiments are in `out`.
+    match probecal::thesis::write(&out) {
+        Ok(Some(_)) => studies.push((
+            "thesis.html".into(),
+            "The thesis's results chapter, regenerated (also thesis.tex)".into(),
+        )),
+        Ok(None) => {}
+        Err(e) => {
+            eprintln!("error: thesis chapter: {e}");
+            failed = true;
+        }
+    }
+    if out.join("study/study.html").is_file() {
+        studies.push((
             "study/study.html".into(),
             "The thesis's σ-table and the Monte Carlo accuracy study of every estimator".into(),
-        )]
-    } else {
-        Vec::new()
-    };
+        ));
+    }
     match render_index(&entries, &studies) {
         Ok(html) => {
             if let Err(e) = write_atomic(&out.join("index.html"), html.as_bytes()) {

@@ -550,7 +550,7 @@ pub fn render_tex(context: &RunContext) -> Result<String, String> {
         .map_err(|e| error_chain(&e))
 }
 
-fn error_chain(e: &tera::Error) -> String {
+pub(crate) fn error_chain(e: &tera::Error) -> String {
     let mut text = e.to_string();
     let mut source = std::error::Error::source(e);
     while let Some(s) = source {

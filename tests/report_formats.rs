@@ -72,6 +72,27 @@ fn latex_report_compiles_with_pdflatex() {
     assert!(!log.contains("Missing character"), "{log}");
 }
 
+#[test]
+fn thesis_chapter_compiles_with_pdflatex() {
+    // The chapter as the main job wrote it from the default experiments.
+    let work = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("thesis_tex");
+    let _ = std::fs::remove_dir_all(&work);
+    std::fs::create_dir_all(&work).unwrap();
+    let reports = Path::new(env!("CARGO_MANIFEST_DIR")).join("reports");
+    let (_, _, tex) = probecal::thesis::render(&reports)
+        .unwrap_or_else(|e| panic!("{e}"))
+        .expect("the default experiments' runs are in reports/");
+    std::fs::write(work.join("thesis.tex"), tex).unwrap();
+    let out = Command::new("pdflatex")
+        .args(["-interaction=nonstopmode", "-halt-on-error", "thesis.tex"])
+        .current_dir(&work)
+        .output()
+        .expect("pdflatex is installed (scripts/setup.sh)");
+    let log = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "pdflatex failed:\n{log}");
+    assert!(log.contains("Output written on thesis.pdf ("), "{log}");
+}
+
 fn chromium(args: &[&str], profile: &Path) -> std::process::Output {
     Command::new("chromium")
         .args([
