@@ -21,7 +21,7 @@ pub struct Column {
     pub explanation: String,
 }
 
-fn rig_label(rig: &Rig) -> String {
+pub(crate) fn rig_label(rig: &Rig) -> String {
     match rig {
         Rig::Checkerboard { probe_board, .. } => format!(
             "checkerboard {}x{} squares of {} mm",

@@ -341,10 +341,24 @@ pub fn write_dataset_run(
     let summary = summary(run, manifest);
     let text = serde_json::to_string_pretty(&summary).map_err(|e| OutputError::Report(e.to_string()))? + "\n";
     write_atomic(&folder.join("summary.json"), text.as_bytes())?;
-    let context = crate::report::context(run, manifest);
+    let mut context = crate::report::context(run, manifest);
+    let gallery = crate::gallery::gallery(run).map_err(|e| OutputError::Report(e.to_string()))?;
+    if !gallery.is_empty() {
+        let dir = folder.join("gallery");
+        std::fs::create_dir_all(&dir).map_err(io(&dir))?;
+        for g in &gallery {
+            let file = format!("gallery/frame_{:03}.jpg", g.frame);
+            write_atomic(&folder.join(&file), &g.jpeg)?;
+            context.gallery.push(crate::report::GalleryEntry {
+                file,
+                caption: g.caption.clone(),
+            });
+        }
+    }
+    let uris: Vec<String> = gallery.iter().map(|g| crate::gallery::data_uri(&g.jpeg)).collect();
     let context_json = serde_json::to_string_pretty(&context).map_err(|e| OutputError::Report(e.to_string()))? + "\n";
     write_atomic(&folder.join("report_context.json"), context_json.as_bytes())?;
-    let html = crate::report::render_html(&context).map_err(|e| OutputError::Report(e.to_string()))?;
+    let html = crate::report::render_html(&context, &uris).map_err(|e| OutputError::Report(e.to_string()))?;
     write_atomic(&folder.join("report.html"), html.as_bytes())?;
     let tex = crate::report::render_tex(&context).map_err(OutputError::Report)?;
     write_atomic(&folder.join("report.tex"), tex.as_bytes())?;

@@ -90,6 +90,77 @@ pub struct RunContext {
     /// Other estimators on the same frames: name, description, frames, truth errors.
     pub methods: Vec<StatRow>,
     pub validation: Vec<KeyValue>,
+    /// Manifest summary, software versions, inputs.
+    pub setup: Vec<KeyValue>,
+    /// B-scans with their detections: file beside the report (LaTeX), caption.
+    pub gallery: Vec<GalleryEntry>,
+}
+
+#[derive(Debug, Serialize, PartialEq)]
+pub struct GalleryEntry {
+    pub file: String,
+    pub caption: String,
+}
+
+fn setup_rows(run: &DatasetRun, manifest: &crate::manifest::Manifest) -> Vec<KeyValue> {
+    use crate::manifest::{CameraSource, Phantom};
+    let phantom = match &manifest.phantom {
+        Phantom::Hemisphere {
+            centre_in_phantom_mm: c,
+            radius_mm,
+        } => format!(
+            "hemisphere, R = {radius_mm} mm, centre ({}, {}, {}) mm",
+            c[0], c[1], c[2]
+        ),
+        Phantom::Point {
+            position_in_phantom_mm: p,
+            head_radius_mm,
+        } => format!(
+            "pin head, r = {head_radius_mm} mm, at ({}, {}, {}) mm",
+            p[0], p[1], p[2]
+        ),
+        Phantom::FourWire {
+            wires,
+            wire_diameter_mm,
+        } => {
+            format!("{} wires of {wire_diameter_mm} mm", wires.len())
+        }
+    };
+    let rig = match &manifest.camera {
+        CameraSource::TrackerCsv(t) => format!(
+            "tracker poses from {} ({}, {})",
+            t.file, t.probe_transform, t.reference_transform
+        ),
+        _ => crate::compare::rig_label(&manifest.rig),
+    };
+    vec![
+        kv("phantom", phantom),
+        kv("pose source", rig),
+        kv("camera", run.camera.source.clone()),
+        kv(
+            "dataset",
+            match run.seed {
+                Some(seed) => format!("{} (rendered, seed {seed})", run.dataset),
+                None => format!("{} (recorded)", run.dataset),
+            },
+        ),
+        kv(
+            "B-scan pixel size (mm)",
+            format!("{} x {}", run.spacing_mm_per_px[0], run.spacing_mm_per_px[1]),
+        ),
+        kv(
+            "software",
+            format!(
+                "probecal {}, OpenCV {}",
+                env!("CARGO_PKG_VERSION"),
+                crate::provenance::opencv_version()
+            ),
+        ),
+        kv(
+            "inputs",
+            format!("{} files; their SHA-256 in provenance.json", run.input_files.len()),
+        ),
+    ]
 }
 
 fn stat_rows(stats: &BreStats) -> Vec<StatRow> {
@@ -478,6 +549,8 @@ pub fn context(run: &DatasetRun, manifest: &crate::manifest::Manifest) -> RunCon
             })
             .collect(),
         validation: validation_rows(run),
+        setup: setup_rows(run, manifest),
+        gallery: Vec::new(),
     }
 }
 
@@ -561,8 +634,9 @@ pub(crate) fn error_chain(e: &tera::Error) -> String {
 }
 
 /// The dataset run's HTML page.
-pub fn render_html(context: &RunContext) -> Result<String, String> {
-    let ctx = tera::Context::from_serialize(context).map_err(|e| error_chain(&e))?;
+pub fn render_html(context: &RunContext, gallery_uris: &[String]) -> Result<String, String> {
+    let mut ctx = tera::Context::from_serialize(context).map_err(|e| error_chain(&e))?;
+    ctx.insert("gallery_uris", gallery_uris);
     tera()
         .and_then(|t| t.render("run.html", &ctx))
         .map_err(|e| error_chain(&e))

@@ -52,6 +52,10 @@ fn latex_report_compiles_with_pdflatex() {
     );
     assert!(tex.contains(r"hemisphere\_small"));
     assert!(folder.join("bre_per_frame.png").is_file());
+    assert!(
+        tex.contains(r"\includegraphics[width=\linewidth]{gallery/frame_"),
+        "gallery in the LaTeX report"
+    );
     let out = Command::new("pdflatex")
         .args(["-interaction=nonstopmode", "-halt-on-error", "report.tex"])
         .current_dir(folder)
@@ -141,6 +145,15 @@ fn html_report_renders_in_headless_chromium() {
         .count();
     assert_eq!(numbers, 12, "{body}");
     assert!(html.contains("<svg"), "the BRE figure is inline SVG");
+    // The gallery's B-scans are inline too (the page is one self-contained file).
+    assert!(
+        html.contains("<img src=\"data:image/jpeg;base64,"),
+        "gallery images inline"
+    );
+    assert!(
+        html.contains("id=\"setup\"") && html.contains("OpenCV 4."),
+        "setup with versions"
+    );
     // A screenshot: the page is drawn, not blank.
     let shot = folder.join("report_screenshot.png");
     let _ = std::fs::remove_file(&shot);
