@@ -24,6 +24,7 @@ pub mod compare;
 pub mod corners;
 pub mod dataset;
 pub mod evaluate;
+pub mod figures;
 pub mod gallery;
 pub mod geometry;
 pub mod horn;

@@ -356,9 +356,27 @@ pub fn write_dataset_run(
         }
     }
     let uris: Vec<String> = gallery.iter().map(|g| crate::gallery::data_uri(&g.jpeg)).collect();
+    let mut svgs = Vec::new();
+    let charts = crate::figures::charts(run);
+    if !charts.is_empty() {
+        let dir = folder.join("figures");
+        std::fs::create_dir_all(&dir).map_err(io(&dir))?;
+    }
+    for chart in &charts {
+        let file = format!("figures/{}.png", chart.id);
+        write_atomic(
+            &folder.join(&file),
+            &crate::figures::png(chart).map_err(OutputError::Report)?,
+        )?;
+        svgs.push(crate::figures::svg(chart).map_err(OutputError::Report)?);
+        context.figures.push(crate::report::GalleryEntry {
+            file,
+            caption: chart.caption.clone(),
+        });
+    }
     let context_json = serde_json::to_string_pretty(&context).map_err(|e| OutputError::Report(e.to_string()))? + "\n";
     write_atomic(&folder.join("report_context.json"), context_json.as_bytes())?;
-    let html = crate::report::render_html(&context, &uris).map_err(|e| OutputError::Report(e.to_string()))?;
+    let html = crate::report::render_html(&context, &uris, &svgs).map_err(|e| OutputError::Report(e.to_string()))?;
     write_atomic(&folder.join("report.html"), html.as_bytes())?;
     let tex = crate::report::render_tex(&context).map_err(OutputError::Report)?;
     write_atomic(&folder.join("report.tex"), tex.as_bytes())?;

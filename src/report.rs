@@ -94,6 +94,8 @@ pub struct RunContext {
     pub setup: Vec<KeyValue>,
     /// B-scans with their detections: file beside the report (LaTeX), caption.
     pub gallery: Vec<GalleryEntry>,
+    /// Further figures: PNG file beside the report (LaTeX), caption.
+    pub figures: Vec<GalleryEntry>,
 }
 
 #[derive(Debug, Serialize, PartialEq)]
@@ -182,38 +184,47 @@ fn kv(key: &str, value: String) -> KeyValue {
 }
 
 /// Per-frame BRE along x, y, z (all-frames calibration) as an inline SVG.
-pub fn bre_figure(run: &DatasetRun) -> Result<String, String> {
-    // Text is laid out with the same font as the PNG's.
-    register_font()?;
-    let mut svg = String::new();
-    {
-        let root = SVGBackend::with_string(&mut svg, (760, 320)).into_drawing_area();
-        draw_bre(&root, run)?;
+/// The per-frame BRE along each axis (all-frames calibration).
+fn bre_chart(run: &DatasetRun) -> crate::figures::Chart {
+    let points: Vec<(usize, [f64; 3])> = run
+        .frames
+        .iter()
+        .filter_map(|f| f.bre_mm.map(|b| (f.files.frame, b.0)))
+        .collect();
+    let colours = [RGBColor(200, 40, 40), RGBColor(40, 140, 40), RGBColor(40, 70, 200)];
+    crate::figures::Chart {
+        id: "bre_per_frame",
+        caption: "Per-frame BRE along each axis of the phantom frame, all-frames calibration.".into(),
+        x_desc: "frame".into(),
+        y_desc: "BRE (mm)".into(),
+        style: crate::figures::Style::Lines,
+        series: ["x", "y", "z"]
+            .iter()
+            .enumerate()
+            .map(|(a, name)| crate::figures::Series {
+                name: name.to_string(),
+                colour: colours[a],
+                points: points.iter().map(|(f, b)| (*f as f64, b[a])).collect(),
+            })
+            .collect(),
+        equal_axes: false,
     }
-    Ok(svg)
 }
 
-/// The per-frame BRE plot as a PNG (for LaTeX, which cannot include SVG), twice
-/// the SVG's size. Text needs a TrueType font: Debian's DejaVu Sans.
+pub fn bre_figure(run: &DatasetRun) -> Result<String, String> {
+    crate::figures::svg(&bre_chart(run))
+}
+
+/// The per-frame BRE plot as a PNG (for LaTeX, which cannot include SVG).
 pub fn bre_figure_png(run: &DatasetRun) -> Result<Vec<u8>, String> {
-    register_font()?;
-    let (w, h) = (1520u32, 640u32);
-    let mut rgb = vec![0u8; (w * h * 3) as usize];
-    {
-        let root = BitMapBackend::with_buffer(&mut rgb, (w, h)).into_drawing_area();
-        draw_bre(&root, run)?;
-    }
-    // RGB to OpenCV's BGR, then PNG.
-    for px in rgb.chunks_exact_mut(3) {
-        px.swap(0, 2);
-    }
-    crate::image::encode_png_bgr(&rgb, w as usize, h as usize).map_err(|e| e.to_string())
+    crate::figures::png(&bre_chart(run))
 }
 
 /// Where the bitmap figures' font is read from.
 pub const FIGURE_FONT: &str = "/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf";
 
-fn register_font() -> Result<(), String> {
+/// Registers the figures' font once (plotters lays text out with it, SVG included).
+pub(crate) fn register_font() -> Result<(), String> {
     static FONT: std::sync::OnceLock<Result<(), String>> = std::sync::OnceLock::new();
     FONT.get_or_init(|| {
         let bytes =
@@ -224,64 +235,6 @@ fn register_font() -> Result<(), String> {
             .map_err(|_| format!("{FIGURE_FONT}: not a TrueType font"))
     })
     .clone()
-}
-
-fn draw_bre<DB: DrawingBackend>(
-    root: &DrawingArea<DB, plotters::coord::Shift>,
-    run: &DatasetRun,
-) -> Result<(), String> {
-    let points: Vec<(usize, [f64; 3])> = run
-        .frames
-        .iter()
-        .filter_map(|f| f.bre_mm.map(|b| (f.files.frame, b.0)))
-        .collect();
-    let max_frame = run.frames.iter().map(|f| f.files.frame).max().unwrap_or(1) as f64;
-    let max_bre = points.iter().flat_map(|p| p.1).fold(0.5f64, f64::max) * 1.1;
-    let scale = root.dim_in_pixel().0 as f64 / 760.0;
-    let px = |v: f64| (v * scale).round() as u32;
-    let font = ("sans-serif", 13.0 * scale);
-    root.fill(&WHITE).map_err(|e| e.to_string())?;
-    let mut chart = ChartBuilder::on(root)
-        .margin(px(12.0))
-        .x_label_area_size(px(36.0))
-        .y_label_area_size(px(52.0))
-        .build_cartesian_2d(-0.5..max_frame + 0.5, 0.0..max_bre)
-        .map_err(|e| e.to_string())?;
-    chart
-        .configure_mesh()
-        .x_desc("frame")
-        .y_desc("BRE (mm)")
-        .label_style(font)
-        .axis_desc_style(font)
-        .light_line_style(RGBColor(235, 235, 235))
-        .draw()
-        .map_err(|e| e.to_string())?;
-    let colours = [RGBColor(200, 40, 40), RGBColor(40, 140, 40), RGBColor(40, 70, 200)];
-    for (axis, (name, colour)) in ["x", "y", "z"].iter().zip(colours).enumerate() {
-        let series: Vec<(f64, f64)> = points.iter().map(|(f, b)| (*f as f64, b[axis])).collect();
-        let width = px(1.0);
-        let legend_len = px(16.0) as i32;
-        let legend_width = px(2.0);
-        chart
-            .draw_series(LineSeries::new(series.clone(), colour.stroke_width(width)))
-            .map_err(|e| e.to_string())?
-            .label(*name)
-            .legend(move |(x, y)| {
-                PathElement::new(vec![(x, y), (x + legend_len, y)], colour.stroke_width(legend_width))
-            });
-        chart
-            .draw_series(series.iter().map(|p| Circle::new(*p, px(3.0), colour.filled())))
-            .map_err(|e| e.to_string())?;
-    }
-    chart
-        .configure_series_labels()
-        .label_font(font)
-        .border_style(BLACK)
-        .background_style(WHITE.mix(0.9))
-        .draw()
-        .map_err(|e| e.to_string())?;
-    root.present().map_err(|e| e.to_string())?;
-    Ok(())
 }
 
 fn validation_rows(run: &DatasetRun) -> Vec<KeyValue> {
@@ -551,6 +504,7 @@ pub fn context(run: &DatasetRun, manifest: &crate::manifest::Manifest) -> RunCon
         validation: validation_rows(run),
         setup: setup_rows(run, manifest),
         gallery: Vec::new(),
+        figures: Vec::new(),
     }
 }
 
@@ -634,9 +588,12 @@ pub(crate) fn error_chain(e: &tera::Error) -> String {
 }
 
 /// The dataset run's HTML page.
-pub fn render_html(context: &RunContext, gallery_uris: &[String]) -> Result<String, String> {
+/// The page; `gallery_uris` and `figure_svgs` follow `context.gallery` and
+/// `context.figures` (kept out of the context's JSON).
+pub fn render_html(context: &RunContext, gallery_uris: &[String], figure_svgs: &[String]) -> Result<String, String> {
     let mut ctx = tera::Context::from_serialize(context).map_err(|e| error_chain(&e))?;
     ctx.insert("gallery_uris", gallery_uris);
+    ctx.insert("figure_svgs", figure_svgs);
     tera()
         .and_then(|t| t.render("run.html", &ctx))
         .map_err(|e| error_chain(&e))
