@@ -274,22 +274,37 @@ fn camera_views(run: &DatasetRun) -> Option<Chart> {
     })
 }
 
-/// The probe poses seen from above the phantom (its x-y plane): the marker's
-/// origin and the B-scan's centre in each used frame, and the phantom feature.
-fn pose_overview(run: &DatasetRun) -> Option<Chart> {
+/// The probe poses projected onto two planes of the phantom frame (`axes`: 0 = x,
+/// 1 = y, 2 = z): the marker's origin and the B-scan's centre and corners in
+/// each used frame, the phantom feature, and the phantom's origin.
+fn pose_view(run: &DatasetRun, axes: [usize; 2], id: &'static str, seen_from: &str) -> Option<Chart> {
     let fit = run.primary_fit();
     let [w, h] = run.frames.iter().find_map(|f| f.bscan_size_px)?;
-    let centre = pixel_to_image_mm([(w as f64 - 1.0) / 2.0, (h as f64 - 1.0) / 2.0], run.spacing_mm_per_px);
+    let (wf, hf) = (w as f64 - 1.0, h as f64 - 1.0);
+    let centre = pixel_to_image_mm([wf / 2.0, hf / 2.0], run.spacing_mm_per_px);
+    let corners = [[0.0, 0.0], [wf, 0.0], [0.0, hf], [wf, hf]].map(|p| pixel_to_image_mm(p, run.spacing_mm_per_px));
+    let [a, b] = axes;
     let mut markers = Vec::new();
-    let mut images = Vec::new();
+    let mut centres = Vec::new();
+    let mut image_corners = Vec::new();
     for f in run.frames.iter().filter(|f| f.rejection.is_none()) {
-        let (camera_T_marker, camera_T_phantom) = f.pose_pair()?;
+        let Some((camera_T_marker, camera_T_phantom)) = f.pose_pair() else {
+            continue;
+        };
         let phantom_T_marker = camera_T_phantom.inverse() * camera_T_marker;
         let m = phantom_T_marker.translation.vector;
-        markers.push((m.x, m.y));
+        markers.push((m[a], m[b]));
         let c = phantom_T_marker * fit.apply(&centre);
-        images.push((c.x, c.y));
+        centres.push((c[a], c[b]));
+        for q in &corners {
+            let p = phantom_T_marker * fit.apply(q);
+            image_corners.push((p[a], p[b]));
+        }
     }
+    if markers.is_empty() {
+        return None;
+    }
+    let names = ["x", "y", "z"];
     let mut series = vec![
         Series {
             name: "marker origin".into(),
@@ -297,23 +312,36 @@ fn pose_overview(run: &DatasetRun) -> Option<Chart> {
             points: markers,
         },
         Series {
+            name: "B-scan corners".into(),
+            colour: RGBColor(150, 170, 220),
+            points: image_corners,
+        },
+        Series {
             name: "B-scan centre".into(),
             colour: COLOURS[2],
-            points: images,
+            points: centres,
+        },
+        Series {
+            name: "phantom origin".into(),
+            colour: BLACK,
+            points: vec![(0.0, 0.0)],
         },
     ];
     if let Some(p) = run.feature_in_phantom_mm {
         series.push(Series {
             name: "phantom feature".into(),
             colour: COLOURS[1],
-            points: vec![(p[0], p[1])],
+            points: vec![(p[a], p[b])],
         });
     }
     Some(Chart {
-        id: "pose_overview",
-        caption: "The probe poses seen from above, in the phantom frame (x-y plane): the probe marker's origin and the B-scan's centre through the calibration, per used frame; the phantom board's origin is (0, 0).".into(),
-        x_desc: "x in the phantom frame (mm)".into(),
-        y_desc: "y (mm)".into(),
+        id,
+        caption: format!(
+            "Coordinate systems and probe poses in the phantom frame, seen {seen_from} ({}-{} plane): the probe marker's origin, the B-scan's corners and centre through the calibration (used frames), the phantom feature and the phantom frame's origin.",
+            names[a], names[b]
+        ),
+        x_desc: format!("{} in the phantom frame (mm)", names[a]),
+        y_desc: format!("{} (mm)", names[b]),
         style: Style::Points,
         series,
         equal_axes: true,
@@ -326,7 +354,8 @@ pub fn charts(run: &DatasetRun) -> Vec<Chart> {
         bre_histogram(run),
         board_reprojection(run),
         camera_views(run),
-        pose_overview(run),
+        pose_view(run, [0, 1], "pose_overview", "from above"),
+        pose_view(run, [0, 2], "pose_side_view", "from the side"),
     ]
     .into_iter()
     .flatten()

@@ -147,7 +147,7 @@ fn html_report_renders_in_headless_chromium() {
     // The BRE plot, its histogram, the boards' reprojection, the camera views and
     // the pose overview: inline SVG.
     let svgs = html.matches("<svg").count();
-    assert!(svgs >= 5, "{svgs} inline SVG figures");
+    assert!(svgs >= 6, "{svgs} inline SVG figures");
     // The gallery's B-scans are inline too (the page is one self-contained file).
     assert!(
         html.contains("<img src=\"data:image/jpeg;base64,"),
