@@ -217,6 +217,15 @@ const COMPARE_TEMPLATE: &str = include_str!("../templates/compare.html.tera");
 
 /// The comparison page.
 pub fn render_html(columns: &[Column]) -> Result<String, String> {
+    render(columns, "compare.html")
+}
+
+/// The comparison as LaTeX (landscape, one column per experiment).
+pub fn render_tex(columns: &[Column]) -> Result<String, String> {
+    render(columns, "compare.tex")
+}
+
+fn render(columns: &[Column], template: &str) -> Result<String, String> {
     let rows: Vec<String> = columns
         .first()
         .map(|c| c.values.iter().map(|v| v.0.clone()).collect())
@@ -243,7 +252,13 @@ pub fn render_html(columns: &[Column]) -> Result<String, String> {
     ctx.insert("columns", columns);
     ctx.insert("table", &table);
     let mut t = tera::Tera::default();
-    t.add_raw_template("compare.html", COMPARE_TEMPLATE)
-        .map_err(|e| e.to_string())?;
-    t.render("compare.html", &ctx).map_err(|e| e.to_string())
+    t.add_raw_templates(vec![
+        ("compare.html", COMPARE_TEMPLATE),
+        ("compare.tex", COMPARE_TEX_TEMPLATE),
+    ])
+    .map_err(|e| crate::report::error_chain(&e))?;
+    crate::report::register_tex_filter(&mut t);
+    t.render(template, &ctx).map_err(|e| crate::report::error_chain(&e))
 }
+
+const COMPARE_TEX_TEMPLATE: &str = include_str!("../templates/compare.tex.tera");

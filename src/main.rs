@@ -542,11 +542,15 @@ fn compare(manifests: Vec<PathBuf>, out: Option<PathBuf>, datasets: PathBuf, for
         ok = probecal::compare::render_html(&columns)
             .and_then(|html| write_atomic(&out.join("compare.html"), html.as_bytes()).map_err(|e| e.to_string()));
     }
+    if ok.is_ok() {
+        ok = probecal::compare::render_tex(&columns)
+            .and_then(|tex| write_atomic(&out.join("compare.tex"), tex.as_bytes()).map_err(|e| e.to_string()));
+    }
     if let Err(e) = ok {
         eprintln!("error: {e}");
         return ExitCode::FAILURE;
     }
-    println!("written to {} (compare.md, compare.html)", out.display());
+    println!("written to {} (compare.md, compare.html, compare.tex)", out.display());
     ExitCode::from(code)
 }
 

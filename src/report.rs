@@ -515,8 +515,13 @@ fn tera() -> Result<tera::Tera, tera::Error> {
         ("index.html", INDEX_TEMPLATE),
         ("run.tex", RUN_TEX_TEMPLATE),
     ])?;
-    t.register_filter("tex", tex_filter);
+    register_tex_filter(&mut t);
     Ok(t)
+}
+
+/// Adds the `tex` filter ([`tex_escape`]) to a template set.
+pub(crate) fn register_tex_filter(t: &mut tera::Tera) {
+    t.register_filter("tex", tex_filter);
 }
 
 const RUN_TEX_TEMPLATE: &str = include_str!("../templates/run.tex.tera");

@@ -330,14 +330,7 @@ pub fn render(root: &Path) -> Result<Option<(Chapter, String, String)>, String> 
     let mut t = tera::Tera::default();
     t.add_raw_templates(vec![("thesis.html", HTML_TEMPLATE), ("thesis.tex", TEX_TEMPLATE)])
         .map_err(|e| error_chain(&e))?;
-    t.register_filter(
-        "tex",
-        |v: &tera::Value, _: &std::collections::HashMap<String, tera::Value>| {
-            Ok(tera::Value::String(crate::report::tex_escape(
-                v.as_str().map(str::to_string).unwrap_or_else(|| v.to_string()).as_str(),
-            )))
-        },
-    );
+    crate::report::register_tex_filter(&mut t);
     let mut ctx = tera::Context::from_serialize(&chapter).map_err(|e| e.to_string())?;
     ctx.insert("probecal_version", env!("CARGO_PKG_VERSION"));
     let html = t.render("thesis.html", &ctx).map_err(|e| error_chain(&e))?;

@@ -76,25 +76,42 @@ fn latex_report_compiles_with_pdflatex() {
     assert!(!log.contains("Missing character"), "{log}");
 }
 
-#[test]
-fn thesis_chapter_compiles_with_pdflatex() {
-    // The chapter as the main job wrote it from the default experiments.
-    let work = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("thesis_tex");
+/// `pdflatex` on `tex` in a fresh folder; the number of pages.
+fn compile(name: &str, tex: &str) -> usize {
+    let work = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(format!("tex_{name}"));
     let _ = std::fs::remove_dir_all(&work);
     std::fs::create_dir_all(&work).unwrap();
-    let reports = Path::new(env!("CARGO_MANIFEST_DIR")).join("reports");
-    let (_, _, tex) = probecal::thesis::render(&reports)
-        .unwrap_or_else(|e| panic!("{e}"))
-        .expect("the default experiments' runs are in reports/");
-    std::fs::write(work.join("thesis.tex"), tex).unwrap();
+    std::fs::write(work.join(format!("{name}.tex")), tex).unwrap();
     let out = Command::new("pdflatex")
-        .args(["-interaction=nonstopmode", "-halt-on-error", "thesis.tex"])
+        .args(["-interaction=nonstopmode", "-halt-on-error", &format!("{name}.tex")])
         .current_dir(&work)
         .output()
         .expect("pdflatex is installed (scripts/setup.sh)");
     let log = String::from_utf8_lossy(&out.stdout);
-    assert!(out.status.success(), "pdflatex failed:\n{log}");
-    assert!(log.contains("Output written on thesis.pdf ("), "{log}");
+    assert!(out.status.success(), "pdflatex failed on {name}.tex:\n{log}");
+    log.split(&format!("Output written on {name}.pdf ("))
+        .nth(1)
+        .and_then(|rest| rest.split(' ').next())
+        .and_then(|n| n.parse().ok())
+        .unwrap_or(0)
+}
+
+#[test]
+fn comparison_page_compiles_with_pdflatex() {
+    // As the main job wrote it from the default experiments.
+    let tex = std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("reports/compare.tex")).unwrap();
+    assert!(tex.contains(r"hemisphere\_checkerboard / dataset3"));
+    assert!(compile("compare", &tex) >= 1);
+}
+
+#[test]
+fn thesis_chapter_compiles_with_pdflatex() {
+    // The chapter from the default experiments' runs.
+    let reports = Path::new(env!("CARGO_MANIFEST_DIR")).join("reports");
+    let (_, _, tex) = probecal::thesis::render(&reports)
+        .unwrap_or_else(|e| panic!("{e}"))
+        .expect("the default experiments' runs are in reports/");
+    assert!(compile("thesis", &tex) >= 1);
 }
 
 fn chromium(args: &[&str], profile: &Path) -> std::process::Output {
