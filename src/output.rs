@@ -246,6 +246,7 @@ pub fn summary(run: &DatasetRun, manifest: &crate::manifest::Manifest) -> Value 
                     "name": m.name,
                     "description": m.description,
                     "frames_used": m.frames_used,
+                    "frames_left_out": m.frames_left_out,
                     "marker_T_image": to_rows(&m.marker_T_image),
                     "spacing_mm_per_px": m.spacing_mm_per_px,
                     "truth": m.truth.map(|t| json!({

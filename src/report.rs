@@ -493,6 +493,15 @@ pub fn context(run: &DatasetRun, manifest: &crate::manifest::Manifest) -> RunCon
                 values: vec![
                     m.description.clone(),
                     m.frames_used.to_string(),
+                    if m.frames_left_out.is_empty() {
+                        "—".into()
+                    } else {
+                        m.frames_left_out
+                            .iter()
+                            .map(|f| f.to_string())
+                            .collect::<Vec<_>>()
+                            .join(" ")
+                    },
                     m.truth
                         .map(|t| mm(t.corner_error_mean_mm))
                         .unwrap_or_else(|| "—".into()),

@@ -203,6 +203,8 @@ pub struct MethodResult {
     pub name: &'static str,
     pub description: String,
     pub frames_used: usize,
+    /// Frames left out of the fit (robust estimators: the frames outside the consensus).
+    pub frames_left_out: Vec<usize>,
     pub marker_T_image: Rigid,
     /// Pixel size the calibration maps with (estimated by the scale refinement).
     pub spacing_mm_per_px: [f64; 2],
@@ -951,6 +953,7 @@ fn methods_stage(
                 crate::output::cutoff_label(thesis.cutoff_mm)
             ),
             frames_used: thesis.frames.len(),
+                frames_left_out: frames.iter().map(|f| f.frame).filter(|k| !thesis.frames.contains(k)).collect(),
             marker_T_image: fit.target_T_source,
             spacing_mm_per_px: spacing,
             truth: truth_of(&fit.target_T_source, spacing),
@@ -980,6 +983,7 @@ fn methods_stage(
                         crate::output::cutoff_label(thesis.cutoff_mm)
                     ),
                     frames_used: kept.len(),
+                frames_left_out: frames.iter().map(|f| f.frame).filter(|k| !kept.iter().any(|c| c.frame == *k)).collect(),
                     marker_T_image: fit.target_T_source,
                     spacing_mm_per_px: spacing,
                     truth: truth_of(&fit.target_T_source, spacing),
@@ -1013,6 +1017,12 @@ fn methods_stage(
                         }
                     ),
                     frames_used: used,
+                    frames_left_out: frames
+                        .iter()
+                        .zip(&r.inliers)
+                        .filter(|(_, k)| !**k)
+                        .map(|(f, _)| f.frame)
+                        .collect(),
                     marker_T_image: r.fit.target_T_source,
                     spacing_mm_per_px: spacing,
                     truth: truth_of(&r.fit.target_T_source, spacing),
@@ -1025,6 +1035,12 @@ fn methods_stage(
         }
     }
     let Some(ransac) = ransac else { return out };
+    let ransac_left_out: Vec<usize> = frames
+        .iter()
+        .zip(&ransac.inliers)
+        .filter(|(_, k)| !**k)
+        .map(|(f, _)| f.frame)
+        .collect();
     let inliers: Vec<&Correspondence> = frames
         .iter()
         .zip(&ransac.inliers)
@@ -1057,6 +1073,7 @@ fn methods_stage(
                     m.spacing_mm_per_px[0], m.spacing_mm_per_px[1]
                 ),
                 frames_used: inliers.len(),
+                frames_left_out: ransac_left_out.clone(),
                 marker_T_image: m.probe_T_image,
                 spacing_mm_per_px: m.spacing_mm_per_px,
                 truth: truth_of(&m.probe_T_image, m.spacing_mm_per_px),
@@ -1097,6 +1114,7 @@ fn methods_stage(
                 fit.radius_offset_mm
             ),
             frames_used: arcs.len(),
+            frames_left_out: ransac_left_out.clone(),
             marker_T_image: fit.marker_T_image,
             spacing_mm_per_px: spacing,
             truth: truth_of(&fit.marker_T_image, spacing),
