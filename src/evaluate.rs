@@ -15,7 +15,7 @@ use nalgebra::{Point3, Vector3};
 use polars::prelude::*;
 use serde::Serialize;
 
-use crate::geometry::{pixel_to_image_mm, rotation_angle_between_deg, Rigid};
+use crate::geometry::{image_probe_points, pixel_to_image_mm, rotation_angle_between_deg, Rigid};
 use crate::horn::{self, HornError, HornFit, Variant};
 use crate::image_to_probe::{self, Constraint, Target};
 use crate::manifest::CutoffRule;
@@ -254,14 +254,24 @@ pub fn compare_with_truth(
     image_size_px: [usize; 2],
     spacing: [f64; 2],
 ) -> TruthComparison {
-    let (w, h) = ((image_size_px[0] - 1) as f64, (image_size_px[1] - 1) as f64);
-    let probes = [[0.0, 0.0], [w, 0.0], [0.0, h], [w, h], [w / 2.0, h / 2.0]];
-    let distances: Vec<f64> = probes
+    compare_mapped(estimate, spacing, truth, spacing, image_size_px)
+}
+
+/// The same, for an estimate that maps pixels with its own pixel size
+/// (`spacing`, e.g. estimated) while the truth maps them with `truth_spacing`.
+pub fn compare_mapped(
+    estimate: &HornFit,
+    spacing: [f64; 2],
+    truth: &Rigid,
+    truth_spacing: [f64; 2],
+    image_size_px: [usize; 2],
+) -> TruthComparison {
+    let estimated = image_probe_points(image_size_px, spacing);
+    let true_points = image_probe_points(image_size_px, truth_spacing);
+    let distances: Vec<f64> = estimated
         .iter()
-        .map(|p| {
-            let x = pixel_to_image_mm(*p, spacing);
-            (estimate.apply(&x) - truth * x).norm()
-        })
+        .zip(&true_points)
+        .map(|(e, t)| (estimate.apply(e) - truth * t).norm())
         .collect();
     TruthComparison {
         corner_error_mean_mm: distances.iter().sum::<f64>() / distances.len() as f64,

@@ -77,6 +77,16 @@ pub fn rigid_from_rows(rows: &[[f64; 4]; 4]) -> Result<Rigid, RigidError> {
     Ok(rigid_from_parts(&r, &Vector3::new(rows[0][3], rows[1][3], rows[2][3])))
 }
 
+/// The image's four corners, then its centre, in the image frame (mm): where a
+/// calibration's error is measured.
+pub fn image_probe_points(image_size_px: [usize; 2], spacing_mm_per_px: [f64; 2]) -> [Point3<f64>; 5] {
+    let (w, h) = (
+        (image_size_px[0].max(1) - 1) as f64,
+        (image_size_px[1].max(1) - 1) as f64,
+    );
+    [[0.0, 0.0], [w, 0.0], [0.0, h], [w, h], [w / 2.0, h / 2.0]].map(|p| pixel_to_image_mm(p, spacing_mm_per_px))
+}
+
 /// Angle of the relative rotation between two transforms, degrees.
 pub fn rotation_angle_between_deg(a: &Rigid, b: &Rigid) -> f64 {
     a.rotation.angle_to(&b.rotation).to_degrees()

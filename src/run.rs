@@ -914,21 +914,12 @@ fn truth_of(
     truth: Option<(Rigid, [usize; 2])>,
 ) -> Option<TruthComparison> {
     let (t, size) = truth?;
-    let (w, h) = ((size[0].max(1) - 1) as f64, (size[1].max(1) - 1) as f64);
-    let distances: Vec<f64> = [[0.0, 0.0], [w, 0.0], [0.0, h], [w, h], [w / 2.0, h / 2.0]]
-        .iter()
-        .map(|p| {
-            (marker_T_image * crate::geometry::pixel_to_image_mm(*p, spacing)
-                - t * crate::geometry::pixel_to_image_mm(*p, truth_spacing))
-            .norm()
-        })
-        .collect();
-    Some(TruthComparison {
-        corner_error_mean_mm: distances.iter().sum::<f64>() / distances.len() as f64,
-        corner_error_max_mm: distances.iter().cloned().fold(0.0, f64::max),
-        rotation_error_deg: rotation_angle_between_deg(marker_T_image, &t),
-        translation_error_mm: (marker_T_image.translation.vector - t.translation.vector).norm(),
-    })
+    let estimate = HornFit {
+        target_T_source: *marker_T_image,
+        scale: 1.0,
+        rms_residual_mm: 0.0,
+    };
+    Some(evaluate::compare_mapped(&estimate, spacing, &t, truth_spacing, size))
 }
 
 #[allow(clippy::too_many_arguments)]

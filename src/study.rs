@@ -28,11 +28,12 @@ use nalgebra::{Matrix3, Matrix6, Point3, Vector3};
 use serde::Serialize;
 
 use crate::evaluate::{self, Correspondence};
-use crate::geometry::{pixel_to_image_mm, rigid_from_axis_angle, Rigid};
+use crate::geometry::{image_probe_points, pixel_to_image_mm, rigid_from_axis_angle, Rigid};
 use crate::horn::Variant;
 use crate::manifest::{Dataset, DatasetSource, Manifest};
 use crate::rng::Rng;
 use crate::run::{self, DatasetRun, RunError};
+use crate::validation::{mean_sd, percentile};
 
 /// The thesis's published σ-table.
 pub const THESIS_SIGMA_TABLE: [(f64, f64); 4] = [(0.0, 0.0), (0.5, 0.272), (1.0, 0.504), (2.0, 1.127)];
@@ -45,12 +46,6 @@ pub struct SigmaRow {
     pub std_per_axis_mm: f64,
     /// SD of the 3D residual distances (mean over repetitions).
     pub std_distance_mm: f64,
-}
-
-fn sd(values: &[f64]) -> f64 {
-    let n = values.len() as f64;
-    let mean = values.iter().sum::<f64>() / n;
-    (values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0)).sqrt()
 }
 
 /// The σ-table by the protocol above.
@@ -95,8 +90,8 @@ pub fn sigma_table(frames: usize, repetitions: usize, seed: u64) -> Vec<SigmaRow
                     axes.extend(a);
                     norms.push(n);
                 }
-                per_axis.push(sd(&axes));
-                distance.push(sd(&norms));
+                per_axis.push(mean_sd(&axes).std);
+                distance.push(mean_sd(&norms).std);
             }
             SigmaRow {
                 sigma_mm: sigma,
@@ -134,12 +129,6 @@ pub struct MonteCarlo {
     pub methods: Vec<MethodSummary>,
     /// RMS over seeds of the per-seed bound, mm.
     pub crlb_rms_mm: f64,
-}
-
-/// The image's corners and centre, mm.
-fn probe_points(size: [usize; 2], spacing: [f64; 2]) -> [Point3<f64>; 5] {
-    let (w, h) = ((size[0].max(1) - 1) as f64, (size[1].max(1) - 1) as f64);
-    [[0.0, 0.0], [w, 0.0], [0.0, h], [w, h], [w / 2.0, h / 2.0]].map(|p| pixel_to_image_mm(p, spacing))
 }
 
 fn skew(v: &Vector3<f64>) -> Matrix3<f64> {
@@ -181,8 +170,8 @@ pub fn crlb_rms(
 
 /// RMS distance over `probes` between two calibrations, mm.
 fn rms_error(estimate: &Rigid, spacing: [f64; 2], truth: &Rigid, true_spacing: [f64; 2], size: [usize; 2]) -> f64 {
-    let est = probe_points(size, spacing);
-    let tru = probe_points(size, true_spacing);
+    let est = image_probe_points(size, spacing);
+    let tru = image_probe_points(size, true_spacing);
     let sum: f64 = est
         .iter()
         .zip(&tru)
@@ -228,15 +217,7 @@ fn seed_bound(run: &DatasetRun, truth: &Rigid, size: [usize; 2]) -> Option<f64> 
         .map(|r| (r - mean) * (r - mean).transpose())
         .sum::<Matrix3<f64>>()
         / (n - 1.0);
-    crlb_rms(truth, &xs, &sigma, &probe_points(size, spacing))
-}
-
-fn percentile(values: &[f64], q: f64) -> f64 {
-    let mut v = values.to_vec();
-    v.sort_by(|a, b| a.total_cmp(b));
-    let pos = q * (v.len() - 1) as f64;
-    let (lo, hi) = (pos.floor() as usize, pos.ceil() as usize);
-    v[lo] + (v[hi] - v[lo]) * (pos - lo as f64)
+    crlb_rms(truth, &xs, &sigma, &image_probe_points(size, spacing))
 }
 
 /// Renders and runs the manifest's first dataset once per seed; rendered folders

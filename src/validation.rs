@@ -16,7 +16,7 @@ use nalgebra::Point3;
 use serde::Serialize;
 
 use crate::evaluate::{self, Correspondence};
-use crate::geometry::{euler_zyx_deg, pixel_to_image_mm, Rigid};
+use crate::geometry::{euler_zyx_deg, image_probe_points, Rigid};
 use crate::horn::{HornError, HornFit, Variant};
 use crate::rng::Rng;
 
@@ -37,11 +37,7 @@ impl FitInputs<'_> {
 
     /// The image's four corners and centre, mm in the image frame.
     fn probe_points(&self) -> [Point3<f64>; 5] {
-        let (w, h) = (
-            (self.image_size_px[0].max(1) - 1) as f64,
-            (self.image_size_px[1].max(1) - 1) as f64,
-        );
-        [[0.0, 0.0], [w, 0.0], [0.0, h], [w, h], [w / 2.0, h / 2.0]].map(|p| pixel_to_image_mm(p, self.spacing))
+        image_probe_points(self.image_size_px, self.spacing)
     }
 }
 
@@ -52,7 +48,7 @@ pub struct MeanSd {
     pub n: usize,
 }
 
-fn mean_sd(values: &[f64]) -> MeanSd {
+pub(crate) fn mean_sd(values: &[f64]) -> MeanSd {
     let n = values.len();
     let mean = values.iter().sum::<f64>() / n.max(1) as f64;
     let var = values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n.max(2) - 1) as f64;
@@ -158,7 +154,9 @@ pub struct Bootstrap {
     pub corner_shift_p95_mm: f64,
 }
 
-fn percentile(values: &mut [f64], q: f64) -> f64 {
+/// The `q` quantile (0..1) of non-empty `values`, linearly interpolated.
+pub(crate) fn percentile(values: &[f64], q: f64) -> f64 {
+    let mut values = values.to_vec();
     values.sort_by(|a, b| a.total_cmp(b));
     let pos = q * (values.len() - 1) as f64;
     let (lo, hi) = (pos.floor() as usize, pos.ceil() as usize);
@@ -166,10 +164,9 @@ fn percentile(values: &mut [f64], q: f64) -> f64 {
 }
 
 fn interval(values: &[f64]) -> Interval {
-    let mut v = values.to_vec();
     Interval {
-        low: percentile(&mut v, 0.025),
-        high: percentile(&mut v, 0.975),
+        low: percentile(values, 0.025),
+        high: percentile(values, 0.975),
     }
 }
 
@@ -218,7 +215,7 @@ pub fn bootstrap(
         translation_mm: [0, 1, 2].map(|k| interval(&translation[k])),
         euler_zyx_deg: [0, 1, 2].map(|k| interval(&euler[k])),
         bre_mean_mm: [0, 1, 2].map(|k| interval(&bre[k])),
-        corner_shift_p95_mm: percentile(&mut shifts, 0.95),
+        corner_shift_p95_mm: percentile(&shifts, 0.95),
     })
 }
 

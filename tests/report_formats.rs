@@ -56,24 +56,30 @@ fn latex_report_compiles_with_pdflatex() {
         tex.contains(r"\includegraphics[width=\linewidth]{gallery/frame_"),
         "gallery in the LaTeX report"
     );
-    let out = Command::new("pdflatex")
-        .args(["-interaction=nonstopmode", "-halt-on-error", "report.tex"])
-        .current_dir(folder)
-        .output()
-        .expect("pdflatex is installed (scripts/setup.sh)");
-    let log = String::from_utf8_lossy(&out.stdout);
-    assert!(out.status.success(), "pdflatex failed:\n{log}");
-    // "Output written on report.pdf (N pages, ...)"
-    let pages: usize = log
-        .split("Output written on report.pdf (")
-        .nth(1)
-        .and_then(|rest| rest.split(' ').next())
-        .and_then(|n| n.parse().ok())
-        .unwrap_or(0);
+    let (pages, log) = compile_in(folder, "report");
     assert!(pages >= 2, "{pages} pages:\n{log}");
     let pdf = std::fs::read(folder.join("report.pdf")).unwrap();
     assert!(pdf.starts_with(b"%PDF"));
     assert!(!log.contains("Missing character"), "{log}");
+}
+
+/// `pdflatex` on `<name>.tex` in `folder` (it must succeed); the number of pages and the log.
+fn compile_in(folder: &Path, name: &str) -> (usize, String) {
+    let out = Command::new("pdflatex")
+        .args(["-interaction=nonstopmode", "-halt-on-error", &format!("{name}.tex")])
+        .current_dir(folder)
+        .output()
+        .expect("pdflatex is installed (scripts/setup.sh)");
+    let log = String::from_utf8_lossy(&out.stdout).to_string();
+    assert!(out.status.success(), "pdflatex failed on {name}.tex:\n{log}");
+    // "Output written on <name>.pdf (N pages, ...)"
+    let pages = log
+        .split(&format!("Output written on {name}.pdf ("))
+        .nth(1)
+        .and_then(|rest| rest.split(' ').next())
+        .and_then(|n| n.parse().ok())
+        .unwrap_or(0);
+    (pages, log)
 }
 
 /// `pdflatex` on `tex` in a fresh folder; the number of pages.
@@ -82,18 +88,7 @@ fn compile(name: &str, tex: &str) -> usize {
     let _ = std::fs::remove_dir_all(&work);
     std::fs::create_dir_all(&work).unwrap();
     std::fs::write(work.join(format!("{name}.tex")), tex).unwrap();
-    let out = Command::new("pdflatex")
-        .args(["-interaction=nonstopmode", "-halt-on-error", &format!("{name}.tex")])
-        .current_dir(&work)
-        .output()
-        .expect("pdflatex is installed (scripts/setup.sh)");
-    let log = String::from_utf8_lossy(&out.stdout);
-    assert!(out.status.success(), "pdflatex failed on {name}.tex:\n{log}");
-    log.split(&format!("Output written on {name}.pdf ("))
-        .nth(1)
-        .and_then(|rest| rest.split(' ').next())
-        .and_then(|n| n.parse().ok())
-        .unwrap_or(0)
+    compile_in(&work, name).0
 }
 
 #[test]
