@@ -31,6 +31,17 @@ pub fn rigid_from_axis_angle(axis_angle_rad: Vector3<f64>, translation_mm: Vecto
     Isometry3::new(translation_mm, axis_angle_rad)
 }
 
+/// `start` moved by a small step, as the solvers parameterise it: the rotation
+/// `exp([rotation_rad]ₓ)` applied after `start`'s (about the target frame's
+/// origin), and `translation_mm` added to its translation.
+pub fn perturbed(start: &Rigid, rotation_rad: Vector3<f64>, translation_mm: Vector3<f64>) -> Rigid {
+    let delta = rigid_from_axis_angle(rotation_rad, Vector3::zeros());
+    Rigid::from_parts(
+        (start.translation.vector + translation_mm).into(),
+        delta.rotation * start.rotation,
+    )
+}
+
 /// Homogeneous 4x4 matrix, row-major as nested arrays (for JSON and tables).
 pub fn to_rows(transform: &Rigid) -> [[f64; 4]; 4] {
     let m: Matrix4<f64> = transform.to_homogeneous();

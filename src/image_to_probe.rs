@@ -10,7 +10,7 @@
 
 use nalgebra::{DVector, Matrix4, Point3, Vector3};
 
-use crate::geometry::{rigid_from_axis_angle, Rigid};
+use crate::geometry::{perturbed, rigid_from_axis_angle, Rigid};
 use crate::horn::{self, HornError, Variant};
 use crate::lm::{self, LmError};
 
@@ -113,11 +113,8 @@ pub struct Fit {
 }
 
 fn unpack(start: &Rigid, start_correction: &Rigid, x: &DVector<f64>) -> (ImageToProbe, Rigid) {
-    let delta = rigid_from_axis_angle(Vector3::new(x[0], x[1], x[2]), Vector3::zeros());
-    let rotation = delta.rotation * start.rotation;
-    let translation = start.translation.vector + Vector3::new(x[3], x[4], x[5]);
     let model = ImageToProbe {
-        probe_T_image: Rigid::from_parts(translation.into(), rotation),
+        probe_T_image: perturbed(start, Vector3::new(x[0], x[1], x[2]), Vector3::new(x[3], x[4], x[5])),
         spacing_mm_per_px: [x[6], x[7]],
     };
     let correction = if x.len() > 8 {
@@ -252,15 +249,9 @@ pub fn refine(
 /// Levenberg–Marquardt on point and line constraints from `start`. Returns the fit
 /// and its RMS residual (mm).
 pub fn refine_rigid(start: &Rigid, spacing: [f64; 2], constraints: &[Constraint]) -> Result<(Rigid, f64), LmError> {
-    let model_at = |x: &DVector<f64>| {
-        let delta = rigid_from_axis_angle(Vector3::new(x[0], x[1], x[2]), Vector3::zeros());
-        ImageToProbe {
-            probe_T_image: Rigid::from_parts(
-                (start.translation.vector + Vector3::new(x[3], x[4], x[5])).into(),
-                delta.rotation * start.rotation,
-            ),
-            spacing_mm_per_px: spacing,
-        }
+    let model_at = |x: &DVector<f64>| ImageToProbe {
+        probe_T_image: perturbed(start, Vector3::new(x[0], x[1], x[2]), Vector3::new(x[3], x[4], x[5])),
+        spacing_mm_per_px: spacing,
     };
     let refs: Vec<&Constraint> = constraints.iter().collect();
     let mut steps = DVector::from_element(6, 1e-5);

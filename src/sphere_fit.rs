@@ -18,7 +18,7 @@
 
 use nalgebra::{DVector, Point3, Vector3};
 
-use crate::geometry::{pixel_to_image_mm, rigid_from_axis_angle, Rigid};
+use crate::geometry::{perturbed, pixel_to_image_mm, Rigid};
 use crate::lm::{self, LmError};
 
 /// One frame: its arc edge pixels and poses.
@@ -70,11 +70,7 @@ pub enum SphereFitError {
 }
 
 fn model_at(start: &Rigid, x: &DVector<f64>) -> Rigid {
-    let delta = rigid_from_axis_angle(Vector3::new(x[0], x[1], x[2]), Vector3::zeros());
-    Rigid::from_parts(
-        (start.translation.vector + Vector3::new(x[3], x[4], x[5])).into(),
-        delta.rotation * start.rotation,
-    )
+    perturbed(start, Vector3::new(x[0], x[1], x[2]), Vector3::new(x[3], x[4], x[5]))
 }
 
 /// Signed distance of the sphere centre from the frame's image plane (image z), mm.
@@ -148,6 +144,7 @@ pub fn refine(start: &Rigid, frames: &[ArcFrame], settings: &SphereSettings) -> 
 mod tests {
     use super::*;
     use crate::evaluate::{self, Correspondence};
+    use crate::geometry::rigid_from_axis_angle;
     use crate::horn::{HornFit, Variant};
     use crate::rng::Rng;
 
