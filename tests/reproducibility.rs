@@ -198,3 +198,20 @@ fn committed_baselines_cover_every_default_experiment() {
         }
     }
 }
+
+#[test]
+fn study_manifests_load() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("experiments/studies");
+    let mut loaded = 0;
+    for entry in std::fs::read_dir(&root).unwrap() {
+        let path = entry.unwrap().path();
+        if path.extension().is_some_and(|e| e == "yaml") {
+            probecal::manifest::Experiment::load(&path).unwrap_or_else(|e| panic!("{e}"));
+            loaded += 1;
+        }
+    }
+    assert_eq!(
+        loaded, 3,
+        "experiments/studies/ should hold the three error-budget manifests"
+    );
+}
