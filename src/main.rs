@@ -418,6 +418,24 @@ fn run(manifests: Vec<PathBuf>, out: Option<PathBuf>, datasets: PathBuf, force: 
             "The thesis's σ-table and the Monte Carlo accuracy study of every estimator".into(),
         ));
     }
+    // The error-budget studies (`probecal study experiments/studies/... --out <out>/study/<name>`).
+    let mut budget: Vec<String> = std::fs::read_dir(out.join("study"))
+        .into_iter()
+        .flatten()
+        .flatten()
+        .filter(|e| e.path().join("study.html").is_file())
+        .filter_map(|e| e.file_name().to_str().map(str::to_string))
+        .collect();
+    budget.sort();
+    for name in budget {
+        studies.push((
+            format!("study/{name}/study.html"),
+            format!(
+                "Monte Carlo study of a variant of the default hemisphere rig: {}",
+                name.replace('_', " ")
+            ),
+        ));
+    }
     match render_index(&entries, &studies) {
         Ok(html) => {
             if let Err(e) = write_atomic(&out.join("index.html"), html.as_bytes()) {
