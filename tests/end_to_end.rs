@@ -24,6 +24,9 @@ fn tmp(name: &str) -> PathBuf {
 fn run_writes_the_tables_summary_and_page() {
     let out = tmp("run");
     let datasets = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("end_to_end_datasets");
+    // A study written beside the runs earlier is linked from the index.
+    std::fs::create_dir_all(out.join("study/variant_a")).unwrap();
+    std::fs::write(out.join("study/variant_a/study.html"), "<html></html>").unwrap();
     let result = probecal()
         .arg("run")
         .arg(fixture())
@@ -54,7 +57,9 @@ fn run_writes_the_tables_summary_and_page() {
         assert!(run.join(file).is_file(), "{file} missing in {}", run.display());
     }
     assert!(out.join("hemisphere_small/manifest.yaml").is_file());
-    assert!(out.join("index.html").is_file());
+    let index = std::fs::read_to_string(out.join("index.html")).unwrap();
+    assert!(index.contains("study&#x2F;variant_a&#x2F;study.html"), "{index}");
+    assert!(index.contains("variant a"), "{index}");
 
     let summary: Value = serde_json::from_str(&std::fs::read_to_string(run.join("summary.json")).unwrap()).unwrap();
     assert_eq!(summary["experiment"], "hemisphere_small");
