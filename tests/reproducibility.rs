@@ -211,7 +211,7 @@ fn study_manifests_load() {
         }
     }
     assert_eq!(
-        loaded, 3,
-        "experiments/studies/ should hold the three error-budget manifests"
+        loaded, 4,
+        "experiments/studies/ should hold the four study manifests"
     );
 }
