@@ -257,6 +257,23 @@ fn check(runs: Vec<PathBuf>, baselines: PathBuf, update: bool) -> ExitCode {
 /// What a `run` did: its exit code, the manifests, and each dataset run (with its manifest's index).
 type RunOutcome = (u8, Vec<Manifest>, Vec<(usize, probecal::run::DatasetRun)>);
 
+/// The index's words for a study folder: its experiment and seed count from
+/// `study.json`, or the folder's name when that cannot be read.
+fn study_label(study_json: &Path, folder: &str) -> String {
+    let monte_carlo = std::fs::read_to_string(study_json)
+        .ok()
+        .and_then(|text| serde_json::from_str::<serde_json::Value>(&text).ok())
+        .map(|v| v["monte_carlo"].clone());
+    match monte_carlo {
+        Some(mc) if mc["experiment"].is_string() => format!(
+            "Monte Carlo accuracy study of {} ({} seeds)",
+            mc["experiment"].as_str().unwrap_or(folder),
+            mc["seeds"].as_array().map_or(0, Vec::len)
+        ),
+        _ => format!("Study: {}", folder.replace('_', " ")),
+    }
+}
+
 fn run(manifests: Vec<PathBuf>, out: Option<PathBuf>, datasets: PathBuf, force: bool, quiet: bool) -> RunOutcome {
     let experiments = match load_all(&manifests) {
         Ok(m) => m,
@@ -418,22 +435,20 @@ fn run(manifests: Vec<PathBuf>, out: Option<PathBuf>, datasets: PathBuf, force: 
             "The thesis's σ-table and the Monte Carlo accuracy study of every estimator".into(),
         ));
     }
-    // The error-budget studies (`probecal study experiments/studies/... --out <out>/study/<name>`).
-    let mut budget: Vec<String> = std::fs::read_dir(out.join("study"))
+    // Further studies (`probecal study <manifest> --out <out>/study/<name>`), e.g. the
+    // error budget of `experiments/studies/`.
+    let mut more: Vec<String> = std::fs::read_dir(out.join("study"))
         .into_iter()
         .flatten()
         .flatten()
         .filter(|e| e.path().join("study.html").is_file())
         .filter_map(|e| e.file_name().to_str().map(str::to_string))
         .collect();
-    budget.sort();
-    for name in budget {
+    more.sort();
+    for name in more {
         studies.push((
             format!("study/{name}/study.html"),
-            format!(
-                "Monte Carlo study of a variant of the default hemisphere rig: {}",
-                name.replace('_', " ")
-            ),
+            study_label(&out.join("study").join(&name).join("study.json"), &name),
         ));
     }
     match render_index(&entries, &studies) {

@@ -27,6 +27,13 @@ fn run_writes_the_tables_summary_and_page() {
     // A study written beside the runs earlier is linked from the index.
     std::fs::create_dir_all(out.join("study/variant_a")).unwrap();
     std::fs::write(out.join("study/variant_a/study.html"), "<html></html>").unwrap();
+    std::fs::write(
+        out.join("study/variant_a/study.json"),
+        r#"{"monte_carlo": {"experiment": "rig_a", "seeds": [1000, 1001]}}"#,
+    )
+    .unwrap();
+    std::fs::create_dir_all(out.join("study/variant_b")).unwrap();
+    std::fs::write(out.join("study/variant_b/study.html"), "<html></html>").unwrap();
     let result = probecal()
         .arg("run")
         .arg(fixture())
@@ -59,7 +66,13 @@ fn run_writes_the_tables_summary_and_page() {
     assert!(out.join("hemisphere_small/manifest.yaml").is_file());
     let index = std::fs::read_to_string(out.join("index.html")).unwrap();
     assert!(index.contains("study&#x2F;variant_a&#x2F;study.html"), "{index}");
-    assert!(index.contains("variant a"), "{index}");
+    assert!(
+        index.contains("Monte Carlo accuracy study of rig_a (2 seeds)"),
+        "{index}"
+    );
+    // Without a readable study.json the folder's name stands for it.
+    assert!(index.contains("study&#x2F;variant_b&#x2F;study.html"), "{index}");
+    assert!(index.contains("Study: variant b"), "{index}");
 
     let summary: Value = serde_json::from_str(&std::fs::read_to_string(run.join("summary.json")).unwrap()).unwrap();
     assert_eq!(summary["experiment"], "hemisphere_small");
