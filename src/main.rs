@@ -264,13 +264,15 @@ fn study_label(study_json: &Path, folder: &str) -> String {
         .ok()
         .and_then(|text| serde_json::from_str::<serde_json::Value>(&text).ok())
         .map(|v| v["monte_carlo"].clone());
-    match monte_carlo {
-        Some(mc) if mc["experiment"].is_string() => format!(
-            "Monte Carlo accuracy study of {} ({} seeds)",
-            mc["experiment"].as_str().unwrap_or(folder),
+    match monte_carlo
+        .as_ref()
+        .and_then(|mc| Some((mc["experiment"].as_str()?, mc)))
+    {
+        Some((experiment, mc)) => format!(
+            "Monte Carlo accuracy study of {experiment} ({} seeds)",
             mc["seeds"].as_array().map_or(0, Vec::len)
         ),
-        _ => format!("Study: {}", folder.replace('_', " ")),
+        None => format!("Study: {}", folder.replace('_', " ")),
     }
 }
 

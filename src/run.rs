@@ -922,6 +922,21 @@ fn truth_of(
     Some(evaluate::compare_mapped(&estimate, spacing, &t, truth_spacing, size))
 }
 
+/// The frames (their numbers) an estimator did not keep.
+fn left_out(frames: &[Correspondence], kept: impl Fn(&Correspondence) -> bool) -> Vec<usize> {
+    frames.iter().filter(|f| !kept(f)).map(|f| f.frame).collect()
+}
+
+/// The frames outside a robust estimator's consensus (`inliers` runs along `frames`).
+fn outside_consensus(frames: &[Correspondence], inliers: &[bool]) -> Vec<usize> {
+    frames
+        .iter()
+        .zip(inliers)
+        .filter(|(_, k)| !**k)
+        .map(|(f, _)| f.frame)
+        .collect()
+}
+
 #[allow(clippy::too_many_arguments)]
 fn methods_stage(
     manifest: &Manifest,
@@ -944,7 +959,7 @@ fn methods_stage(
                 crate::output::cutoff_label(thesis.cutoff_mm)
             ),
             frames_used: thesis.frames.len(),
-                frames_left_out: frames.iter().map(|f| f.frame).filter(|k| !thesis.frames.contains(k)).collect(),
+            frames_left_out: left_out(frames, |f| thesis.frames.contains(&f.frame)),
             marker_T_image: fit.target_T_source,
             spacing_mm_per_px: spacing,
             truth: truth_of(&fit.target_T_source, spacing),
@@ -974,7 +989,7 @@ fn methods_stage(
                         crate::output::cutoff_label(thesis.cutoff_mm)
                     ),
                     frames_used: kept.len(),
-                frames_left_out: frames.iter().map(|f| f.frame).filter(|k| !kept.iter().any(|c| c.frame == *k)).collect(),
+                    frames_left_out: left_out(frames, |f| kept.iter().any(|c| c.frame == f.frame)),
                     marker_T_image: fit.target_T_source,
                     spacing_mm_per_px: spacing,
                     truth: truth_of(&fit.target_T_source, spacing),
@@ -1008,12 +1023,7 @@ fn methods_stage(
                         }
                     ),
                     frames_used: used,
-                    frames_left_out: frames
-                        .iter()
-                        .zip(&r.inliers)
-                        .filter(|(_, k)| !**k)
-                        .map(|(f, _)| f.frame)
-                        .collect(),
+                    frames_left_out: outside_consensus(frames, &r.inliers),
                     marker_T_image: r.fit.target_T_source,
                     spacing_mm_per_px: spacing,
                     truth: truth_of(&r.fit.target_T_source, spacing),
@@ -1026,12 +1036,7 @@ fn methods_stage(
         }
     }
     let Some(ransac) = ransac else { return out };
-    let ransac_left_out: Vec<usize> = frames
-        .iter()
-        .zip(&ransac.inliers)
-        .filter(|(_, k)| !**k)
-        .map(|(f, _)| f.frame)
-        .collect();
+    let ransac_left_out = outside_consensus(frames, &ransac.inliers);
     let inliers: Vec<&Correspondence> = frames
         .iter()
         .zip(&ransac.inliers)
@@ -1105,7 +1110,7 @@ fn methods_stage(
                 fit.radius_offset_mm
             ),
             frames_used: arcs.len(),
-            frames_left_out: ransac_left_out.clone(),
+            frames_left_out: ransac_left_out,
             marker_T_image: fit.marker_T_image,
             spacing_mm_per_px: spacing,
             truth: truth_of(&fit.marker_T_image, spacing),
