@@ -10,7 +10,7 @@ use std::path::Path;
 use std::time::Instant;
 
 use nalgebra::{Point3, Vector3};
-use probecal::board_pose::RigBoards;
+use probecal::detect::board_pose::RigBoards;
 use probecal::manifest::{DatasetSource, Manifest};
 
 fn median_s(repeats: usize, mut f: impl FnMut()) -> f64 {
@@ -43,21 +43,26 @@ fn main() {
         folder.display()
     );
 
-    let cal = probecal::camera_calibration::calibrate_folder(&folder.join("camera_calibration"), [9, 6], 30.0).unwrap();
+    let cal = probecal::detect::camera_calibration::calibrate_folder(&folder.join("camera_calibration"), [9, 6], 30.0)
+        .unwrap();
     let camera = cal.intrinsics.clone();
     let rig = RigBoards::from_manifest(&manifest.rig).unwrap();
-    let photo = probecal::image::read_gray(&folder.join("frames/camera_001.png")).unwrap();
-    let bscan = probecal::image::read_gray(&folder.join("frames/bscan_001.png")).unwrap();
+    let photo = probecal::io::image::read_gray(&folder.join("frames/camera_001.png")).unwrap();
+    let bscan = probecal::io::image::read_gray(&folder.join("frames/bscan_001.png")).unwrap();
 
     let pose = median_s(15, || {
-        black_box(probecal::board_pose::estimate(&photo, &camera, &rig).unwrap().unwrap());
+        black_box(
+            probecal::detect::board_pose::estimate(&photo, &camera, &rig)
+                .unwrap()
+                .unwrap(),
+        );
     });
     println!("camera pose (both boards) per image: {:.1} ms", pose * 1e3);
     let decode = median_s(15, || {
-        black_box(probecal::image::read_gray(&folder.join("frames/camera_001.png")).unwrap());
+        black_box(probecal::io::image::read_gray(&folder.join("frames/camera_001.png")).unwrap());
     });
     println!("decode one camera PNG (1920x1080): {:.1} ms", decode * 1e3);
-    let settings = probecal::arc_detection::ArcSettings {
+    let settings = probecal::detect::arc::ArcSettings {
         spacing_mm_per_px: [0.2, 0.2],
         radius_mm: [8.25, 17.25],
         min_span_deg: 40.0,
@@ -66,14 +71,14 @@ fn main() {
         fixed_radius_mm: Some(15.0),
     };
     let arc = median_s(15, || {
-        black_box(probecal::arc_detection::detect(&bscan, &settings).unwrap().unwrap());
+        black_box(probecal::detect::arc::detect(&bscan, &settings).unwrap().unwrap());
     });
     println!("B-scan arc detection per image: {:.1} ms", arc * 1e3);
 
     let truth =
-        probecal::geometry::rigid_from_axis_angle(Vector3::new(0.1, -0.2, 0.3), Vector3::new(10.0, 150.0, 25.0));
+        probecal::core::geometry::rigid_from_axis_angle(Vector3::new(0.1, -0.2, 0.3), Vector3::new(10.0, 150.0, 25.0));
     for n in [10usize, 100, 10_000] {
-        let mut rng = probecal::rng::Rng::new(n as u64);
+        let mut rng = probecal::core::rng::Rng::new(n as u64);
         let source: Vec<Point3<f64>> = (0..n)
             .map(|_| Point3::new(rng.uniform(0.0, 160.0), rng.uniform(0.0, 120.0), 0.0))
             .collect();
@@ -83,18 +88,20 @@ fn main() {
             .collect();
         let repeats = if n > 1000 { 101 } else { 1001 };
         let horn = median_s(repeats, || {
-            black_box(probecal::horn::solve(&source, &target, probecal::horn::Variant::Rigid).unwrap());
+            black_box(
+                probecal::estimate::horn::solve(&source, &target, probecal::estimate::horn::Variant::Rigid).unwrap(),
+            );
         });
         println!("Horn, {n} pairs: {:.1} µs", horn * 1e6);
     }
 
-    probecal::progress::set_quiet(true);
+    probecal::core::progress::set_quiet(true);
     let frames = {
-        let list = probecal::dataset::load_frame_list(&folder).unwrap();
+        let list = probecal::io::dataset::load_frame_list(&folder).unwrap();
         list.len()
     };
     let full = median_s(5, || {
-        black_box(probecal::run::run_dataset(&manifest, dataset, &datasets, &mut |_| {}).unwrap());
+        black_box(probecal::pipeline::run::run_dataset(&manifest, dataset, &datasets, &mut |_| {}).unwrap());
     });
     println!(
         "full run from cached images ({} frames, camera calibration included): {:.2} s, {:.1} frames/s, {:.1} ms/frame",
@@ -103,7 +110,7 @@ fn main() {
         frames as f64 / full,
         full * 1e3 / frames as f64
     );
-    if let Some(mb) = probecal::provenance::peak_memory_mb() {
+    if let Some(mb) = probecal::report::provenance::peak_memory_mb() {
         println!("peak memory of this process: {mb:.0} MB");
     }
 }

@@ -7,7 +7,7 @@ use clap::{Parser, Subcommand};
 
 use probecal::manifest::tracked::TrackedManifest;
 use probecal::manifest::{Experiment, Manifest};
-use probecal::output::{bre_table_text, cutoff_label, threshold_table_text, write_atomic, write_dataset_run};
+use probecal::report::write::{bre_table_text, cutoff_label, threshold_table_text, write_atomic, write_dataset_run};
 use probecal::report::{render_index, IndexEntry};
 
 #[derive(Parser)]
@@ -123,13 +123,13 @@ fn study(manifest: &Path, seeds: u64, first_seed: u64, out: &Path, datasets: &Pa
             return ExitCode::from(2);
         }
     };
-    probecal::progress::set_quiet(true);
-    let sigma = probecal::study::sigma_table(50, 200, 1);
+    probecal::core::progress::set_quiet(true);
+    let sigma = probecal::pipeline::study::sigma_table(50, 200, 1);
     let seeds: Vec<u64> = (first_seed..first_seed + seeds).collect();
     let monte_carlo = if seeds.is_empty() {
         None
     } else {
-        match probecal::study::monte_carlo(&manifest, &seeds, datasets, keep, &mut |l| eprintln!("{l}")) {
+        match probecal::pipeline::study::monte_carlo(&manifest, &seeds, datasets, keep, &mut |l| eprintln!("{l}")) {
             Ok(m) => Some(m),
             Err(e) => {
                 eprintln!("error: {e}");
@@ -137,7 +137,7 @@ fn study(manifest: &Path, seeds: u64, first_seed: u64, out: &Path, datasets: &Pa
             }
         }
     };
-    match probecal::study::write(out, &sigma, monte_carlo.as_ref()) {
+    match probecal::pipeline::study::write(out, &sigma, monte_carlo.as_ref()) {
         Ok(()) => {
             eprintln!("written to {}", out.display());
             ExitCode::SUCCESS
@@ -189,7 +189,7 @@ fn next_run_folder() -> PathBuf {
 }
 
 fn check(runs: Vec<PathBuf>, baselines: PathBuf, update: bool) -> ExitCode {
-    let summaries = match probecal::check::find_summaries(&runs) {
+    let summaries = match probecal::report::check::find_summaries(&runs) {
         Ok(s) => s,
         Err(e) => {
             eprintln!("error: {e}");
@@ -197,7 +197,7 @@ fn check(runs: Vec<PathBuf>, baselines: PathBuf, update: bool) -> ExitCode {
         }
     };
     if update {
-        return match probecal::check::update(&summaries, &baselines) {
+        return match probecal::report::check::update(&summaries, &baselines) {
             Ok(written) => {
                 for path in written {
                     println!("baseline written: {}", path.display());
@@ -210,19 +210,19 @@ fn check(runs: Vec<PathBuf>, baselines: PathBuf, update: bool) -> ExitCode {
             }
         };
     }
-    let comparisons = match probecal::check::compare(&summaries, &baselines) {
+    let comparisons = match probecal::report::check::compare(&summaries, &baselines) {
         Ok(c) => c,
         Err(e) => {
             eprintln!("error: {e}");
             return ExitCode::from(2);
         }
     };
-    print!("{}", probecal::check::table(&comparisons));
+    print!("{}", probecal::report::check::table(&comparisons));
     let mut failed = false;
     for c in &comparisons {
         if matches!(
             c.verdict,
-            probecal::check::Verdict::Regressed | probecal::check::Verdict::Missing
+            probecal::report::check::Verdict::Regressed | probecal::report::check::Verdict::Missing
         ) {
             failed = true;
             eprintln!(
@@ -238,7 +238,7 @@ fn check(runs: Vec<PathBuf>, baselines: PathBuf, update: bool) -> ExitCode {
             );
         }
     }
-    for gate in probecal::check::failed_gates(&summaries) {
+    for gate in probecal::report::check::failed_gates(&summaries) {
         failed = true;
         eprintln!("GATE FAILED: {gate}");
     }
@@ -255,7 +255,7 @@ fn check(runs: Vec<PathBuf>, baselines: PathBuf, update: bool) -> ExitCode {
 }
 
 /// What a `run` did: its exit code, the manifests, and each dataset run (with its manifest's index).
-type RunOutcome = (u8, Vec<Manifest>, Vec<(usize, probecal::run::DatasetRun)>);
+type RunOutcome = (u8, Vec<Manifest>, Vec<(usize, probecal::pipeline::run::DatasetRun)>);
 
 /// The index's words for a study folder: its experiment and seed count from
 /// `study.json`, or the folder's name when that cannot be read.
@@ -338,7 +338,7 @@ fn run(manifests: Vec<PathBuf>, out: Option<PathBuf>, datasets: PathBuf, force: 
         for d in &m.datasets {
             let started = std::time::SystemTime::now();
             log(&format!("== {} / {}", m.experiment, d.name));
-            let run = match probecal::run::run_dataset(m, d, &datasets, &mut log) {
+            let run = match probecal::pipeline::run::run_dataset(m, d, &datasets, &mut log) {
                 Ok(r) => r,
                 Err(e) => {
                     eprintln!("error: {}: {e}", m.path.display());
@@ -420,7 +420,7 @@ fn run(manifests: Vec<PathBuf>, out: Option<PathBuf>, datasets: PathBuf, force: 
     // A study written into the same folder (`probecal study --out <out>/study`) is linked too.
     let mut studies: Vec<(String, String)> = Vec::new();
     // The thesis's results chapter, from whichever of its experiments are in `out`.
-    match probecal::thesis::write(&out) {
+    match probecal::report::thesis::write(&out) {
         Ok(Some(_)) => studies.push((
             "thesis.html".into(),
             "The thesis's results chapter, regenerated (also thesis.tex)".into(),
@@ -481,14 +481,15 @@ fn run_tracked(m: &TrackedManifest, folder: &Path, quiet: bool) -> Result<(Index
     if !quiet {
         eprintln!("== {} / {}", m.experiment, m.dataset);
     }
-    let run = probecal::tracked::run(&m.inputs(), m.min_frames).map_err(|e| format!("{}: {e}", m.path.display()))?;
+    let run = probecal::pipeline::tracked::run(&m.inputs(), m.min_frames)
+        .map_err(|e| format!("{}: {e}", m.path.display()))?;
     let plus = match &m.plus_result {
-        Some(p) => Some(probecal::plus::result::PlusResult::read(p).map_err(|e| e.to_string())?),
+        Some(p) => Some(probecal::io::plus::result::PlusResult::read(p).map_err(|e| e.to_string())?),
         None => None,
     };
     let run_folder = folder.join(&m.dataset);
-    let summary = probecal::tracked_output::write(&run, m, plus.as_ref(), &run_folder).map_err(|e| e.to_string())?;
-    probecal::provenance::Provenance::new(
+    let summary = probecal::report::tracked::write(&run, m, plus.as_ref(), &run_folder).map_err(|e| e.to_string())?;
+    probecal::report::provenance::Provenance::new(
         &m.path,
         &m.sha256,
         &m.dataset,
@@ -498,7 +499,7 @@ fn run_tracked(m: &TrackedManifest, folder: &Path, quiet: bool) -> Result<(Index
     )
     .write(&run_folder)
     .map_err(|e| e.to_string())?;
-    let gates = probecal::tracked_output::gates(&run, m);
+    let gates = probecal::report::tracked::gates(&run, m);
     for g in gates.iter().filter(|g| !g.passed) {
         eprintln!(
             "GATE FAILED: {} / {}: {} = {} exceeds {}",
@@ -564,21 +565,21 @@ fn compare(manifests: Vec<PathBuf>, out: Option<PathBuf>, datasets: PathBuf, for
     if runs.is_empty() {
         return ExitCode::from(code.max(1));
     }
-    let columns: Vec<probecal::compare::Column> = runs
+    let columns: Vec<probecal::report::compare::Column> = runs
         .iter()
-        .map(|(i, r)| probecal::compare::column(&manifests[*i], r))
+        .map(|(i, r)| probecal::report::compare::column(&manifests[*i], r))
         .collect();
-    let markdown = probecal::compare::markdown(&columns);
+    let markdown = probecal::report::compare::markdown(&columns);
     if !quiet {
         println!("{markdown}");
     }
     let mut ok = write_atomic(&out.join("compare.md"), markdown.as_bytes()).map_err(|e| e.to_string());
     if ok.is_ok() {
-        ok = probecal::compare::render_html(&columns)
+        ok = probecal::report::compare::render_html(&columns)
             .and_then(|html| write_atomic(&out.join("compare.html"), html.as_bytes()).map_err(|e| e.to_string()));
     }
     if ok.is_ok() {
-        ok = probecal::compare::render_tex(&columns)
+        ok = probecal::report::compare::render_tex(&columns)
             .and_then(|tex| write_atomic(&out.join("compare.tex"), tex.as_bytes()).map_err(|e| e.to_string()));
     }
     if let Err(e) = ok {
@@ -590,12 +591,12 @@ fn compare(manifests: Vec<PathBuf>, out: Option<PathBuf>, datasets: PathBuf, for
 }
 
 fn write_provenance(
-    run: &probecal::run::DatasetRun,
+    run: &probecal::pipeline::run::DatasetRun,
     manifest: &Manifest,
     folder: &Path,
     started: std::time::SystemTime,
-) -> Result<(), probecal::output::OutputError> {
-    let mut provenance = probecal::provenance::Provenance::new(
+) -> Result<(), probecal::report::write::OutputError> {
+    let mut provenance = probecal::report::provenance::Provenance::new(
         &manifest.path,
         &manifest.sha256,
         &run.dataset,
@@ -611,10 +612,10 @@ fn write_provenance(
 fn main() -> ExitCode {
     let cli = Cli::parse();
     if let Command::Run { args, .. } | Command::Compare { args } = &cli.command {
-        probecal::progress::set_quiet(args.quiet);
+        probecal::core::progress::set_quiet(args.quiet);
     }
     // Every command runs with the same thread setting (OpenCV's included).
-    probecal::parallel::set_threads(match &cli.command {
+    probecal::core::parallel::set_threads(match &cli.command {
         Command::Run { threads, .. } => *threads,
         _ => 0,
     });
@@ -667,7 +668,7 @@ fn main() -> ExitCode {
                 Experiment::Camera(m) => Some(m),
                 Experiment::Tracked(_) => None,
             }) {
-                if let Err(e) = probecal::run::synth_only(m, &datasets, &mut |l| eprintln!("{l}")) {
+                if let Err(e) = probecal::pipeline::run::synth_only(m, &datasets, &mut |l| eprintln!("{l}")) {
                     eprintln!("error: {}: {e}", m.path.display());
                     return ExitCode::FAILURE;
                 }
@@ -684,7 +685,7 @@ fn main() -> ExitCode {
                 eprintln!("error: --square-mm must be a positive number, got {square_mm}");
                 return ExitCode::from(2);
             }
-            match probecal::camera_calibration::calibrate_from(&images, board, square_mm) {
+            match probecal::detect::camera_calibration::calibrate_from(&images, board, square_mm) {
                 Ok(cal) => {
                     for v in &cal.views {
                         match (&v.reason, v.rms_px) {

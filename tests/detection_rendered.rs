@@ -5,11 +5,11 @@
 use std::path::{Path, PathBuf};
 
 use nalgebra::Point3;
-use probecal::arc_detection::{self, ArcSettings};
-use probecal::board::BoardLayout;
-use probecal::board_pose::{self, RigLayout};
-use probecal::camera_model::CameraIntrinsics;
-use probecal::geometry::rigid_from_rows;
+use probecal::core::geometry::rigid_from_rows;
+use probecal::detect::arc::{self, ArcSettings};
+use probecal::detect::board::BoardLayout;
+use probecal::detect::board_pose::{self, RigLayout};
+use probecal::io::camera_model::CameraIntrinsics;
 use probecal::manifest::{DatasetSource, Manifest};
 use serde_json::Value;
 
@@ -81,7 +81,7 @@ fn board_corners_and_identity_match_the_truth() {
     let mut occluded_rejected = 0;
     for frame in truth["frames"].as_array().unwrap() {
         let k = frame["frame"].as_u64().unwrap();
-        let image = probecal::image::read_gray(&folder.join(format!("frames/camera_{k:03}.png"))).unwrap();
+        let image = probecal::io::image::read_gray(&folder.join(format!("frames/camera_{k:03}.png"))).unwrap();
         let poses = match board_pose::estimate_checkerboards(&image, &camera, &rig).unwrap() {
             Ok(p) => p,
             // Something lies across the probe board in this photo: it may be lost.
@@ -130,8 +130,8 @@ fn arc_centres_match_the_truth_and_missing_arcs_are_rejected() {
     for frame in truth["frames"].as_array().unwrap() {
         let k = frame["frame"].as_u64().unwrap();
         let kind = frame["kind"].as_str().unwrap();
-        let image = probecal::image::read_gray(&folder.join(format!("frames/bscan_{k:03}.png"))).unwrap();
-        let result = arc_detection::detect(&image, &settings).unwrap();
+        let image = probecal::io::image::read_gray(&folder.join(format!("frames/bscan_{k:03}.png"))).unwrap();
+        let result = arc::detect(&image, &settings).unwrap();
         let centre: [f64; 2] = serde_json::from_value(frame["centre_projection_px"].clone()).unwrap();
         match (kind, result) {
             ("missing", Ok(f)) => panic!(
@@ -161,7 +161,8 @@ fn arc_centres_match_the_truth_and_missing_arcs_are_rejected() {
 fn camera_calibration_of_rendered_views_recovers_the_true_camera() {
     let (_, folder, truth) = rendered();
     let camera = true_camera(&truth);
-    let cal = probecal::camera_calibration::calibrate_folder(&folder.join("camera_calibration"), [9, 6], 30.0).unwrap();
+    let cal = probecal::detect::camera_calibration::calibrate_folder(&folder.join("camera_calibration"), [9, 6], 30.0)
+        .unwrap();
     let k = &cal.intrinsics;
     let focal = (k.fx() - camera.fx()).abs().max((k.fy() - camera.fy()).abs());
     let principal = ((k.cx() - camera.cx()).powi(2) + (k.cy() - camera.cy()).powi(2)).sqrt();
@@ -222,14 +223,15 @@ fn rendering_is_deterministic() {
 #[test]
 fn reduced_search_finds_the_same_corners() {
     let (_, folder, _) = rendered();
-    let subpix = probecal::corners::SubPix::default();
+    let subpix = probecal::detect::corners::SubPix::default();
     let mut worst: f64 = 0.0;
     for view in 0..4 {
-        let image = probecal::image::read_gray(&folder.join(format!("camera_calibration/view_{view:03}.png"))).unwrap();
-        let full = probecal::corners::detect_chessboard(&image, [9, 6], subpix)
+        let image =
+            probecal::io::image::read_gray(&folder.join(format!("camera_calibration/view_{view:03}.png"))).unwrap();
+        let full = probecal::detect::corners::detect_chessboard(&image, [9, 6], subpix)
             .unwrap()
             .expect("full size");
-        let reduced = probecal::corners::detect_chessboard_reduced(&image, [9, 6], subpix, 1000)
+        let reduced = probecal::detect::corners::detect_chessboard_reduced(&image, [9, 6], subpix, 1000)
             .unwrap()
             .expect("reduced");
         for (a, b) in full.iter().zip(&reduced) {
@@ -255,7 +257,8 @@ fn outlier_calibration_view_is_dropped_with_its_reason() {
     };
     let folder = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("outlier_view/dataset2");
     probecal::synth::ensure_rendered(&manifest, spec, &folder).expect("render");
-    let cal = probecal::camera_calibration::calibrate_folder(&folder.join("camera_calibration"), [9, 6], 30.0).unwrap();
+    let cal = probecal::detect::camera_calibration::calibrate_folder(&folder.join("camera_calibration"), [9, 6], 30.0)
+        .unwrap();
     let dropped: Vec<_> = cal.views.iter().filter(|v| !v.used).collect();
     assert_eq!(dropped.len(), 1, "{:?}", cal.views);
     assert!(dropped[0].image.ends_with("view_005.png"));

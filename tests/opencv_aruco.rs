@@ -3,7 +3,7 @@
 
 use std::path::PathBuf;
 
-use probecal::aruco;
+use probecal::detect::aruco;
 
 fn data(file: &str) -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
@@ -12,7 +12,7 @@ fn data(file: &str) -> PathBuf {
 }
 
 fn image(file: &str) -> opencv::core::Mat {
-    probecal::image::read_gray(&data(file)).expect("image")
+    probecal::io::image::read_gray(&data(file)).expect("image")
 }
 
 #[test]

@@ -4,7 +4,7 @@
 
 use std::path::PathBuf;
 
-use probecal::camera_calibration::calibrate_folder;
+use probecal::detect::camera_calibration::calibrate_folder;
 
 fn data() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/data/opencv-chessboard")
@@ -74,18 +74,18 @@ fn calibrate_camera_command_writes_opencv_filestorage() {
     ] {
         assert!(text.contains(key), "`{key}` missing from\n{text}");
     }
-    let back = probecal::camera_model::CameraIntrinsics::load(&out).expect("reads back");
+    let back = probecal::io::camera_model::CameraIntrinsics::load(&out).expect("reads back");
     assert!((back.fx() - 532.8).abs() < 2.0, "fx {}", back.fx());
 }
 
 #[test]
 fn too_few_views_is_a_clear_error() {
     let one = data().join("left01.jpg");
-    let err = probecal::camera_calibration::calibrate_from(&[one], [9, 6], 1.0)
+    let err = probecal::detect::camera_calibration::calibrate_from(&[one], [9, 6], 1.0)
         .unwrap_err()
         .to_string();
     assert!(err.contains("found in 1 of 1 views; at least 4 are needed"), "{err}");
-    let wrong_board = probecal::camera_calibration::calibrate_folder(&data(), [7, 7], 1.0)
+    let wrong_board = probecal::detect::camera_calibration::calibrate_folder(&data(), [7, 7], 1.0)
         .unwrap_err()
         .to_string();
     assert!(

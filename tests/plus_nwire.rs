@@ -8,8 +8,8 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use nalgebra::Point3;
-use probecal::plus::config::PlusConfig;
-use probecal::plus::sequence::{FrameFault, Sequence};
+use probecal::io::plus::config::PlusConfig;
+use probecal::io::plus::sequence::{FrameFault, Sequence};
 
 fn data(name: &str) -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))

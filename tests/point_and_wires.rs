@@ -5,8 +5,8 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
+use probecal::detect::spot::{self, SpotSettings};
 use probecal::manifest::{DatasetSource, Manifest};
-use probecal::spot_detection::{self, SpotSettings};
 use serde_json::Value;
 
 fn fixture(name: &str) -> PathBuf {
@@ -48,8 +48,8 @@ fn pin_heads_are_found_at_their_centre() {
             continue;
         }
         let k = frame["frame"].as_u64().unwrap();
-        let image = probecal::image::read_gray(&folder.join(format!("frames/bscan_{k:03}.png"))).unwrap();
-        let spots = spot_detection::detect(&image, &settings).unwrap();
+        let image = probecal::io::image::read_gray(&folder.join(format!("frames/bscan_{k:03}.png"))).unwrap();
+        let spots = spot::detect(&image, &settings).unwrap();
         // The fan's apex is found from the image's own mask.
         let apex = spots.apex_px.expect("convex probe");
         let true_apex: [f64; 2] = pixel(&truth["bscan_apex_mm"]).map(|v| v / 0.2);
@@ -85,8 +85,8 @@ fn wire_dots_are_found_on_their_wires() {
             continue;
         }
         let k = frame["frame"].as_u64().unwrap();
-        let image = probecal::image::read_gray(&folder.join(format!("frames/bscan_{k:03}.png"))).unwrap();
-        let spots = spot_detection::detect(&image, &settings).unwrap();
+        let image = probecal::io::image::read_gray(&folder.join(format!("frames/bscan_{k:03}.png"))).unwrap();
+        let spots = spot::detect(&image, &settings).unwrap();
         let dots: Vec<[f64; 2]> = frame["wire_dots_px"]
             .as_array()
             .unwrap()

@@ -103,7 +103,7 @@ fn comparison_page_compiles_with_pdflatex() {
 fn thesis_chapter_compiles_with_pdflatex() {
     // The chapter from the default experiments' runs.
     let reports = Path::new(env!("CARGO_MANIFEST_DIR")).join("reports");
-    let (_, _, tex) = probecal::thesis::render(&reports)
+    let (_, _, tex) = probecal::report::thesis::render(&reports)
         .unwrap_or_else(|e| panic!("{e}"))
         .expect("the default experiments' runs are in reports/");
     assert!(compile("thesis", &tex) >= 1);

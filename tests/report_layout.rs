@@ -12,9 +12,9 @@ fn root() -> &'static Path {
 
 #[test]
 fn thesis_chapter_has_the_thesis_tables() {
-    let chapter = probecal::thesis::chapter(&root().join("reports"));
+    let chapter = probecal::report::thesis::chapter(&root().join("reports"));
     assert!(chapter.missing.is_empty(), "missing runs: {:?}", chapter.missing);
-    let layout = probecal::thesis::layout(&chapter);
+    let layout = probecal::report::thesis::layout(&chapter);
     let golden = root().join("tests/golden/thesis_layout.txt");
     if std::env::var_os("PROBECAL_UPDATE_GOLDEN").is_some() {
         std::fs::write(&golden, &layout).unwrap();

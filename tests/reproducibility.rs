@@ -179,7 +179,7 @@ fn committed_baselines_cover_every_default_experiment() {
         let path = entry.unwrap().path();
         if path.extension().is_some_and(|e| e == "yaml") {
             let experiment = probecal::manifest::Experiment::load(&path).unwrap();
-            let baseline = probecal::check::load_baseline(&probecal::check::baseline_path(
+            let baseline = probecal::report::check::load_baseline(&probecal::report::check::baseline_path(
                 &root.join("experiments/baselines"),
                 experiment.experiment(),
             ))

@@ -4,6 +4,6 @@ use libfuzzer_sys::fuzz_target;
 
 fuzz_target!(|data: &[u8]| {
     if let Ok(text) = std::str::from_utf8(data) {
-        let _ = probecal::dataset::parse_frame_list(std::path::Path::new("dataset"), text);
+        let _ = probecal::io::dataset::parse_frame_list(std::path::Path::new("dataset"), text);
     }
 });

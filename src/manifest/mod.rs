@@ -134,8 +134,8 @@ pub struct Manifest {
     pub thresholds: Thresholds,
     pub solve_variant: SolveVariant,
     /// A rough `marker_T_image` that starts the wire fit (`solve.initial_marker_T_image`).
-    pub initial_marker_T_image: Option<crate::geometry::Rigid>,
-    pub robust: crate::robust::RobustSettings,
+    pub initial_marker_T_image: Option<crate::core::geometry::Rigid>,
+    pub robust: crate::estimate::robust::RobustSettings,
     pub sphere_fit: raw::SphereFitOptions,
     pub validation: raw::ValidationOptions,
     pub datasets: Vec<Dataset>,
@@ -467,8 +467,11 @@ fn validate(c: &mut Checker<'_>, base: &Path, raw: raw::RawManifest, path: &Path
         ..
     } = &raw.rig
     {
-        let size = crate::aruco::predefined_size(dictionary)
-            .filter(|_| crate::aruco::DICTIONARY_NAMES.iter().any(|(n, _)| n == dictionary));
+        let size = crate::detect::aruco::predefined_size(dictionary).filter(|_| {
+            crate::detect::aruco::DICTIONARY_NAMES
+                .iter()
+                .any(|(n, _)| n == dictionary)
+        });
         if size.is_none() {
             c.fail(
                 "rig.aruco.dictionary",

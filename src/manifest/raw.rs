@@ -42,7 +42,7 @@ pub struct Solve {
     /// the 4-wire phantom; a few millimetres and degrees off is enough.
     pub initial_marker_T_image: Option<TrueTransform>,
     /// RANSAC / LMedS over frames, reported beside the thesis's cut-offs.
-    pub robust: crate::robust::RobustSettings,
+    pub robust: crate::estimate::robust::RobustSettings,
     /// The hemisphere's arc edge points fitted to the sphere (no elevation bias).
     pub sphere_fit: SphereFitOptions,
     /// Bootstrap resamples and CR half-splits of the validation metrics.
@@ -199,7 +199,7 @@ pub struct RawPoses {
     pub tracker_csv: TrackerCsv,
 }
 
-/// A plain CSV of 4x4 matrices per frame (see [`crate::tracker_poses`]).
+/// A plain CSV of 4x4 matrices per frame (see [`crate::io::tracker_poses`]).
 #[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct TrackerCsv {

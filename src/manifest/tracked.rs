@@ -35,10 +35,10 @@ use serde::{Deserialize, Serialize};
 use super::{deserialize_located, sha256_hex, Checker, ManifestErrors};
 use nalgebra::Point3;
 
-use crate::nwire::{NWire, Segmentation, WireSegment};
-use crate::plus::config::PlusConfig;
-use crate::tracked::{ConstraintModel, TimeOffset, TrackedInputs};
-use crate::tracker_poses::{check_near_rigid, ORTHONORMAL_TOLERANCE};
+use crate::detect::nwire::{NWire, Segmentation, WireSegment};
+use crate::io::plus::config::PlusConfig;
+use crate::io::tracker_poses::{check_near_rigid, ORTHONORMAL_TOLERANCE};
+use crate::pipeline::tracked::{ConstraintModel, TimeOffset, TrackedInputs};
 
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]

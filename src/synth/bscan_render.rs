@@ -11,9 +11,9 @@
 use nalgebra::{Point3, Vector3};
 
 use super::scene::{FrameKind, Scene, Shape};
-use crate::geometry::Rigid;
-use crate::image::{gaussian_blur_f32, Gray8, ImageError};
-use crate::rng::Rng;
+use crate::core::geometry::Rigid;
+use crate::core::rng::Rng;
+use crate::io::image::{gaussian_blur_f32, Gray8, ImageError};
 
 /// An air bubble in the water (world frame).
 #[derive(Debug, Clone, Copy, serde::Serialize)]

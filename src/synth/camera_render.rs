@@ -9,11 +9,11 @@
 use nalgebra::{Point3, Vector3};
 
 use super::scene::Occluder;
-use crate::board::{Ink, PrintedBoard};
-use crate::camera_model::CameraIntrinsics;
-use crate::geometry::Rigid;
-use crate::image::{gaussian_blur_f32, Gray8, ImageError};
-use crate::rng::Rng;
+use crate::core::geometry::Rigid;
+use crate::core::rng::Rng;
+use crate::detect::board::{Ink, PrintedBoard};
+use crate::io::camera_model::CameraIntrinsics;
+use crate::io::image::{gaussian_blur_f32, Gray8, ImageError};
 
 /// Viewing rays of the pixel-corner lattice of one camera.
 pub struct RayMap {

@@ -14,14 +14,14 @@ use std::path::{Path, PathBuf};
 
 use serde::Serialize;
 
-use crate::board::BoardLayout;
-use crate::board_pose::RigBoards;
-use crate::camera_model::CameraIntrinsics;
-use crate::dataset::FRAME_LIST;
-use crate::geometry::{to_rows, Rigid};
+use crate::core::geometry::{to_rows, Rigid};
+use crate::core::parallel::parallel_map;
+use crate::core::rng::Rng;
+use crate::detect::board::BoardLayout;
+use crate::detect::board_pose::RigBoards;
+use crate::io::camera_model::CameraIntrinsics;
+use crate::io::dataset::FRAME_LIST;
 use crate::manifest::{Manifest, Phantom, RenderSpec, Rig};
-use crate::parallel::parallel_map;
-use crate::rng::Rng;
 use bscan_render::{Bubble, EchoModel};
 use camera_render::{Photometry, PlacedBoard, RayMap};
 use scene::{FrameKind, SceneInputs};
@@ -34,7 +34,7 @@ pub enum SynthError {
     #[error("{0}")]
     Scene(#[from] scene::SceneError),
     #[error("{0}")]
-    Image(#[from] crate::image::ImageError),
+    Image(#[from] crate::io::image::ImageError),
     #[error("{path}: {message}")]
     Io { path: PathBuf, message: String },
     #[error("rendering needs {what}, which this manifest does not describe")]
@@ -153,7 +153,7 @@ struct GroundTruthFrame {
     centre_projection_px: [f64; 2],
     /// Wire phantoms: where each wire's axis crosses the B-scan plane, px.
     #[serde(skip_serializing_if = "Vec::is_empty")]
-    wire_dots_px: Vec<crate::truth::WireDot>,
+    wire_dots_px: Vec<crate::io::truth::WireDot>,
     bubbles: Vec<Bubble>,
     occluder: Option<scene::Occluder>,
 }
@@ -174,7 +174,7 @@ struct GroundTruthFile {
 
 fn render_into(manifest: &Manifest, spec: &RenderSpec, folder: &Path) -> Result<(), SynthError> {
     let Lab { rig, calibration } = lab(manifest)?;
-    let calibration_board = crate::board::PrintedBoard::Checkerboard(calibration);
+    let calibration_board = crate::detect::board::PrintedBoard::Checkerboard(calibration);
     let scene = scene::build(&SceneInputs {
         spec,
         probe_board: rig.probe,
@@ -199,7 +199,7 @@ fn render_into(manifest: &Manifest, spec: &RenderSpec, folder: &Path) -> Result<
     };
 
     let progress =
-        crate::progress::Progress::new(scene.camera_T_calibration_board.len() + scene.frames.len(), "rendering");
+        crate::core::progress::Progress::new(scene.camera_T_calibration_board.len() + scene.frames.len(), "rendering");
     let calibration_results = parallel_map(
         scene.camera_T_calibration_board.len(),
         |view| -> Result<(), SynthError> {
@@ -246,7 +246,7 @@ fn render_into(manifest: &Manifest, spec: &RenderSpec, folder: &Path) -> Result<
                 .filter_map(|(w, (a, b))| {
                     let p = scene::segment_in_plane(&world_T_image, a, b)?;
                     let [sx, sy] = scene.bscan.spacing_mm_per_px;
-                    Some(crate::truth::WireDot {
+                    Some(crate::io::truth::WireDot {
                         wire: w.name.clone(),
                         pixel: [p.x / sx, p.y / sy],
                     })
@@ -291,7 +291,7 @@ fn render_into(manifest: &Manifest, spec: &RenderSpec, folder: &Path) -> Result<
         frames: truth_frames,
         camera_calibration_views: scene.camera_T_calibration_board.iter().map(to_rows).collect(),
     };
-    let truth_path = folder.join(crate::truth::GROUND_TRUTH_FILE);
+    let truth_path = folder.join(crate::io::truth::GROUND_TRUTH_FILE);
     let text = serde_json::to_string_pretty(&truth).map_err(|e| SynthError::Io {
         path: truth_path.clone(),
         message: e.to_string(),
@@ -313,7 +313,7 @@ fn write_tracker_poses(
     let jitter = |rng: &mut Rng| {
         let r = noise.rotation_sd_deg.to_radians();
         let t = noise.position_sd_mm;
-        crate::geometry::rigid_from_axis_angle(
+        crate::core::geometry::rigid_from_axis_angle(
             nalgebra::Vector3::new(rng.normal(0.0, r), rng.normal(0.0, r), rng.normal(0.0, r)),
             nalgebra::Vector3::new(rng.normal(0.0, t), rng.normal(0.0, t), rng.normal(0.0, t)),
         )
@@ -327,7 +327,7 @@ fn write_tracker_poses(
         rows.push((k, "ReferenceToTracker", tracker_T_phantom));
     }
     let path = folder.join(crate::manifest::RENDERED_TRACKER_POSES);
-    crate::tracker_poses::write(&path, &rows).map_err(io_err(&path))
+    crate::io::tracker_poses::write(&path, &rows).map_err(io_err(&path))
 }
 
 /// Where a rendered dataset lives.

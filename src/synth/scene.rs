@@ -8,11 +8,11 @@
 
 use nalgebra::{Matrix3, Point3, Rotation3, Translation3, UnitQuaternion, Vector3};
 
-use crate::board::{BoardLayout, PrintedBoard};
-use crate::camera_model::CameraIntrinsics;
-use crate::geometry::Rigid;
+use crate::core::geometry::Rigid;
+use crate::core::rng::Rng;
+use crate::detect::board::{BoardLayout, PrintedBoard};
+use crate::io::camera_model::CameraIntrinsics;
 use crate::manifest::{RenderSpec, TrueTransform};
-use crate::rng::Rng;
 
 /// Why a frame is what it is (ground truth only).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
@@ -93,7 +93,7 @@ impl Shape {
 /// image millimetres, if it does.
 pub fn segment_in_plane(world_T_image: &Rigid, a: &Point3<f64>, b: &Point3<f64>) -> Option<Point3<f64>> {
     let image_T_world = world_T_image.inverse();
-    let (t, point) = crate::geometry::line_meets_image_plane(&(image_T_world * a), &(image_T_world * b))?;
+    let (t, point) = crate::core::geometry::line_meets_image_plane(&(image_T_world * a), &(image_T_world * b))?;
     (0.0..=1.0).contains(&t).then_some(point)
 }
 

@@ -1,0 +1,431 @@
+//! Stage 3: the hemisphere's arc in a B-scan and its circle centre.
+//!
+//! As in the thesis: a two-parameter Hough transform for the centre, then a
+//! radius histogram around it; then a sub-pixel geometric circle fit on the arc's
+//! echo points. Work is done in millimetres (pixel spacing applied), so that
+//! anisotropic pixels still give circles.
+//!
+//! 1. Echo points: along each image column, local maxima of the smoothed image
+//!    above an adaptive threshold, below the transducer's near field, inside the
+//!    fan (eroded, so the fan's edge is no echo), refined to sub-pixel.
+//! 2. Every point votes for the centres below it (the dome faces the probe) at all
+//!    radii in the searched range; the smoothed accumulator's peak is the centre.
+//! 3. The radius is the peak of the histogram of point distances to that centre.
+//! 4. Points within a band of that circle are refitted by Gauss–Newton; the band
+//!    is narrowed twice. The frame is rejected, with the reason, when the arc is
+//!    too short, has too few points, is not circular, or has an implausible radius.
+
+use opencv::core::Mat;
+
+use crate::io::image::{gaussian_blur_f32, mat_to_gray8, ImageError};
+
+/// What the detector needs to know.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ArcSettings {
+    pub spacing_mm_per_px: [f64; 2],
+    /// Arc radii searched, mm.
+    pub radius_mm: [f64; 2],
+    pub min_span_deg: f64,
+    pub max_rms_px: f64,
+    pub min_points: usize,
+    /// Fit the circle with this radius (mm): the sphere's, when the plane passes
+    /// near its centre. A free radius makes the centre of a short arc unstable
+    /// along the arc's axis; `None` fits the radius too.
+    pub fixed_radius_mm: Option<f64>,
+}
+
+/// A detected arc.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ArcFeature {
+    /// Circle centre, pixels (u = column, v = row).
+    pub centre_px: [f64; 2],
+    pub radius_mm: f64,
+    /// Echo points on the arc.
+    pub points: usize,
+    pub span_deg: f64,
+    /// RMS distance of the arc points to the circle, px.
+    pub rms_px: f64,
+    /// Accumulator peak over the strongest competing peak (1 = ambiguous).
+    pub peak_ratio: f64,
+    /// Fraction of 5° bins over the arc's span that hold echo points.
+    pub fill: f64,
+    /// 0..1: geometric mean of the arc's span (full at 120°), its support (full at
+    /// four times the minimum number of points) and its fit (1 − RMS / limit).
+    pub confidence: f64,
+    /// Arc points, pixels (for figures).
+    pub arc_points_px: Vec<[f64; 2]>,
+}
+
+const NEAR_FIELD_MM: f64 = 6.0;
+const FAN_EDGE_MM: f64 = 1.5;
+const CELL_MM: f64 = 0.25;
+/// Angular bins for the arc's coverage check.
+const FILL_BIN_DEG: f64 = 5.0;
+/// Smallest fraction of the arc's span that must hold echo points.
+const MIN_FILL: f64 = 0.75;
+
+fn percentile(sorted: &[f32], q: f64) -> f32 {
+    if sorted.is_empty() {
+        return 0.0;
+    }
+    sorted[((sorted.len() - 1) as f64 * q).round() as usize]
+}
+
+/// Geometric circle fit (Gauss–Newton) from a start; returns centre, radius, RMS (mm).
+/// With `fixed_radius` the radius stays at the start's value.
+fn fit_circle(points: &[[f64; 2]], start: ([f64; 2], f64), fixed_radius: bool) -> Option<([f64; 2], f64, f64)> {
+    let ([mut a, mut b], mut r) = start;
+    for _ in 0..30 {
+        let mut jtj = nalgebra::Matrix3::<f64>::zeros();
+        let mut jtr = nalgebra::Vector3::<f64>::zeros();
+        for p in points {
+            let (dx, dy) = (p[0] - a, p[1] - b);
+            let d = (dx * dx + dy * dy).sqrt().max(1e-9);
+            let j = nalgebra::Vector3::new(-dx / d, -dy / d, if fixed_radius { 0.0 } else { -1.0 });
+            let res = d - r;
+            jtj += j * j.transpose();
+            jtr += j * res;
+        }
+        if fixed_radius {
+            jtj[(2, 2)] = 1.0;
+        }
+        let step = jtj.lu().solve(&(-jtr))?;
+        a += step[0];
+        b += step[1];
+        r += step[2];
+        if step.norm() < 1e-7 {
+            break;
+        }
+    }
+    let sum: f64 = points
+        .iter()
+        .map(|p| (((p[0] - a).powi(2) + (p[1] - b).powi(2)).sqrt() - r).powi(2))
+        .sum();
+    let rms = (sum / points.len().max(1) as f64).sqrt();
+    (a.is_finite() && b.is_finite() && r.is_finite()).then_some(([a, b], r, rms))
+}
+
+/// RMS distance of points to their total-least-squares line (mm).
+fn line_rms(points: &[[f64; 2]]) -> f64 {
+    let n = points.len().max(1) as f64;
+    let (mx, my) = (
+        points.iter().map(|p| p[0]).sum::<f64>() / n,
+        points.iter().map(|p| p[1]).sum::<f64>() / n,
+    );
+    let (mut sxx, mut syy, mut sxy) = (0.0, 0.0, 0.0);
+    for p in points {
+        let (dx, dy) = (p[0] - mx, p[1] - my);
+        sxx += dx * dx;
+        syy += dy * dy;
+        sxy += dx * dy;
+    }
+    // Smallest eigenvalue of the scatter matrix = sum of squared line distances.
+    let half_trace = (sxx + syy) / 2.0;
+    let smallest = half_trace - (((sxx - syy) / 2.0).powi(2) + sxy * sxy).sqrt();
+    (smallest.max(0.0) / n).sqrt()
+}
+
+/// A circle must fit the arc points at least this many times better than a line.
+const MIN_LINE_TO_CIRCLE_RMS: f64 = 2.0;
+
+/// Detects the arc. The inner `Err` is the frame's rejection reason.
+pub fn detect(image: &Mat, settings: &ArcSettings) -> Result<Result<ArcFeature, String>, ImageError> {
+    let gray = mat_to_gray8(image)?;
+    let (w, h) = (gray.width, gray.height);
+    let [sx, sy] = settings.spacing_mm_per_px;
+    // Fan mask, its first row per column, and an eroded interior.
+    let inside = |x: usize, y: usize| gray.data[y * w + x] > 0;
+    let top: Vec<Option<usize>> = (0..w).map(|x| (0..h).find(|&y| inside(x, y))).collect();
+    let edge_x = (FAN_EDGE_MM / sx).ceil() as usize;
+    let edge_y = (FAN_EDGE_MM / sy).ceil() as usize;
+    let interior = |x: usize, y: usize| {
+        x >= edge_x
+            && x + edge_x < w
+            && y >= edge_y
+            && y + edge_y < h
+            && inside(x, y)
+            && inside(x - edge_x, y)
+            && inside(x + edge_x, y)
+            && inside(x, y - edge_y)
+            && inside(x, y + edge_y)
+    };
+    let mut smooth: Vec<f32> = gray.data.iter().map(|v| *v as f32).collect();
+    // Ridge orientation needs isotropic smoothing (in mm): an anisotropic blur
+    // would tilt every ridge normal towards the blur's short axis.
+    let mut iso = smooth.clone();
+    gaussian_blur_f32(w, h, &mut smooth, 0.4 / sx, 0.2 / sy)?;
+    gaussian_blur_f32(w, h, &mut iso, 0.4 / sx, 0.4 / sy)?;
+
+    let near_rows = (NEAR_FIELD_MM / sy).ceil() as usize;
+    let mut values: Vec<f32> = Vec::new();
+    for x in 0..w {
+        let Some(t) = top[x] else { continue };
+        for y in (t + near_rows).min(h)..h {
+            if interior(x, y) {
+                values.push(smooth[y * w + x]);
+            }
+        }
+    }
+    if values.is_empty() {
+        return Ok(Err("no ultrasound image content (empty fan)".into()));
+    }
+    values.sort_by(|a, b| a.total_cmp(b));
+    let median = percentile(&values, 0.5);
+    let high = percentile(&values, 0.997);
+    let threshold = median + 0.45 * (high - median).max(10.0);
+
+    // 1. Echo points: column-wise ridge maxima, sub-pixel, with the ridge's normal
+    //    (Hessian eigenvector of the most negative curvature), kept only where the
+    //    structure is line-like rather than a speckle blob.
+    let mut points_mm: Vec<[f64; 2]> = Vec::new();
+    let mut normals: Vec<[f64; 2]> = Vec::new();
+    let at = |x: usize, y: usize| iso[y * w + x] as f64;
+    for x in 2..w.saturating_sub(2) {
+        let Some(t) = top[x] else { continue };
+        let y_start = (t + near_rows).max(2);
+        for y in y_start..h.saturating_sub(2) {
+            let v = smooth[y * w + x];
+            if v < threshold || !interior(x, y) {
+                continue;
+            }
+            let up = smooth[(y - 1) * w + x];
+            let down = smooth[(y + 1) * w + x];
+            if !(v >= up && v > down && v >= smooth[(y - 2) * w + x] && v >= smooth[(y + 2) * w + x]) {
+                continue;
+            }
+            // Hessian in mm units, over a 2-pixel baseline to average out speckle.
+            let ixx = (at(x + 2, y) - 2.0 * at(x, y) + at(x - 2, y)) / (4.0 * sx * sx);
+            let iyy = (at(x, y + 2) - 2.0 * at(x, y) + at(x, y - 2)) / (4.0 * sy * sy);
+            let ixy = (at(x + 2, y + 2) - at(x + 2, y - 2) - at(x - 2, y + 2) + at(x - 2, y - 2)) / (16.0 * sx * sy);
+            let half_trace = (ixx + iyy) / 2.0;
+            let root = (((ixx - iyy) / 2.0).powi(2) + ixy * ixy).sqrt();
+            let (l_min, l_other) = (half_trace - root, half_trace + root);
+            if l_min >= 0.0 || l_min.abs() < 2.0 * l_other.abs() {
+                continue;
+            }
+            // Eigenvector of l_min.
+            let (mut nx, mut ny) = if ixy.abs() > 1e-12 {
+                (ixy, l_min - ixx)
+            } else if ixx < iyy {
+                (1.0, 0.0)
+            } else {
+                (0.0, 1.0)
+            };
+            let norm = (nx * nx + ny * ny).sqrt();
+            nx /= norm;
+            ny /= norm;
+            if ny < 0.0 {
+                nx = -nx;
+                ny = -ny;
+            }
+            let denom = up - 2.0 * v + down;
+            let offset = if denom.abs() > 1e-6 {
+                (0.5 * (up - down) / denom).clamp(-0.5, 0.5)
+            } else {
+                0.0
+            };
+            points_mm.push([x as f64 * sx, (y as f64 + offset as f64) * sy]);
+            normals.push([nx, ny]);
+        }
+    }
+    if points_mm.len() < settings.min_points {
+        return Ok(Err(format!(
+            "no echo arc: only {} bright echo points (need {})",
+            points_mm.len(),
+            settings.min_points
+        )));
+    }
+
+    // 2. Hough accumulator: each point votes along its normal, towards the centre
+    //    below it (the dome faces the probe), at every radius of the range.
+    let [r_min, r_max] = settings.radius_mm;
+    let (gw, gh) = (
+        ((w as f64 * sx) / CELL_MM).ceil() as usize + 1,
+        ((h as f64 * sy) / CELL_MM).ceil() as usize + 1,
+    );
+    let mut accumulator = vec![0f32; gw * gh];
+    let radii: Vec<f64> = (0..)
+        .map(|i| r_min + i as f64 * CELL_MM)
+        .take_while(|r| *r <= r_max)
+        .collect();
+    for (p, n) in points_mm.iter().zip(&normals) {
+        if n[1] < (70f64).to_radians().cos() {
+            continue; // the centre lies within 70° of straight below an arc point
+        }
+        for spread in [-6.0f64, -3.0, 0.0, 3.0, 6.0] {
+            let (sin, cos) = spread.to_radians().sin_cos();
+            let d = [n[0] * cos - n[1] * sin, n[0] * sin + n[1] * cos];
+            for &r in &radii {
+                let (gx, gy) = (
+                    ((p[0] + r * d[0]) / CELL_MM).round(),
+                    ((p[1] + r * d[1]) / CELL_MM).round(),
+                );
+                if gx < 0.0 || gy < 0.0 || gx >= gw as f64 || gy >= gh as f64 {
+                    continue;
+                }
+                accumulator[gy as usize * gw + gx as usize] += 1.0;
+            }
+        }
+    }
+    gaussian_blur_f32(gw, gh, &mut accumulator, 2.0, 2.0)?;
+    let (best, best_votes) = accumulator
+        .iter()
+        .enumerate()
+        .fold((0, 0f32), |acc, (i, v)| if *v > acc.1 { (i, *v) } else { acc });
+    if best_votes <= 0.0 {
+        return Ok(Err("no circular arc in the Hough accumulator".into()));
+    }
+    let (bx, by) = (best % gw, best / gw);
+    let exclusion = (3.0 / CELL_MM) as i64;
+    let competing = accumulator
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| {
+            ((i % gw) as i64 - bx as i64).abs() > exclusion || ((i / gw) as i64 - by as i64).abs() > exclusion
+        })
+        .map(|(_, v)| *v)
+        .fold(0f32, f32::max);
+    let peak_ratio = if competing > 0.0 {
+        (best_votes / competing) as f64
+    } else {
+        f64::INFINITY
+    };
+    let centre = [bx as f64 * CELL_MM, by as f64 * CELL_MM];
+
+    // 3. Radius histogram around the centre (points above the centre only).
+    let bin = 0.1;
+    let bins = ((r_max - r_min) / bin).ceil() as usize + 1;
+    let mut histogram = vec![0f64; bins];
+    for p in &points_mm {
+        if p[1] >= centre[1] {
+            continue;
+        }
+        let d = ((p[0] - centre[0]).powi(2) + (p[1] - centre[1]).powi(2)).sqrt();
+        if d >= r_min && d <= r_max {
+            histogram[((d - r_min) / bin) as usize] += 1.0;
+        }
+    }
+    let smoothed: Vec<f64> = (0..bins)
+        .map(|i| {
+            [(-2i64, 1.0), (-1, 2.0), (0, 3.0), (1, 2.0), (2, 1.0)]
+                .iter()
+                .filter_map(|(o, wgt)| histogram.get((i as i64 + o) as usize).map(|v| v * wgt))
+                .sum()
+        })
+        .collect();
+    let (peak_bin, _) = smoothed
+        .iter()
+        .enumerate()
+        .fold((0, 0.0), |acc, (i, v)| if *v > acc.1 { (i, *v) } else { acc });
+    let mut radius = r_min + (peak_bin as f64 + 0.5) * bin;
+
+    // 4. Inlier band, geometric fit, narrowed twice.
+    let pixel_mm = (sx + sy) / 2.0;
+    let mut band = (3.0 * pixel_mm).max(0.6);
+    let mut centre_fit = centre;
+    let mut rms_mm = f64::INFINITY;
+    let mut inliers: Vec<[f64; 2]> = Vec::new();
+    for _ in 0..3 {
+        inliers = points_mm
+            .iter()
+            .filter(|p| p[1] < centre_fit[1])
+            .filter(|p| {
+                ((((p[0] - centre_fit[0]).powi(2) + (p[1] - centre_fit[1]).powi(2)).sqrt()) - radius).abs() < band
+            })
+            .copied()
+            .collect();
+        if inliers.len() < settings.min_points {
+            return Ok(Err(format!(
+                "arc has only {} echo points on a circle (need {})",
+                inliers.len(),
+                settings.min_points
+            )));
+        }
+        let start = (centre_fit, settings.fixed_radius_mm.unwrap_or(radius));
+        let Some((c, r, rms)) = fit_circle(&inliers, start, settings.fixed_radius_mm.is_some()) else {
+            return Ok(Err("circle fit did not converge".into()));
+        };
+        centre_fit = c;
+        radius = r;
+        rms_mm = rms;
+        band = (2.5 * rms).max(1.5 * pixel_mm);
+    }
+    let angles: Vec<f64> = inliers
+        .iter()
+        .map(|p| (p[0] - centre_fit[0]).atan2(centre_fit[1] - p[1]).to_degrees())
+        .collect();
+    let first = angles.iter().cloned().fold(f64::MAX, f64::min);
+    let span = angles.iter().cloned().fold(f64::MIN, f64::max) - first;
+    // How continuously the points cover the span: a dome's echo is one unbroken
+    // arc; pieces of other structures that happen to lie on a circle are not.
+    let bins = ((span / FILL_BIN_DEG).ceil() as usize).max(1);
+    let mut occupied = vec![false; bins];
+    for a in &angles {
+        occupied[(((a - first) / FILL_BIN_DEG) as usize).min(bins - 1)] = true;
+    }
+    let fill = occupied.iter().filter(|o| **o).count() as f64 / bins as f64;
+    let rms_px = rms_mm / pixel_mm;
+    let feature = ArcFeature {
+        centre_px: [centre_fit[0] / sx, centre_fit[1] / sy],
+        radius_mm: radius,
+        points: inliers.len(),
+        span_deg: span,
+        rms_px,
+        peak_ratio,
+        fill,
+        confidence: ((span / 120.0).clamp(0.0, 1.0)
+            * (inliers.len() as f64 / (4.0 * settings.min_points as f64)).clamp(0.0, 1.0)
+            * (1.0 - rms_px / settings.max_rms_px).clamp(0.0, 1.0))
+        .cbrt(),
+        arc_points_px: inliers.iter().map(|p| [p[0] / sx, p[1] / sy]).collect(),
+    };
+    if !(r_min..=r_max).contains(&radius) {
+        return Ok(Err(format!(
+            "arc radius {radius:.2} mm is outside the searched {r_min:.2}–{r_max:.2} mm"
+        )));
+    }
+    if span < settings.min_span_deg {
+        return Ok(Err(format!(
+            "arc spans only {span:.0}° (need {:.0}°)",
+            settings.min_span_deg
+        )));
+    }
+    let straightness = line_rms(&inliers) / rms_mm.max(1e-9);
+    if straightness < MIN_LINE_TO_CIRCLE_RMS {
+        return Ok(Err(format!(
+            "the echo is nearly straight (a line fits it {straightness:.1}x as well as the circle; need {MIN_LINE_TO_CIRCLE_RMS}x): a wall or the floor, not the dome"
+        )));
+    }
+    if fill < MIN_FILL {
+        return Ok(Err(format!(
+            "echo points cover only {:.0}% of the {span:.0}° arc (need {:.0}%): pieces of other echoes, not one arc",
+            100.0 * fill,
+            100.0 * MIN_FILL
+        )));
+    }
+    if rms_px > settings.max_rms_px {
+        return Ok(Err(format!(
+            "arc is not circular: RMS {rms_px:.2} px from the fitted circle (limit {:.2} px)",
+            settings.max_rms_px
+        )));
+    }
+    Ok(Ok(feature))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn circle_fit_recovers_an_arc() {
+        let pts: Vec<[f64; 2]> = (0..40)
+            .map(|i| {
+                let a = (-50.0 + 100.0 * i as f64 / 39.0f64).to_radians();
+                [30.0 + 12.0 * a.sin() + 0.01 * (i % 3) as f64, 60.0 - 12.0 * a.cos()]
+            })
+            .collect();
+        let (c, r, rms) = fit_circle(&pts, ([31.0, 58.0], 10.0), false).unwrap();
+        assert!((c[0] - 30.0).abs() < 0.02 && (c[1] - 60.0).abs() < 0.05, "{c:?}");
+        assert!((r - 12.0).abs() < 0.05 && rms < 0.02);
+    }
+}

@@ -1,0 +1,325 @@
+//! Stage 1: camera intrinsics from views of a plain checkerboard.
+//!
+//! Same procedure as OpenCV's calibration sample and its own regression test:
+//! corners by [`crate::detect::corners::detect_chessboard`], `calibrateCamera` with flags 0
+//! (k1, k2, p1, p2, k3 and a free aspect ratio); the RMS and the per-view RMS
+//! reprojection errors are kept with the result.
+
+use std::path::{Path, PathBuf};
+
+use opencv::calib3d;
+use opencv::core::{Mat, Size, Vector};
+use opencv::prelude::*;
+
+use crate::detect::board::BoardLayout;
+use crate::detect::corners::{detect_chessboard_reduced, image_points, object_points, SubPix};
+use crate::io::camera_model::CameraIntrinsics;
+use crate::io::image::read_gray;
+
+/// One calibration view and what became of it.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct CalibrationView {
+    pub image: PathBuf,
+    pub used: bool,
+    /// Why the view was not used.
+    pub reason: Option<String>,
+    pub rms_px: Option<f64>,
+}
+
+/// The stage's output.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct CameraCalibration {
+    pub intrinsics: CameraIntrinsics,
+    pub views: Vec<CalibrationView>,
+    pub inner_corners: [u32; 2],
+    pub square_mm: f64,
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum CalibrationError {
+    #[error("{0}: no images (.png, .jpg, .jpeg, .bmp, .tif) found")]
+    NoImages(PathBuf),
+    #[error("{path}: cannot list the folder: {message}")]
+    Unreadable { path: PathBuf, message: String },
+    #[error("the board ({cols}x{rows} inner corners) was found in {found} of {total} views; at least {needed} are needed:\n{details}")]
+    TooFewViews {
+        cols: u32,
+        rows: u32,
+        found: usize,
+        total: usize,
+        needed: usize,
+        details: String,
+    },
+    #[error("views differ in size: {first} is {w0}x{h0}, {other} is {w1}x{h1}")]
+    MixedSizes {
+        first: PathBuf,
+        w0: i32,
+        h0: i32,
+        other: PathBuf,
+        w1: i32,
+        h1: i32,
+    },
+    #[error("opencv: {0}")]
+    OpenCv(#[from] opencv::Error),
+}
+
+/// Views larger than this are searched reduced and refined at full size (images up
+/// to this size, like OpenCV's 640x480 samples, go through OpenCV's procedure as is).
+pub const SEARCH_MAX_SIDE_PX: i32 = 1000;
+
+/// Fewest usable views accepted for a calibration.
+pub const MIN_VIEWS: usize = 4;
+
+/// Image files given directly, or the images of folders, sorted by name.
+pub fn collect_images(inputs: &[PathBuf]) -> Result<Vec<PathBuf>, CalibrationError> {
+    let mut out = Vec::new();
+    for input in inputs {
+        if input.is_dir() {
+            let entries = std::fs::read_dir(input).map_err(|e| CalibrationError::Unreadable {
+                path: input.clone(),
+                message: e.to_string(),
+            })?;
+            let mut files: Vec<PathBuf> = entries
+                .filter_map(|e| e.ok().map(|e| e.path()))
+                .filter(|p| {
+                    p.extension()
+                        .map(|e| {
+                            matches!(
+                                e.to_string_lossy().to_lowercase().as_str(),
+                                "png" | "jpg" | "jpeg" | "bmp" | "tif" | "tiff"
+                            )
+                        })
+                        .unwrap_or(false)
+                })
+                .collect();
+            files.sort();
+            if files.is_empty() {
+                return Err(CalibrationError::NoImages(input.clone()));
+            }
+            out.extend(files);
+        } else {
+            out.push(input.clone());
+        }
+    }
+    Ok(out)
+}
+
+/// Calibrates from the given image files.
+pub fn calibrate(
+    images: &[PathBuf],
+    inner_corners: [u32; 2],
+    square_mm: f64,
+    subpix: SubPix,
+) -> Result<CameraCalibration, CalibrationError> {
+    let layout = BoardLayout {
+        inner_corners,
+        square_mm,
+        id_dots: 0,
+    };
+    let board_points = object_points(&layout.corners_in_board_mm());
+    let mut views = Vec::new();
+    let mut object = Vector::<Vector<opencv::core::Point3f>>::new();
+    let mut imagep = Vector::<Vector<opencv::core::Point2f>>::new();
+    let mut size: Option<(PathBuf, Size)> = None;
+    let mut used_index: Vec<usize> = Vec::new();
+    for path in images {
+        let image = match read_gray(path) {
+            Ok(m) => m,
+            Err(e) => {
+                views.push(CalibrationView {
+                    image: path.clone(),
+                    used: false,
+                    reason: Some(e.to_string()),
+                    rms_px: None,
+                });
+                continue;
+            }
+        };
+        let this = Size::new(image.cols(), image.rows());
+        match &size {
+            None => size = Some((path.clone(), this)),
+            Some((first, s)) if *s != this => {
+                return Err(CalibrationError::MixedSizes {
+                    first: first.clone(),
+                    w0: s.width,
+                    h0: s.height,
+                    other: path.clone(),
+                    w1: this.width,
+                    h1: this.height,
+                })
+            }
+            _ => {}
+        }
+        match detect_chessboard_reduced(&image, inner_corners, subpix, SEARCH_MAX_SIDE_PX)? {
+            Some(corners) => {
+                object.push(board_points.clone());
+                imagep.push(image_points(&corners));
+                used_index.push(views.len());
+                views.push(CalibrationView {
+                    image: path.clone(),
+                    used: true,
+                    reason: None,
+                    rms_px: None,
+                });
+            }
+            None => views.push(CalibrationView {
+                image: path.clone(),
+                used: false,
+                reason: Some(format!("no {}x{} chessboard found", inner_corners[0], inner_corners[1])),
+                rms_px: None,
+            }),
+        }
+    }
+    if object.len() < MIN_VIEWS {
+        let details = views
+            .iter()
+            .filter_map(|v| v.reason.as_ref().map(|r| format!("  {}: {r}", v.image.display())))
+            .collect::<Vec<_>>()
+            .join("\n");
+        return Err(CalibrationError::TooFewViews {
+            cols: inner_corners[0],
+            rows: inner_corners[1],
+            found: object.len(),
+            total: images.len(),
+            needed: MIN_VIEWS,
+            details,
+        });
+    }
+    let image_size = size.map(|s| s.1).unwrap_or_default();
+    let mut solved = solve(&object, &imagep, image_size)?;
+    // A view whose corners disagree with the others (a corner pulled off by glare
+    // or the image edge) is dropped, once, and the camera solved again.
+    let mut sorted = solved.per_view.clone();
+    sorted.sort_by(f64::total_cmp);
+    let median = sorted[sorted.len() / 2];
+    let limit = (OUTLIER_VIEW_RATIO * median).max(OUTLIER_VIEW_FLOOR_PX);
+    let outliers: Vec<usize> = (0..solved.per_view.len())
+        .filter(|&i| solved.per_view[i] > limit)
+        .collect();
+    if !outliers.is_empty() && used_index.len() - outliers.len() >= MIN_VIEWS {
+        for &i in &outliers {
+            let view = &mut views[used_index[i]];
+            view.used = false;
+            view.reason = Some(format!(
+                "per-view RMS {:.3} px is above {limit:.3} px ({OUTLIER_VIEW_RATIO} times the median {median:.3} px): dropped and solved again",
+                solved.per_view[i]
+            ));
+            view.rms_px = Some(solved.per_view[i]);
+        }
+        let keep: Vec<usize> = (0..used_index.len()).filter(|i| !outliers.contains(i)).collect();
+        let object: Vector<Vector<opencv::core::Point3f>> =
+            keep.iter().map(|&i| object.get(i)).collect::<opencv::Result<_>>()?;
+        let imagep: Vector<Vector<opencv::core::Point2f>> =
+            keep.iter().map(|&i| imagep.get(i)).collect::<opencv::Result<_>>()?;
+        used_index = keep.iter().map(|&i| used_index[i]).collect();
+        solved = solve(&object, &imagep, image_size)?;
+    }
+    for (i, view_index) in used_index.iter().enumerate() {
+        views[*view_index].rms_px = Some(solved.per_view[i]);
+    }
+    let Solved {
+        camera_matrix: k,
+        distortion: d,
+        rms,
+        per_view,
+    } = solved;
+    Ok(CameraCalibration {
+        intrinsics: CameraIntrinsics {
+            image_size_px: [image_size.width as u32, image_size.height as u32],
+            camera_matrix: k,
+            distortion: d,
+            rms_px: Some(rms),
+            per_view_rms_px: per_view,
+        },
+        views,
+        inner_corners,
+        square_mm,
+    })
+}
+
+/// A view is an outlier above this multiple of the median per-view RMS...
+pub const OUTLIER_VIEW_RATIO: f64 = 3.0;
+/// ...and above this many pixels.
+pub const OUTLIER_VIEW_FLOOR_PX: f64 = 0.5;
+
+struct Solved {
+    camera_matrix: [[f64; 3]; 3],
+    distortion: [f64; 5],
+    rms: f64,
+    per_view: Vec<f64>,
+}
+
+/// `calibrateCamera` (flags 0) and the per-view RMS, as OpenCV's sample computes it.
+fn solve(
+    object: &Vector<Vector<opencv::core::Point3f>>,
+    imagep: &Vector<Vector<opencv::core::Point2f>>,
+    image_size: Size,
+) -> opencv::Result<Solved> {
+    let mut camera_matrix = Mat::default();
+    let mut distortion = Mat::default();
+    let mut rvecs = Vector::<Mat>::new();
+    let mut tvecs = Vector::<Mat>::new();
+    let rms = calib3d::calibrate_camera_def(
+        object,
+        imagep,
+        image_size,
+        &mut camera_matrix,
+        &mut distortion,
+        &mut rvecs,
+        &mut tvecs,
+    )?;
+    let mut k = [[0.0; 3]; 3];
+    for (r, row) in k.iter_mut().enumerate() {
+        for (c, v) in row.iter_mut().enumerate() {
+            *v = *camera_matrix.at_2d::<f64>(r as i32, c as i32)?;
+        }
+    }
+    let mut d = [0.0; 5];
+    for (i, v) in distortion.data_typed::<f64>()?.iter().take(5).enumerate() {
+        d[i] = *v;
+    }
+    let mut per_view = Vec::new();
+    for i in 0..object.len() {
+        let mut projected = Vector::<opencv::core::Point2f>::new();
+        calib3d::project_points_def(
+            &object.get(i)?,
+            &rvecs.get(i)?,
+            &tvecs.get(i)?,
+            &camera_matrix,
+            &distortion,
+            &mut projected,
+        )?;
+        let measured = imagep.get(i)?;
+        let sum: f64 = projected
+            .iter()
+            .zip(measured.iter())
+            .map(|(p, m)| ((p.x - m.x) as f64).powi(2) + ((p.y - m.y) as f64).powi(2))
+            .sum();
+        per_view.push((sum / measured.len() as f64).sqrt());
+    }
+    Ok(Solved {
+        camera_matrix: k,
+        distortion: d,
+        rms,
+        per_view,
+    })
+}
+
+/// Calibrates from files and folders (the `calibrate-camera` command and the pipeline).
+pub fn calibrate_from(
+    inputs: &[PathBuf],
+    inner_corners: [u32; 2],
+    square_mm: f64,
+) -> Result<CameraCalibration, CalibrationError> {
+    let images = collect_images(inputs)?;
+    calibrate(&images, inner_corners, square_mm, SubPix::default())
+}
+
+/// Convenience for a single folder.
+pub fn calibrate_folder(
+    folder: &Path,
+    inner_corners: [u32; 2],
+    square_mm: f64,
+) -> Result<CameraCalibration, CalibrationError> {
+    calibrate_from(&[folder.to_path_buf()], inner_corners, square_mm)
+}

@@ -1,0 +1,10 @@
+//! Features from pixels: board corners and poses in the photos, the camera's
+//! calibration, the hemisphere's arc, compact echoes and N-wire dots in the B-scans.
+pub mod arc;
+pub mod aruco;
+pub mod board;
+pub mod board_pose;
+pub mod camera_calibration;
+pub mod corners;
+pub mod nwire;
+pub mod spot;

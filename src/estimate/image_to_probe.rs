@@ -1,0 +1,332 @@
+//! Calibration from tracked B-scans with the pixel size unknown: `probe_T_image`
+//! (rigid) and the pixel spacing `(sx, sy)`, so that pixel `(u, v)` sits at
+//! `probe_T_image * (sx u, sy v, 0)` in the probe frame (mm).
+//!
+//! Each segmented dot gives a constraint: either a known point (an N-wire's middle
+//! dot, a crossing) or a known line (a wire) in the probe frame. The start comes
+//! from Horn's closed form with an isotropic scale on the point constraints; a
+//! Levenberg–Marquardt refinement then fits all eight unknowns, and constraints
+//! whose residual exceeds mean + k SD are dropped and the fit repeated.
+
+use nalgebra::{DVector, Matrix4, Point3, Vector3};
+
+use crate::core::geometry::{perturbed, rigid_from_axis_angle, Rigid};
+use crate::core::lm::{self, LmError};
+use crate::estimate::horn::{self, HornError, Variant};
+
+/// What a segmented pixel must map onto, in the phantom frame (mm).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Target {
+    Point(Point3<f64>),
+    /// A point of the line and its unit direction.
+    Line(Point3<f64>, Vector3<f64>),
+}
+
+/// One segmented pixel, the frame's `probe_T_phantom` and its target.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Constraint {
+    pub pixel: [f64; 2],
+    pub probe_T_phantom: Matrix4<f64>,
+    pub target_in_phantom: Target,
+}
+
+impl Constraint {
+    /// The 3D residual (probe frame, mm) of a pixel mapped by `model`, with the
+    /// phantom's registration corrected by `phantom_correction` (phantom frame).
+    pub fn residual_with(&self, model: &ImageToProbe, phantom_correction: &Rigid) -> Vector3<f64> {
+        let probe_T_phantom = self.probe_T_phantom * phantom_correction.to_homogeneous();
+        let mapped = model.apply(self.pixel);
+        match self.target_in_phantom {
+            Target::Point(p) => mapped - probe_T_phantom.transform_point(&p),
+            Target::Line(p, d) => {
+                let point = probe_T_phantom.transform_point(&p);
+                let direction = probe_T_phantom.transform_vector(&d).normalize();
+                let w = mapped - point;
+                w - direction * w.dot(&direction)
+            }
+        }
+    }
+
+    /// The 3D residual vector of a pixel mapped by `model` (mm).
+    pub fn residual(&self, model: &ImageToProbe) -> Vector3<f64> {
+        self.residual_with(model, &Rigid::identity())
+    }
+}
+
+/// `ImageToProbe`: a rigid transform after a per-axis pixel scaling.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ImageToProbe {
+    pub probe_T_image: Rigid,
+    pub spacing_mm_per_px: [f64; 2],
+}
+
+impl ImageToProbe {
+    pub fn apply(&self, pixel: [f64; 2]) -> Point3<f64> {
+        self.probe_T_image
+            * Point3::new(
+                pixel[0] * self.spacing_mm_per_px[0],
+                pixel[1] * self.spacing_mm_per_px[1],
+                0.0,
+            )
+    }
+
+    /// The homogeneous matrix mapping `(u, v, 0, 1)` (PLUS's `ImageToProbe`).
+    pub fn matrix(&self) -> Matrix4<f64> {
+        let scale = Matrix4::from_diagonal(&nalgebra::Vector4::new(
+            self.spacing_mm_per_px[0],
+            self.spacing_mm_per_px[1],
+            // The out-of-plane axis is scaled like the mean pixel size, as PLUS does.
+            (self.spacing_mm_per_px[0] + self.spacing_mm_per_px[1]) / 2.0,
+            1.0,
+        ));
+        self.probe_T_image.to_homogeneous() * scale
+    }
+}
+
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum FitError {
+    #[error("{0} point constraints, at least 3 are needed for the closed-form start")]
+    TooFewPoints(usize),
+    #[error("closed-form start: {0}")]
+    Horn(#[from] HornError),
+    #[error("refinement: {0}")]
+    Lm(#[from] LmError),
+    #[error("the fitted pixel size {0:?} mm is not positive")]
+    BadSpacing([f64; 2]),
+}
+
+/// The fit and which constraints it kept.
+#[derive(Debug, Clone)]
+pub struct Fit {
+    pub image_to_probe: ImageToProbe,
+    /// Correction of the phantom's registration (`registered_T_refined`, phantom
+    /// frame), identity unless it was refined.
+    pub phantom_correction: Rigid,
+    /// Per input constraint: kept in the final fit.
+    pub inlier: Vec<bool>,
+    /// Per input constraint: residual norm under the final fit, mm.
+    pub residual_mm: Vec<f64>,
+    pub iterations: usize,
+    /// Standard deviations of the unknowns `[rx, ry, rz (rad), tx, ty, tz (mm), sx, sy (mm/px)]`
+    /// from the residual variance and `(J^T J)^-1`.
+    pub sd: Vec<f64>,
+}
+
+fn unpack(start: &Rigid, start_correction: &Rigid, x: &DVector<f64>) -> (ImageToProbe, Rigid) {
+    let model = ImageToProbe {
+        probe_T_image: perturbed(start, Vector3::new(x[0], x[1], x[2]), Vector3::new(x[3], x[4], x[5])),
+        spacing_mm_per_px: [x[6], x[7]],
+    };
+    let correction = if x.len() > 8 {
+        rigid_from_axis_angle(Vector3::new(x[8], x[9], x[10]), Vector3::new(x[11], x[12], x[13])) * start_correction
+    } else {
+        *start_correction
+    };
+    (model, correction)
+}
+
+fn residuals(model: &ImageToProbe, correction: &Rigid, constraints: &[&Constraint]) -> DVector<f64> {
+    let mut out = DVector::zeros(constraints.len() * 3);
+    for (i, c) in constraints.iter().enumerate() {
+        let r = c.residual_with(model, correction);
+        out.fixed_rows_mut::<3>(i * 3).copy_from(&r);
+    }
+    out
+}
+
+/// Closed-form start: Horn with isotropic scale on the point constraints.
+pub fn closed_form(constraints: &[Constraint]) -> Result<ImageToProbe, FitError> {
+    let (source, target): (Vec<Point3<f64>>, Vec<Point3<f64>>) = constraints
+        .iter()
+        .filter_map(|c| match c.target_in_phantom {
+            Target::Point(p) => Some((
+                Point3::new(c.pixel[0], c.pixel[1], 0.0),
+                c.probe_T_phantom.transform_point(&p),
+            )),
+            Target::Line(..) => None,
+        })
+        .unzip();
+    if source.len() < 3 {
+        return Err(FitError::TooFewPoints(source.len()));
+    }
+    let fit = horn::solve(&source, &target, Variant::Similarity)?;
+    Ok(ImageToProbe {
+        probe_T_image: fit.target_T_source,
+        spacing_mm_per_px: [fit.scale, fit.scale],
+    })
+}
+
+/// Refines `start` on the given constraints, dropping those above mean + `reject_sd` SD
+/// (repeated until none is dropped, at most 10 rounds; `None`: keep all). With
+/// `refine_phantom`, the phantom's registration is corrected too (6 more unknowns).
+pub fn refine(
+    start: &ImageToProbe,
+    constraints: &[Constraint],
+    reject_sd: Option<f64>,
+    refine_phantom: bool,
+) -> Result<Fit, FitError> {
+    let mut inlier = vec![true; constraints.len()];
+    let mut model = start.clone();
+    let mut correction = Rigid::identity();
+    let mut iterations = 0;
+    let mut last_cost = 0.0;
+    let unknowns = if refine_phantom { 14 } else { 8 };
+    let mut last_normal = nalgebra::DMatrix::zeros(unknowns, unknowns);
+    for _round in 0..10 {
+        let kept: Vec<&Constraint> = constraints
+            .iter()
+            .zip(&inlier)
+            .filter(|(_, k)| **k)
+            .map(|(c, _)| c)
+            .collect();
+        let base = model.probe_T_image;
+        let base_correction = correction;
+        let mut x0 = DVector::zeros(unknowns);
+        x0[6] = model.spacing_mm_per_px[0];
+        x0[7] = model.spacing_mm_per_px[1];
+        let mut steps = DVector::from_element(unknowns, 1e-5);
+        for k in [0, 1, 2, 8, 9, 10] {
+            if k < unknowns {
+                steps[k] = 1e-6;
+            }
+        }
+        steps[6] = 1e-8;
+        steps[7] = 1e-8;
+        let out = lm::minimise(x0, &steps, 100, |x| {
+            let (m, c) = unpack(&base, &base_correction, x);
+            residuals(&m, &c, &kept)
+        })?;
+        iterations += out.iterations;
+        (model, correction) = unpack(&base, &base_correction, &out.x);
+        last_cost = out.cost / (kept.len() * 3).saturating_sub(unknowns).max(1) as f64;
+        last_normal = out.normal_matrix;
+        let Some(k) = reject_sd else { break };
+        let norms: Vec<f64> = constraints
+            .iter()
+            .map(|c| c.residual_with(&model, &correction).norm())
+            .collect();
+        let kept_norms: Vec<f64> = norms
+            .iter()
+            .zip(&inlier)
+            .filter(|(_, k)| **k)
+            .map(|(n, _)| *n)
+            .collect();
+        let mean = kept_norms.iter().sum::<f64>() / kept_norms.len() as f64;
+        let sd = (kept_norms.iter().map(|n| (n - mean).powi(2)).sum::<f64>() / kept_norms.len() as f64).sqrt();
+        let limit = mean + k * sd;
+        let next: Vec<bool> = norms.iter().map(|n| *n <= limit).collect();
+        if next == inlier {
+            break;
+        }
+        inlier = next;
+    }
+    if !(model.spacing_mm_per_px[0] > 0.0 && model.spacing_mm_per_px[1] > 0.0) {
+        return Err(FitError::BadSpacing(model.spacing_mm_per_px));
+    }
+    let residual_mm = constraints
+        .iter()
+        .map(|c| c.residual_with(&model, &correction).norm())
+        .collect();
+    let sd = last_normal
+        .try_inverse()
+        .map(|inv| {
+            (0..unknowns)
+                .map(|k| (inv[(k, k)] * last_cost).max(0.0).sqrt())
+                .collect()
+        })
+        .unwrap_or_else(|| vec![f64::NAN; unknowns]);
+    Ok(Fit {
+        image_to_probe: model,
+        phantom_correction: correction,
+        inlier,
+        residual_mm,
+        iterations,
+        sd,
+    })
+}
+
+/// A rigid `probe_T_image` with the pixel spacing trusted, refined by
+/// Levenberg–Marquardt on point and line constraints from `start`. Returns the fit
+/// and its RMS residual (mm).
+pub fn refine_rigid(start: &Rigid, spacing: [f64; 2], constraints: &[Constraint]) -> Result<(Rigid, f64), LmError> {
+    let model_at = |x: &DVector<f64>| ImageToProbe {
+        probe_T_image: perturbed(start, Vector3::new(x[0], x[1], x[2]), Vector3::new(x[3], x[4], x[5])),
+        spacing_mm_per_px: spacing,
+    };
+    let refs: Vec<&Constraint> = constraints.iter().collect();
+    let mut steps = DVector::from_element(6, 1e-5);
+    for k in 0..3 {
+        steps[k] = 1e-7;
+    }
+    let out = lm::minimise(DVector::zeros(6), &steps, 200, |x| {
+        residuals(&model_at(x), &Rigid::identity(), &refs)
+    })?;
+    let rms = (out.cost / constraints.len().max(1) as f64).sqrt();
+    Ok((model_at(&out.x).probe_T_image, rms))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::core::rng::Rng;
+
+    #[test]
+    fn recovers_pixel_size_and_pose_from_noisy_points_with_an_outlier() {
+        let truth = ImageToProbe {
+            probe_T_image: rigid_from_axis_angle(Vector3::new(0.3, -1.4, 0.2), Vector3::new(11.0, 48.0, -0.4)),
+            spacing_mm_per_px: [0.0803, 0.0745],
+        };
+        let mut rng = Rng::new(4);
+        let mut constraints: Vec<Constraint> = (0..200)
+            .map(|_| {
+                let pixel = [rng.uniform(150.0, 650.0), rng.uniform(150.0, 500.0)];
+                let noise = Vector3::new(rng.normal(0.0, 0.2), rng.normal(0.0, 0.2), rng.normal(0.0, 0.2));
+                Constraint {
+                    pixel,
+                    probe_T_phantom: Matrix4::identity(),
+                    target_in_phantom: Target::Point(truth.apply(pixel) + noise),
+                }
+            })
+            .collect();
+        if let Target::Point(p) = &mut constraints[7].target_in_phantom {
+            p.x += 8.0;
+        }
+        let start = closed_form(&constraints).unwrap();
+        let fit = refine(&start, &constraints, Some(3.0), false).unwrap();
+        assert!(!fit.inlier[7]);
+        // The rigid refinement with the spacing trusted, from a start 5 mm and 3° off, on lines.
+        let lines: Vec<Constraint> = constraints
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| *i != 7)
+            .map(|(i, c)| {
+                let Target::Point(p) = c.target_in_phantom else {
+                    unreachable!()
+                };
+                let direction = [Vector3::x(), Vector3::y(), Vector3::z()][i % 3];
+                Constraint {
+                    target_in_phantom: Target::Line(p + direction * 7.0, direction),
+                    ..*c
+                }
+            })
+            .collect();
+        let start =
+            truth.probe_T_image * rigid_from_axis_angle(Vector3::new(0.03, -0.04, 0.02), Vector3::new(5.0, -3.0, 2.0));
+        let (rigid, rms) = refine_rigid(&start, truth.spacing_mm_per_px, &lines).unwrap();
+        let refined = ImageToProbe {
+            probe_T_image: rigid,
+            spacing_mm_per_px: truth.spacing_mm_per_px,
+        };
+        assert!(rms < 0.3, "{rms}");
+        for pixel in [[0.0, 0.0], [820.0, 616.0]] {
+            let e = (refined.apply(pixel) - truth.apply(pixel)).norm();
+            assert!(e < 0.2, "{e}");
+        }
+        let s = fit.image_to_probe.spacing_mm_per_px;
+        assert!((s[0] - 0.0803).abs() < 4e-4 && (s[1] - 0.0745).abs() < 4e-4, "{s:?}");
+        for pixel in [[0.0, 0.0], [820.0, 616.0]] {
+            let e = (fit.image_to_probe.apply(pixel) - truth.apply(pixel)).norm();
+            assert!(e < 0.3, "{e}");
+        }
+    }
+}

@@ -1,0 +1,7 @@
+//! Solving for `marker_T_image`: Horn's closed form, robust estimators over
+//! frames, wire matching, Levenberg–Marquardt with pixel scales, the sphere fit.
+pub mod horn;
+pub mod image_to_probe;
+pub mod robust;
+pub mod sphere_fit;
+pub mod wire_matching;

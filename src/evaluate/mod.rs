@@ -1,0 +1,428 @@
+//! Stage 5: the calibration from point pairs, and how good it is.
+//!
+//! - Pairs: a frame's feature pixel `(u, v)` gives `points_in_image = (sx u, sy v, 0)`;
+//!   the phantom feature `p` gives `points_in_marker = marker_T_camera · camera_T_phantom · p`.
+//!   Horn's closed form on these pairs is `marker_T_image`.
+//! - BRE (back-projection residual error): per frame and axis of the phantom frame,
+//!   `|p - phantom_T_camera · camera_T_marker · marker_T_image · points_in_image|`, mm.
+//! - The thesis's threshold table: frames above a BRE cut-off are removed (worst
+//!   first, re-solving after each removal, see [`select_below`]); the calibration
+//!   of the frames kept and their statistics are reported.
+//! - Against ground truth (rendered data): the image's four corners and centre
+//!   mapped by the estimated and the true `marker_T_image`; their distances.
+
+pub mod resampling;
+
+use nalgebra::{Point3, Vector3};
+use polars::prelude::*;
+use serde::Serialize;
+
+use crate::core::geometry::{image_probe_points, pixel_to_image_mm, rotation_angle_between_deg, Rigid};
+use crate::estimate::horn::{self, HornError, HornFit, Variant};
+use crate::estimate::image_to_probe::{self, Constraint, Target};
+use crate::manifest::CutoffRule;
+
+/// One segmented feature of a frame: its pixel and where it lies in the phantom.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Observed {
+    pub pixel: [f64; 2],
+    pub target_in_phantom: Target,
+}
+
+/// One usable frame's measurements.
+#[derive(Debug, Clone)]
+pub struct Correspondence {
+    pub frame: usize,
+    /// One feature (hemisphere, pin head) or several (wire dots).
+    pub features: Vec<Observed>,
+    pub camera_T_marker: Rigid,
+    pub camera_T_phantom: Rigid,
+}
+
+impl Correspondence {
+    /// A frame with one point feature.
+    pub fn point(
+        frame: usize,
+        pixel: [f64; 2],
+        feature_in_phantom: Point3<f64>,
+        camera_T_marker: Rigid,
+        camera_T_phantom: Rigid,
+    ) -> Correspondence {
+        Correspondence {
+            frame,
+            features: vec![Observed {
+                pixel,
+                target_in_phantom: Target::Point(feature_in_phantom),
+            }],
+            camera_T_marker,
+            camera_T_phantom,
+        }
+    }
+
+    pub fn marker_T_phantom(&self) -> Rigid {
+        self.camera_T_marker.inverse() * self.camera_T_phantom
+    }
+
+    /// A feature pixel back-projected into the phantom frame through a calibration.
+    pub fn reconstruct_in_phantom(&self, pixel: [f64; 2], calibration: &HornFit, spacing: [f64; 2]) -> Point3<f64> {
+        let in_image = pixel_to_image_mm(pixel, spacing);
+        self.camera_T_phantom.inverse() * (self.camera_T_marker * calibration.apply(&in_image))
+    }
+
+    /// Residual of each feature in the phantom frame (mm): to its point, or
+    /// perpendicular to its line.
+    pub fn residuals_in_phantom(&self, calibration: &HornFit, spacing: [f64; 2]) -> Vec<Vector3<f64>> {
+        self.features
+            .iter()
+            .map(|f| {
+                let p = self.reconstruct_in_phantom(f.pixel, calibration, spacing);
+                match f.target_in_phantom {
+                    Target::Point(q) => p - q,
+                    Target::Line(q, d) => {
+                        let w = p - q;
+                        w - d * w.dot(&d)
+                    }
+                }
+            })
+            .collect()
+    }
+}
+
+/// Solves `marker_T_image` (and a scale, for the similarity variant) from frames.
+/// Point features alone: Horn's closed form. With line features (wires): rigid
+/// Levenberg–Marquardt from `start`.
+pub fn solve(
+    frames: &[Correspondence],
+    spacing: [f64; 2],
+    variant: Variant,
+    start: Option<&Rigid>,
+) -> Result<HornFit, HornError> {
+    let all_points = frames
+        .iter()
+        .flat_map(|f| &f.features)
+        .all(|o| matches!(o.target_in_phantom, Target::Point(_)));
+    if all_points {
+        let mut points_in_image = Vec::new();
+        let mut points_in_marker = Vec::new();
+        for f in frames {
+            let marker_T_phantom = f.marker_T_phantom();
+            for o in &f.features {
+                if let Target::Point(p) = o.target_in_phantom {
+                    points_in_image.push(pixel_to_image_mm(o.pixel, spacing));
+                    points_in_marker.push(marker_T_phantom * p);
+                }
+            }
+        }
+        return horn::solve(&points_in_image, &points_in_marker, variant);
+    }
+    let Some(start) = start else {
+        return Err(HornError::Refinement(
+            "line features need a start (solve.initial_marker_T_image)".into(),
+        ));
+    };
+    let constraints: Vec<Constraint> = frames
+        .iter()
+        .flat_map(|f| {
+            let marker_T_phantom = f.marker_T_phantom().to_homogeneous();
+            f.features.iter().map(move |o| Constraint {
+                pixel: o.pixel,
+                probe_T_phantom: marker_T_phantom,
+                target_in_phantom: o.target_in_phantom,
+            })
+        })
+        .collect();
+    // Six unknowns; each line feature gives two equations, a point three.
+    let equations: usize = frames
+        .iter()
+        .flat_map(|f| &f.features)
+        .map(|o| match o.target_in_phantom {
+            Target::Point(_) => 3,
+            Target::Line(..) => 2,
+        })
+        .sum();
+    if equations < 9 {
+        return Err(HornError::TooFewPairs(constraints.len()));
+    }
+    let (marker_T_image, rms) =
+        image_to_probe::refine_rigid(start, spacing, &constraints).map_err(|e| HornError::Refinement(e.to_string()))?;
+    Ok(HornFit {
+        target_T_source: marker_T_image,
+        scale: 1.0,
+        rms_residual_mm: rms,
+    })
+}
+
+/// Per-axis BRE of one frame, mm: `[|dx|, |dy|, |dz|]` and the 3D distance, of its
+/// features' residuals in the phantom frame (averaged over its features).
+pub fn bre(frame: &Correspondence, calibration: &HornFit, spacing: [f64; 2]) -> ([f64; 3], f64) {
+    let residuals = frame.residuals_in_phantom(calibration, spacing);
+    let n = residuals.len().max(1) as f64;
+    let mut axes = [0.0; 3];
+    let mut norm = 0.0;
+    for d in &residuals {
+        axes[0] += d.x.abs() / n;
+        axes[1] += d.y.abs() / n;
+        axes[2] += d.z.abs() / n;
+        norm += d.norm() / n;
+    }
+    (axes, norm)
+}
+
+/// The largest per-axis BRE of any feature of a frame, and the largest 3D distance.
+fn worst_feature(frame: &Correspondence, calibration: &HornFit, spacing: [f64; 2]) -> ([f64; 3], f64) {
+    frame
+        .residuals_in_phantom(calibration, spacing)
+        .iter()
+        .fold(([0.0; 3], 0.0), |(a, n), d| {
+            (
+                [a[0].max(d.x.abs()), a[1].max(d.y.abs()), a[2].max(d.z.abs())],
+                f64::max(n, d.norm()),
+            )
+        })
+}
+
+/// Std (n − 1), mean, min, max of one axis, mm.
+#[derive(Debug, Clone, Copy, Serialize, PartialEq)]
+pub struct AxisStats {
+    pub std: f64,
+    pub mean: f64,
+    pub min: f64,
+    pub max: f64,
+}
+
+/// Reads one statistic of an axis.
+pub type StatGetter = fn(&AxisStats) -> f64;
+
+/// The thesis's rows, in its order.
+pub const STAT_ROWS: [(&str, StatGetter); 4] = [
+    ("Std.", |a| a.std),
+    ("Mean", |a| a.mean),
+    ("Min", |a| a.min),
+    ("Max", |a| a.max),
+];
+
+/// BRE statistics along x, y, z of the phantom frame.
+#[derive(Debug, Clone, Copy, Serialize, PartialEq)]
+pub struct BreStats {
+    pub x: AxisStats,
+    pub y: AxisStats,
+    pub z: AxisStats,
+}
+
+impl BreStats {
+    pub fn axes(&self) -> [AxisStats; 3] {
+        [self.x, self.y, self.z]
+    }
+    /// The largest of the three axis means.
+    pub fn max_mean(&self) -> f64 {
+        self.x.mean.max(self.y.mean).max(self.z.mean)
+    }
+}
+
+fn axis_stats(column: &Column) -> PolarsResult<AxisStats> {
+    let s = column.as_materialized_series();
+    Ok(AxisStats {
+        std: s.std(1).unwrap_or(f64::NAN),
+        mean: s.mean().unwrap_or(f64::NAN),
+        min: s.min::<f64>()?.unwrap_or(f64::NAN),
+        max: s.max::<f64>()?.unwrap_or(f64::NAN),
+    })
+}
+
+/// Statistics of per-frame BRE values (columns `x`, `y`, `z`) with polars.
+pub fn bre_stats(values: &[[f64; 3]]) -> PolarsResult<BreStats> {
+    let column = |i: usize, name: &str| Column::new(name.into(), values.iter().map(|v| v[i]).collect::<Vec<f64>>());
+    let df = DataFrame::new(values.len(), vec![column(0, "x"), column(1, "y"), column(2, "z")])?;
+    Ok(BreStats {
+        x: axis_stats(df.column("x")?)?,
+        y: axis_stats(df.column("y")?)?,
+        z: axis_stats(df.column("z")?)?,
+    })
+}
+
+/// Error of an estimate against the truth.
+#[derive(Debug, Clone, Copy, Serialize, PartialEq)]
+pub struct TruthComparison {
+    /// Over the image's four corners and its centre.
+    pub corner_error_mean_mm: f64,
+    pub corner_error_max_mm: f64,
+    pub rotation_error_deg: f64,
+    pub translation_error_mm: f64,
+}
+
+pub fn compare_with_truth(
+    estimate: &HornFit,
+    truth: &Rigid,
+    image_size_px: [usize; 2],
+    spacing: [f64; 2],
+) -> TruthComparison {
+    compare_mapped(estimate, spacing, truth, spacing, image_size_px)
+}
+
+/// The same, for an estimate that maps pixels with its own pixel size
+/// (`spacing`, e.g. estimated) while the truth maps them with `truth_spacing`.
+pub fn compare_mapped(
+    estimate: &HornFit,
+    spacing: [f64; 2],
+    truth: &Rigid,
+    truth_spacing: [f64; 2],
+    image_size_px: [usize; 2],
+) -> TruthComparison {
+    let estimated = image_probe_points(image_size_px, spacing);
+    let true_points = image_probe_points(image_size_px, truth_spacing);
+    let distances: Vec<f64> = estimated
+        .iter()
+        .zip(&true_points)
+        .map(|(e, t)| (estimate.apply(e) - truth * t).norm())
+        .collect();
+    TruthComparison {
+        corner_error_mean_mm: distances.iter().sum::<f64>() / distances.len() as f64,
+        corner_error_max_mm: distances.iter().cloned().fold(0.0, f64::max),
+        rotation_error_deg: rotation_angle_between_deg(&estimate.target_T_source, truth),
+        translation_error_mm: (estimate.target_T_source.translation.vector - truth.translation.vector).norm(),
+    }
+}
+
+/// One row of the threshold table.
+#[derive(Debug, Clone, Serialize)]
+pub struct ThresholdRow {
+    /// `inf` for all frames.
+    pub cutoff_mm: f64,
+    /// Frames whose all-frames BRE is below the cut-off.
+    pub frames: Vec<usize>,
+    /// The calibration solved again on those frames, or why it could not be.
+    #[serde(skip)]
+    pub fit: Result<HornFit, HornError>,
+    pub stats: Option<BreStats>,
+    pub truth: Option<TruthComparison>,
+}
+
+/// What the evaluation needs besides the frames.
+pub struct EvaluationInputs<'a> {
+    /// Where the line fit starts (wire phantoms).
+    pub start: Option<Rigid>,
+    pub spacing: [f64; 2],
+    pub cutoffs_mm: &'a [f64],
+    pub rule: CutoffRule,
+    pub min_frames: usize,
+    pub variant: Variant,
+    pub truth: Option<(Rigid, [usize; 2])>,
+}
+
+/// A frame's BRE as the cut-off rule measures it.
+fn rule_value(bre_axes: &[f64; 3], norm: f64, rule: CutoffRule) -> f64 {
+    match rule {
+        CutoffRule::MaxAxis => bre_axes.iter().cloned().fold(0.0, f64::max),
+        CutoffRule::Norm => norm,
+    }
+}
+
+/// The frames kept below a cut-off and their calibration. Starting from all frames,
+/// the frame with the largest BRE under the calibration of the frames still kept
+/// is dropped, one at a time, re-solving after each drop, until every kept frame
+/// is below the cut-off. (One gross outlier inflates every frame's BRE under the
+/// all-frames calibration; dropping worst-first removes it before judging the rest.)
+pub fn select_below(
+    frames: &[Correspondence],
+    cutoff: f64,
+    inputs: &EvaluationInputs<'_>,
+) -> (Vec<Correspondence>, Result<HornFit, HornError>) {
+    let mut kept = frames.to_vec();
+    loop {
+        if kept.len() < inputs.min_frames {
+            return (kept.clone(), Err(HornError::TooFewPairs(kept.len())));
+        }
+        let fit = match solve(&kept, inputs.spacing, inputs.variant, inputs.start.as_ref()) {
+            Ok(fit) => fit,
+            Err(e) => return (kept, Err(e)),
+        };
+        let worst = kept
+            .iter()
+            .enumerate()
+            .map(|(i, f)| {
+                let (axes, norm) = worst_feature(f, &fit, inputs.spacing);
+                (i, rule_value(&axes, norm, inputs.rule))
+            })
+            .max_by(|a, b| a.1.total_cmp(&b.1));
+        match worst {
+            Some((i, value)) if value >= cutoff => {
+                kept.remove(i);
+            }
+            _ => return (kept, Ok(fit)),
+        }
+    }
+}
+
+/// The threshold table: for each cut-off, the frames kept, their calibration,
+/// its BRE statistics and (rendered data) its error against the truth.
+pub fn threshold_table(frames: &[Correspondence], inputs: &EvaluationInputs<'_>) -> PolarsResult<Vec<ThresholdRow>> {
+    let mut rows = Vec::new();
+    for &cutoff in inputs.cutoffs_mm {
+        let (kept, fit) = select_below(frames, cutoff, inputs);
+        let (stats, truth) = match &fit {
+            Ok(fit) => {
+                // One sample per feature (the thesis's one per frame, for one feature a frame).
+                let values: Vec<[f64; 3]> = kept
+                    .iter()
+                    .flat_map(|f| f.residuals_in_phantom(fit, inputs.spacing))
+                    .map(|d| [d.x.abs(), d.y.abs(), d.z.abs()])
+                    .collect();
+                let truth = inputs
+                    .truth
+                    .map(|(t, size)| compare_with_truth(fit, &t, size, inputs.spacing));
+                (Some(bre_stats(&values)?), truth)
+            }
+            Err(_) => (None, None),
+        };
+        rows.push(ThresholdRow {
+            cutoff_mm: cutoff,
+            frames: kept.iter().map(|f| f.frame).collect(),
+            fit,
+            stats,
+            truth,
+        });
+    }
+    Ok(rows)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::core::geometry::rigid_from_axis_angle;
+
+    #[test]
+    fn stats_match_hand_computation() {
+        let s = bre_stats(&[[1.0, 0.0, 2.0], [3.0, 0.0, 2.0], [5.0, 3.0, 2.0]]).unwrap();
+        assert_eq!(s.x.mean, 3.0);
+        assert_eq!(s.x.std, 2.0); // sample std (n - 1)
+        assert_eq!((s.y.min, s.y.max), (0.0, 3.0));
+        assert_eq!(s.z.std, 0.0);
+    }
+
+    #[test]
+    fn exact_frames_give_zero_bre_and_exact_calibration() {
+        let marker_T_image = rigid_from_axis_angle(Vector3::new(0.02, -0.03, 0.01), Vector3::new(-20.0, 160.0, 25.0));
+        let camera_T_phantom = rigid_from_axis_angle(Vector3::new(2.0, 0.1, 0.2), Vector3::new(-100.0, 80.0, 500.0));
+        let feature = Point3::new(60.0, 45.0, -40.0);
+        let spacing = [0.2, 0.2];
+        let frames: Vec<Correspondence> = (0..8)
+            .map(|k| {
+                let px = [300.0 + 40.0 * (k % 3) as f64, 250.0 + 30.0 * (k / 3) as f64];
+                // Build a marker pose that puts this pixel exactly on the feature.
+                let rot = rigid_from_axis_angle(Vector3::new(0.1 * k as f64, -0.05 * k as f64, 0.02), Vector3::zeros());
+                let in_image = pixel_to_image_mm(px, spacing);
+                let phantom_T_image_rot = rot.rotation;
+                let t = feature.coords - phantom_T_image_rot * in_image.coords;
+                let phantom_T_image = Rigid::from_parts(t.into(), phantom_T_image_rot);
+                let camera_T_marker = camera_T_phantom * phantom_T_image * marker_T_image.inverse();
+                Correspondence::point(k, px, feature, camera_T_marker, camera_T_phantom)
+            })
+            .collect();
+        let fit = solve(&frames, spacing, Variant::Rigid, None).unwrap();
+        let cmp = compare_with_truth(&fit, &marker_T_image, [800, 600], spacing);
+        assert!(cmp.corner_error_max_mm < 1e-8, "{cmp:?}");
+        for f in &frames {
+            assert!(bre(f, &fit, spacing).1 < 1e-8);
+        }
+    }
+}

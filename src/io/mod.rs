@@ -1,0 +1,8 @@
+//! Files in and out: atomic writes, images, dataset frame lists, ground truth,
+//! tracker poses, camera models and PLUS's formats.
+pub mod camera_model;
+pub mod dataset;
+pub mod image;
+pub mod plus;
+pub mod tracker_poses;
+pub mod truth;

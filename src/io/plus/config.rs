@@ -1,0 +1,208 @@
+//! PLUS device-set configuration XML: `CoordinateDefinitions` (fixed transforms),
+//! `PhantomDefinition` (N-wire patterns) and the `Segmentation` hints.
+
+use std::path::{Path, PathBuf};
+
+use nalgebra::{Matrix4, Point3};
+
+use crate::detect::nwire::{NWire, WireSegment};
+
+/// Why a configuration file could not be used.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("{}{}: {message}", path.display(), line.map(|l| format!(":{l}")).unwrap_or_default())]
+pub struct ConfigError {
+    pub path: PathBuf,
+    pub line: Option<usize>,
+    pub message: String,
+}
+
+/// A `CoordinateDefinitions/Transform`: `to_T_from`, a general 4x4 matrix.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FixedTransform {
+    pub from: String,
+    pub to: String,
+    pub matrix: Matrix4<f64>,
+    pub line: usize,
+}
+
+/// What probecal uses of a PLUS configuration.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PlusConfig {
+    pub path: PathBuf,
+    pub transforms: Vec<FixedTransform>,
+    /// N-wire patterns in file order, in the phantom frame (mm).
+    pub nwires: Vec<NWire>,
+    /// `Segmentation/@ApproximateSpacingMmPerPixel`.
+    pub approximate_spacing_mm_per_px: Option<f64>,
+    /// `Segmentation/@ClipRectangleOrigin` and `@ClipRectangleSize` (px).
+    pub clip_rectangle_px: Option<([usize; 2], [usize; 2])>,
+}
+
+impl PlusConfig {
+    pub fn read(path: &Path) -> Result<PlusConfig, ConfigError> {
+        let text = std::fs::read_to_string(path).map_err(|e| ConfigError {
+            path: path.to_path_buf(),
+            line: None,
+            message: format!("cannot read: {e}"),
+        })?;
+        PlusConfig::parse(path, &text)
+    }
+
+    pub fn parse(path: &Path, text: &str) -> Result<PlusConfig, ConfigError> {
+        let doc = parse_xml(path, text)?;
+        let x = Xml { path, doc: &doc };
+
+        let mut transforms = Vec::new();
+        for node in doc.descendants().filter(|n| n.has_tag_name("CoordinateDefinitions")) {
+            for t in node.children().filter(|n| n.has_tag_name("Transform")) {
+                let m = x.numbers(t, "Matrix", 16)?;
+                transforms.push(FixedTransform {
+                    from: x.attr(t, "From")?.to_string(),
+                    to: x.attr(t, "To")?.to_string(),
+                    matrix: Matrix4::from_fn(|r, c| m[r * 4 + c]),
+                    line: x.line(t),
+                });
+            }
+        }
+
+        let mut nwires = Vec::new();
+        for pattern in doc.descendants().filter(|n| n.has_tag_name("Pattern")) {
+            let kind = x.attr(pattern, "Type")?;
+            if kind != "NWire" {
+                return Err(x.fail(
+                    pattern,
+                    format!("pattern type `{kind}`: only NWire patterns are supported"),
+                ));
+            }
+            let wires: Vec<WireSegment> = pattern
+                .children()
+                .filter(|n| n.has_tag_name("Wire"))
+                .map(|w| {
+                    let front = x.numbers(w, "EndPointFront", 3)?;
+                    let back = x.numbers(w, "EndPointBack", 3)?;
+                    Ok(WireSegment {
+                        name: w.attribute("Name").unwrap_or("").to_string(),
+                        front_in_phantom_mm: Point3::new(front[0], front[1], front[2]),
+                        back_in_phantom_mm: Point3::new(back[0], back[1], back[2]),
+                    })
+                })
+                .collect::<Result<_, ConfigError>>()?;
+            let [w1, w2, w3]: [WireSegment; 3] = wires.try_into().map_err(|w: Vec<WireSegment>| {
+                x.fail(pattern, format!("an N-wire needs 3 wires, this one has {}", w.len()))
+            })?;
+            let nwire = NWire::new([w1, w2, w3]).map_err(|e| x.fail(pattern, e))?;
+            nwires.push(nwire);
+        }
+
+        let mut approximate_spacing_mm_per_px = None;
+        let mut clip_rectangle_px = None;
+        if let Some(seg) = doc
+            .descendants()
+            .find(|n| n.has_tag_name("Segmentation") && n.attribute("ApproximateSpacingMmPerPixel").is_some())
+        {
+            let s = x.numbers(seg, "ApproximateSpacingMmPerPixel", 1)?[0];
+            if s <= 0.0 {
+                return Err(x.fail(seg, format!("`ApproximateSpacingMmPerPixel` must be positive, got {s}")));
+            }
+            approximate_spacing_mm_per_px = Some(s);
+            if seg.attribute("ClipRectangleOrigin").is_some() {
+                let o = x.numbers(seg, "ClipRectangleOrigin", 2)?;
+                let z = x.numbers(seg, "ClipRectangleSize", 2)?;
+                if o.iter().chain(&z).any(|v| *v < 0.0) {
+                    return Err(x.fail(seg, "the clip rectangle has a negative coordinate".into()));
+                }
+                clip_rectangle_px = Some(([o[0] as usize, o[1] as usize], [z[0] as usize, z[1] as usize]));
+            }
+        }
+        Ok(PlusConfig {
+            path: path.to_path_buf(),
+            transforms,
+            nwires,
+            approximate_spacing_mm_per_px,
+            clip_rectangle_px,
+        })
+    }
+
+    /// The fixed transform `to_T_from`, found directly or as the inverse of `from_T_to`.
+    pub fn transform(&self, from: &str, to: &str) -> Result<Matrix4<f64>, ConfigError> {
+        if let Some(t) = self.transforms.iter().find(|t| t.from == from && t.to == to) {
+            return Ok(t.matrix);
+        }
+        if let Some(t) = self.transforms.iter().find(|t| t.from == to && t.to == from) {
+            return t.matrix.try_inverse().ok_or_else(|| ConfigError {
+                path: self.path.clone(),
+                line: Some(t.line),
+                message: format!("transform {to}To{from} is singular"),
+            });
+        }
+        Err(ConfigError {
+            path: self.path.clone(),
+            line: None,
+            message: format!("CoordinateDefinitions has no transform {from}To{to} (nor its inverse)"),
+        })
+    }
+}
+
+/// Parses XML, a syntax error naming the file and line.
+pub(crate) fn parse_xml<'input>(path: &Path, text: &'input str) -> Result<roxmltree::Document<'input>, ConfigError> {
+    roxmltree::Document::parse(text).map_err(|e| ConfigError {
+        path: path.to_path_buf(),
+        line: Some(e.pos().row as usize),
+        message: format!("not well-formed XML: {e}"),
+    })
+}
+
+/// Attribute access with errors that name the file and the element's line.
+pub(crate) struct Xml<'a, 'input> {
+    pub(crate) path: &'a Path,
+    pub(crate) doc: &'a roxmltree::Document<'input>,
+}
+
+impl Xml<'_, '_> {
+    pub(crate) fn line(&self, node: roxmltree::Node) -> usize {
+        self.doc.text_pos_at(node.range().start).row as usize
+    }
+
+    pub(crate) fn fail(&self, node: roxmltree::Node, message: String) -> ConfigError {
+        ConfigError {
+            path: self.path.to_path_buf(),
+            line: Some(self.line(node)),
+            message,
+        }
+    }
+
+    pub(crate) fn attr<'n>(&self, node: roxmltree::Node<'n, '_>, name: &str) -> Result<&'n str, ConfigError> {
+        node.attribute(name)
+            .ok_or_else(|| self.fail(node, format!("<{}> has no attribute `{name}`", node.tag_name().name())))
+    }
+
+    pub(crate) fn numbers(&self, node: roxmltree::Node, name: &str, count: usize) -> Result<Vec<f64>, ConfigError> {
+        let text = self.attr(node, name)?;
+        let values: Vec<f64> = text
+            .split_whitespace()
+            .map(|s| s.parse::<f64>())
+            .collect::<Result<_, _>>()
+            .map_err(|_| self.fail(node, format!("`{name}` holds a non-number")))?;
+        if values.len() != count || values.iter().any(|v| !v.is_finite()) {
+            return Err(self.fail(
+                node,
+                format!("`{name}` must hold {count} finite numbers, has {}", values.len()),
+            ));
+        }
+        Ok(values)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn errors_name_the_line() {
+        let text = "<PlusConfiguration>\n<CoordinateDefinitions>\n<Transform From=\"A\" To=\"B\" Matrix=\"1 0 0\"/>\n</CoordinateDefinitions>\n</PlusConfiguration>";
+        let e = PlusConfig::parse(Path::new("c.xml"), text).unwrap_err();
+        assert_eq!(e.to_string(), "c.xml:3: `Matrix` must hold 16 finite numbers, has 3");
+        let e = PlusConfig::parse(Path::new("c.xml"), "<a>\n<b></a>").unwrap_err();
+        assert!(e.to_string().starts_with("c.xml:2: not well-formed XML"), "{e}");
+    }
+}

@@ -1,0 +1,457 @@
+//! PLUS sequence files: MetaImage (`.mha`, `.igs.mha`) "tracked frame lists".
+//!
+//! An ASCII header of `Key = value` lines, then `ElementDataFile = LOCAL` and the
+//! pixel data of all frames (uint8, row-major, frame after frame), zlib-compressed
+//! when `CompressedData = True`. Per frame `i` the header holds fields
+//! `Seq_Frame%04d_<Name>`, among them the tracker transforms (16 numbers, a 4x4
+//! matrix row by row, mm) and their `...TransformStatus` (`OK` / `INVALID`).
+//!
+//! Everything that makes the file unreadable is an error naming the file, the line
+//! and the key; a transform that is merely unusable in one frame (status not OK,
+//! not a rigid matrix) is a [`FrameFault`] for that frame only.
+
+use std::collections::BTreeMap;
+use std::io::Read;
+use std::path::{Path, PathBuf};
+
+use crate::core::geometry::{rigid_from_rows, Rigid};
+
+/// Why a sequence file could not be read.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("{}{}: {message}", path.display(), line.map(|l| format!(":{l}")).unwrap_or_default())]
+pub struct SequenceError {
+    pub path: PathBuf,
+    /// 1-based header line, where the problem has one.
+    pub line: Option<usize>,
+    pub message: String,
+}
+
+/// Why one frame's transform cannot be used (the frame is rejected with it).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum FrameFault {
+    #[error("frame {frame}: field `{field}` is missing")]
+    Missing { frame: usize, field: String },
+    #[error("frame {frame}: `{field}` is {status}, not OK")]
+    Status {
+        frame: usize,
+        field: String,
+        status: String,
+    },
+    #[error("frame {frame}: `{field}` (line {line}) is not a rigid transform: {reason}")]
+    NotRigid {
+        frame: usize,
+        field: String,
+        line: usize,
+        reason: String,
+    },
+}
+
+/// One header value and the line it was on.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Field {
+    pub value: String,
+    pub line: usize,
+}
+
+/// One frame: its pixels and its own header fields (without the `Seq_FrameNNNN_` prefix).
+#[derive(Debug, Clone, PartialEq)]
+pub struct SequenceFrame {
+    pub index: usize,
+    pub fields: BTreeMap<String, Field>,
+}
+
+/// A whole sequence file in memory.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Sequence {
+    pub path: PathBuf,
+    pub width: usize,
+    pub height: usize,
+    /// Header fields that are not per-frame, in file order by key.
+    pub header: BTreeMap<String, Field>,
+    pub frames: Vec<SequenceFrame>,
+    /// All frames' pixels, frame after frame.
+    pixels: Vec<u8>,
+}
+
+/// Largest frame count and image size accepted (guards the allocation against a
+/// corrupt header).
+const MAX_PIXELS: usize = 1 << 32;
+
+impl Sequence {
+    /// Reads and checks a sequence file.
+    pub fn read(path: &Path) -> Result<Sequence, SequenceError> {
+        let bytes = std::fs::read(path).map_err(|e| SequenceError {
+            path: path.to_path_buf(),
+            line: None,
+            message: format!("cannot read: {e}"),
+        })?;
+        Sequence::parse(path, &bytes)
+    }
+
+    /// Parses the bytes of a sequence file; `path` is only used in messages.
+    pub fn parse(path: &Path, bytes: &[u8]) -> Result<Sequence, SequenceError> {
+        let fail = |line: Option<usize>, message: String| SequenceError {
+            path: path.to_path_buf(),
+            line,
+            message,
+        };
+        let mut header: BTreeMap<String, Field> = BTreeMap::new();
+        let mut per_frame: BTreeMap<usize, BTreeMap<String, Field>> = BTreeMap::new();
+        let mut offset = 0usize;
+        let mut line_no = 0usize;
+        let mut data_start = None;
+        while offset < bytes.len() {
+            let end = bytes[offset..]
+                .iter()
+                .position(|&b| b == b'\n')
+                .map(|p| offset + p)
+                .unwrap_or(bytes.len());
+            line_no += 1;
+            let raw = &bytes[offset..end];
+            offset = (end + 1).min(bytes.len());
+            let text = std::str::from_utf8(raw)
+                .map_err(|_| {
+                    fail(
+                        Some(line_no),
+                        "header line is not text (data before `ElementDataFile`?)".into(),
+                    )
+                })?
+                .trim_end_matches('\r');
+            if text.trim().is_empty() {
+                continue;
+            }
+            let Some((key, value)) = text.split_once('=') else {
+                return Err(fail(
+                    Some(line_no),
+                    format!("expected `Key = value`, got `{}`", clip(text)),
+                ));
+            };
+            let key = key.trim().to_string();
+            let value = value.trim().to_string();
+            if key == "ElementDataFile" {
+                if value != "LOCAL" {
+                    return Err(fail(
+                        Some(line_no),
+                        format!("`ElementDataFile = {value}`: only LOCAL (data in the same file) is supported"),
+                    ));
+                }
+                data_start = Some(offset);
+                header.insert(key, Field { value, line: line_no });
+                break;
+            }
+            let field = Field { value, line: line_no };
+            if let Some(rest) = key.strip_prefix("Seq_Frame") {
+                let digits: String = rest.chars().take_while(|c| c.is_ascii_digit()).collect();
+                let name = rest[digits.len()..].strip_prefix('_');
+                match (digits.parse::<usize>(), name) {
+                    (Ok(index), Some(name)) if !name.is_empty() => {
+                        per_frame.entry(index).or_default().insert(name.to_string(), field);
+                    }
+                    _ => return Err(fail(Some(line_no), format!("`{key}`: expected `Seq_FrameNNNN_<Name>`"))),
+                }
+            } else {
+                header.insert(key, field);
+            }
+        }
+        let data_start = data_start.ok_or_else(|| {
+            fail(
+                Some(line_no),
+                "no `ElementDataFile = LOCAL` line: the header never ends (file cut off?)".into(),
+            )
+        })?;
+
+        let get = |key: &str| {
+            header
+                .get(key)
+                .ok_or_else(|| fail(None, format!("header field `{key}` is missing")))
+        };
+        let dims = get("DimSize")?;
+        let numbers: Vec<usize> = dims
+            .value
+            .split_whitespace()
+            .map(|s| s.parse::<usize>())
+            .collect::<Result<_, _>>()
+            .map_err(|_| {
+                fail(
+                    Some(dims.line),
+                    format!("`DimSize = {}`: not whole numbers", dims.value),
+                )
+            })?;
+        let (width, height, count) = match numbers.as_slice() {
+            [w, h, n] => (*w, *h, *n),
+            [w, h] => (*w, *h, 1),
+            _ => {
+                return Err(fail(
+                    Some(dims.line),
+                    format!("`DimSize = {}`: expected width height frames", dims.value),
+                ))
+            }
+        };
+        if width == 0 || height == 0 {
+            return Err(fail(Some(dims.line), "`DimSize`: an image of zero size".into()));
+        }
+        let expected = width
+            .checked_mul(height)
+            .and_then(|p| p.checked_mul(count))
+            .filter(|&p| p <= MAX_PIXELS)
+            .ok_or_else(|| {
+                fail(
+                    Some(dims.line),
+                    format!("`DimSize = {}` is implausibly large", dims.value),
+                )
+            })?;
+        let element = get("ElementType")?;
+        if element.value != "MET_UCHAR" {
+            return Err(fail(
+                Some(element.line),
+                format!(
+                    "`ElementType = {}`: only MET_UCHAR (8-bit B-scans) is supported",
+                    element.value
+                ),
+            ));
+        }
+        if let Some(channels) = header.get("ElementNumberOfChannels") {
+            if channels.value != "1" {
+                return Err(fail(
+                    Some(channels.line),
+                    format!(
+                        "`ElementNumberOfChannels = {}`: only grey (1) is supported",
+                        channels.value
+                    ),
+                ));
+            }
+        }
+        let compressed = match header.get("CompressedData") {
+            None => false,
+            Some(f) => match f.value.to_ascii_lowercase().as_str() {
+                "true" => true,
+                "false" => false,
+                other => {
+                    return Err(fail(
+                        Some(f.line),
+                        format!("`CompressedData = {other}`: expected True or False"),
+                    ))
+                }
+            },
+        };
+        if per_frame.len() != count || per_frame.keys().next_back().is_some_and(|&last| last + 1 != count) {
+            let last = per_frame.keys().next_back().map(|l| l + 1).unwrap_or(0);
+            return Err(fail(
+                Some(dims.line),
+                format!(
+                    "frame count mismatch: `DimSize` has {count} frames, the header describes {} (indices up to {})",
+                    per_frame.len(),
+                    last
+                ),
+            ));
+        }
+        let data = &bytes[data_start..];
+        let pixels = if compressed {
+            if let Some(size) = header.get("CompressedDataSize") {
+                let declared: usize = size.value.parse().map_err(|_| {
+                    fail(
+                        Some(size.line),
+                        format!("`CompressedDataSize = {}`: not a whole number", size.value),
+                    )
+                })?;
+                if declared > data.len() {
+                    return Err(fail(
+                        Some(size.line),
+                        format!(
+                            "data truncated: `CompressedDataSize` says {declared} bytes, the file has {} after the header",
+                            data.len()
+                        ),
+                    ));
+                }
+            }
+            let mut out = Vec::with_capacity(expected);
+            let mut decoder = flate2::read::ZlibDecoder::new(data).take(expected as u64 + 1);
+            decoder.read_to_end(&mut out).map_err(|e| {
+                fail(
+                    None,
+                    format!(
+                        "compressed data is corrupt or truncated after {} of {expected} bytes: {e}",
+                        out.len()
+                    ),
+                )
+            })?;
+            out
+        } else {
+            data.to_vec()
+        };
+        if pixels.len() < expected {
+            return Err(fail(
+                None,
+                format!(
+                    "data truncated: {} bytes of pixels, {expected} expected for {count} frames of {width}x{height}",
+                    pixels.len()
+                ),
+            ));
+        }
+        if pixels.len() > expected {
+            return Err(fail(
+                Some(dims.line),
+                format!("more pixel data than `DimSize` says ({count} frames of {width}x{height})"),
+            ));
+        }
+        let frames = per_frame
+            .into_iter()
+            .map(|(index, fields)| SequenceFrame { index, fields })
+            .collect();
+        Ok(Sequence {
+            path: path.to_path_buf(),
+            width,
+            height,
+            header,
+            frames,
+            pixels,
+        })
+    }
+
+    /// The pixels of frame `index` (row-major, `width * height` bytes).
+    pub fn pixels(&self, index: usize) -> &[u8] {
+        let size = self.width * self.height;
+        &self.pixels[index * size..(index + 1) * size]
+    }
+
+    /// Frame `index`'s transform `<name>Transform` (e.g. `ProbeToTracker`), checked:
+    /// its status must be OK and its matrix rigid.
+    pub fn transform(&self, index: usize, name: &str) -> Result<Rigid, FrameFault> {
+        let frame = &self.frames[index];
+        let field = format!("{name}Transform");
+        let status_field = format!("{field}Status");
+        if let Some(status) = frame.fields.get(&status_field) {
+            if status.value != "OK" {
+                return Err(FrameFault::Status {
+                    frame: index,
+                    field: status_field,
+                    status: status.value.clone(),
+                });
+            }
+        }
+        let value = frame.fields.get(&field).ok_or_else(|| FrameFault::Missing {
+            frame: index,
+            field: field.clone(),
+        })?;
+        let not_rigid = |reason: String| FrameFault::NotRigid {
+            frame: index,
+            field: field.clone(),
+            line: value.line,
+            reason,
+        };
+        let numbers: Vec<f64> = value
+            .value
+            .split_whitespace()
+            .map(|s| s.parse::<f64>())
+            .collect::<Result<_, _>>()
+            .map_err(|_| not_rigid(format!("`{}` holds a non-number", clip(&value.value))))?;
+        if numbers.len() != 16 {
+            return Err(not_rigid(format!("{} numbers, a 4x4 matrix needs 16", numbers.len())));
+        }
+        let mut rows: [[f64; 4]; 4] = std::array::from_fn(|r| std::array::from_fn(|c| numbers[r * 4 + c]));
+        // Trackers write 6 significant digits: a rotation that is orthonormal to that
+        // precision is snapped onto the nearest orthonormal matrix (a mirror stays a
+        // mirror and is refused below) before the strict check.
+        let rotation = nalgebra::Matrix3::from_fn(|r, c| rows[r][c]);
+        let off = (rotation.transpose() * rotation - nalgebra::Matrix3::identity())
+            .abs()
+            .max();
+        if off.is_finite() && off < 1e-4 {
+            let svd = rotation.svd(true, true);
+            if let (Some(u), Some(v_t)) = (svd.u, svd.v_t) {
+                let fixed = u * v_t;
+                for (r, row) in rows.iter_mut().take(3).enumerate() {
+                    for (c, v) in row.iter_mut().take(3).enumerate() {
+                        *v = fixed[(r, c)];
+                    }
+                }
+            }
+        }
+        rigid_from_rows(&rows).map_err(|e| not_rigid(e.to_string()))
+    }
+
+    /// A per-frame field as text (e.g. `Timestamp`).
+    pub fn frame_field(&self, index: usize, name: &str) -> Option<&str> {
+        self.frames[index].fields.get(name).map(|f| f.value.as_str())
+    }
+}
+
+fn clip(text: &str) -> String {
+    let mut s: String = text.chars().take(60).collect();
+    if s.len() < text.len() {
+        s.push('…');
+    }
+    s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::io::Write;
+
+    fn file(frames: usize, status: &str, matrix: &str, compressed_len_cut: usize) -> Vec<u8> {
+        let (w, h) = (4usize, 3usize);
+        let pixels: Vec<u8> = (0..w * h * frames).map(|i| (i % 251) as u8).collect();
+        let mut enc = flate2::write::ZlibEncoder::new(Vec::new(), flate2::Compression::default());
+        enc.write_all(&pixels).unwrap();
+        let mut z = enc.finish().unwrap();
+        z.truncate(z.len() - compressed_len_cut);
+        let mut text = format!(
+            "ObjectType = Image\nNDims = 3\nCompressedData = True\nCompressedDataSize = {}\nDimSize = {w} {h} {frames}\nElementType = MET_UCHAR\n",
+            z.len()
+        );
+        for i in 0..frames {
+            text += &format!("Seq_Frame{i:04}_ProbeToTrackerTransform = {matrix}\n");
+            text += &format!("Seq_Frame{i:04}_ProbeToTrackerTransformStatus = {status}\n");
+        }
+        text += "ElementDataFile = LOCAL\n";
+        let mut bytes = text.into_bytes();
+        bytes.extend(z);
+        bytes
+    }
+
+    const IDENTITY: &str = "1 0 0 5 0 1 0 6 0 0 1 7 0 0 0 1";
+
+    #[test]
+    fn reads_frames_and_transforms() {
+        let s = Sequence::parse(Path::new("t.mha"), &file(2, "OK", IDENTITY, 0)).unwrap();
+        assert_eq!((s.width, s.height, s.frames.len()), (4, 3, 2));
+        assert_eq!(s.pixels(1)[0], 12);
+        let t = s.transform(1, "ProbeToTracker").unwrap();
+        assert_eq!(t.translation.vector.z, 7.0);
+    }
+
+    #[test]
+    fn bad_status_and_matrices_are_frame_faults() {
+        let s = Sequence::parse(Path::new("t.mha"), &file(1, "INVALID", IDENTITY, 0)).unwrap();
+        let e = s.transform(0, "ProbeToTracker").unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "frame 0: `ProbeToTrackerTransformStatus` is INVALID, not OK"
+        );
+        let s = Sequence::parse(Path::new("t.mha"), &file(1, "OK", "1 0 0 5 0 2 0 6 0 0 1 7 0 0 0 1", 0)).unwrap();
+        let e = s.transform(0, "ProbeToTracker").unwrap_err().to_string();
+        assert!(e.contains("line 7") && e.contains("not orthonormal"), "{e}");
+        let s = Sequence::parse(
+            Path::new("t.mha"),
+            &file(1, "OK", "1 0 0 nan 0 1 0 6 0 0 1 7 0 0 0 1", 0),
+        )
+        .unwrap();
+        let e = s.transform(0, "ProbeToTracker").unwrap_err().to_string();
+        assert!(e.contains("non-finite"), "{e}");
+        assert!(matches!(
+            s.transform(0, "ReferenceToTracker"),
+            Err(FrameFault::Missing { .. })
+        ));
+    }
+
+    #[test]
+    fn truncated_data_is_an_error() {
+        let e = Sequence::parse(Path::new("t.mha"), &file(2, "OK", IDENTITY, 5)).unwrap_err();
+        assert!(e.message.contains("truncated"), "{e}");
+        let bytes = file(2, "OK", IDENTITY, 0);
+        let cut = &bytes[..bytes.len() / 2];
+        let e = Sequence::parse(Path::new("t.mha"), cut).unwrap_err();
+        assert!(e.to_string().starts_with("t.mha"), "{e}");
+    }
+}

@@ -1,0 +1,4 @@
+//! The stages chained: a manifest's datasets run end to end.
+pub mod run;
+pub mod study;
+pub mod tracked;

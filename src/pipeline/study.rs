@@ -1,0 +1,479 @@
+//! Studies over many runs: the thesis's synthetic σ-table, and a Monte Carlo
+//! accuracy study of every estimator against the truth and the Cramér–Rao bound.
+//!
+//! # σ-table protocol (the thesis's synthetic experiment)
+//! A fixed point P in the phantom; per frame a random image point `p_k` (inside a
+//! 100 x 80 mm image), a probe rotation tilted up to ±20° about X and Y with a
+//! fixed rotation about Z, and the marker's translation chosen so that `p_k` lands
+//! exactly on P (the thesis's eq. 6). Gaussian noise of SD σ (mm, each axis) is
+//! added to the marker's translation, Horn's closed form is solved on the pairs,
+//! and the residuals `|P − reconstruction|` per axis give the BRE table's Std
+//! (pooled over x, y, z). 50 frames (Dataset 3's count), 200 repetitions, mean.
+//!
+//! # Monte Carlo and the Cramér–Rao bound
+//! The default hemisphere experiment is rendered with many seeds; each estimator's
+//! `marker_T_image` is compared with the truth at the image's four corners and
+//! centre. The bound is that of the point-pair model the estimators assume:
+//! `y_i = T x_i + e_i` (x_i the feature in the image, y_i the phantom feature in
+//! the marker frame through the measured poses), `e_i ~ N(0, Σ)` independent per
+//! frame, with Σ the covariance of the true residuals `y_i − T_true x_i` of the
+//! frames the robust fit kept (measured per seed from the truth). The Fisher
+//! information of the six pose parameters (a rotation vector applied on the left,
+//! and the translation) is `F = Σ_i J_iᵀ Σ⁻¹ J_i` with `J_i = [−[T x_i]ₓ  I]`;
+//! the bound on a probe point `q`'s mean squared error is `tr(J_q F⁻¹ J_qᵀ)`.
+
+use std::path::Path;
+
+use nalgebra::{Matrix3, Matrix6, Point3, Vector3};
+use serde::Serialize;
+
+use crate::core::geometry::{image_probe_points, pixel_to_image_mm, rigid_from_axis_angle, Rigid};
+use crate::core::rng::Rng;
+use crate::estimate::horn::Variant;
+use crate::evaluate::resampling::{mean_sd, percentile};
+use crate::evaluate::{self, Correspondence};
+use crate::manifest::{Dataset, DatasetSource, Manifest};
+use crate::pipeline::run::{self, DatasetRun, RunError};
+
+/// The thesis's published σ-table.
+pub const THESIS_SIGMA_TABLE: [(f64, f64); 4] = [(0.0, 0.0), (0.5, 0.272), (1.0, 0.504), (2.0, 1.127)];
+
+#[derive(Debug, Clone, Serialize)]
+pub struct SigmaRow {
+    pub sigma_mm: f64,
+    pub thesis_std_mm: f64,
+    /// SD of the per-axis absolute residuals, pooled over x, y, z (mean over repetitions).
+    pub std_per_axis_mm: f64,
+    /// SD of the 3D residual distances (mean over repetitions).
+    pub std_distance_mm: f64,
+}
+
+/// The σ-table by the protocol above.
+pub fn sigma_table(frames: usize, repetitions: usize, seed: u64) -> Vec<SigmaRow> {
+    let spacing = [1.0, 1.0];
+    let point = Point3::new(120.0, 80.0, -30.0);
+    let marker_T_image = rigid_from_axis_angle(Vector3::new(0.05, -0.02, 1.5), Vector3::new(-20.0, 160.0, 25.0));
+    THESIS_SIGMA_TABLE
+        .iter()
+        .map(|&(sigma, thesis)| {
+            let mut per_axis = Vec::new();
+            let mut distance = Vec::new();
+            for rep in 0..repetitions {
+                let mut rng = Rng::fork(seed, rep as u64);
+                let pairs: Vec<Correspondence> = (0..frames)
+                    .map(|k| {
+                        let px = [rng.uniform(0.0, 100.0), rng.uniform(0.0, 80.0)];
+                        let tilt = Vector3::new(
+                            rng.uniform(-20.0, 20.0).to_radians(),
+                            rng.uniform(-20.0, 20.0).to_radians(),
+                            0.3,
+                        );
+                        let phantom_R_image = rigid_from_axis_angle(tilt, Vector3::zeros()).rotation;
+                        let t = point.coords - phantom_R_image * pixel_to_image_mm(px, spacing).coords;
+                        let phantom_T_marker = Rigid::from_parts(t.into(), phantom_R_image) * marker_T_image.inverse();
+                        let noise =
+                            Vector3::new(rng.normal(0.0, sigma), rng.normal(0.0, sigma), rng.normal(0.0, sigma));
+                        let measured = Rigid::from_parts(
+                            (phantom_T_marker.translation.vector + noise).into(),
+                            phantom_T_marker.rotation,
+                        );
+                        Correspondence::point(k, px, point, measured, Rigid::identity())
+                    })
+                    .collect();
+                let Ok(fit) = evaluate::solve(&pairs, spacing, Variant::Rigid, None) else {
+                    continue;
+                };
+                let mut axes = Vec::new();
+                let mut norms = Vec::new();
+                for f in &pairs {
+                    let (a, n) = evaluate::bre(f, &fit, spacing);
+                    axes.extend(a);
+                    norms.push(n);
+                }
+                per_axis.push(mean_sd(&axes).std);
+                distance.push(mean_sd(&norms).std);
+            }
+            SigmaRow {
+                sigma_mm: sigma,
+                thesis_std_mm: thesis,
+                std_per_axis_mm: per_axis.iter().sum::<f64>() / per_axis.len().max(1) as f64,
+                std_distance_mm: distance.iter().sum::<f64>() / distance.len().max(1) as f64,
+            }
+        })
+        .collect()
+}
+
+/// One seed's outcome.
+#[derive(Debug, Clone, Serialize)]
+pub struct SeedResult {
+    pub seed: u64,
+    /// (method, RMS error over the corners and centre, mm).
+    pub rms_error_mm: Vec<(String, f64)>,
+    /// The bound on that RMS error, mm.
+    pub crlb_rms_mm: Option<f64>,
+    pub frames_used: usize,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct MethodSummary {
+    pub method: String,
+    pub mean_mm: f64,
+    pub p95_mm: f64,
+    pub rms_mm: f64,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct MonteCarlo {
+    pub experiment: String,
+    pub seeds: Vec<SeedResult>,
+    pub methods: Vec<MethodSummary>,
+    /// RMS over seeds of the per-seed bound, mm.
+    pub crlb_rms_mm: f64,
+}
+
+fn skew(v: &Vector3<f64>) -> Matrix3<f64> {
+    Matrix3::new(0.0, -v.z, v.y, v.z, 0.0, -v.x, -v.y, v.x, 0.0)
+}
+
+fn jacobian(point_in_marker: &Vector3<f64>) -> nalgebra::Matrix3x6<f64> {
+    let mut j = nalgebra::Matrix3x6::zeros();
+    j.fixed_view_mut::<3, 3>(0, 0).copy_from(&(-skew(point_in_marker)));
+    j.fixed_view_mut::<3, 3>(0, 3).copy_from(&Matrix3::identity());
+    j
+}
+
+/// The Cramér–Rao bound on the RMS error over `probes` (mm) for pairs `x_i` (image)
+/// with residual covariance `sigma`, at the true transform.
+pub fn crlb_rms(
+    truth: &Rigid,
+    points_in_image: &[Point3<f64>],
+    sigma: &Matrix3<f64>,
+    probes: &[Point3<f64>],
+) -> Option<f64> {
+    let info = sigma.try_inverse()?;
+    let mut fisher = Matrix6::zeros();
+    for x in points_in_image {
+        let j = jacobian(&(truth * x).coords);
+        fisher += j.transpose() * info * j;
+    }
+    let cov = fisher.try_inverse()?;
+    let mean_trace = probes
+        .iter()
+        .map(|q| {
+            let j = jacobian(&(truth * q).coords);
+            (j * cov * j.transpose()).trace()
+        })
+        .sum::<f64>()
+        / probes.len() as f64;
+    Some(mean_trace.sqrt())
+}
+
+/// RMS distance over `probes` between two calibrations, mm.
+fn rms_error(estimate: &Rigid, spacing: [f64; 2], truth: &Rigid, true_spacing: [f64; 2], size: [usize; 2]) -> f64 {
+    let est = image_probe_points(size, spacing);
+    let tru = image_probe_points(size, true_spacing);
+    let sum: f64 = est
+        .iter()
+        .zip(&tru)
+        .map(|(e, t)| (estimate * e - truth * t).norm_squared())
+        .sum();
+    (sum / 5.0).sqrt()
+}
+
+/// One seed: the bound from the truth residuals of the frames the robust fit kept.
+fn seed_bound(run: &DatasetRun, truth: &Rigid, size: [usize; 2]) -> Option<f64> {
+    let ransac = run.methods.iter().find(|m| m.name == "ransac")?;
+    let feature = Point3::from(Vector3::from(run.feature_in_phantom_mm?));
+    let spacing = run.spacing_mm_per_px;
+    // The frames RANSAC keeps are those near its calibration; rebuild their pairs.
+    let mut xs = Vec::new();
+    let mut residuals = Vec::new();
+    for f in run.frames.iter().filter(|f| f.rejection.is_none()) {
+        let (Some((camera_T_marker, camera_T_phantom)), Some(px)) = (f.pose_pair(), f.features_px.first()) else {
+            continue;
+        };
+        let c = Correspondence::point(f.files.frame, *px, feature, camera_T_marker, camera_T_phantom);
+        let x = pixel_to_image_mm(*px, spacing);
+        let y = c.marker_T_phantom() * feature;
+        let fit = crate::estimate::horn::HornFit {
+            target_T_source: ransac.marker_T_image,
+            scale: 1.0,
+            rms_residual_mm: 0.0,
+        };
+        // Outliers (not part of the Gaussian model) are left out as RANSAC leaves them.
+        if evaluate::bre(&c, &fit, spacing).1 > 2.0 {
+            continue;
+        }
+        residuals.push(y - truth * x);
+        xs.push(x);
+    }
+    if xs.len() < 6 {
+        return None;
+    }
+    let n = residuals.len() as f64;
+    let mean = residuals.iter().sum::<Vector3<f64>>() / n;
+    let sigma = residuals
+        .iter()
+        .map(|r| (r - mean) * (r - mean).transpose())
+        .sum::<Matrix3<f64>>()
+        / (n - 1.0);
+    crlb_rms(truth, &xs, &sigma, &image_probe_points(size, spacing))
+}
+
+/// Renders and runs the manifest's first dataset once per seed; rendered folders
+/// are removed after each run unless `keep` is set.
+pub fn monte_carlo(
+    manifest: &Manifest,
+    seeds: &[u64],
+    datasets_root: &Path,
+    keep: bool,
+    log: &mut dyn FnMut(&str),
+) -> Result<MonteCarlo, RunError> {
+    let Some(DatasetSource::Render(spec)) = manifest.datasets.first().map(|d| &d.source) else {
+        return Err(RunError::Unsupported(
+            "the Monte Carlo study needs a manifest whose first dataset is rendered".into(),
+        ));
+    };
+    let mut results = Vec::new();
+    for &seed in seeds {
+        let mut spec = spec.clone();
+        spec.seed = seed;
+        let dataset = Dataset {
+            name: format!("mc{seed}"),
+            source: DatasetSource::Render(spec),
+        };
+        let run = run::run_dataset(manifest, &dataset, datasets_root, &mut |_| {})?;
+        let folder = run.dataset_folder.clone();
+        let truth = crate::io::truth::GroundTruth::load(&folder)
+            .map_err(|source| RunError::Truth {
+                dataset: dataset.name.clone(),
+                source,
+            })?
+            .ok_or_else(|| RunError::Unsupported("a rendered dataset without ground truth".into()))?;
+        let size = truth.bscan_size_px;
+        let rms_error_mm: Vec<(String, f64)> = run
+            .methods
+            .iter()
+            .map(|m| {
+                (
+                    m.name.to_string(),
+                    rms_error(
+                        &m.marker_T_image,
+                        m.spacing_mm_per_px,
+                        &truth.marker_T_image,
+                        run.spacing_mm_per_px,
+                        size,
+                    ),
+                )
+            })
+            .collect();
+        let crlb = seed_bound(&run, &truth.marker_T_image, size);
+        log(&format!(
+            "seed {seed}: {} | bound {}",
+            rms_error_mm
+                .iter()
+                .map(|(m, e)| format!("{m} {e:.3}"))
+                .collect::<Vec<_>>()
+                .join(", "),
+            crlb.map(|c| format!("{c:.3}")).unwrap_or_else(|| "—".into())
+        ));
+        results.push(SeedResult {
+            seed,
+            rms_error_mm,
+            crlb_rms_mm: crlb,
+            frames_used: run.used_frames(),
+        });
+        if !keep {
+            let _ = std::fs::remove_dir_all(&folder);
+        }
+    }
+    let names: Vec<String> = results
+        .first()
+        .map(|r| r.rms_error_mm.iter().map(|(m, _)| m.clone()).collect())
+        .unwrap_or_default();
+    let methods = names
+        .iter()
+        .map(|name| {
+            let errors: Vec<f64> = results
+                .iter()
+                .filter_map(|r| r.rms_error_mm.iter().find(|(m, _)| m == name).map(|(_, e)| *e))
+                .collect();
+            MethodSummary {
+                method: name.clone(),
+                mean_mm: errors.iter().sum::<f64>() / errors.len().max(1) as f64,
+                p95_mm: if errors.is_empty() {
+                    f64::NAN
+                } else {
+                    percentile(&errors, 0.95)
+                },
+                rms_mm: (errors.iter().map(|e| e * e).sum::<f64>() / errors.len().max(1) as f64).sqrt(),
+            }
+        })
+        .collect();
+    let bounds: Vec<f64> = results.iter().filter_map(|r| r.crlb_rms_mm).collect();
+    Ok(MonteCarlo {
+        experiment: manifest.experiment.clone(),
+        methods,
+        crlb_rms_mm: (bounds.iter().map(|b| b * b).sum::<f64>() / bounds.len().max(1) as f64).sqrt(),
+        seeds: results,
+    })
+}
+
+/// The study's tables as Markdown (also the body of the HTML page).
+pub fn markdown(sigma: &[SigmaRow], monte_carlo: Option<&MonteCarlo>) -> String {
+    let mut md = String::from("# Studies\n\n## The thesis's synthetic experiment (σ-table)\n\n");
+    md.push_str(
+        "Protocol: a fixed phantom point; per frame a random image point, a probe tilted up to ±20° about X and Y \
+         with a fixed rotation about Z, and the marker placed so the image point lands on the phantom point; Gaussian \
+         noise of SD σ on each axis of the marker's position; Horn's closed form; 50 frames, 200 repetitions.\n\n",
+    );
+    md.push_str("| σ (mm) | thesis: Std (mm) | probecal: Std of \\|residual\\| per axis (mm) | probecal: Std of 3D residual (mm) |\n|---|---|---|---|\n");
+    for r in sigma {
+        md.push_str(&format!(
+            "| {} | {:.3} | {:.3} | {:.3} |\n",
+            r.sigma_mm, r.thesis_std_mm, r.std_per_axis_mm, r.std_distance_mm
+        ));
+    }
+    if let Some(mc) = monte_carlo {
+        md.push_str(&format!(
+            "\n## Monte Carlo accuracy study: `{}`, {} seeds\n\n",
+            mc.experiment,
+            mc.seeds.len()
+        ));
+        md.push_str(
+            "Each seed renders the experiment's dataset anew (photos, B-scans, outlier and missing frames) and runs the \
+             whole pipeline; the error is the RMS distance of the image's four corners and centre from the truth. The \
+             Cramér–Rao bound is that of the point-pair model (independent Gaussian pair residuals with the covariance \
+             of the true residuals of the inlier frames, measured per seed).\n\n",
+        );
+        md.push_str("| method | mean (mm) | 95th percentile (mm) | RMS (mm) | RMS / CRLB |\n|---|---|---|---|---|\n");
+        for m in &mc.methods {
+            md.push_str(&format!(
+                "| {} | {:.3} | {:.3} | {:.3} | {:.2} |\n",
+                m.method,
+                m.mean_mm,
+                m.p95_mm,
+                m.rms_mm,
+                m.rms_mm / mc.crlb_rms_mm
+            ));
+        }
+        md.push_str(&format!(
+            "| Cramér–Rao bound of the point-pair model (independent frames) | | | {:.3} | 1.00 |\n",
+            mc.crlb_rms_mm
+        ));
+    }
+    md
+}
+
+fn escape_html(text: &str) -> String {
+    text.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;")
+}
+
+/// A self-contained HTML page from the Markdown tables.
+fn html(md: &str) -> String {
+    let mut body = String::new();
+    let mut in_table = false;
+    for line in md.lines() {
+        if line.starts_with('|') {
+            let cells: Vec<String> = line
+                .trim_matches('|')
+                .split(" | ")
+                .map(|c| escape_html(c.trim()).replace("\\|", "|"))
+                .collect();
+            if cells.iter().all(|c| c.chars().all(|ch| ch == '-')) {
+                continue;
+            }
+            if !in_table {
+                body.push_str("<table><thead><tr>");
+                body.push_str(&cells.iter().map(|c| format!("<th>{c}</th>")).collect::<String>());
+                body.push_str("</tr></thead><tbody>\n");
+                in_table = true;
+            } else {
+                body.push_str("<tr>");
+                body.push_str(&cells.iter().map(|c| format!("<td>{c}</td>")).collect::<String>());
+                body.push_str("</tr>\n");
+            }
+            continue;
+        }
+        if in_table {
+            body.push_str("</tbody></table>\n");
+            in_table = false;
+        }
+        if let Some(h) = line.strip_prefix("## ") {
+            body.push_str(&format!("<h2>{}</h2>\n", escape_html(h).replace('`', "")));
+        } else if let Some(h) = line.strip_prefix("# ") {
+            body.push_str(&format!("<h1>{}</h1>\n", escape_html(h)));
+        } else if !line.trim().is_empty() {
+            body.push_str(&format!("<p>{}</p>\n", escape_html(line).replace('`', "")));
+        }
+    }
+    if in_table {
+        body.push_str("</tbody></table>\n");
+    }
+    format!(
+        "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>probecal studies</title>\n<style>body{{font-family:sans-serif;max-width:60rem;margin:2rem auto;padding:0 1rem}}table{{border-collapse:collapse;margin:1rem 0}}td,th{{border:1px solid #bbb;padding:.3rem .6rem;text-align:right}}td:first-child,th:first-child{{text-align:left}}</style></head><body>\n{body}</body></html>\n"
+    )
+}
+
+/// Writes `study.json`, `study.md` and `study.html` into `out`.
+pub fn write(out: &Path, sigma: &[SigmaRow], monte_carlo: Option<&MonteCarlo>) -> std::io::Result<()> {
+    std::fs::create_dir_all(out)?;
+    let json = serde_json::json!({
+        "sigma_table": sigma,
+        "monte_carlo": monte_carlo,
+    });
+    std::fs::write(
+        out.join("study.json"),
+        serde_json::to_string_pretty(&json).map_err(std::io::Error::other)? + "\n",
+    )?;
+    let md = markdown(sigma, monte_carlo);
+    std::fs::write(out.join("study.md"), &md)?;
+    std::fs::write(out.join("study.html"), html(&md))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sigma_table_is_zero_without_noise_and_grows_linearly() {
+        let rows = sigma_table(50, 40, 3);
+        assert!(rows[0].std_per_axis_mm < 1e-9, "{rows:?}");
+        let ratio = rows[3].std_per_axis_mm / rows[1].std_per_axis_mm;
+        assert!((ratio - 4.0).abs() < 0.4, "{rows:?}");
+        // Half-normal per axis, a little less for the six fitted parameters: ≈ 0.59 σ.
+        assert!((rows[2].std_per_axis_mm - 0.59).abs() < 0.05, "{rows:?}");
+    }
+
+    #[test]
+    fn horn_reaches_the_bound_on_its_own_model() {
+        // Pairs with isotropic Gaussian noise: Horn is the ML estimator, so its RMS
+        // error over many trials matches the Cramér–Rao bound.
+        let truth = rigid_from_axis_angle(Vector3::new(0.1, -0.2, 1.4), Vector3::new(-20.0, 160.0, 25.0));
+        let sigma = 0.5;
+        let mut rng = Rng::new(12);
+        let xs: Vec<Point3<f64>> = (0..40)
+            .map(|_| Point3::new(rng.uniform(0.0, 100.0), rng.uniform(0.0, 80.0), 0.0))
+            .collect();
+        let probes = [Point3::new(0.0, 0.0, 0.0), Point3::new(100.0, 80.0, 0.0)];
+        let bound = crlb_rms(&truth, &xs, &(Matrix3::identity() * sigma * sigma), &probes).unwrap();
+        let mut sum = 0.0;
+        let trials = 400;
+        for _ in 0..trials {
+            let ys: Vec<Point3<f64>> = xs
+                .iter()
+                .map(|x| {
+                    truth * x + Vector3::new(rng.normal(0.0, sigma), rng.normal(0.0, sigma), rng.normal(0.0, sigma))
+                })
+                .collect();
+            let fit = crate::estimate::horn::solve(xs.as_slice(), &ys, Variant::Rigid).unwrap();
+            sum += probes
+                .iter()
+                .map(|q| (fit.apply(q) - truth * q).norm_squared())
+                .sum::<f64>()
+                / probes.len() as f64;
+        }
+        let rms = (sum / trials as f64).sqrt();
+        assert!(rms >= 0.9 * bound && rms <= 1.1 * bound, "rms {rms}, bound {bound}");
+    }
+}

@@ -1,0 +1,478 @@
+//! The pipeline without a camera: poses from a tracker's sequence file, an N-wire
+//! phantom, and the pixel size estimated with the calibration.
+//!
+//! Stages: read the sequences ([`crate::io::plus::sequence`]) and the phantom
+//! definition ([`crate::io::plus::config`]); segment each B-scan's wire dots
+//! ([`crate::detect::nwire`]); build constraints in the probe frame; fit `ImageToProbe`
+//! ([`crate::estimate::image_to_probe`]); evaluate PRE3D on the validation frames.
+
+use std::path::PathBuf;
+
+use nalgebra::{Matrix4, Point3};
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+use crate::detect::nwire::{self, NWire, Segmentation};
+use crate::estimate::image_to_probe::{self, Constraint, FitError, ImageToProbe, Target};
+use crate::io::plus::config::ConfigError;
+use crate::io::plus::sequence::{Sequence, SequenceError};
+
+/// Which constraints the dots give.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ConstraintModel {
+    /// Only each N's middle dot, at its similar-triangles position (PLUS's method).
+    MiddlePoints,
+    /// Every dot on its own wire (a line constraint per dot), plus the middle dot's point.
+    #[default]
+    Wires,
+}
+
+/// Everything the tracked pipeline needs, resolved.
+#[derive(Debug, Clone)]
+pub struct TrackedInputs {
+    pub calibration_sequence: PathBuf,
+    pub validation_sequence: Option<PathBuf>,
+    /// `ProbeToTracker`-style names (without the `Transform` suffix).
+    pub probe_transform: String,
+    pub reference_transform: String,
+    /// `reference_T_phantom` (PLUS `PhantomToReference`).
+    pub reference_T_phantom: Matrix4<f64>,
+    pub nwires: Vec<NWire>,
+    pub spacing_guess_mm_per_px: f64,
+    pub clip_rectangle_px: Option<[usize; 4]>,
+    pub segmentation: Segmentation,
+    pub model: ConstraintModel,
+    /// Drop constraints above mean + k SD and refit (PLUS: 3).
+    pub reject_sd: Option<f64>,
+    /// The tracker's lag behind the images: a frame's pose is interpolated at its
+    /// timestamp plus this offset.
+    pub time_offset: TimeOffset,
+    /// Also correct the phantom's registration (`PhantomToReference`) from the
+    /// calibration frames.
+    pub refine_phantom: bool,
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum TrackedError {
+    #[error("{0}")]
+    Sequence(#[from] SequenceError),
+    #[error("{0}")]
+    Config(#[from] ConfigError),
+    #[error("calibration: {0}")]
+    Fit(#[from] FitError),
+    #[error("{sequence}: only {usable} frames could be segmented, at least {needed} are needed")]
+    TooFewFrames {
+        sequence: PathBuf,
+        usable: usize,
+        needed: usize,
+    },
+    #[error(
+        "{sequence}: the B-scans are {width}x{height} px, the calibration sequence's are {want_width}x{want_height}"
+    )]
+    SizeMismatch {
+        sequence: PathBuf,
+        width: usize,
+        height: usize,
+        want_width: usize,
+        want_height: usize,
+    },
+}
+
+/// The tracker's time offset: fixed (s), or estimated from the calibration frames.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum TimeOffset {
+    Fixed(f64),
+    /// The offset in `[-range, range]` s (steps of `step`) whose calibration fits
+    /// the calibration frames best.
+    Estimate {
+        range_s: f64,
+        step_s: f64,
+    },
+}
+
+/// Which sequence a frame comes from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Role {
+    Calibration,
+    Validation,
+}
+
+/// One B-scan of a sequence, and what became of it.
+#[derive(Debug, Clone, Serialize)]
+pub struct TrackedFrame {
+    pub role: Role,
+    pub index: usize,
+    pub timestamp_s: Option<f64>,
+    /// Why the frame was not used (`None`: used).
+    pub rejected: Option<String>,
+    /// Per pattern: wire 1, 2, 3 dots (px).
+    pub dots_px: Vec<[[f64; 2]; 3]>,
+    /// `probe_T_phantom` of the frame (row-major), when the transforms were usable.
+    #[serde(skip)]
+    pub probe_T_phantom: Option<Matrix4<f64>>,
+    /// Per pattern: PRE3D of the middle dot under the result, mm.
+    pub pre3d_mm: Vec<f64>,
+}
+
+/// Mean and SD of a set of errors (SD with n - 1), and how many there are.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct ErrorStats {
+    pub mean: f64,
+    pub std: f64,
+    pub n: usize,
+}
+
+impl ErrorStats {
+    pub fn of(values: &[f64]) -> Option<ErrorStats> {
+        let n = values.len();
+        if n == 0 {
+            return None;
+        }
+        let mean = values.iter().sum::<f64>() / n as f64;
+        let var = if n > 1 {
+            values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1) as f64
+        } else {
+            0.0
+        };
+        Some(ErrorStats {
+            mean,
+            std: var.sqrt(),
+            n,
+        })
+    }
+
+    /// PLUS's convention: the best `round(0.95 n)` values.
+    pub fn best_95(values: &[f64]) -> Option<ErrorStats> {
+        let mut sorted = values.to_vec();
+        sorted.sort_by(f64::total_cmp);
+        let keep = (0.95 * sorted.len() as f64).round() as usize;
+        ErrorStats::of(&sorted[..keep])
+    }
+}
+
+#[derive(Debug, Clone)]
+pub struct TrackedRun {
+    pub frames: Vec<TrackedFrame>,
+    pub fit: image_to_probe::Fit,
+    pub closed_form: ImageToProbe,
+    pub constraints: usize,
+    pub image_size_px: [usize; 2],
+    /// The tracker lag used, s.
+    pub time_offset_s: f64,
+    /// When estimated: each offset tried and the calibration's mean residual, mm.
+    pub offset_scan: Vec<(f64, f64)>,
+}
+
+impl TrackedRun {
+    pub fn pre3d(&self, role: Role) -> Vec<f64> {
+        self.frames
+            .iter()
+            .filter(|f| f.role == role && f.rejected.is_none())
+            .flat_map(|f| f.pre3d_mm.iter().copied())
+            .collect()
+    }
+
+    pub fn segmented(&self, role: Role) -> (usize, usize) {
+        let of_role = self.frames.iter().filter(|f| f.role == role);
+        let total = of_role.clone().count();
+        (of_role.filter(|f| f.rejected.is_none()).count(), total)
+    }
+}
+
+/// `probe_T_phantom` of each frame (or why not) and the segmented dots (or why not).
+fn process(sequence: &Sequence, role: Role, inputs: &TrackedInputs, clip: [usize; 4]) -> Vec<TrackedFrame> {
+    let widths: Vec<f64> = inputs
+        .nwires
+        .iter()
+        .map(|n| n.width_mm() / inputs.spacing_guess_mm_per_px)
+        .collect();
+    let widths_px = (
+        widths.iter().copied().fold(f64::INFINITY, f64::min),
+        widths.iter().copied().fold(0.0, f64::max),
+    );
+    (0..sequence.frames.len())
+        .into_par_iter()
+        .map(|index| {
+            let timestamp_s = sequence.frame_field(index, "Timestamp").and_then(|t| t.parse().ok());
+            let mut frame = TrackedFrame {
+                role,
+                index,
+                timestamp_s,
+                rejected: None,
+                dots_px: Vec::new(),
+                probe_T_phantom: None,
+                pre3d_mm: Vec::new(),
+            };
+            if let Some(status) = sequence.frame_field(index, "ImageStatus") {
+                if status != "OK" {
+                    frame.rejected = Some(format!("image status is {status}"));
+                    return frame;
+                }
+            }
+            let opened;
+            let pixels = sequence.pixels(index);
+            let mut centre_pixels = pixels;
+            if inputs.segmentation.opening_radius_px > 0 {
+                match nwire::open_image(
+                    pixels,
+                    sequence.width,
+                    sequence.height,
+                    inputs.segmentation.opening_radius_px,
+                ) {
+                    Ok(p) => {
+                        opened = p;
+                        centre_pixels = &opened;
+                    }
+                    Err(e) => {
+                        frame.rejected = Some(format!("segmentation: morphological opening failed: {e}"));
+                        return frame;
+                    }
+                }
+            }
+            let spots = nwire::find_spots(
+                pixels,
+                centre_pixels,
+                sequence.width,
+                sequence.height,
+                clip,
+                &inputs.segmentation,
+            );
+            match nwire::segment(
+                &spots,
+                inputs.nwires.len(),
+                widths_px,
+                inputs.spacing_guess_mm_per_px,
+                &inputs.segmentation,
+            ) {
+                Ok(dots) => frame.dots_px = dots.patterns,
+                Err(e) => frame.rejected = Some(format!("segmentation: {e}")),
+            }
+            frame
+        })
+        .collect()
+}
+
+/// Sets each frame's `probe_T_phantom` for a tracker lag of `offset_s` (frames whose
+/// transforms are unusable are rejected with the reason; earlier pose rejections
+/// are re-evaluated).
+fn attach_poses(sequence: &Sequence, frames: &mut [TrackedFrame], inputs: &TrackedInputs, offset_s: f64) {
+    for frame in frames.iter_mut() {
+        if frame.rejected.as_deref().is_some_and(|r| r.starts_with("pose: ")) {
+            frame.rejected = None;
+        }
+        frame.probe_T_phantom = None;
+        if frame.rejected.is_some() {
+            continue;
+        }
+        let index = frame.index;
+        let poses = pose_at(sequence, index, &inputs.probe_transform, offset_s).and_then(|tracker_T_probe| {
+            pose_at(sequence, index, &inputs.reference_transform, offset_s)
+                .map(|tracker_T_reference| (tracker_T_probe, tracker_T_reference))
+        });
+        match poses {
+            Ok((tracker_T_probe, tracker_T_reference)) => {
+                frame.probe_T_phantom = Some(
+                    tracker_T_probe.inverse().to_homogeneous()
+                        * tracker_T_reference.to_homogeneous()
+                        * inputs.reference_T_phantom,
+                );
+            }
+            Err(e) => frame.rejected = Some(format!("pose: {e}")),
+        }
+    }
+}
+
+/// Largest gap between two frames a pose is interpolated across, s.
+const MAX_INTERPOLATION_GAP_S: f64 = 0.25;
+
+/// Frame `index`'s transform `name`, interpolated at its timestamp + `offset_s`
+/// between it and the neighbouring frame in that direction.
+fn pose_at(
+    sequence: &Sequence,
+    index: usize,
+    name: &str,
+    offset_s: f64,
+) -> Result<crate::core::geometry::Rigid, String> {
+    let here = sequence.transform(index, name).map_err(|e| e.to_string())?;
+    if offset_s == 0.0 {
+        return Ok(here);
+    }
+    let time = |i: usize| sequence.frame_field(i, "Timestamp").and_then(|t| t.parse::<f64>().ok());
+    // The neighbour in the offset's direction; at either end of the sequence, the
+    // other one (a short extrapolation).
+    let forward = if offset_s > 0.0 {
+        index + 1 < sequence.frames.len()
+    } else {
+        index == 0
+    };
+    let neighbour = if forward { index + 1 } else { index.wrapping_sub(1) };
+    let no_neighbour = || format!("frame {index}: no neighbouring frame to interpolate `{name}` {offset_s} s away");
+    if neighbour >= sequence.frames.len() {
+        return Err(no_neighbour());
+    }
+    let (Some(t0), Some(t1)) = (time(index), time(neighbour)) else {
+        return Err(format!(
+            "frame {index}: a timestamp is missing, cannot interpolate `{name}`"
+        ));
+    };
+    let gap = t1 - t0;
+    if gap.abs() > MAX_INTERPOLATION_GAP_S || gap.abs() < 1e-6 {
+        return Err(no_neighbour());
+    }
+    let there = sequence.transform(neighbour, name).map_err(|e| e.to_string())?;
+    Ok(here.lerp_slerp(&there, offset_s / gap))
+}
+
+/// The constraints one frame gives.
+pub fn constraints(frame: &TrackedFrame, nwires: &[NWire], model: ConstraintModel) -> Vec<Constraint> {
+    let Some(probe_T_phantom) = frame.probe_T_phantom else {
+        return Vec::new();
+    };
+    let mut out = Vec::new();
+    for (dots, nwire) in frame.dots_px.iter().zip(nwires) {
+        out.push(Constraint {
+            pixel: dots[1],
+            probe_T_phantom,
+            target_in_phantom: Target::Point(nwire.middle_in_phantom_mm(dots)),
+        });
+        if model == ConstraintModel::Wires {
+            for (dot, wire) in dots.iter().zip(&nwire.wires) {
+                out.push(Constraint {
+                    pixel: *dot,
+                    probe_T_phantom,
+                    target_in_phantom: Target::Line(wire.front_in_phantom_mm, wire.direction().normalize()),
+                });
+            }
+        }
+    }
+    out
+}
+
+/// PRE3D of each pattern's middle dot in one frame, mm: the middle dot's pixel
+/// mapped into the probe frame by `image_to_probe` against its position from the
+/// phantom geometry (registration corrected by `phantom_correction`).
+pub fn pre3d(
+    frame: &TrackedFrame,
+    nwires: &[NWire],
+    image_to_probe: impl Fn([f64; 2]) -> Point3<f64>,
+    phantom_correction: &crate::core::geometry::Rigid,
+) -> Vec<f64> {
+    let Some(probe_T_phantom) = frame.probe_T_phantom else {
+        return Vec::new();
+    };
+    let probe_T_phantom = probe_T_phantom * phantom_correction.to_homogeneous();
+    frame
+        .dots_px
+        .iter()
+        .zip(nwires)
+        .map(|(dots, nwire)| {
+            let expected: Point3<f64> = probe_T_phantom.transform_point(&nwire.middle_in_phantom_mm(dots));
+            (image_to_probe(dots[1]) - expected).norm()
+        })
+        .collect()
+}
+
+/// How well a calibration fits its own frames: mean residual of the kept constraints, mm.
+fn fit_quality(fit: &image_to_probe::Fit) -> f64 {
+    let kept: Vec<f64> = fit
+        .residual_mm
+        .iter()
+        .zip(&fit.inlier)
+        .filter(|(_, k)| **k)
+        .map(|(r, _)| *r)
+        .collect();
+    kept.iter().sum::<f64>() / kept.len().max(1) as f64
+}
+
+fn calibrate(
+    frames: &[TrackedFrame],
+    inputs: &TrackedInputs,
+) -> Result<(ImageToProbe, image_to_probe::Fit, usize), FitError> {
+    let all: Vec<Constraint> = frames
+        .iter()
+        .filter(|f| f.role == Role::Calibration && f.rejected.is_none())
+        .flat_map(|f| constraints(f, &inputs.nwires, inputs.model))
+        .collect();
+    let closed_form = image_to_probe::closed_form(&all)?;
+    let fit = image_to_probe::refine(&closed_form, &all, inputs.reject_sd, inputs.refine_phantom)?;
+    Ok((closed_form, fit, all.len()))
+}
+
+/// Runs the tracked pipeline.
+pub fn run(inputs: &TrackedInputs, min_frames: usize) -> Result<TrackedRun, TrackedError> {
+    let calibration = Sequence::read(&inputs.calibration_sequence)?;
+    let clip = inputs
+        .clip_rectangle_px
+        .unwrap_or([0, 0, calibration.width, calibration.height]);
+    let image_size_px = [calibration.width, calibration.height];
+    let mut frames = process(&calibration, Role::Calibration, inputs, clip);
+    // The tracker's lag, from the calibration frames alone.
+    let mut offset_scan = Vec::new();
+    let time_offset_s = match inputs.time_offset {
+        TimeOffset::Fixed(s) => s,
+        TimeOffset::Estimate { range_s, step_s } => {
+            let steps = (range_s / step_s).round() as i64;
+            let mut best = (f64::INFINITY, 0.0);
+            for k in -steps..=steps {
+                let offset = k as f64 * step_s;
+                attach_poses(&calibration, &mut frames, inputs, offset);
+                if let Ok((_, fit, _)) = calibrate(&frames, inputs) {
+                    let q = fit_quality(&fit);
+                    offset_scan.push((offset, q));
+                    if q < best.0 {
+                        best = (q, offset);
+                    }
+                }
+            }
+            best.1
+        }
+    };
+    attach_poses(&calibration, &mut frames, inputs, time_offset_s);
+    drop(calibration);
+    if let Some(path) = &inputs.validation_sequence {
+        let validation = Sequence::read(path)?;
+        if [validation.width, validation.height] != image_size_px {
+            return Err(TrackedError::SizeMismatch {
+                sequence: path.clone(),
+                width: validation.width,
+                height: validation.height,
+                want_width: image_size_px[0],
+                want_height: image_size_px[1],
+            });
+        }
+        let mut more = process(&validation, Role::Validation, inputs, clip);
+        attach_poses(&validation, &mut more, inputs, time_offset_s);
+        frames.extend(more);
+    }
+    let usable = frames
+        .iter()
+        .filter(|f| f.role == Role::Calibration && f.rejected.is_none())
+        .count();
+    if usable < min_frames {
+        return Err(TrackedError::TooFewFrames {
+            sequence: inputs.calibration_sequence.clone(),
+            usable,
+            needed: min_frames,
+        });
+    }
+    let (closed_form, fit, constraints) = calibrate(&frames, inputs)?;
+    for f in frames.iter_mut().filter(|f| f.rejected.is_none()) {
+        f.pre3d_mm = pre3d(
+            f,
+            &inputs.nwires,
+            |pixel| fit.image_to_probe.apply(pixel),
+            &fit.phantom_correction,
+        );
+    }
+    Ok(TrackedRun {
+        frames,
+        fit,
+        closed_form,
+        constraints,
+        image_size_px,
+        time_offset_s,
+        offset_scan,
+    })
+}

@@ -1,0 +1,264 @@
+//! `probecal compare`: several experiments side by side (e.g. checkerboard vs
+//! ArUco on the same probe motion), with the rigs as columns, and where each rig's
+//! error comes from, measured from the run.
+
+use serde::Serialize;
+
+use crate::core::geometry::pixel_to_image_mm;
+use crate::manifest::{Manifest, Rig};
+use crate::pipeline::run::{DatasetRun, Stage};
+use crate::report::write::cutoff_label;
+
+/// One column of the comparison.
+#[derive(Debug, Clone, Serialize)]
+pub struct Column {
+    pub experiment: String,
+    pub dataset: String,
+    pub rig: String,
+    /// Row label → formatted value.
+    pub values: Vec<(String, String)>,
+    /// Where the error comes from, in words, with the numbers of this run.
+    pub explanation: String,
+}
+
+pub(crate) fn rig_label(rig: &Rig) -> String {
+    match rig {
+        Rig::Checkerboard { probe_board, .. } => format!(
+            "checkerboard {}x{} squares of {} mm",
+            probe_board.inner_corners[0] + 1,
+            probe_board.inner_corners[1] + 1,
+            probe_board.square_mm
+        ),
+        Rig::Aruco {
+            dictionary,
+            probe_board,
+            ..
+        } => format!(
+            "ArUco {} {}x{} markers of {} mm",
+            dictionary, probe_board.markers[0], probe_board.markers[1], probe_board.marker_mm
+        ),
+    }
+}
+
+fn mean(values: impl Iterator<Item = f64>) -> Option<f64> {
+    let v: Vec<f64> = values.collect();
+    (!v.is_empty()).then(|| v.iter().sum::<f64>() / v.len() as f64)
+}
+
+fn mm(v: Option<f64>) -> String {
+    v.map(|v| format!("{v:.3}")).unwrap_or_else(|| "—".into())
+}
+
+/// Builds one column from a dataset run.
+pub fn column(manifest: &Manifest, run: &DatasetRun) -> Column {
+    let used: Vec<_> = run.frames.iter().filter(|f| f.rejection.is_none()).collect();
+    let rejected_at = |stage: Stage| {
+        run.frames
+            .iter()
+            .filter(|f| f.rejection.as_ref().is_some_and(|(s, _)| *s == stage))
+            .count()
+    };
+    let probe_rms = mean(
+        used.iter()
+            .filter_map(|f| f.poses.as_ref().map(|p| p.camera_T_marker.reprojection_rms_px)),
+    );
+    let phantom_rms = mean(
+        used.iter()
+            .filter_map(|f| f.poses.as_ref().map(|p| p.camera_T_phantom.reprojection_rms_px)),
+    );
+    let primary = &run.thresholds[run.primary];
+    let mut values = vec![
+        (
+            "frames used / total".to_string(),
+            format!("{} / {}", used.len(), run.frames.len()),
+        ),
+        (
+            "rejected: board pose".to_string(),
+            rejected_at(Stage::BoardPose).to_string(),
+        ),
+        ("rejected: arc".to_string(), rejected_at(Stage::Arc).to_string()),
+        ("probe board reprojection RMS (px)".to_string(), mm(probe_rms)),
+        ("phantom board reprojection RMS (px)".to_string(), mm(phantom_rms)),
+        (
+            "calibration cut-off (frames)".to_string(),
+            format!("{} ({})", cutoff_label(primary.cutoff_mm), primary.frames.len()),
+        ),
+    ];
+    for (axis, name) in ["x", "y", "z"].iter().enumerate() {
+        for (stat, get) in crate::evaluate::STAT_ROWS {
+            values.push((
+                format!("BRE {name} {stat} (mm)"),
+                mm(primary.stats.map(|s| get(&s.axes()[axis]))),
+            ));
+        }
+    }
+    for row in &run.thresholds {
+        values.push((
+            format!("BRE mean x/y/z, cut-off {} mm", cutoff_label(row.cutoff_mm)),
+            match row.stats {
+                Some(s) => format!(
+                    "{:.3} / {:.3} / {:.3} ({})",
+                    s.x.mean,
+                    s.y.mean,
+                    s.z.mean,
+                    row.frames.len()
+                ),
+                None => format!("— ({})", row.frames.len()),
+            },
+        ));
+    }
+    let mut explanation = String::new();
+    if let Some(t) = &run.truth {
+        let c = &t.calibration;
+        values.push((
+            "truth: image corners mean (mm)".into(),
+            format!("{:.3}", c.corner_error_mean_mm),
+        ));
+        values.push((
+            "truth: image corners max (mm)".into(),
+            format!("{:.3}", c.corner_error_max_mm),
+        ));
+        values.push(("truth: rotation (°)".into(), format!("{:.3}", c.rotation_error_deg)));
+        values.push((
+            "truth: translation (mm)".into(),
+            format!("{:.3}", c.translation_error_mm),
+        ));
+        let probe_t = mean(used.iter().filter_map(|f| f.truth_probe_pose_error.map(|e| e.0)));
+        let probe_r = mean(used.iter().filter_map(|f| f.truth_probe_pose_error.map(|e| e.1)));
+        let probe_depth = mean(used.iter().filter_map(|f| f.truth_probe_depth_error_mm));
+        let phantom_t = mean(used.iter().filter_map(|f| f.truth_phantom_pose_error.map(|e| e.0)));
+        let phantom_r = mean(used.iter().filter_map(|f| f.truth_phantom_pose_error.map(|e| e.1)));
+        // Lever arm: from the probe board's origin to the image centre, through the estimate.
+        let fit = run.primary_fit();
+        let [w, h] = used.iter().find_map(|f| f.bscan_size_px).unwrap_or([0, 0]);
+        let centre = pixel_to_image_mm([(w as f64 - 1.0) / 2.0, (h as f64 - 1.0) / 2.0], run.spacing_mm_per_px);
+        let lever = fit.apply(&centre).coords.norm();
+        let lever_effect = probe_r.map(|r| r.to_radians() * lever);
+        values.push(("probe board position error (mm)".into(), mm(probe_t)));
+        values.push(("… of it along the viewing axis (mm)".into(), mm(probe_depth)));
+        values.push(("probe board rotation error (°)".into(), mm(probe_r)));
+        values.push(("phantom board position error (mm)".into(), mm(phantom_t)));
+        values.push(("phantom board rotation error (°)".into(), mm(phantom_r)));
+        values.push(("lever arm board → image centre (mm)".into(), format!("{lever:.1}")));
+        values.push(("probe rotation error × lever arm (mm)".into(), mm(lever_effect)));
+        let depth = if run.camera.tracker.is_some() {
+            String::new()
+        } else {
+            format!(
+                ", {} mm of it along the camera's viewing axis (depth is what a monocular camera measures worst),",
+                mm(probe_depth)
+            )
+        };
+        let (who, marker) = if run.camera.tracker.is_some() {
+            ("tracker's", "marker")
+        } else {
+            ("photo's", "board")
+        };
+        explanation = format!(
+            "The probe {marker}'s pose (the {who}) is off by {} mm on average{depth} and by {}°. Over the \
+             {lever:.0} mm lever arm from the {marker} to the image centre that rotation alone moves B-scan \
+             points by {} mm; the phantom {marker} adds {} mm and {}°. The calibration solved from these \
+             frames places the image corners {:.3} mm from the truth.",
+            mm(probe_t),
+            mm(probe_r),
+            mm(lever_effect),
+            mm(phantom_t),
+            mm(phantom_r),
+            c.corner_error_mean_mm
+        );
+    }
+    Column {
+        experiment: run.experiment.clone(),
+        dataset: run.dataset.clone(),
+        rig: match &manifest.camera {
+            crate::manifest::CameraSource::TrackerCsv(t) => format!("tracker poses from {}", t.file),
+            _ => rig_label(&manifest.rig),
+        },
+        values,
+        explanation,
+    }
+}
+
+/// The comparison as a Markdown table (rows: quantities; columns: experiments).
+pub fn markdown(columns: &[Column]) -> String {
+    let mut s = String::from("| |");
+    for c in columns {
+        s.push_str(&format!(" {} / {} ({}) |", c.experiment, c.dataset, c.rig));
+    }
+    s.push_str("\n|---|");
+    s.push_str(&"---|".repeat(columns.len()));
+    s.push('\n');
+    let rows: Vec<String> = columns
+        .first()
+        .map(|c| c.values.iter().map(|v| v.0.clone()).collect())
+        .unwrap_or_default();
+    for row in rows {
+        s.push_str(&format!("| {row} |"));
+        for c in columns {
+            let v = c
+                .values
+                .iter()
+                .find(|v| v.0 == row)
+                .map(|v| v.1.as_str())
+                .unwrap_or("—");
+            s.push_str(&format!(" {v} |"));
+        }
+        s.push('\n');
+    }
+    for c in columns {
+        if !c.explanation.is_empty() {
+            s.push_str(&format!("\n**{} / {}**: {}\n", c.experiment, c.dataset, c.explanation));
+        }
+    }
+    s
+}
+
+const COMPARE_TEMPLATE: &str = include_str!("../../templates/compare.html.tera");
+
+/// The comparison page.
+pub fn render_html(columns: &[Column]) -> Result<String, String> {
+    render(columns, "compare.html")
+}
+
+/// The comparison as LaTeX (landscape, one column per experiment).
+pub fn render_tex(columns: &[Column]) -> Result<String, String> {
+    render(columns, "compare.tex")
+}
+
+fn render(columns: &[Column], template: &str) -> Result<String, String> {
+    let rows: Vec<String> = columns
+        .first()
+        .map(|c| c.values.iter().map(|v| v.0.clone()).collect())
+        .unwrap_or_default();
+    let table: Vec<(String, Vec<String>)> = rows
+        .iter()
+        .map(|row| {
+            (
+                row.clone(),
+                columns
+                    .iter()
+                    .map(|c| {
+                        c.values
+                            .iter()
+                            .find(|v| &v.0 == row)
+                            .map(|v| v.1.clone())
+                            .unwrap_or_else(|| "—".into())
+                    })
+                    .collect(),
+            )
+        })
+        .collect();
+    let mut ctx = tera::Context::new();
+    ctx.insert("columns", columns);
+    ctx.insert("table", &table);
+    let mut t = tera::Tera::default();
+    t.add_raw_templates(vec![
+        ("compare.html", COMPARE_TEMPLATE),
+        ("compare.tex", COMPARE_TEX_TEMPLATE),
+    ])
+    .map_err(|e| crate::report::error_chain(&e))?;
+    crate::report::register_tex_filter(&mut t);
+    t.render(template, &ctx).map_err(|e| crate::report::error_chain(&e))
+}
+
+const COMPARE_TEX_TEMPLATE: &str = include_str!("../../templates/compare.tex.tera");

@@ -1,0 +1,350 @@
+//! The thesis's results chapter, regenerated: its tables with the same rows and
+//! columns, probecal's numbers from the default experiments' runs beside the
+//! thesis's published ones, as `thesis.html` and `thesis.tex`.
+//!
+//! The runs are read back from their `summary.json` (the results model as
+//! written), so the chapter can be laid out again from any output folder.
+
+use std::path::Path;
+
+use serde::Serialize;
+use serde_json::Value;
+
+/// One of the thesis's three-axis tables (Std./Mean/Min/Max × x, y, z).
+struct AxisTable {
+    title: &'static str,
+    experiment: &'static str,
+    dataset: &'static str,
+    /// Rows Std., Mean, Min, Max; columns x, y, z.
+    thesis: [[f64; 3]; 4],
+    note: &'static str,
+}
+
+const ROWS: [&str; 4] = ["Std.", "Mean", "Min", "Max"];
+const STATS: [&str; 4] = ["std", "mean", "min", "max"];
+
+const AXIS_TABLES: [AxisTable; 3] = [
+    AxisTable {
+        title: "BRE along axes for Dataset 1",
+        experiment: "hemisphere_checkerboard_dataset1",
+        dataset: "dataset1",
+        thesis: [
+            [16.7091, 3.5429, 12.2821],
+            [17.9636, 5.1218, 20.3735],
+            [0.0592, 0.2596, 0.6292],
+            [54.8793, 11.7972, 46.9600],
+        ],
+        note: "Two boards of different sizes; all frames.",
+    },
+    AxisTable {
+        title: "BRE along axes for Dataset 2",
+        experiment: "hemisphere_checkerboard_dataset2",
+        dataset: "dataset2",
+        thesis: [
+            [1.1225, 0.8118, 0.6235],
+            [1.754, 0.926, 1.127],
+            [0.276, 0.074, 0.011],
+            [4.252, 2.311, 2.638],
+        ],
+        note: "8x8 squares of 16 mm, 20 frames; all frames.",
+    },
+    AxisTable {
+        title: "BRE along axes for Dataset ArUco",
+        experiment: "hemisphere_aruco",
+        dataset: "dataset3",
+        thesis: [
+            [4.0703, 13.3303, 7.0075],
+            [4.4380, 20.7976, 9.1536],
+            [0.0908, 0.4992, 0.7023],
+            [22.4928, 47.8121, 28.1625],
+        ],
+        note: "ArUco boards; all frames.",
+    },
+];
+
+/// Dataset 3's threshold table: cut-offs (∞, 2, 1.5, 1 mm), frames kept, and per
+/// axis Std./Mean/Min/Max.
+const DATASET3_EXPERIMENT: (&str, &str) = ("hemisphere_checkerboard", "dataset3");
+const DATASET3_THESIS_FRAMES: [usize; 4] = [50, 32, 25, 14];
+/// `[axis][row][cut-off]`.
+const DATASET3_THESIS: [[[f64; 4]; 4]; 3] = [
+    [
+        [0.959, 0.342, 0.310, 0.242],
+        [1.024, 0.449, 0.418, 0.298],
+        [0.005, 0.020, 0.047, 0.027],
+        [4.443, 1.741, 1.453, 0.795],
+    ],
+    [
+        [1.758, 0.570, 0.281, 0.139],
+        [1.704, 0.608, 0.392, 0.161],
+        [0.034, 0.008, 0.012, 0.003],
+        [6.743, 2.433, 0.944, 0.509],
+    ],
+    [
+        [0.444, 0.285, 0.249, 0.202],
+        [0.542, 0.350, 0.296, 0.256],
+        [0.016, 0.008, 0.019, 0.066],
+        [1.635, 1.132, 0.948, 0.833],
+    ],
+];
+
+/// A table row: a label and its cells (already formatted).
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct Row {
+    pub label: String,
+    pub cells: Vec<String>,
+}
+
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct Table {
+    pub id: String,
+    pub title: String,
+    pub note: String,
+    /// Column groups (e.g. x, y, z or the cut-offs), each with the sub-columns `sub`.
+    pub groups: Vec<String>,
+    pub sub: Vec<String>,
+    /// Row blocks (e.g. one per axis); a block's label spans its rows.
+    pub blocks: Vec<(String, Vec<Row>)>,
+    /// LaTeX column spans of the groups (`3-4`), after the label columns.
+    pub spans: Vec<String>,
+}
+
+impl Table {
+    fn with_spans(mut self) -> Table {
+        let lead = if self.blocks.len() > 1 { 2 } else { 1 };
+        let n = self.sub.len();
+        self.spans = (0..self.groups.len())
+            .map(|g| format!("{}-{}", lead + g * n + 1, lead + (g + 1) * n))
+            .collect();
+        self
+    }
+}
+
+/// The whole chapter.
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct Chapter {
+    pub tables: Vec<Table>,
+    pub missing: Vec<String>,
+}
+
+fn fmt(v: Option<f64>) -> String {
+    match v {
+        Some(v) if v.is_finite() => format!("{v:.3}"),
+        _ => "—".into(),
+    }
+}
+
+fn summary(root: &Path, experiment: &str, dataset: &str) -> Option<Value> {
+    let text = std::fs::read_to_string(root.join(experiment).join(dataset).join("summary.json")).ok()?;
+    serde_json::from_str(&text).ok()
+}
+
+fn truth_note(s: &Value) -> String {
+    match s["truth"]["corner_error_mm"]["mean"].as_f64() {
+        Some(e) => format!(
+            " probecal's calibration (frames above {} mm removed) places the image corners within {e:.3} mm of the truth on average.",
+            match &s["calibration"]["cutoff_mm"] {
+                Value::String(c) => c.clone(),
+                other => other.to_string(),
+            }
+        ),
+        None => String::new(),
+    }
+}
+
+/// Lays out the chapter from the runs under `root` (`<experiment>/<dataset>/summary.json`).
+pub fn chapter(root: &Path) -> Chapter {
+    let mut tables = Vec::new();
+    let mut missing = Vec::new();
+    for t in &AXIS_TABLES {
+        let Some(s) = summary(root, t.experiment, t.dataset) else {
+            missing.push(format!("{}/{}", t.experiment, t.dataset));
+            continue;
+        };
+        // The thesis's tables for these datasets are over all frames: the first cut-off (∞).
+        let all = &s["thresholds"][0];
+        let frames = all["frames"].as_u64().unwrap_or(0);
+        let rows = ROWS
+            .iter()
+            .zip(STATS)
+            .enumerate()
+            .map(|(r, (label, stat))| Row {
+                label: label.to_string(),
+                cells: ["x", "y", "z"]
+                    .iter()
+                    .enumerate()
+                    .flat_map(|(a, axis)| [fmt(all["bre_mm"][axis][stat].as_f64()), fmt(Some(t.thesis[r][a]))])
+                    .collect(),
+            })
+            .collect();
+        tables.push(
+            Table {
+                id: t.experiment.to_string(),
+                title: t.title.to_string(),
+                note: format!(
+                    "{} probecal: {} ({frames} frames with a usable feature, all kept).{}",
+                    t.note,
+                    t.experiment,
+                    truth_note(&s)
+                ),
+                groups: vec!["x".into(), "y".into(), "z".into()],
+                sub: vec!["probecal".into(), "thesis".into()],
+                blocks: vec![(String::new(), rows)],
+                spans: Vec::new(),
+            }
+            .with_spans(),
+        );
+    }
+    let (experiment, dataset) = DATASET3_EXPERIMENT;
+    match summary(root, experiment, dataset) {
+        Some(s) => {
+            let rows = s["thresholds"].as_array().cloned().unwrap_or_default();
+            let groups: Vec<String> = rows
+                .iter()
+                .zip(DATASET3_THESIS_FRAMES)
+                .map(|(r, thesis_frames)| {
+                    let cutoff = match r["cutoff_mm"].as_f64() {
+                        Some(c) => crate::report::write::cutoff_label(c),
+                        None => "<∞".to_string(),
+                    };
+                    format!("{cutoff} ({} / {thesis_frames})", r["frames"].as_u64().unwrap_or(0))
+                })
+                .collect();
+            let blocks = ["X", "Y", "Z"]
+                .iter()
+                .enumerate()
+                .map(|(a, axis)| {
+                    let key = axis.to_lowercase();
+                    let rows = ROWS
+                        .iter()
+                        .zip(STATS)
+                        .enumerate()
+                        .map(|(r, (label, stat))| Row {
+                            label: label.to_string(),
+                            cells: rows
+                                .iter()
+                                .enumerate()
+                                .flat_map(|(c, row)| {
+                                    [
+                                        fmt(row["bre_mm"][&key][stat].as_f64()),
+                                        fmt(DATASET3_THESIS[a].get(r).and_then(|v| v.get(c)).copied()),
+                                    ]
+                                })
+                                .collect(),
+                        })
+                        .collect();
+                    (axis.to_string(), rows)
+                })
+                .collect();
+            tables.push(
+                Table {
+                    id: experiment.to_string(),
+                    title: "BRE along axes for Dataset 3".into(),
+                    note: format!(
+                    "11x11 squares of 13 mm, 50 frames; frames above each cut-off removed and the calibration solved \
+                     again (column heads: frames kept, probecal / thesis). probecal: {experiment}.{}",
+                    truth_note(&s)
+                ),
+                    groups,
+                    sub: vec!["probecal".into(), "thesis".into()],
+                    blocks,
+                    spans: Vec::new(),
+                }
+                .with_spans(),
+            );
+        }
+        None => missing.push(format!("{experiment}/{dataset}")),
+    }
+    let sigma = crate::pipeline::study::sigma_table(50, 200, 1);
+    tables.push(
+        Table {
+            id: "sigma".into(),
+            title: "Error in synthetic data with varying noise".into(),
+            note: "Gaussian noise of SD σ on each axis of the marker's position, 50 frames, Horn's closed form, 200 \
+               repetitions (the protocol is stated on the page of probecal study). Std.: SD of the per-axis absolute \
+               residuals."
+                .into(),
+            groups: vec!["Std.".into()],
+            sub: vec!["probecal".into(), "thesis".into()],
+            blocks: vec![(
+                String::new(),
+                sigma
+                    .iter()
+                    .map(|r| Row {
+                        label: format!("σ = {}", r.sigma_mm),
+                        cells: vec![fmt(Some(r.std_per_axis_mm)), fmt(Some(r.thesis_std_mm))],
+                    })
+                    .collect(),
+            )],
+            spans: Vec::new(),
+        }
+        .with_spans(),
+    );
+    Chapter { tables, missing }
+}
+
+/// The layout of the chapter without its numbers: what the golden test pins.
+pub fn layout(chapter: &Chapter) -> String {
+    let mut out = String::new();
+    for t in &chapter.tables {
+        out.push_str(&format!("table {} | {}\n", t.id, t.title));
+        // Frame counts in the cut-off heads are numbers too.
+        let groups: Vec<String> = t
+            .groups
+            .iter()
+            .map(|g| g.split(" (").next().unwrap_or(g).to_string())
+            .collect();
+        out.push_str(&format!("  columns {} x [{}]\n", groups.join(", "), t.sub.join(", ")));
+        for (block, rows) in &t.blocks {
+            for r in rows {
+                let cells: Vec<&str> = r
+                    .cells
+                    .iter()
+                    .map(|c| {
+                        if c.parse::<f64>().is_ok() && c.split('.').nth(1).is_some_and(|d| d.len() == 3) {
+                            "#.###"
+                        } else {
+                            "?"
+                        }
+                    })
+                    .collect();
+                out.push_str(&format!("  {block:>1} {:<8} {}\n", r.label, cells.join(" ")));
+            }
+        }
+    }
+    out
+}
+
+use crate::report::error_chain;
+
+const HTML_TEMPLATE: &str = include_str!("../../templates/thesis.html.tera");
+const TEX_TEMPLATE: &str = include_str!("../../templates/thesis.tex.tera");
+
+/// The chapter and its pages (HTML, LaTeX) from the runs under `root`; `None`
+/// when none of the chapter's experiments has a run there.
+pub fn render(root: &Path) -> Result<Option<(Chapter, String, String)>, String> {
+    let chapter = chapter(root);
+    if chapter.missing.len() == AXIS_TABLES.len() + 1 {
+        return Ok(None);
+    }
+    let mut t = tera::Tera::default();
+    t.add_raw_templates(vec![("thesis.html", HTML_TEMPLATE), ("thesis.tex", TEX_TEMPLATE)])
+        .map_err(|e| error_chain(&e))?;
+    crate::report::register_tex_filter(&mut t);
+    let mut ctx = tera::Context::from_serialize(&chapter).map_err(|e| e.to_string())?;
+    ctx.insert("probecal_version", env!("CARGO_PKG_VERSION"));
+    let html = t.render("thesis.html", &ctx).map_err(|e| error_chain(&e))?;
+    let tex = t.render("thesis.tex", &ctx).map_err(|e| error_chain(&e))?;
+    Ok(Some((chapter, html, tex)))
+}
+
+/// Writes `thesis.html` and `thesis.tex` into `root` (see [`render`]).
+pub fn write(root: &Path) -> Result<Option<Chapter>, String> {
+    let Some((chapter, html, tex)) = render(root)? else {
+        return Ok(None);
+    };
+    for (file, text) in [("thesis.html", html), ("thesis.tex", tex)] {
+        std::fs::write(root.join(file), text).map_err(|e| format!("{}: {e}", root.join(file).display()))?;
+    }
+    Ok(Some(chapter))
+}
