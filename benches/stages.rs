@@ -35,7 +35,8 @@ fn main() {
     let datasets = root.join("datasets");
     let folder = probecal::synth::dataset_folder(&datasets, &manifest.experiment, &dataset.name);
     let t = Instant::now();
-    let outcome = probecal::synth::ensure_rendered(&manifest, spec, &folder).expect("render");
+    let outcome =
+        probecal::synth::ensure_rendered(&probecal::pipeline::settings::lab(&manifest), spec, &folder).expect("render");
     println!(
         "dataset: {:?} in {:.1} s ({})",
         outcome,
@@ -46,7 +47,7 @@ fn main() {
     let cal = probecal::detect::camera_calibration::calibrate_folder(&folder.join("camera_calibration"), [9, 6], 30.0)
         .unwrap();
     let camera = cal.intrinsics.clone();
-    let rig = RigBoards::from_manifest(&manifest.rig).unwrap();
+    let rig = RigBoards::from_rig(&manifest.rig).unwrap();
     let photo = probecal::io::image::read_gray(&folder.join("frames/camera_001.png")).unwrap();
     let bscan = probecal::io::image::read_gray(&folder.join("frames/bscan_001.png")).unwrap();
 

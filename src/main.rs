@@ -5,9 +5,11 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
+use probecal::evaluate::cutoff_label;
+use probecal::io::fs::write_atomic;
 use probecal::manifest::tracked::TrackedManifest;
 use probecal::manifest::{Experiment, Manifest};
-use probecal::report::write::{bre_table_text, cutoff_label, threshold_table_text, write_atomic, write_dataset_run};
+use probecal::report::write::{bre_table_text, threshold_table_text, write_dataset_run};
 use probecal::report::{render_index, IndexEntry};
 
 #[derive(Parser)]
@@ -481,8 +483,11 @@ fn run_tracked(m: &TrackedManifest, folder: &Path, quiet: bool) -> Result<(Index
     if !quiet {
         eprintln!("== {} / {}", m.experiment, m.dataset);
     }
-    let run = probecal::pipeline::tracked::run(&m.inputs(), m.min_frames)
-        .map_err(|e| format!("{}: {e}", m.path.display()))?;
+    let run = probecal::pipeline::tracked::run(
+        &probecal::pipeline::tracked::TrackedInputs::from_manifest(m),
+        m.min_frames,
+    )
+    .map_err(|e| format!("{}: {e}", m.path.display()))?;
     let plus = match &m.plus_result {
         Some(p) => Some(probecal::io::plus::result::PlusResult::read(p).map_err(|e| e.to_string())?),
         None => None,

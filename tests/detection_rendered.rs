@@ -26,7 +26,7 @@ fn render() -> (Manifest, PathBuf, Value) {
         panic!("fixture renders")
     };
     let folder = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("detection_rendered/small");
-    probecal::synth::ensure_rendered(&manifest, spec, &folder).expect("render");
+    probecal::synth::ensure_rendered(&probecal::pipeline::settings::lab(&manifest), spec, &folder).expect("render");
     let truth: Value =
         serde_json::from_str(&std::fs::read_to_string(folder.join("ground_truth.json")).unwrap()).unwrap();
     (manifest, folder, truth)
@@ -196,7 +196,7 @@ fn rendering_is_deterministic() {
     let b = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("determinism/b");
     for dir in [&a, &b] {
         let _ = std::fs::remove_dir_all(dir);
-        probecal::synth::ensure_rendered(&manifest, &one, dir).unwrap();
+        probecal::synth::ensure_rendered(&probecal::pipeline::settings::lab(&manifest), &one, dir).unwrap();
     }
     for file in [
         "frames/camera_001.png",
@@ -256,7 +256,7 @@ fn outlier_calibration_view_is_dropped_with_its_reason() {
         unreachable!()
     };
     let folder = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("outlier_view/dataset2");
-    probecal::synth::ensure_rendered(&manifest, spec, &folder).expect("render");
+    probecal::synth::ensure_rendered(&probecal::pipeline::settings::lab(&manifest), spec, &folder).expect("render");
     let cal = probecal::detect::camera_calibration::calibrate_folder(&folder.join("camera_calibration"), [9, 6], 30.0)
         .unwrap();
     let dropped: Vec<_> = cal.views.iter().filter(|v| !v.used).collect();

@@ -10,6 +10,7 @@ use std::process::Command;
 use nalgebra::Point3;
 use probecal::io::plus::config::PlusConfig;
 use probecal::io::plus::sequence::{FrameFault, Sequence};
+use probecal::pipeline::tracked::TrackedInputs;
 
 fn data(name: &str) -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
@@ -77,9 +78,9 @@ fn nwire_phantom_from_yaml_matches_the_plus_configuration() {
         let text = std::fs::read_to_string(p).unwrap();
         TrackedManifest::from_text(p, &text)
     };
-    let from_plus = load(&root.join("experiments/plus_fcal2_nwire.yaml")).unwrap().inputs();
+    let from_plus = TrackedInputs::from_manifest(&load(&root.join("experiments/plus_fcal2_nwire.yaml")).unwrap());
     let yaml_path = root.join("tests/fixtures/fcal2_nwire_yaml.yaml");
-    let from_yaml = load(&yaml_path).unwrap().inputs();
+    let from_yaml = TrackedInputs::from_manifest(&load(&yaml_path).unwrap());
     assert_eq!(from_yaml.nwires.len(), 3);
     for (a, b) in from_yaml.nwires.iter().zip(&from_plus.nwires) {
         assert!((a.w12_in_phantom_mm - b.w12_in_phantom_mm).norm() < 1e-9);

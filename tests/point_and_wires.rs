@@ -22,7 +22,7 @@ fn rendered(name: &str) -> (PathBuf, Value) {
     let folder = PathBuf::from(env!("CARGO_TARGET_TMPDIR"))
         .join("point_and_wires")
         .join(&manifest.experiment);
-    probecal::synth::ensure_rendered(&manifest, spec, &folder).expect("render");
+    probecal::synth::ensure_rendered(&probecal::pipeline::settings::lab(&manifest), spec, &folder).expect("render");
     let truth = serde_json::from_str(&std::fs::read_to_string(folder.join("ground_truth.json")).unwrap()).unwrap();
     (folder, truth)
 }

@@ -458,15 +458,15 @@ pub struct RigBoards {
 }
 
 impl RigBoards {
-    /// The boards a manifest's rig describes.
-    pub fn from_manifest(rig: &crate::manifest::Rig) -> Result<RigBoards, aruco::ArucoError> {
-        use crate::manifest::Rig;
+    /// The boards a rig describes.
+    pub fn from_rig(rig: &crate::spec::rig::Rig) -> Result<RigBoards, aruco::ArucoError> {
+        use crate::spec::rig::Rig;
         Ok(match rig {
             Rig::Checkerboard {
                 probe_board,
                 phantom_board,
             } => {
-                let layout = |b: &crate::manifest::Board| {
+                let layout = |b: &crate::spec::rig::Board| {
                     PrintedBoard::Checkerboard(BoardLayout {
                         inner_corners: b.inner_corners,
                         square_mm: b.square_mm,
@@ -486,7 +486,7 @@ impl RigBoards {
                 subpixel_half_window_px,
                 min_markers,
             } => {
-                let layout = |b: &crate::manifest::ArucoBoard| {
+                let layout = |b: &crate::spec::rig::ArucoBoard| {
                     ArucoLayout::new(dictionary, b.markers, b.marker_mm, b.separation_mm, b.first_id)
                         .map(PrintedBoard::Aruco)
                 };

@@ -9,10 +9,22 @@
 //! whose residual exceeds mean + k SD are dropped and the fit repeated.
 
 use nalgebra::{DVector, Matrix4, Point3, Vector3};
+use serde::{Deserialize, Serialize};
 
 use crate::core::geometry::{perturbed, rigid_from_axis_angle, Rigid};
 use crate::core::lm::{self, LmError};
 use crate::estimate::horn::{self, HornError, Variant};
+
+/// Which constraints the dots give.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ConstraintModel {
+    /// Only each N's middle dot, at its similar-triangles position (PLUS's method).
+    MiddlePoints,
+    /// Every dot on its own wire (a line constraint per dot), plus the middle dot's point.
+    #[default]
+    Wires,
+}
 
 /// What a segmented pixel must map onto, in the phantom frame (mm).
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -1,5 +1,6 @@
 //! Solving for `marker_T_image`: Horn's closed form, robust estimators over
 //! frames, wire matching, Levenberg–Marquardt with pixel scales, the sphere fit.
+pub mod correspondence;
 pub mod horn;
 pub mod image_to_probe;
 pub mod robust;

@@ -17,8 +17,8 @@
 use serde::{Deserialize, Serialize};
 
 use crate::core::rng::Rng;
+use crate::estimate::correspondence::{self, Correspondence};
 use crate::estimate::horn::{HornError, HornFit, Variant};
-use crate::evaluate::{self, Correspondence};
 
 /// Which robust estimator.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -80,7 +80,7 @@ impl RobustFit {
 /// A frame's residual under a calibration: the distance of its feature's
 /// reconstruction from the feature, mm (the mean over features of a frame).
 fn frame_residual(frame: &Correspondence, fit: &HornFit, spacing: [f64; 2]) -> f64 {
-    evaluate::bre(frame, fit, spacing).1
+    correspondence::bre(frame, fit, spacing).1
 }
 
 fn median(values: &mut [f64]) -> f64 {
@@ -129,7 +129,7 @@ pub fn solve(
     for _ in 0..settings.samples.max(1) {
         let sample = draw3(&mut rng, n);
         let subset: Vec<Correspondence> = sample.iter().map(|&i| frames[i].clone()).collect();
-        let Ok(fit) = evaluate::solve(&subset, spacing, variant, None) else {
+        let Ok(fit) = correspondence::solve(&subset, spacing, variant, None) else {
             continue; // a degenerate sample (e.g. collinear centres)
         };
         let residuals: Vec<f64> = frames.iter().map(|f| frame_residual(f, &fit, spacing)).collect();
@@ -175,7 +175,7 @@ pub fn solve(
         if kept.len() < 3 {
             return Err(HornError::TooFewPairs(kept.len()));
         }
-        fit = evaluate::solve(&kept, spacing, variant, None)?;
+        fit = correspondence::solve(&kept, spacing, variant, None)?;
         let next: Vec<bool> = frames
             .iter()
             .map(|f| frame_residual(f, &fit, spacing) < threshold_mm)
@@ -195,41 +195,10 @@ pub fn solve(
 }
 
 #[cfg(test)]
-pub(crate) mod tests {
+mod tests {
     use super::*;
-    use crate::core::geometry::{pixel_to_image_mm, rigid_from_axis_angle, Rigid};
-    use nalgebra::{Point3, Vector3};
-
-    /// Frames of a swept probe whose feature pixel is exact, then blurred by
-    /// `noise_px`; the frames in `outliers` get a feature pixel far off.
-    pub(crate) fn frames(
-        n: usize,
-        noise_px: f64,
-        outliers: &[usize],
-        seed: u64,
-    ) -> (Rigid, Point3<f64>, Vec<Correspondence>) {
-        let marker_T_image = rigid_from_axis_angle(Vector3::new(0.02, -0.03, 1.5), Vector3::new(-20.0, 160.0, 25.0));
-        let camera_T_phantom = rigid_from_axis_angle(Vector3::new(2.0, 0.1, 0.2), Vector3::new(-100.0, 80.0, 500.0));
-        let feature = Point3::new(60.0, 45.0, -40.0);
-        let spacing = [0.2, 0.2];
-        let mut rng = Rng::new(seed);
-        let frames = (0..n)
-            .map(|k| {
-                let px = [rng.uniform(250.0, 450.0), rng.uniform(150.0, 350.0)];
-                let tilt = Vector3::new(rng.uniform(-0.4, 0.4), rng.uniform(-0.4, 0.4), rng.uniform(-0.1, 0.1));
-                let phantom_R_image = rigid_from_axis_angle(tilt, Vector3::zeros()).rotation;
-                let t = feature.coords - phantom_R_image * pixel_to_image_mm(px, spacing).coords;
-                let phantom_T_image = Rigid::from_parts(t.into(), phantom_R_image);
-                let camera_T_marker = camera_T_phantom * phantom_T_image * marker_T_image.inverse();
-                let mut seen = [px[0] + rng.normal(0.0, noise_px), px[1] + rng.normal(0.0, noise_px)];
-                if outliers.contains(&k) {
-                    seen = [seen[0] + rng.uniform(40.0, 80.0), seen[1] - rng.uniform(40.0, 80.0)];
-                }
-                Correspondence::point(k, seen, feature, camera_T_marker, camera_T_phantom)
-            })
-            .collect();
-        (marker_T_image, feature, frames)
-    }
+    use crate::estimate::correspondence::test_frames::frames;
+    use crate::evaluate;
 
     #[test]
     fn ransac_and_lmeds_find_the_planted_inliers() {
@@ -258,7 +227,7 @@ pub(crate) mod tests {
             assert!(cmp.corner_error_max_mm < 0.5, "{settings:?}: {cmp:?}");
         }
         // Horn on every frame is pulled far off by the same outliers.
-        let all = evaluate::solve(&frames, [0.2, 0.2], Variant::Rigid, None).unwrap();
+        let all = correspondence::solve(&frames, [0.2, 0.2], Variant::Rigid, None).unwrap();
         let cmp = evaluate::compare_with_truth(&all, &truth, [800, 600], [0.2, 0.2]);
         assert!(cmp.corner_error_max_mm > 2.0, "{cmp:?}");
     }

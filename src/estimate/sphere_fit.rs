@@ -145,8 +145,9 @@ mod tests {
     use super::*;
     use crate::core::geometry::rigid_from_axis_angle;
     use crate::core::rng::Rng;
+    use crate::estimate::correspondence::{self, Correspondence};
     use crate::estimate::horn::{HornFit, Variant};
-    use crate::evaluate::{self, Correspondence};
+    use crate::evaluate;
 
     /// Frames whose planes all pass `offset_mm` beside the sphere centre (plus a
     /// spread), with the arc's edge points and the arc centre (the projection).
@@ -214,7 +215,7 @@ mod tests {
         // Every plane 3 mm beside the centre: Horn on the arc centres is off by 3 mm
         // along the image's normal; the sphere fit is not.
         let (truth, arcs, centres) = planted(3.0, 0.3, 5);
-        let horn = evaluate::solve(&centres, [0.2, 0.2], Variant::Rigid, None).unwrap();
+        let horn = correspondence::solve(&centres, [0.2, 0.2], Variant::Rigid, None).unwrap();
         let before = evaluate::compare_with_truth(&horn, &truth, [800, 600], [0.2, 0.2]);
         assert!(before.corner_error_mean_mm > 2.5, "{before:?}");
         let fit = refine(&horn.target_T_source, &arcs, &settings(None)).unwrap();
@@ -260,7 +261,7 @@ mod tests {
         // Planes through the centre (d spread 0.5 mm): with the prior the fit is at
         // least as good as Horn on the centres.
         let (truth, arcs, centres) = planted(0.0, 0.5, 8);
-        let horn = evaluate::solve(&centres, [0.2, 0.2], Variant::Rigid, None).unwrap();
+        let horn = correspondence::solve(&centres, [0.2, 0.2], Variant::Rigid, None).unwrap();
         let before = evaluate::compare_with_truth(&horn, &truth, [800, 600], [0.2, 0.2]);
         let fit = refine(&horn.target_T_source, &arcs, &settings(Some(0.5))).unwrap();
         let after = evaluate::compare_with_truth(

@@ -14,9 +14,9 @@
 use nalgebra::{Point3, Vector3};
 
 use crate::core::geometry::{line_meets_image_plane, pixel_to_image_mm, Rigid};
+use crate::estimate::correspondence::{self, Correspondence, Observed};
 use crate::estimate::horn::{HornError, HornFit, Variant};
 use crate::estimate::image_to_probe::Target;
-use crate::evaluate::{self, Correspondence, Observed};
 
 /// A wire's axis in the phantom frame.
 #[derive(Debug, Clone, PartialEq)]
@@ -185,7 +185,7 @@ pub fn match_and_solve(
         if correspondences.len() < min_frames {
             return Err(HornError::TooFewPairs(correspondences.len()));
         }
-        let fit = evaluate::solve(&correspondences, spacing, Variant::Rigid, Some(&marker_T_image))?;
+        let fit = correspondence::solve(&correspondences, spacing, Variant::Rigid, Some(&marker_T_image))?;
         marker_T_image = fit.target_T_source;
         let stable = previous.as_ref() == Some(&labels);
         if stable || round == MAX_ROUNDS {

@@ -1,8 +1,5 @@
-//! Stage 5: the calibration from point pairs, and how good it is.
+//! Stage 5: how good a calibration is.
 //!
-//! - Pairs: a frame's feature pixel `(u, v)` gives `points_in_image = (sx u, sy v, 0)`;
-//!   the phantom feature `p` gives `points_in_marker = marker_T_camera · camera_T_phantom · p`.
-//!   Horn's closed form on these pairs is `marker_T_image`.
 //! - BRE (back-projection residual error): per frame and axis of the phantom frame,
 //!   `|p - phantom_T_camera · camera_T_marker · marker_T_image · points_in_image|`, mm.
 //! - The thesis's threshold table: frames above a BRE cut-off are removed (worst
@@ -13,160 +10,12 @@
 
 pub mod resampling;
 
-use nalgebra::{Point3, Vector3};
 use polars::prelude::*;
 use serde::Serialize;
 
-use crate::core::geometry::{image_probe_points, pixel_to_image_mm, rotation_angle_between_deg, Rigid};
-use crate::estimate::horn::{self, HornError, HornFit, Variant};
-use crate::estimate::image_to_probe::{self, Constraint, Target};
-use crate::manifest::CutoffRule;
-
-/// One segmented feature of a frame: its pixel and where it lies in the phantom.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Observed {
-    pub pixel: [f64; 2],
-    pub target_in_phantom: Target,
-}
-
-/// One usable frame's measurements.
-#[derive(Debug, Clone)]
-pub struct Correspondence {
-    pub frame: usize,
-    /// One feature (hemisphere, pin head) or several (wire dots).
-    pub features: Vec<Observed>,
-    pub camera_T_marker: Rigid,
-    pub camera_T_phantom: Rigid,
-}
-
-impl Correspondence {
-    /// A frame with one point feature.
-    pub fn point(
-        frame: usize,
-        pixel: [f64; 2],
-        feature_in_phantom: Point3<f64>,
-        camera_T_marker: Rigid,
-        camera_T_phantom: Rigid,
-    ) -> Correspondence {
-        Correspondence {
-            frame,
-            features: vec![Observed {
-                pixel,
-                target_in_phantom: Target::Point(feature_in_phantom),
-            }],
-            camera_T_marker,
-            camera_T_phantom,
-        }
-    }
-
-    pub fn marker_T_phantom(&self) -> Rigid {
-        self.camera_T_marker.inverse() * self.camera_T_phantom
-    }
-
-    /// A feature pixel back-projected into the phantom frame through a calibration.
-    pub fn reconstruct_in_phantom(&self, pixel: [f64; 2], calibration: &HornFit, spacing: [f64; 2]) -> Point3<f64> {
-        let in_image = pixel_to_image_mm(pixel, spacing);
-        self.camera_T_phantom.inverse() * (self.camera_T_marker * calibration.apply(&in_image))
-    }
-
-    /// Residual of each feature in the phantom frame (mm): to its point, or
-    /// perpendicular to its line.
-    pub fn residuals_in_phantom(&self, calibration: &HornFit, spacing: [f64; 2]) -> Vec<Vector3<f64>> {
-        self.features
-            .iter()
-            .map(|f| {
-                let p = self.reconstruct_in_phantom(f.pixel, calibration, spacing);
-                match f.target_in_phantom {
-                    Target::Point(q) => p - q,
-                    Target::Line(q, d) => {
-                        let w = p - q;
-                        w - d * w.dot(&d)
-                    }
-                }
-            })
-            .collect()
-    }
-}
-
-/// Solves `marker_T_image` (and a scale, for the similarity variant) from frames.
-/// Point features alone: Horn's closed form. With line features (wires): rigid
-/// Levenberg–Marquardt from `start`.
-pub fn solve(
-    frames: &[Correspondence],
-    spacing: [f64; 2],
-    variant: Variant,
-    start: Option<&Rigid>,
-) -> Result<HornFit, HornError> {
-    let all_points = frames
-        .iter()
-        .flat_map(|f| &f.features)
-        .all(|o| matches!(o.target_in_phantom, Target::Point(_)));
-    if all_points {
-        let mut points_in_image = Vec::new();
-        let mut points_in_marker = Vec::new();
-        for f in frames {
-            let marker_T_phantom = f.marker_T_phantom();
-            for o in &f.features {
-                if let Target::Point(p) = o.target_in_phantom {
-                    points_in_image.push(pixel_to_image_mm(o.pixel, spacing));
-                    points_in_marker.push(marker_T_phantom * p);
-                }
-            }
-        }
-        return horn::solve(&points_in_image, &points_in_marker, variant);
-    }
-    let Some(start) = start else {
-        return Err(HornError::Refinement(
-            "line features need a start (solve.initial_marker_T_image)".into(),
-        ));
-    };
-    let constraints: Vec<Constraint> = frames
-        .iter()
-        .flat_map(|f| {
-            let marker_T_phantom = f.marker_T_phantom().to_homogeneous();
-            f.features.iter().map(move |o| Constraint {
-                pixel: o.pixel,
-                probe_T_phantom: marker_T_phantom,
-                target_in_phantom: o.target_in_phantom,
-            })
-        })
-        .collect();
-    // Six unknowns; each line feature gives two equations, a point three.
-    let equations: usize = frames
-        .iter()
-        .flat_map(|f| &f.features)
-        .map(|o| match o.target_in_phantom {
-            Target::Point(_) => 3,
-            Target::Line(..) => 2,
-        })
-        .sum();
-    if equations < 9 {
-        return Err(HornError::TooFewPairs(constraints.len()));
-    }
-    let (marker_T_image, rms) =
-        image_to_probe::refine_rigid(start, spacing, &constraints).map_err(|e| HornError::Refinement(e.to_string()))?;
-    Ok(HornFit {
-        target_T_source: marker_T_image,
-        scale: 1.0,
-        rms_residual_mm: rms,
-    })
-}
-
-/// Per-axis BRE of one frame, mm: `[|dx|, |dy|, |dz|]` and the 3D distance, of its
-/// features' residuals in the phantom frame (averaged over its features).
-pub fn bre(frame: &Correspondence, calibration: &HornFit, spacing: [f64; 2]) -> ([f64; 3], f64) {
-    let residuals = frame.residuals_in_phantom(calibration, spacing);
-    let n = residuals.len().max(1) as f64;
-    let mut axes = [0.0; 3];
-    let mut norm = 0.0;
-    for d in &residuals {
-        axes[0] += d.x.abs() / n;
-        axes[1] += d.y.abs() / n;
-        axes[2] += d.z.abs() / n;
-        norm += d.norm() / n;
-    }
-    (axes, norm)
-}
+use crate::core::geometry::{image_probe_points, rotation_angle_between_deg, Rigid};
+use crate::estimate::correspondence::{solve, Correspondence};
+use crate::estimate::horn::{HornError, HornFit, Variant};
 
 /// The largest per-axis BRE of any feature of a frame, and the largest 3D distance.
 fn worst_feature(frame: &Correspondence, calibration: &HornFit, spacing: [f64; 2]) -> ([f64; 3], f64) {
@@ -179,6 +28,30 @@ fn worst_feature(frame: &Correspondence, calibration: &HornFit, spacing: [f64; 2
                 f64::max(n, d.norm()),
             )
         })
+}
+
+/// How a frame's BRE is compared with a cut-off.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum CutoffRule {
+    /// The largest of |x|, |y|, |z| must be below the cut-off.
+    MaxAxis,
+    /// The 3D distance must be below the cut-off.
+    Norm,
+}
+
+/// How a cut-off is written in tables: `<∞` or `<2`.
+pub fn cutoff_label(cutoff: f64) -> String {
+    if cutoff.is_infinite() {
+        "<∞".to_string()
+    } else {
+        format!("<{}", trim_number(cutoff))
+    }
+}
+
+pub fn trim_number(v: f64) -> String {
+    let s = format!("{v}");
+    s.trim_end_matches(".0").to_string()
 }
 
 /// Std (n − 1), mean, min, max of one axis, mm.
@@ -388,7 +261,10 @@ pub fn threshold_table(frames: &[Correspondence], inputs: &EvaluationInputs<'_>)
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::core::geometry::pixel_to_image_mm;
     use crate::core::geometry::rigid_from_axis_angle;
+    use crate::estimate::correspondence::bre;
+    use nalgebra::{Point3, Vector3};
 
     #[test]
     fn stats_match_hand_computation() {

@@ -17,8 +17,8 @@ use serde::Serialize;
 
 use crate::core::geometry::{euler_zyx_deg, image_probe_points, Rigid};
 use crate::core::rng::Rng;
+use crate::estimate::correspondence::{self, Correspondence};
 use crate::estimate::horn::{HornError, HornFit, Variant};
-use crate::evaluate::{self, Correspondence};
 
 /// What every resampled fit needs.
 #[derive(Debug, Clone, Copy)]
@@ -32,7 +32,7 @@ pub struct FitInputs<'a> {
 
 impl FitInputs<'_> {
     fn solve(&self, frames: &[Correspondence]) -> Result<HornFit, HornError> {
-        evaluate::solve(frames, self.spacing, self.variant, self.start)
+        correspondence::solve(frames, self.spacing, self.variant, self.start)
     }
 
     /// The image's four corners and centre, mm in the image frame.
@@ -76,7 +76,7 @@ pub fn leave_one_out(frames: &[Correspondence], inputs: &FitInputs<'_>) -> Resul
             .map(|(_, f)| f.clone())
             .collect();
         let fit = inputs.solve(&rest)?;
-        pre_mm.push((frames[i].frame, evaluate::bre(&frames[i], &fit, inputs.spacing).1));
+        pre_mm.push((frames[i].frame, correspondence::bre(&frames[i], &fit, inputs.spacing).1));
     }
     let values: Vec<f64> = pre_mm.iter().map(|(_, v)| *v).collect();
     Ok(LeaveOneOut {
@@ -195,7 +195,7 @@ pub fn bootstrap(
         let e = euler_zyx_deg(&fit.target_T_source);
         let mut sums = [0.0; 3];
         for f in &sample {
-            let (axes, _) = evaluate::bre(f, &fit, inputs.spacing);
+            let (axes, _) = correspondence::bre(f, &fit, inputs.spacing);
             for k in 0..3 {
                 sums[k] += axes[k];
             }
@@ -222,7 +222,7 @@ pub fn bootstrap(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::estimate::robust::tests::frames;
+    use crate::estimate::correspondence::test_frames::frames;
 
     #[test]
     fn metrics_grow_with_the_noise_and_cover_the_truth() {
@@ -245,7 +245,7 @@ mod tests {
         let cr_noisy = reproducibility(&noisy, &inputs, 10, 1).unwrap();
         assert_eq!(cr_noisy.calibrations, 20);
         assert!(cr_noisy.cr_mm > 5.0 * cr_quiet.cr_mm);
-        let full = evaluate::solve(&noisy, [0.2, 0.2], Variant::Rigid, None).unwrap();
+        let full = correspondence::solve(&noisy, [0.2, 0.2], Variant::Rigid, None).unwrap();
         let boot = bootstrap(&noisy, &full, &inputs, 300, 3).unwrap();
         // The true translation lies within (or very near) the 95 % intervals.
         for k in 0..3 {

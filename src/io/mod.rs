@@ -2,6 +2,7 @@
 //! tracker poses, camera models and PLUS's formats.
 pub mod camera_model;
 pub mod dataset;
+pub mod fs;
 pub mod image;
 pub mod plus;
 pub mod tracker_poses;

@@ -15,10 +15,12 @@ use std::path::{Path, PathBuf};
 
 use sha2::{Digest, Sha256};
 
-pub use raw::{
-    ArcDetection, ArucoBoard, Board, BscanRender, CameraCalibrationBoard, FitRadius, Gates, Phantom, Regression,
-    RenderSpec, Rig, SolveVariant, Sweep, TrackerCsv, TrackerNoise, TrueCamera, TrueTransform, Wire,
-};
+pub use raw::{ArcDetection, FitRadius, Gates, Regression, SolveVariant, TrackerCsv};
+
+use crate::evaluate::CutoffRule;
+use crate::spec::phantom::Phantom;
+use crate::spec::render::{RenderSpec, RENDERED_TRACKER_POSES};
+use crate::spec::rig::{ArucoBoard, Board, CameraCalibrationBoard, Rig};
 
 /// A manifest problem, located.
 #[derive(Debug, Clone, PartialEq)]
@@ -79,9 +81,6 @@ pub enum CameraSource {
     TrackerCsv(TrackerCsv),
 }
 
-/// The file every rendered dataset writes its simulated tracker's poses to.
-pub const RENDERED_TRACKER_POSES: &str = "tracker_poses.csv";
-
 /// Where a dataset's frames come from.
 #[derive(Debug, Clone, PartialEq)]
 pub enum DatasetSource {
@@ -93,16 +92,6 @@ pub enum DatasetSource {
 pub struct Dataset {
     pub name: String,
     pub source: DatasetSource,
-}
-
-/// How a frame's BRE is compared with a cut-off.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum CutoffRule {
-    /// The largest of |x|, |y|, |z| must be below the cut-off.
-    MaxAxis,
-    /// The 3D distance must be below the cut-off.
-    Norm,
 }
 
 #[derive(Debug, Clone, PartialEq)]
@@ -723,14 +712,6 @@ fn validate(c: &mut Checker<'_>, base: &Path, raw: raw::RawManifest, path: &Path
         validation: raw.solve.validation.clone(),
         datasets,
     }
-}
-
-/// The point a wire phantom is laid out around: the mean of its wires' midpoints.
-pub fn wires_centre(wires: &[(nalgebra::Point3<f64>, nalgebra::Point3<f64>)]) -> nalgebra::Point3<f64> {
-    let sum = wires.iter().fold(nalgebra::Vector3::zeros(), |acc, (a, b)| {
-        acc + (a.coords + b.coords) / 2.0
-    });
-    nalgebra::Point3::from(sum / wires.len().max(1) as f64)
 }
 
 /// The camera section: an intrinsics file, or a calibration from board views.

@@ -3,7 +3,10 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::CutoffRule;
+use crate::evaluate::CutoffRule;
+use crate::spec::phantom::Phantom;
+use crate::spec::render::{RenderSpec, TrueTransform};
+use crate::spec::rig::{CameraCalibrationBoard, Rig};
 
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -94,96 +97,6 @@ pub enum SolveVariant {
     Similarity,
 }
 
-/// The phantom and its features, in the phantom frame P (the phantom board's frame), mm.
-#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
-#[serde(rename_all = "snake_case", deny_unknown_fields)]
-pub enum Phantom {
-    /// A hemisphere on a pillar, dome towards the probe; the feature is the sphere centre.
-    Hemisphere {
-        centre_in_phantom_mm: [f64; 3],
-        radius_mm: f64,
-    },
-    /// A pin head in a silicone block; the feature is the head's centre.
-    Point {
-        position_in_phantom_mm: [f64; 3],
-        /// The head's radius: its echo comes from the surface facing the probe, one
-        /// radius before the centre along the beam.
-        #[serde(default = "default_head_radius")]
-        head_radius_mm: f64,
-    },
-    /// Two crossing and two parallel wires: each B-scan dot lies on its wire's
-    /// axis; where the plane passes a crossing, on the crossing point.
-    FourWire { wires: Vec<Wire>, wire_diameter_mm: f64 },
-}
-
-fn default_head_radius() -> f64 {
-    1.0
-}
-
-#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
-#[serde(deny_unknown_fields)]
-pub struct Wire {
-    pub name: String,
-    pub start_in_phantom_mm: [f64; 3],
-    pub end_in_phantom_mm: [f64; 3],
-}
-
-/// The marker rig that gives the poses of the probe marker M and the phantom P in the camera C.
-#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
-#[serde(rename_all = "snake_case", deny_unknown_fields)]
-pub enum Rig {
-    Checkerboard {
-        probe_board: Board,
-        phantom_board: Board,
-    },
-    /// ArUco grid boards; the two boards are told apart by their marker ids.
-    Aruco {
-        /// OpenCV's predefined dictionary name, e.g. `DICT_4X4_50`.
-        dictionary: String,
-        probe_board: ArucoBoard,
-        phantom_board: ArucoBoard,
-        /// Sub-pixel corner refinement window (half size, px); 0 turns it off. It
-        /// must stay below a marker cell's size in the image.
-        #[serde(default = "default_aruco_window")]
-        subpixel_half_window_px: u32,
-        /// Fewest markers of a board for a pose.
-        #[serde(default = "default_min_markers")]
-        min_markers: usize,
-    },
-}
-
-fn default_aruco_window() -> u32 {
-    3
-}
-fn default_min_markers() -> usize {
-    4
-}
-
-/// A grid board of ArUco markers with consecutive ids from `first_id`, row by row.
-#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
-#[serde(deny_unknown_fields)]
-pub struct ArucoBoard {
-    /// Markers `[columns, rows]`.
-    pub markers: [u32; 2],
-    pub marker_mm: f64,
-    pub separation_mm: f64,
-    pub first_id: u32,
-}
-
-/// A printed checkerboard with a white margin one square wide. Its identification
-/// dots sit in the margin beside the origin corner: the first dot fixes which inner
-/// corner is the origin (the same in every frame), the number of dots tells the
-/// probe's board from the phantom's.
-#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
-#[serde(deny_unknown_fields)]
-pub struct Board {
-    /// Inner corners `[columns, rows]` (OpenCV's pattern size): 11x11 squares have 10x10.
-    pub inner_corners: [u32; 2],
-    pub square_mm: f64,
-    /// 1 or 2 dots; the probe's and the phantom's board must differ.
-    pub id_dots: u8,
-}
-
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct RawCamera {
@@ -218,17 +131,6 @@ fn default_probe_transform() -> String {
 }
 fn default_reference_transform() -> String {
     "ReferenceToTracker".into()
-}
-
-/// Camera calibration from views of a plain checkerboard.
-#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
-#[serde(deny_unknown_fields)]
-pub struct CameraCalibrationBoard {
-    /// Folder of board images; absent: the dataset's own `camera_calibration/` folder.
-    #[serde(default)]
-    pub images: Option<String>,
-    pub inner_corners: [u32; 2],
-    pub square_mm: f64,
 }
 
 #[derive(Debug, Clone, Deserialize)]
@@ -367,172 +269,4 @@ pub struct RawDataset {
     pub name: String,
     pub render: Option<RenderSpec>,
     pub folder: Option<String>,
-}
-
-/// How to render a dataset. Every default describes the simulated lab of the
-/// default experiments (a Dataset-3-like setup of the thesis).
-#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
-#[serde(deny_unknown_fields)]
-pub struct RenderSpec {
-    pub seed: u64,
-    #[serde(default = "default_frames")]
-    pub frames: usize,
-    #[serde(default = "default_calibration_views")]
-    pub calibration_views: usize,
-    #[serde(default)]
-    pub camera: TrueCamera,
-    /// Camera-to-board distances the scene is laid out for.
-    #[serde(default = "default_distance")]
-    pub board_distance_mm: [f64; 2],
-    #[serde(default)]
-    pub sweep: Sweep,
-    /// Fraction of photos with something (a finger, a cable) across the probe board.
-    #[serde(default = "default_occlusion")]
-    pub occlusion_rate: f64,
-    #[serde(default)]
-    pub bscan: BscanRender,
-    /// The true calibration; absent: the probe casing's nominal mount for the board size.
-    #[serde(default)]
-    pub marker_T_image: Option<TrueTransform>,
-    /// The simulated tracker whose poses are written to `tracker_poses.csv`.
-    #[serde(default)]
-    pub tracker: TrackerNoise,
-}
-
-/// Noise of the simulated optical tracker, per marker pose and frame (Gaussian).
-#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct TrackerNoise {
-    /// SD of each translation component, mm.
-    pub position_sd_mm: f64,
-    /// SD of the rotation about each axis, degrees.
-    pub rotation_sd_deg: f64,
-}
-
-impl Default for TrackerNoise {
-    fn default() -> Self {
-        // An optical tracker's marker pose: ~0.25 mm RMS over the three axes, and the
-        // rotation jitter of a ~60 mm marker.
-        TrackerNoise {
-            position_sd_mm: 0.15,
-            rotation_sd_deg: 0.1,
-        }
-    }
-}
-
-fn default_occlusion() -> f64 {
-    0.08
-}
-fn default_frames() -> usize {
-    50
-}
-fn default_calibration_views() -> usize {
-    16
-}
-fn default_distance() -> [f64; 2] {
-    [350.0, 600.0]
-}
-
-/// The simulated camera (ground truth; the pipeline calibrates it from pixels).
-#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct TrueCamera {
-    pub image_size_px: [u32; 2],
-    pub focal_px: f64,
-    /// Offset of the principal point from the image centre, px.
-    pub principal_offset_px: [f64; 2],
-    /// OpenCV order: k1, k2, p1, p2, k3.
-    pub distortion: [f64; 5],
-    pub noise_grey_levels: f64,
-    pub blur_sigma_px: f64,
-    /// Strength of the uneven lighting (0: flat).
-    pub lighting_gradient: f64,
-}
-
-impl Default for TrueCamera {
-    fn default() -> Self {
-        // A 1080p machine-vision camera with a ~8 mm lens: f ≈ 1400 px, mild barrel distortion.
-        TrueCamera {
-            image_size_px: [1920, 1080],
-            focal_px: 1400.0,
-            principal_offset_px: [6.5, -4.0],
-            distortion: [-0.12, 0.05, 0.0, 0.0, 0.0],
-            noise_grey_levels: 3.0,
-            blur_sigma_px: 0.8,
-            lighting_gradient: 0.35,
-        }
-    }
-}
-
-/// The freehand sweep: tilts about the image's X (lateral) and Y (beam) axes,
-/// a small rotation about Z, and where the plane cuts the sphere.
-#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct Sweep {
-    pub tilt_x_deg: f64,
-    pub tilt_y_deg: f64,
-    pub rotation_z_deg: f64,
-    /// Spread of the distance between the B-scan plane and the sphere centre.
-    pub elevation_offset_sd_mm: f64,
-    /// Hand motion between the photo and the B-scan.
-    pub tremor_mm: f64,
-    pub tremor_deg: f64,
-    /// Wire phantoms: how far along the wires (either way from their middle) the plane travels.
-    pub wire_travel_mm: f64,
-}
-
-impl Default for Sweep {
-    fn default() -> Self {
-        Sweep {
-            tilt_x_deg: 15.0,
-            tilt_y_deg: 15.0,
-            rotation_z_deg: 8.0,
-            elevation_offset_sd_mm: 0.5,
-            tremor_mm: 0.1,
-            tremor_deg: 0.03,
-            wire_travel_mm: 12.0,
-        }
-    }
-}
-
-/// The simulated convex probe and the phantom's echoes.
-#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct BscanRender {
-    pub depth_mm: f64,
-    pub fan_deg: f64,
-    pub convex_radius_mm: f64,
-    /// Elevation (out-of-plane) thickness of the beam.
-    pub slice_thickness_mm: f64,
-    /// Fraction of frames that are misleading (plane far off-centre, bubbles on
-    /// the dome, a jerk between photo and B-scan).
-    pub outlier_rate: f64,
-    /// Fraction of frames where the plane misses the hemisphere.
-    pub missing_rate: f64,
-    /// Chance of air bubbles in a frame.
-    pub bubble_rate: f64,
-}
-
-impl Default for BscanRender {
-    fn default() -> Self {
-        // A curved abdominal probe (like the thesis's XC6-1): 60° fan, 40 mm radius, 120 mm depth.
-        BscanRender {
-            depth_mm: 120.0,
-            fan_deg: 60.0,
-            convex_radius_mm: 40.0,
-            slice_thickness_mm: 1.5,
-            outlier_rate: 0.1,
-            missing_rate: 0.04,
-            bubble_rate: 0.3,
-        }
-    }
-}
-
-/// A rigid transform given as ZYX Euler angles (deg) and a translation (mm).
-#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
-#[serde(deny_unknown_fields)]
-pub struct TrueTransform {
-    /// `[roll_x, pitch_y, yaw_z]`, `R = Rz Ry Rx`.
-    pub rotation_deg: [f64; 3],
-    pub translation_mm: [f64; 3],
 }

@@ -35,10 +35,11 @@ use serde::{Deserialize, Serialize};
 use super::{deserialize_located, sha256_hex, Checker, ManifestErrors};
 use nalgebra::Point3;
 
-use crate::detect::nwire::{NWire, Segmentation, WireSegment};
+use crate::detect::nwire::Segmentation;
+use crate::estimate::image_to_probe::ConstraintModel;
 use crate::io::plus::config::PlusConfig;
 use crate::io::tracker_poses::{check_near_rigid, ORTHONORMAL_TOLERANCE};
-use crate::pipeline::tracked::{ConstraintModel, TimeOffset, TrackedInputs};
+use crate::spec::nwire::{NWire, WireSegment};
 
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -221,6 +222,18 @@ impl Default for TrackedRegression {
             frames_rejected: 2.0,
         }
     }
+}
+
+/// The tracker's time offset: fixed (s), or estimated from the calibration frames.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum TimeOffset {
+    Fixed(f64),
+    /// The offset in `[-range, range]` s (steps of `step`) whose calibration fits
+    /// the calibration frames best.
+    Estimate {
+        range_s: f64,
+        step_s: f64,
+    },
 }
 
 /// A validated tracker-sequence experiment.
@@ -489,25 +502,6 @@ impl TrackedManifest {
             regression: raw.thresholds.regression,
             plus_result,
         })
-    }
-
-    /// The tracked pipeline's inputs.
-    pub fn inputs(&self) -> TrackedInputs {
-        TrackedInputs {
-            calibration_sequence: self.calibration_sequence.clone(),
-            validation_sequence: self.validation_sequence.clone(),
-            probe_transform: self.probe_transform.clone(),
-            reference_transform: self.reference_transform.clone(),
-            reference_T_phantom: self.reference_T_phantom,
-            nwires: self.nwires.clone(),
-            spacing_guess_mm_per_px: self.spacing_guess_mm_per_px,
-            clip_rectangle_px: self.clip_rectangle_px,
-            segmentation: self.segmentation.clone(),
-            model: self.model,
-            reject_sd: self.reject_sd,
-            time_offset: self.time_offset,
-            refine_phantom: self.refine_phantom,
-        }
     }
 
     /// Every input file, for hashing.

@@ -17,16 +17,18 @@ use crate::detect::arc::{self, ArcFeature, ArcSettings};
 use crate::detect::board_pose::{self, FramePoses, RigBoards};
 use crate::detect::camera_calibration::{self, CameraCalibration};
 use crate::detect::spot::{self, Spot, SpotSettings};
+use crate::estimate::correspondence::{self, Correspondence};
 use crate::estimate::horn::{HornError, HornFit};
 use crate::estimate::wire_matching::{self, FrameDots, WireAxis};
 use crate::evaluate::resampling;
-use crate::evaluate::{self, Correspondence, EvaluationInputs, ThresholdRow, TruthComparison};
+use crate::evaluate::{self, EvaluationInputs, ThresholdRow, TruthComparison};
 use crate::io::camera_model::CameraIntrinsics;
 use crate::io::dataset::{self, FrameFiles};
 use crate::io::image::{read_gray, read_gray_sized};
 use crate::io::tracker_poses::{TrackedFrame, TrackerPoses};
 use crate::io::truth::GroundTruth;
-use crate::manifest::{CameraSource, Dataset, DatasetSource, Manifest, Phantom};
+use crate::manifest::{CameraSource, Dataset, DatasetSource, Manifest};
+use crate::spec::phantom::Phantom;
 use crate::synth;
 
 #[derive(Debug, thiserror::Error)]
@@ -325,7 +327,7 @@ enum Detector {
 #[derive(Debug, Clone, Copy)]
 enum Targets<'a> {
     Point([f64; 3]),
-    Wires(&'a [crate::manifest::Wire]),
+    Wires(&'a [crate::spec::phantom::Wire]),
 }
 
 /// Two pin-head candidates closer in strength than this make the pin head ambiguous.
@@ -494,9 +496,11 @@ pub fn run_dataset(
     let (folder, rendered) = match &dataset.source {
         DatasetSource::Render(spec) => {
             let folder = synth::dataset_folder(datasets_root, &manifest.experiment, &name);
-            let outcome = synth::ensure_rendered(manifest, spec, &folder).map_err(|source| RunError::Synth {
-                dataset: name.clone(),
-                source,
+            let outcome = synth::ensure_rendered(&super::settings::lab(manifest), spec, &folder).map_err(|source| {
+                RunError::Synth {
+                    dataset: name.clone(),
+                    source,
+                }
             })?;
             log(&format!(
                 "dataset `{name}`: {} ({})",
@@ -531,7 +535,7 @@ pub fn run_dataset(
     }
 
     let clock = Instant::now();
-    let rig = RigBoards::from_manifest(&manifest.rig).map_err(|e| RunError::Unsupported(e.to_string()))?;
+    let rig = RigBoards::from_rig(&manifest.rig).map_err(|e| RunError::Unsupported(e.to_string()))?;
     let spacing = manifest.bscan_spacing_mm_per_px;
     let (detector, targets) = match &manifest.phantom {
         Phantom::Hemisphere {
@@ -680,16 +684,18 @@ pub fn run_dataset(
         });
     }
     let all_frames_fit =
-        evaluate::solve(&correspondences, spacing, variant, start.as_ref()).map_err(|source| RunError::Solve {
-            dataset: name.clone(),
-            source,
+        correspondence::solve(&correspondences, spacing, variant, start.as_ref()).map_err(|source| {
+            RunError::Solve {
+                dataset: name.clone(),
+                source,
+            }
         })?;
     if start.is_some() {
         start = Some(all_frames_fit.target_T_source);
     }
     for f in frames.iter_mut() {
         if let Some(c) = correspondences.iter().find(|c| c.frame == f.files.frame) {
-            f.bre_mm = Some(evaluate::bre(c, &all_frames_fit, spacing));
+            f.bre_mm = Some(correspondence::bre(c, &all_frames_fit, spacing));
         }
     }
 
@@ -715,7 +721,7 @@ pub fn run_dataset(
     if let Err(e) = &thresholds[primary].fit {
         return Err(RunError::Cutoff {
             dataset: name,
-            cutoff: crate::report::write::cutoff_label(thresholds[primary].cutoff_mm),
+            cutoff: crate::evaluate::cutoff_label(thresholds[primary].cutoff_mm),
             kept: thresholds[primary].frames.len(),
             source: e.clone(),
         });
@@ -956,7 +962,7 @@ fn methods_stage(
             name: "cutoff_worst_first",
             description: format!(
                 "the reported calibration: Horn on the feature centres, frames above {} mm removed worst first, re-solving after each",
-                crate::report::write::cutoff_label(thesis.cutoff_mm)
+                crate::evaluate::cutoff_label(thesis.cutoff_mm)
             ),
             frames_used: thesis.frames.len(),
             frames_left_out: left_out(frames, |f| thesis.frames.contains(&f.frame)),
@@ -968,25 +974,25 @@ fn methods_stage(
     // The thesis's own procedure: one Horn fit on all frames, every frame whose BRE
     // under it exceeds the cut-off dropped at once, Horn again.
     if thesis.cutoff_mm.is_finite() {
-        if let Ok(all) = evaluate::solve(frames, spacing, inputs.variant, None) {
+        if let Ok(all) = correspondence::solve(frames, spacing, inputs.variant, None) {
             let kept: Vec<Correspondence> = frames
                 .iter()
                 .filter(|f| {
-                    let (axes, norm) = evaluate::bre(f, &all, spacing);
+                    let (axes, norm) = correspondence::bre(f, &all, spacing);
                     let value = match manifest.thresholds.cutoff_rule {
-                        crate::manifest::CutoffRule::MaxAxis => axes.iter().cloned().fold(0.0, f64::max),
-                        crate::manifest::CutoffRule::Norm => norm,
+                        crate::evaluate::CutoffRule::MaxAxis => axes.iter().cloned().fold(0.0, f64::max),
+                        crate::evaluate::CutoffRule::Norm => norm,
                     };
                     value < thesis.cutoff_mm
                 })
                 .cloned()
                 .collect();
-            if let Ok(fit) = evaluate::solve(&kept, spacing, inputs.variant, None) {
+            if let Ok(fit) = correspondence::solve(&kept, spacing, inputs.variant, None) {
                 out.push(MethodResult {
                     name: "thesis_one_shot",
                     description: format!(
                         "the thesis's procedure: Horn on all frames, every frame above {} mm dropped at once, Horn again",
-                        crate::report::write::cutoff_label(thesis.cutoff_mm)
+                        crate::evaluate::cutoff_label(thesis.cutoff_mm)
                     ),
                     frames_used: kept.len(),
                     frames_left_out: left_out(frames, |f| kept.iter().any(|c| c.frame == f.frame)),
@@ -1158,9 +1164,11 @@ pub fn synth_only(manifest: &Manifest, datasets_root: &Path, log: &mut dyn FnMut
         if let DatasetSource::Render(spec) = &d.source {
             let folder = synth::dataset_folder(datasets_root, &manifest.experiment, &d.name);
             let clock = Instant::now();
-            let outcome = synth::ensure_rendered(manifest, spec, &folder).map_err(|source| RunError::Synth {
-                dataset: d.name.clone(),
-                source,
+            let outcome = synth::ensure_rendered(&super::settings::lab(manifest), spec, &folder).map_err(|source| {
+                RunError::Synth {
+                    dataset: d.name.clone(),
+                    source,
+                }
             })?;
             log(&format!(
                 "dataset `{}`: {} ({}, {:.1} s)",

@@ -29,9 +29,9 @@ use serde::Serialize;
 
 use crate::core::geometry::{image_probe_points, pixel_to_image_mm, rigid_from_axis_angle, Rigid};
 use crate::core::rng::Rng;
+use crate::estimate::correspondence::{self, Correspondence};
 use crate::estimate::horn::Variant;
 use crate::evaluate::resampling::{mean_sd, percentile};
-use crate::evaluate::{self, Correspondence};
 use crate::manifest::{Dataset, DatasetSource, Manifest};
 use crate::pipeline::run::{self, DatasetRun, RunError};
 
@@ -80,13 +80,13 @@ pub fn sigma_table(frames: usize, repetitions: usize, seed: u64) -> Vec<SigmaRow
                         Correspondence::point(k, px, point, measured, Rigid::identity())
                     })
                     .collect();
-                let Ok(fit) = evaluate::solve(&pairs, spacing, Variant::Rigid, None) else {
+                let Ok(fit) = correspondence::solve(&pairs, spacing, Variant::Rigid, None) else {
                     continue;
                 };
                 let mut axes = Vec::new();
                 let mut norms = Vec::new();
                 for f in &pairs {
-                    let (a, n) = evaluate::bre(f, &fit, spacing);
+                    let (a, n) = correspondence::bre(f, &fit, spacing);
                     axes.extend(a);
                     norms.push(n);
                 }
@@ -201,7 +201,7 @@ fn seed_bound(run: &DatasetRun, truth: &Rigid, size: [usize; 2]) -> Option<f64> 
             rms_residual_mm: 0.0,
         };
         // Outliers (not part of the Gaussian model) are left out as RANSAC leaves them.
-        if evaluate::bre(&c, &fit, spacing).1 > 2.0 {
+        if correspondence::bre(&c, &fit, spacing).1 > 2.0 {
             continue;
         }
         residuals.push(y - truth * x);

@@ -10,23 +10,15 @@ use std::path::PathBuf;
 
 use nalgebra::{Matrix4, Point3};
 use rayon::prelude::*;
-use serde::{Deserialize, Serialize};
+use serde::Serialize;
 
-use crate::detect::nwire::{self, NWire, Segmentation};
+use crate::detect::nwire::{self, Segmentation};
+use crate::estimate::image_to_probe::ConstraintModel;
 use crate::estimate::image_to_probe::{self, Constraint, FitError, ImageToProbe, Target};
 use crate::io::plus::config::ConfigError;
 use crate::io::plus::sequence::{Sequence, SequenceError};
-
-/// Which constraints the dots give.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize, Serialize)]
-#[serde(rename_all = "snake_case")]
-pub enum ConstraintModel {
-    /// Only each N's middle dot, at its similar-triangles position (PLUS's method).
-    MiddlePoints,
-    /// Every dot on its own wire (a line constraint per dot), plus the middle dot's point.
-    #[default]
-    Wires,
-}
+use crate::manifest::tracked::{TimeOffset, TrackedManifest};
+use crate::spec::nwire::NWire;
 
 /// Everything the tracked pipeline needs, resolved.
 #[derive(Debug, Clone)]
@@ -53,6 +45,27 @@ pub struct TrackedInputs {
     pub refine_phantom: bool,
 }
 
+impl TrackedInputs {
+    /// The tracked pipeline's inputs from a manifest.
+    pub fn from_manifest(m: &TrackedManifest) -> TrackedInputs {
+        TrackedInputs {
+            calibration_sequence: m.calibration_sequence.clone(),
+            validation_sequence: m.validation_sequence.clone(),
+            probe_transform: m.probe_transform.clone(),
+            reference_transform: m.reference_transform.clone(),
+            reference_T_phantom: m.reference_T_phantom,
+            nwires: m.nwires.clone(),
+            spacing_guess_mm_per_px: m.spacing_guess_mm_per_px,
+            clip_rectangle_px: m.clip_rectangle_px,
+            segmentation: m.segmentation.clone(),
+            model: m.model,
+            reject_sd: m.reject_sd,
+            time_offset: m.time_offset,
+            refine_phantom: m.refine_phantom,
+        }
+    }
+}
+
 #[derive(Debug, thiserror::Error)]
 pub enum TrackedError {
     #[error("{0}")]
@@ -76,18 +89,6 @@ pub enum TrackedError {
         height: usize,
         want_width: usize,
         want_height: usize,
-    },
-}
-
-/// The tracker's time offset: fixed (s), or estimated from the calibration frames.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum TimeOffset {
-    Fixed(f64),
-    /// The offset in `[-range, range]` s (steps of `step`) whose calibration fits
-    /// the calibration frames best.
-    Estimate {
-        range_s: f64,
-        step_s: f64,
     },
 }
 

@@ -254,7 +254,7 @@ pub fn update(runs: &[RunSummary], baselines: &Path) -> Result<Vec<PathBuf>, Che
             "# Accuracy baseline of experiment `{experiment}`, written by `probecal check --update`.\n\
              # Lower is better for every metric; a run regresses above value + tolerance.\n{body}"
         );
-        crate::report::write::write_atomic(&path, text.as_bytes()).map_err(|e| CheckError::Write {
+        crate::io::fs::write_atomic(&path, text.as_bytes()).map_err(|e| CheckError::Write {
             path: path.clone(),
             message: e.to_string(),
         })?;

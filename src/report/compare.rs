@@ -5,9 +5,10 @@
 use serde::Serialize;
 
 use crate::core::geometry::pixel_to_image_mm;
-use crate::manifest::{Manifest, Rig};
+use crate::evaluate::cutoff_label;
+use crate::manifest::Manifest;
 use crate::pipeline::run::{DatasetRun, Stage};
-use crate::report::write::cutoff_label;
+use crate::spec::rig::Rig;
 
 /// One column of the comparison.
 #[derive(Debug, Clone, Serialize)]

@@ -16,9 +16,9 @@ use plotters::prelude::*;
 use serde::Serialize;
 
 use crate::core::geometry::{euler_zyx_deg, to_rows};
+use crate::evaluate::cutoff_label;
 use crate::evaluate::{BreStats, STAT_ROWS};
 use crate::pipeline::run::DatasetRun;
-use crate::report::write::cutoff_label;
 
 const RUN_TEMPLATE: &str = include_str!("../../templates/run.html.tera");
 const INDEX_TEMPLATE: &str = include_str!("../../templates/index.html.tera");
@@ -114,7 +114,8 @@ pub struct GalleryEntry {
 }
 
 fn setup_rows(run: &DatasetRun, manifest: &crate::manifest::Manifest) -> Vec<KeyValue> {
-    use crate::manifest::{CameraSource, Phantom};
+    use crate::manifest::CameraSource;
+    use crate::spec::phantom::Phantom;
     let phantom = match &manifest.phantom {
         Phantom::Hemisphere {
             centre_in_phantom_mm: c,

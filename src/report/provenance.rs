@@ -76,7 +76,7 @@ impl Provenance {
     pub fn write(&self, folder: &Path) -> Result<(), crate::report::write::OutputError> {
         let text =
             serde_json::to_string_pretty(self).map_err(|e| crate::report::write::OutputError::Report(e.to_string()))?;
-        crate::report::write::write_atomic(&folder.join("provenance.json"), text.as_bytes())
+        crate::io::fs::write_atomic(&folder.join("provenance.json"), text.as_bytes()).map_err(Into::into)
     }
 }
 

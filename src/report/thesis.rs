@@ -204,7 +204,7 @@ pub fn chapter(root: &Path) -> Chapter {
                 .zip(DATASET3_THESIS_FRAMES)
                 .map(|(r, thesis_frames)| {
                     let cutoff = match r["cutoff_mm"].as_f64() {
-                        Some(c) => crate::report::write::cutoff_label(c),
+                        Some(c) => crate::evaluate::cutoff_label(c),
                         None => "<∞".to_string(),
                     };
                     format!("{cutoff} ({} / {thesis_frames})", r["frames"].as_u64().unwrap_or(0))

@@ -9,10 +9,11 @@ use serde::Serialize;
 use serde_json::{json, Value};
 
 use crate::core::geometry::euler_zyx_deg;
+use crate::io::fs::write_atomic;
 use crate::io::plus::result::PlusResult;
 use crate::manifest::tracked::TrackedManifest;
 use crate::pipeline::tracked::{ErrorStats, Role, TrackedRun};
-use crate::report::write::{write_atomic, OutputError};
+use crate::report::write::OutputError;
 
 /// PRE3D of a general `ImageToProbe` matrix (e.g. PLUS's) on this run's segmented dots.
 pub fn pre3d_of_matrix(

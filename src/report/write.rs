@@ -8,8 +8,11 @@ use polars::prelude::*;
 use serde_json::{json, Value};
 
 use crate::core::geometry::{euler_zyx_deg, to_rows};
-use crate::evaluate::{AxisStats, BreStats, STAT_ROWS};
+use crate::evaluate::{cutoff_label, trim_number, AxisStats, BreStats, STAT_ROWS};
 use crate::pipeline::run::DatasetRun;
+
+use crate::io::fs::write_atomic;
+use crate::io::fs::{display_path, WriteError};
 
 #[derive(Debug, thiserror::Error)]
 pub enum OutputError {
@@ -21,47 +24,12 @@ pub enum OutputError {
     Report(String),
 }
 
-/// Writes `bytes` to `path` through a temporary file in the same folder.
-pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), OutputError> {
-    let err = |e: std::io::Error| OutputError::Io {
-        path: path.to_path_buf(),
-        message: e.to_string(),
-    };
-    if let Some(parent) = path.parent() {
-        std::fs::create_dir_all(parent).map_err(err)?;
-    }
-    let tmp = path.with_file_name(format!(
-        ".{}.tmp",
-        path.file_name().map(|n| n.to_string_lossy()).unwrap_or_default()
-    ));
-    std::fs::write(&tmp, bytes).map_err(err)?;
-    std::fs::rename(&tmp, path).map_err(err)
-}
-
-/// How a cut-off is written in tables: `<∞` or `<2`.
-pub fn cutoff_label(cutoff: f64) -> String {
-    if cutoff.is_infinite() {
-        "<∞".to_string()
-    } else {
-        format!("<{}", trim_number(cutoff))
-    }
-}
-
-fn trim_number(v: f64) -> String {
-    let s = format!("{v}");
-    s.trim_end_matches(".0").to_string()
-}
-
 fn cutoff_json(cutoff: f64) -> Value {
     if cutoff.is_infinite() {
         json!("inf")
     } else {
         json!(cutoff)
     }
-}
-
-fn display_path(path: &Path) -> String {
-    path.to_string_lossy().replace('\\', "/")
 }
 
 /// The per-frame table: one row per frame, used or rejected with the stage and reason.
@@ -398,4 +366,13 @@ pub fn write_dataset_run(
             })?;
     }
     Ok(())
+}
+
+impl From<WriteError> for OutputError {
+    fn from(e: WriteError) -> OutputError {
+        OutputError::Io {
+            path: e.path,
+            message: e.message,
+        }
+    }
 }

@@ -21,7 +21,9 @@ use crate::detect::board::BoardLayout;
 use crate::detect::board_pose::RigBoards;
 use crate::io::camera_model::CameraIntrinsics;
 use crate::io::dataset::FRAME_LIST;
-use crate::manifest::{Manifest, Phantom, RenderSpec, Rig};
+use crate::spec::phantom::Phantom;
+use crate::spec::render::RenderSpec;
+use crate::spec::rig::{CameraCalibrationBoard, Rig};
 use bscan_render::{Bubble, EchoModel};
 use camera_render::{Photometry, PlacedBoard, RayMap};
 use scene::{FrameKind, SceneInputs};
@@ -60,47 +62,58 @@ pub struct RenderInputs {
     pub spacing_mm_per_px: [f64; 2],
 }
 
-/// What of the manifest the renderer needs.
-struct Lab {
+/// What of an experiment the renderer needs: the rig, the phantom, the B-scan's
+/// pixel size and the camera calibration board (when the camera is calibrated
+/// from views; other experiments still get views of a 9x6 board of 30 mm).
+#[derive(Debug, Clone, Copy)]
+pub struct Lab<'a> {
+    pub rig: &'a Rig,
+    pub phantom: &'a Phantom,
+    pub spacing_mm_per_px: [f64; 2],
+    pub calibration_board: Option<&'a CameraCalibrationBoard>,
+    /// The file that describes the lab (named in errors).
+    pub described_in: &'a Path,
+}
+
+/// The lab's boards as the renderer draws them.
+struct Boards {
     rig: RigBoards,
     calibration: BoardLayout,
 }
 
-fn lab(manifest: &Manifest) -> Result<Lab, SynthError> {
-    let rig = RigBoards::from_manifest(&manifest.rig).map_err(|e| SynthError::Io {
-        path: manifest.path.clone(),
+fn boards(lab: &Lab<'_>) -> Result<Boards, SynthError> {
+    let rig = RigBoards::from_rig(lab.rig).map_err(|e| SynthError::Io {
+        path: lab.described_in.to_path_buf(),
         message: e.to_string(),
     })?;
-    let calibration = match &manifest.camera {
-        crate::manifest::CameraSource::Calibrate { board, .. } => BoardLayout {
+    let calibration = match lab.calibration_board {
+        Some(board) => BoardLayout {
             inner_corners: board.inner_corners,
             square_mm: board.square_mm,
             id_dots: 0,
         },
         // A file gives the intrinsics, or a tracker the poses; the views are still
         // rendered for inspection.
-        crate::manifest::CameraSource::IntrinsicsFile(_) | crate::manifest::CameraSource::TrackerCsv(_) => {
-            BoardLayout {
-                inner_corners: [9, 6],
-                square_mm: 30.0,
-                id_dots: 0,
-            }
-        }
+        None => BoardLayout {
+            inner_corners: [9, 6],
+            square_mm: 30.0,
+            id_dots: 0,
+        },
     };
-    Ok(Lab { rig, calibration })
+    Ok(Boards { rig, calibration })
 }
 
 /// The exact inputs of a dataset render.
-pub fn render_inputs(manifest: &Manifest, spec: &RenderSpec) -> Result<RenderInputs, SynthError> {
-    let lab = lab(manifest)?;
+pub fn render_inputs(lab: &Lab<'_>, spec: &RenderSpec) -> Result<RenderInputs, SynthError> {
+    let boards = boards(lab)?;
     Ok(RenderInputs {
         generator_version: GENERATOR_VERSION,
         spec: spec.clone(),
-        rig: manifest.rig.clone(),
-        calibration_board: lab.calibration.inner_corners,
-        calibration_square_mm: lab.calibration.square_mm,
-        phantom: manifest.phantom.clone(),
-        spacing_mm_per_px: manifest.bscan_spacing_mm_per_px,
+        rig: lab.rig.clone(),
+        calibration_board: boards.calibration.inner_corners,
+        calibration_square_mm: boards.calibration.square_mm,
+        phantom: lab.phantom.clone(),
+        spacing_mm_per_px: lab.spacing_mm_per_px,
     })
 }
 
@@ -112,8 +125,8 @@ pub enum RenderOutcome {
 }
 
 /// Renders `spec` into `folder` unless the folder already holds exactly this render.
-pub fn ensure_rendered(manifest: &Manifest, spec: &RenderSpec, folder: &Path) -> Result<RenderOutcome, SynthError> {
-    let inputs = render_inputs(manifest, spec)?;
+pub fn ensure_rendered(lab: &Lab<'_>, spec: &RenderSpec, folder: &Path) -> Result<RenderOutcome, SynthError> {
+    let inputs = render_inputs(lab, spec)?;
     let inputs_json = serde_json::to_string_pretty(&inputs).map_err(|e| SynthError::Io {
         path: folder.to_path_buf(),
         message: e.to_string(),
@@ -134,7 +147,7 @@ pub fn ensure_rendered(manifest: &Manifest, spec: &RenderSpec, folder: &Path) ->
     if partial.exists() {
         std::fs::remove_dir_all(&partial).map_err(io_err(&partial))?;
     }
-    render_into(manifest, spec, &partial)?;
+    render_into(lab, spec, &partial)?;
     std::fs::write(partial.join("render_spec.json"), &inputs_json).map_err(io_err(&partial))?;
     if folder.exists() {
         std::fs::remove_dir_all(folder).map_err(io_err(folder))?;
@@ -172,16 +185,16 @@ struct GroundTruthFile {
     camera_calibration_views: Vec<[[f64; 4]; 4]>,
 }
 
-fn render_into(manifest: &Manifest, spec: &RenderSpec, folder: &Path) -> Result<(), SynthError> {
-    let Lab { rig, calibration } = lab(manifest)?;
+fn render_into(lab: &Lab<'_>, spec: &RenderSpec, folder: &Path) -> Result<(), SynthError> {
+    let Boards { rig, calibration } = boards(lab)?;
     let calibration_board = crate::detect::board::PrintedBoard::Checkerboard(calibration);
     let scene = scene::build(&SceneInputs {
         spec,
         probe_board: rig.probe,
         phantom_board: rig.phantom,
         calibration_board: calibration,
-        phantom: &manifest.phantom,
-        spacing_mm_per_px: manifest.bscan_spacing_mm_per_px,
+        phantom: lab.phantom,
+        spacing_mm_per_px: lab.spacing_mm_per_px,
     })?;
     let frames_dir = folder.join("frames");
     let calib_dir = folder.join("camera_calibration");
@@ -239,7 +252,7 @@ fn render_into(manifest: &Manifest, spec: &RenderSpec, folder: &Path) -> Result<
         let world_T_image: Rigid = plan.world_T_marker_bscan * scene.marker_T_image;
         let bubbles = bscan_render::draw_bubbles(&scene, &world_T_image, plan.kind, echo, &mut rng);
         let bscan = bscan_render::render_bscan(&scene, &world_T_image, &bubbles, echo, &mut rng)?;
-        let wire_dots_px = match (&manifest.phantom, &scene.shape) {
+        let wire_dots_px = match (lab.phantom, &scene.shape) {
             (Phantom::FourWire { wires, .. }, scene::Shape::Wires { wires_world, .. }) => wires
                 .iter()
                 .zip(wires_world)
@@ -285,7 +298,7 @@ fn render_into(manifest: &Manifest, spec: &RenderSpec, folder: &Path) -> Result<
         camera: scene.camera.clone(),
         marker_T_image: to_rows(&scene.marker_T_image),
         camera_T_phantom: to_rows(&camera_T_phantom),
-        phantom: manifest.phantom.clone(),
+        phantom: lab.phantom.clone(),
         bscan_size_px: [scene.bscan.width_px, scene.bscan.height_px],
         bscan_apex_mm: scene.bscan.apex_mm,
         frames: truth_frames,
@@ -326,7 +339,7 @@ fn write_tracker_poses(
         rows.push((k, "ProbeToTracker", tracker_T_marker));
         rows.push((k, "ReferenceToTracker", tracker_T_phantom));
     }
-    let path = folder.join(crate::manifest::RENDERED_TRACKER_POSES);
+    let path = folder.join(crate::spec::render::RENDERED_TRACKER_POSES);
     crate::io::tracker_poses::write(&path, &rows).map_err(io_err(&path))
 }
 

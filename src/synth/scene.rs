@@ -12,7 +12,7 @@ use crate::core::geometry::Rigid;
 use crate::core::rng::Rng;
 use crate::detect::board::{BoardLayout, PrintedBoard};
 use crate::io::camera_model::CameraIntrinsics;
-use crate::manifest::{RenderSpec, TrueTransform};
+use crate::spec::render::{RenderSpec, TrueTransform};
 
 /// Why a frame is what it is (ground truth only).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
@@ -48,8 +48,8 @@ pub enum Shape {
 impl Shape {
     /// From the manifest's phantom: the shape in the world frame and the feature
     /// the lab is laid out around (phantom frame).
-    pub fn from_phantom(phantom: &crate::manifest::Phantom, world_T_phantom: &Rigid) -> (Shape, [f64; 3]) {
-        use crate::manifest::Phantom;
+    pub fn from_phantom(phantom: &crate::spec::phantom::Phantom, world_T_phantom: &Rigid) -> (Shape, [f64; 3]) {
+        use crate::spec::phantom::Phantom;
         match phantom {
             Phantom::Hemisphere {
                 centre_in_phantom_mm,
@@ -72,7 +72,7 @@ impl Shape {
                     .iter()
                     .map(|w| (Point3::from(w.start_in_phantom_mm), Point3::from(w.end_in_phantom_mm)))
                     .collect();
-                let centre = crate::manifest::wires_centre(&ends);
+                let centre = crate::spec::phantom::wires_centre(&ends);
                 let wires_world = ends
                     .iter()
                     .map(|(a, b)| (world_T_phantom * a, world_T_phantom * b))
@@ -297,7 +297,7 @@ pub struct SceneInputs<'a> {
     pub probe_board: PrintedBoard,
     pub phantom_board: PrintedBoard,
     pub calibration_board: BoardLayout,
-    pub phantom: &'a crate::manifest::Phantom,
+    pub phantom: &'a crate::spec::phantom::Phantom,
     pub spacing_mm_per_px: [f64; 2],
 }
 

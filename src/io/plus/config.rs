@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 
 use nalgebra::{Matrix4, Point3};
 
-use crate::detect::nwire::{NWire, WireSegment};
+use crate::spec::nwire::{NWire, WireSegment};
 
 /// Why a configuration file could not be used.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
