@@ -5,3 +5,4 @@ pub mod lm;
 pub mod parallel;
 pub mod progress;
 pub mod rng;
+pub mod stats;

@@ -15,6 +15,8 @@
 //!    is narrowed twice. The frame is rejected, with the reason, when the arc is
 //!    too short, has too few points, is not circular, or has an implausible radius.
 
+use super::fan::{FAN_EDGE_MM, NEAR_FIELD_MM};
+use crate::core::stats::percentile_sorted_nearest;
 use opencv::core::Mat;
 
 use crate::io::image::{gaussian_blur_f32, mat_to_gray8, ImageError};
@@ -56,20 +58,11 @@ pub struct ArcFeature {
     pub arc_points_px: Vec<[f64; 2]>,
 }
 
-const NEAR_FIELD_MM: f64 = 6.0;
-const FAN_EDGE_MM: f64 = 1.5;
 const CELL_MM: f64 = 0.25;
 /// Angular bins for the arc's coverage check.
 const FILL_BIN_DEG: f64 = 5.0;
 /// Smallest fraction of the arc's span that must hold echo points.
 const MIN_FILL: f64 = 0.75;
-
-fn percentile(sorted: &[f32], q: f64) -> f32 {
-    if sorted.is_empty() {
-        return 0.0;
-    }
-    sorted[((sorted.len() - 1) as f64 * q).round() as usize]
-}
 
 /// Geometric circle fit (Gauss–Newton) from a start; returns centre, radius, RMS (mm).
 /// With `fixed_radius` the radius stays at the start's value.
@@ -170,8 +163,8 @@ pub fn detect(image: &Mat, settings: &ArcSettings) -> Result<Result<ArcFeature, 
         return Ok(Err("no ultrasound image content (empty fan)".into()));
     }
     values.sort_by(|a, b| a.total_cmp(b));
-    let median = percentile(&values, 0.5);
-    let high = percentile(&values, 0.997);
+    let median = percentile_sorted_nearest(&values, 0.5);
+    let high = percentile_sorted_nearest(&values, 0.997);
     let threshold = median + 0.45 * (high - median).max(10.0);
 
     // 1. Echo points: column-wise ridge maxima, sub-pixel, with the ridge's normal

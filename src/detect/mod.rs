@@ -6,5 +6,6 @@ pub mod board;
 pub mod board_pose;
 pub mod camera_calibration;
 pub mod corners;
+pub mod fan;
 pub mod nwire;
 pub mod spot;

@@ -75,9 +75,9 @@ impl Default for Segmentation {
     }
 }
 
-/// A bright spot: its intensity-weighted centre and strength.
+/// A bright region that may be a wire dot: its intensity-weighted centre and strength.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Spot {
+pub struct DotCandidate {
     pub centre_px: [f64; 2],
     pub pixels: usize,
     /// Sum of grey levels above the threshold.
@@ -86,7 +86,7 @@ pub struct Spot {
 
 /// The dots of one frame, per pattern: `[wire 1, wire 2, wire 3]` pixels.
 #[derive(Debug, Clone, PartialEq)]
-pub struct FrameDots {
+pub struct NWireDots {
     pub patterns: Vec<[[f64; 2]; 3]>,
 }
 
@@ -125,7 +125,7 @@ pub fn find_spots(
     height: usize,
     clip: [usize; 4],
     settings: &Segmentation,
-) -> Vec<Spot> {
+) -> Vec<DotCandidate> {
     let [u0, v0, w, h] = clip;
     let (u1, v1) = ((u0 + w).min(width), (v0 + h).min(height));
     let t = settings.threshold_grey;
@@ -182,7 +182,7 @@ pub fn find_spots(
                 (sw, su, sv) = centre(pixels);
             }
             if sw > 0.0 {
-                spots.push(Spot {
+                spots.push(DotCandidate {
                     centre_px: [su / sw, sv / sw],
                     pixels: members.len(),
                     weight,
@@ -214,12 +214,12 @@ struct Row {
 /// (side-wire distance over the approximate pixel size); a row may be up to 1.6x
 /// longer (a plane crossing the wires obliquely) and 0.85x shorter.
 pub fn segment(
-    spots: &[Spot],
+    spots: &[DotCandidate],
     patterns: usize,
     widths_px: (f64, f64),
     spacing_mm_per_px: f64,
     settings: &Segmentation,
-) -> Result<FrameDots, String> {
+) -> Result<NWireDots, String> {
     if spots.len() < 3 * patterns {
         return Err(format!(
             "{} bright spots above grey level {}, {} needed for {patterns} N-wires",
@@ -295,7 +295,7 @@ pub fn segment(
             dots
         })
         .collect();
-    Ok(FrameDots { patterns })
+    Ok(NWireDots { patterns })
 }
 
 fn search(

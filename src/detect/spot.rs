@@ -14,6 +14,8 @@
 //! 5. The front echo's position is the weighted centroid of its first lobe; the
 //!    object's centre is one radius further along the beam.
 
+use super::fan::{FAN_EDGE_MM, NEAR_FIELD_MM};
+use crate::core::stats::percentile_sorted_nearest;
 use opencv::core::Mat;
 
 use crate::io::image::{gaussian_blur_f32, mat_to_gray8, ImageError};
@@ -54,8 +56,6 @@ pub struct Spots {
     pub surfaces: usize,
 }
 
-const NEAR_FIELD_MM: f64 = 6.0;
-const FAN_EDGE_MM: f64 = 1.5;
 /// An echo wider than two touching objects plus this is a surface.
 const SURFACE_EXTRA_WIDTH_MM: f64 = 3.0;
 /// Across-beam profile bins for splitting two touching objects, mm.
@@ -66,13 +66,6 @@ const SAME_BEAM_MM: f64 = 1.5;
 const TAIL_LENGTH_MM: f64 = 8.0;
 /// Axial extent of the front echo's first lobe.
 const FRONT_LOBE_MM: f64 = 1.0;
-
-fn percentile(sorted: &[f32], q: f64) -> f32 {
-    if sorted.is_empty() {
-        return 0.0;
-    }
-    sorted[((sorted.len() - 1) as f64 * q).round() as usize]
-}
 
 /// Least-squares line `x = a + b y` through points, refitted without points more
 /// than 1.5 px off.
@@ -217,8 +210,8 @@ pub fn detect(image: &Mat, settings: &SpotSettings) -> Result<Spots, ImageError>
         });
     }
     values.sort_by(|a, b| a.total_cmp(b));
-    let median = percentile(&values, 0.5);
-    let high = percentile(&values, 0.997);
+    let median = percentile_sorted_nearest(&values, 0.5);
+    let high = percentile_sorted_nearest(&values, 0.997);
     let threshold = median + 0.45 * (high - median).max(10.0);
     let above = |i: usize| smooth[i] >= threshold && usable(i % w, i / w);
 

@@ -17,6 +17,7 @@
 use serde::{Deserialize, Serialize};
 
 use crate::core::rng::Rng;
+use crate::core::stats::median;
 use crate::estimate::correspondence::{self, Correspondence};
 use crate::estimate::horn::{HornError, HornFit, Variant};
 
@@ -81,16 +82,6 @@ impl RobustFit {
 /// reconstruction from the feature, mm (the mean over features of a frame).
 fn frame_residual(frame: &Correspondence, fit: &HornFit, spacing: [f64; 2]) -> f64 {
     correspondence::bre(frame, fit, spacing).1
-}
-
-fn median(values: &mut [f64]) -> f64 {
-    values.sort_by(|a, b| a.total_cmp(b));
-    let n = values.len();
-    if n % 2 == 1 {
-        values[n / 2]
-    } else {
-        (values[n / 2 - 1] + values[n / 2]) / 2.0
-    }
 }
 
 /// Three distinct indices below `n`.

@@ -34,7 +34,7 @@ impl WireAxis {
 
 /// One frame's detected dots and poses.
 #[derive(Debug, Clone)]
-pub struct FrameDots {
+pub struct FrameWireDots {
     pub frame: usize,
     pub dots_px: Vec<[f64; 2]>,
     pub camera_T_marker: Rigid,
@@ -124,7 +124,7 @@ fn pair(dots_mm: &[[f64; 2]], predicted: &[Option<[f64; 2]>], max_shift: f64) ->
 
 /// Pairs dots with wires and solves `marker_T_image`, from `start`.
 pub fn match_and_solve(
-    frames: &[FrameDots],
+    frames: &[FrameWireDots],
     wires: &[WireAxis],
     start: &Rigid,
     spacing: [f64; 2],

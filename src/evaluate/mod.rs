@@ -11,7 +11,7 @@
 pub mod resampling;
 
 use polars::prelude::*;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 use crate::core::geometry::{image_probe_points, rotation_angle_between_deg, Rigid};
 use crate::estimate::correspondence::{solve, Correspondence};
@@ -55,7 +55,7 @@ pub fn trim_number(v: f64) -> String {
 }
 
 /// Std (n − 1), mean, min, max of one axis, mm.
-#[derive(Debug, Clone, Copy, Serialize, PartialEq)]
+#[derive(Debug, Clone, Copy, Default, Serialize, Deserialize, PartialEq)]
 pub struct AxisStats {
     pub std: f64,
     pub mean: f64,

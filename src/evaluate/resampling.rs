@@ -13,10 +13,11 @@
 //! Resamples and halves come from a seeded generator: reproducible.
 
 use nalgebra::Point3;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 use crate::core::geometry::{euler_zyx_deg, image_probe_points, Rigid};
 use crate::core::rng::Rng;
+use crate::core::stats::{mean_sd, percentile, MeanSd};
 use crate::estimate::correspondence::{self, Correspondence};
 use crate::estimate::horn::{HornError, HornFit, Variant};
 
@@ -38,24 +39,6 @@ impl FitInputs<'_> {
     /// The image's four corners and centre, mm in the image frame.
     fn probe_points(&self) -> [Point3<f64>; 5] {
         image_probe_points(self.image_size_px, self.spacing)
-    }
-}
-
-#[derive(Debug, Clone, Serialize)]
-pub struct MeanSd {
-    pub mean: f64,
-    pub std: f64,
-    pub n: usize,
-}
-
-pub(crate) fn mean_sd(values: &[f64]) -> MeanSd {
-    let n = values.len();
-    let mean = values.iter().sum::<f64>() / n.max(1) as f64;
-    let var = values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n.max(2) - 1) as f64;
-    MeanSd {
-        mean,
-        std: var.sqrt(),
-        n,
     }
 }
 
@@ -136,13 +119,13 @@ pub fn reproducibility(
 }
 
 /// A 95 % percentile interval.
-#[derive(Debug, Clone, Copy, Serialize)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
 pub struct Interval {
     pub low: f64,
     pub high: f64,
 }
 
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct Bootstrap {
     pub resamples: usize,
     pub translation_mm: [Interval; 3],
@@ -155,13 +138,6 @@ pub struct Bootstrap {
 }
 
 /// The `q` quantile (0..1) of non-empty `values`, linearly interpolated.
-pub(crate) fn percentile(values: &[f64], q: f64) -> f64 {
-    let mut values = values.to_vec();
-    values.sort_by(|a, b| a.total_cmp(b));
-    let pos = q * (values.len() - 1) as f64;
-    let (lo, hi) = (pos.floor() as usize, pos.ceil() as usize);
-    values[lo] + (values[hi] - values[lo]) * (pos - lo as f64)
-}
 
 fn interval(values: &[f64]) -> Interval {
     Interval {

@@ -1,5 +1,14 @@
-//! The stages chained: a manifest's datasets run end to end.
+//! The stages chained: a manifest's datasets run end to end. Only this layer
+//! reads manifests; it turns them into each stage's settings ([`settings`]).
+pub mod camera;
+pub mod experiment;
+pub mod frames;
+pub mod methods;
+pub mod record;
+pub mod resolve;
 pub mod run;
 pub mod settings;
+pub mod solve;
 pub mod study;
 pub mod tracked;
+pub mod truth;

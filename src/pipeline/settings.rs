@@ -1,7 +1,13 @@
 //! The manifest turned into each stage's settings: the one place where the
 //! pipeline reads a manifest for the stages below it.
 
-use crate::manifest::{CameraSource, Manifest};
+use super::frames::{Detector, Targets};
+use super::solve::SolveSettings;
+use crate::detect::arc::ArcSettings;
+use crate::detect::spot::SpotSettings;
+use crate::estimate::horn::Variant;
+use crate::manifest::{CameraSource, FitRadius, Manifest, SolveVariant};
+use crate::spec::phantom::Phantom;
 use crate::synth::Lab;
 
 /// The lab a camera experiment's datasets are rendered in.
@@ -15,5 +21,78 @@ pub fn lab(manifest: &Manifest) -> Lab<'_> {
             CameraSource::IntrinsicsFile(_) | CameraSource::TrackerCsv(_) => None,
         },
         described_in: &manifest.path,
+    }
+}
+
+/// The B-scan feature detector of the manifest's phantom, and where its features lie.
+pub fn detector(manifest: &Manifest) -> (Detector, Targets<'_>) {
+    let spacing = manifest.bscan_spacing_mm_per_px;
+    match &manifest.phantom {
+        Phantom::Hemisphere {
+            centre_in_phantom_mm,
+            radius_mm,
+        } => (
+            Detector::Arc(ArcSettings {
+                spacing_mm_per_px: spacing,
+                radius_mm: [
+                    manifest.arc_detection.radius_fraction[0] * radius_mm,
+                    manifest.arc_detection.radius_fraction[1] * radius_mm,
+                ],
+                min_span_deg: manifest.arc_detection.min_span_deg,
+                max_rms_px: manifest.arc_detection.max_rms_px,
+                min_points: manifest.arc_detection.min_points,
+                fixed_radius_mm: (manifest.arc_detection.fit_radius == FitRadius::Known).then_some(*radius_mm),
+            }),
+            Targets::Point(*centre_in_phantom_mm),
+        ),
+        Phantom::Point {
+            position_in_phantom_mm,
+            head_radius_mm,
+        } => (
+            Detector::PinHead(SpotSettings {
+                spacing_mm_per_px: spacing,
+                object_radius_mm: *head_radius_mm,
+            }),
+            Targets::Point(*position_in_phantom_mm),
+        ),
+        Phantom::FourWire {
+            wire_diameter_mm,
+            wires,
+        } => (
+            Detector::WireDots(SpotSettings {
+                spacing_mm_per_px: spacing,
+                object_radius_mm: wire_diameter_mm / 2.0,
+            }),
+            Targets::Wires(wires),
+        ),
+    }
+}
+
+/// Horn's variant: rigid, or with a scale on the pixel spacing.
+pub fn variant(manifest: &Manifest) -> Variant {
+    match manifest.solve_variant {
+        SolveVariant::Rigid => Variant::Rigid,
+        SolveVariant::Similarity => Variant::Similarity,
+    }
+}
+
+/// The radius of the manifest's sphere, for the sphere fit (hemisphere phantoms).
+pub fn sphere_radius_mm(manifest: &Manifest) -> Option<f64> {
+    match &manifest.phantom {
+        Phantom::Hemisphere { radius_mm, .. } => Some(*radius_mm),
+        _ => None,
+    }
+}
+
+/// How the manifest's pairs are solved.
+pub fn solve(manifest: &Manifest) -> SolveSettings {
+    SolveSettings {
+        spacing_mm_per_px: manifest.bscan_spacing_mm_per_px,
+        variant: variant(manifest),
+        cutoffs_mm: manifest.thresholds.bre_cutoffs_mm.clone(),
+        rule: manifest.thresholds.cutoff_rule,
+        calibration_cutoff_mm: manifest.thresholds.calibration_cutoff_mm,
+        min_frames: manifest.thresholds.min_frames,
+        initial_marker_T_image: manifest.initial_marker_T_image,
     }
 }

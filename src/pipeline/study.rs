@@ -25,20 +25,21 @@
 use std::path::Path;
 
 use nalgebra::{Matrix3, Matrix6, Point3, Vector3};
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 use crate::core::geometry::{image_probe_points, pixel_to_image_mm, rigid_from_axis_angle, Rigid};
 use crate::core::rng::Rng;
+use crate::core::stats::{mean_sd, percentile};
 use crate::estimate::correspondence::{self, Correspondence};
 use crate::estimate::horn::Variant;
-use crate::evaluate::resampling::{mean_sd, percentile};
 use crate::manifest::{Dataset, DatasetSource, Manifest};
-use crate::pipeline::run::{self, DatasetRun, RunError};
+use crate::pipeline::record::DatasetRun;
+use crate::pipeline::run::{self, RunError};
 
 /// The thesis's published σ-table.
 pub const THESIS_SIGMA_TABLE: [(f64, f64); 4] = [(0.0, 0.0), (0.5, 0.272), (1.0, 0.504), (2.0, 1.127)];
 
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct SigmaRow {
     pub sigma_mm: f64,
     pub thesis_std_mm: f64,
@@ -104,7 +105,7 @@ pub fn sigma_table(frames: usize, repetitions: usize, seed: u64) -> Vec<SigmaRow
 }
 
 /// One seed's outcome.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct SeedResult {
     pub seed: u64,
     /// (method, RMS error over the corners and centre, mm).
@@ -114,19 +115,19 @@ pub struct SeedResult {
     pub frames_used: usize,
 }
 
-#[derive(Debug, Clone, Serialize)]
-pub struct MethodSummary {
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct MethodAccuracy {
     pub method: String,
     pub mean_mm: f64,
     pub p95_mm: f64,
     pub rms_mm: f64,
 }
 
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct MonteCarlo {
     pub experiment: String,
     pub seeds: Vec<SeedResult>,
-    pub methods: Vec<MethodSummary>,
+    pub methods: Vec<MethodAccuracy>,
     /// RMS over seeds of the per-seed bound, mm.
     pub crlb_rms_mm: f64,
 }
@@ -182,7 +183,7 @@ fn rms_error(estimate: &Rigid, spacing: [f64; 2], truth: &Rigid, true_spacing: [
 
 /// One seed: the bound from the truth residuals of the frames the robust fit kept.
 fn seed_bound(run: &DatasetRun, truth: &Rigid, size: [usize; 2]) -> Option<f64> {
-    let ransac = run.methods.iter().find(|m| m.name == "ransac")?;
+    let ransac = run.methods.iter().find(|m| m.method.name() == "ransac")?;
     let feature = Point3::from(Vector3::from(run.feature_in_phantom_mm?));
     let spacing = run.spacing_mm_per_px;
     // The frames RANSAC keeps are those near its calibration; rebuild their pairs.
@@ -256,7 +257,7 @@ pub fn monte_carlo(
             .iter()
             .map(|m| {
                 (
-                    m.name.to_string(),
+                    m.method.name().to_string(),
                     rms_error(
                         &m.marker_T_image,
                         m.spacing_mm_per_px,
@@ -298,7 +299,7 @@ pub fn monte_carlo(
                 .iter()
                 .filter_map(|r| r.rms_error_mm.iter().find(|(m, _)| m == name).map(|(_, e)| *e))
                 .collect();
-            MethodSummary {
+            MethodAccuracy {
                 method: name.clone(),
                 mean_mm: errors.iter().sum::<f64>() / errors.len().max(1) as f64,
                 p95_mm: if errors.is_empty() {
@@ -317,118 +318,6 @@ pub fn monte_carlo(
         crlb_rms_mm: (bounds.iter().map(|b| b * b).sum::<f64>() / bounds.len().max(1) as f64).sqrt(),
         seeds: results,
     })
-}
-
-/// The study's tables as Markdown (also the body of the HTML page).
-pub fn markdown(sigma: &[SigmaRow], monte_carlo: Option<&MonteCarlo>) -> String {
-    let mut md = String::from("# Studies\n\n## The thesis's synthetic experiment (σ-table)\n\n");
-    md.push_str(
-        "Protocol: a fixed phantom point; per frame a random image point, a probe tilted up to ±20° about X and Y \
-         with a fixed rotation about Z, and the marker placed so the image point lands on the phantom point; Gaussian \
-         noise of SD σ on each axis of the marker's position; Horn's closed form; 50 frames, 200 repetitions.\n\n",
-    );
-    md.push_str("| σ (mm) | thesis: Std (mm) | probecal: Std of \\|residual\\| per axis (mm) | probecal: Std of 3D residual (mm) |\n|---|---|---|---|\n");
-    for r in sigma {
-        md.push_str(&format!(
-            "| {} | {:.3} | {:.3} | {:.3} |\n",
-            r.sigma_mm, r.thesis_std_mm, r.std_per_axis_mm, r.std_distance_mm
-        ));
-    }
-    if let Some(mc) = monte_carlo {
-        md.push_str(&format!(
-            "\n## Monte Carlo accuracy study: `{}`, {} seeds\n\n",
-            mc.experiment,
-            mc.seeds.len()
-        ));
-        md.push_str(
-            "Each seed renders the experiment's dataset anew (photos, B-scans, outlier and missing frames) and runs the \
-             whole pipeline; the error is the RMS distance of the image's four corners and centre from the truth. The \
-             Cramér–Rao bound is that of the point-pair model (independent Gaussian pair residuals with the covariance \
-             of the true residuals of the inlier frames, measured per seed).\n\n",
-        );
-        md.push_str("| method | mean (mm) | 95th percentile (mm) | RMS (mm) | RMS / CRLB |\n|---|---|---|---|---|\n");
-        for m in &mc.methods {
-            md.push_str(&format!(
-                "| {} | {:.3} | {:.3} | {:.3} | {:.2} |\n",
-                m.method,
-                m.mean_mm,
-                m.p95_mm,
-                m.rms_mm,
-                m.rms_mm / mc.crlb_rms_mm
-            ));
-        }
-        md.push_str(&format!(
-            "| Cramér–Rao bound of the point-pair model (independent frames) | | | {:.3} | 1.00 |\n",
-            mc.crlb_rms_mm
-        ));
-    }
-    md
-}
-
-fn escape_html(text: &str) -> String {
-    text.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;")
-}
-
-/// A self-contained HTML page from the Markdown tables.
-fn html(md: &str) -> String {
-    let mut body = String::new();
-    let mut in_table = false;
-    for line in md.lines() {
-        if line.starts_with('|') {
-            let cells: Vec<String> = line
-                .trim_matches('|')
-                .split(" | ")
-                .map(|c| escape_html(c.trim()).replace("\\|", "|"))
-                .collect();
-            if cells.iter().all(|c| c.chars().all(|ch| ch == '-')) {
-                continue;
-            }
-            if !in_table {
-                body.push_str("<table><thead><tr>");
-                body.push_str(&cells.iter().map(|c| format!("<th>{c}</th>")).collect::<String>());
-                body.push_str("</tr></thead><tbody>\n");
-                in_table = true;
-            } else {
-                body.push_str("<tr>");
-                body.push_str(&cells.iter().map(|c| format!("<td>{c}</td>")).collect::<String>());
-                body.push_str("</tr>\n");
-            }
-            continue;
-        }
-        if in_table {
-            body.push_str("</tbody></table>\n");
-            in_table = false;
-        }
-        if let Some(h) = line.strip_prefix("## ") {
-            body.push_str(&format!("<h2>{}</h2>\n", escape_html(h).replace('`', "")));
-        } else if let Some(h) = line.strip_prefix("# ") {
-            body.push_str(&format!("<h1>{}</h1>\n", escape_html(h)));
-        } else if !line.trim().is_empty() {
-            body.push_str(&format!("<p>{}</p>\n", escape_html(line).replace('`', "")));
-        }
-    }
-    if in_table {
-        body.push_str("</tbody></table>\n");
-    }
-    format!(
-        "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>probecal studies</title>\n<style>body{{font-family:sans-serif;max-width:60rem;margin:2rem auto;padding:0 1rem}}table{{border-collapse:collapse;margin:1rem 0}}td,th{{border:1px solid #bbb;padding:.3rem .6rem;text-align:right}}td:first-child,th:first-child{{text-align:left}}</style></head><body>\n{body}</body></html>\n"
-    )
-}
-
-/// Writes `study.json`, `study.md` and `study.html` into `out`.
-pub fn write(out: &Path, sigma: &[SigmaRow], monte_carlo: Option<&MonteCarlo>) -> std::io::Result<()> {
-    std::fs::create_dir_all(out)?;
-    let json = serde_json::json!({
-        "sigma_table": sigma,
-        "monte_carlo": monte_carlo,
-    });
-    std::fs::write(
-        out.join("study.json"),
-        serde_json::to_string_pretty(&json).map_err(std::io::Error::other)? + "\n",
-    )?;
-    let md = markdown(sigma, monte_carlo);
-    std::fs::write(out.join("study.md"), &md)?;
-    std::fs::write(out.join("study.html"), html(&md))
 }
 
 #[cfg(test)]

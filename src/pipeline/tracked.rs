@@ -12,12 +12,14 @@ use nalgebra::{Matrix4, Point3};
 use rayon::prelude::*;
 use serde::Serialize;
 
+use crate::core::stats::{mean_sd_of, MeanSd};
 use crate::detect::nwire::{self, Segmentation};
 use crate::estimate::image_to_probe::ConstraintModel;
 use crate::estimate::image_to_probe::{self, Constraint, FitError, ImageToProbe, Target};
 use crate::io::plus::config::ConfigError;
 use crate::io::plus::sequence::{Sequence, SequenceError};
 use crate::manifest::tracked::{TimeOffset, TrackedManifest};
+use crate::pipeline::record::GateResult;
 use crate::spec::nwire::NWire;
 
 /// Everything the tracked pipeline needs, resolved.
@@ -117,40 +119,27 @@ pub struct TrackedFrame {
     pub pre3d_mm: Vec<f64>,
 }
 
-/// Mean and SD of a set of errors (SD with n - 1), and how many there are.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
-pub struct ErrorStats {
-    pub mean: f64,
-    pub std: f64,
-    pub n: usize,
+/// PLUS's convention: mean and SD of the best `round(0.95 n)` values.
+pub fn best_95(values: &[f64]) -> Option<MeanSd> {
+    let mut sorted = values.to_vec();
+    sorted.sort_by(f64::total_cmp);
+    let keep = (0.95 * sorted.len() as f64).round() as usize;
+    mean_sd_of(&sorted[..keep])
 }
 
-impl ErrorStats {
-    pub fn of(values: &[f64]) -> Option<ErrorStats> {
-        let n = values.len();
-        if n == 0 {
-            return None;
-        }
-        let mean = values.iter().sum::<f64>() / n as f64;
-        let var = if n > 1 {
-            values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1) as f64
-        } else {
-            0.0
-        };
-        Some(ErrorStats {
-            mean,
-            std: var.sqrt(),
-            n,
-        })
+/// The tracked run's accuracy gates.
+pub fn gates(run: &TrackedRun, manifest: &TrackedManifest) -> Vec<GateResult> {
+    let mut out = Vec::new();
+    if let Some(limit) = manifest.gates.pre3d_mm {
+        let value = best_95(&run.pre3d(Role::Validation)).map(|s| s.mean);
+        out.push(GateResult {
+            name: "validation PRE3D (mean of best 95 %, mm)".into(),
+            value,
+            limit,
+            passed: value.is_some_and(|v| v <= limit),
+        });
     }
-
-    /// PLUS's convention: the best `round(0.95 n)` values.
-    pub fn best_95(values: &[f64]) -> Option<ErrorStats> {
-        let mut sorted = values.to_vec();
-        sorted.sort_by(f64::total_cmp);
-        let keep = (0.95 * sorted.len() as f64).round() as usize;
-        ErrorStats::of(&sorted[..keep])
-    }
+    out
 }
 
 #[derive(Debug, Clone)]

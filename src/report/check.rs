@@ -15,7 +15,8 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
-use serde_json::Value;
+
+use crate::report::summary::RunSummary;
 
 /// One metric of a baseline.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -90,15 +91,15 @@ pub enum CheckError {
 
 /// A run summary found on disk.
 #[derive(Debug, Clone)]
-pub struct RunSummary {
+pub struct FoundSummary {
     pub path: PathBuf,
     pub experiment: String,
     pub dataset: String,
-    pub json: Value,
+    pub summary: RunSummary,
 }
 
 /// Finds `summary.json` files: the paths themselves, or `*/*/summary.json` under folders.
-pub fn find_summaries(inputs: &[PathBuf]) -> Result<Vec<RunSummary>, CheckError> {
+pub fn find_summaries(inputs: &[PathBuf]) -> Result<Vec<FoundSummary>, CheckError> {
     let mut files = Vec::new();
     for input in inputs {
         if input.is_file() {
@@ -143,54 +144,57 @@ pub fn find_summaries(inputs: &[PathBuf]) -> Result<Vec<RunSummary>, CheckError>
     files
         .into_iter()
         .map(|path| {
-            let text = std::fs::read_to_string(&path).map_err(|e| CheckError::Read {
+            let summary = RunSummary::read(&path).map_err(|message| CheckError::Read {
                 path: path.clone(),
-                message: e.to_string(),
+                message,
             })?;
-            let json: Value = serde_json::from_str(&text).map_err(|e| CheckError::Read {
+            Ok(FoundSummary {
+                experiment: summary.experiment().to_string(),
+                dataset: summary.dataset().to_string(),
                 path: path.clone(),
-                message: e.to_string(),
-            })?;
-            let field = |k: &str| {
-                json[k].as_str().map(str::to_string).ok_or_else(|| CheckError::Read {
-                    path: path.clone(),
-                    message: format!("field `{k}` is missing: not a probecal summary"),
-                })
-            };
-            Ok(RunSummary {
-                experiment: field("experiment")?,
-                dataset: field("dataset")?,
-                path: path.clone(),
-                json,
+                summary,
             })
         })
         .collect()
 }
 
-/// The metrics a run is judged on, from its summary (lower is better for each).
-pub fn metrics(summary: &Value) -> BTreeMap<String, (f64, f64)> {
-    let tolerances = &summary["regression_tolerances"];
-    let tol = |k: &str, default: f64| tolerances[k].as_f64().unwrap_or(default);
+/// The metrics a run is judged on, from its summary (lower is better for each):
+/// name → (value, tolerance).
+pub fn metrics(summary: &RunSummary) -> BTreeMap<String, (f64, f64)> {
     let mut out = BTreeMap::new();
-    for axis in ["x", "y", "z"] {
-        if let Some(v) = summary["bre_mm"][axis]["mean"].as_f64() {
-            out.insert(format!("bre_mean_{axis}_mm"), (v, tol("bre_mean_mm", 0.05)));
+    match summary {
+        RunSummary::Camera(s) => {
+            let tol = &s.regression_tolerances;
+            if let Some(bre) = &s.bre_mm {
+                for (axis, stats) in ["x", "y", "z"].iter().zip(bre.axes()) {
+                    out.insert(format!("bre_mean_{axis}_mm"), (stats.mean, tol.bre_mean_mm));
+                }
+            }
+            if let Some(t) = &s.truth {
+                out.insert(
+                    "truth_corner_error_mm".into(),
+                    (t.corner_error_mm.mean, tol.truth_corner_error_mm),
+                );
+                out.insert(
+                    "truth_rotation_error_deg".into(),
+                    (t.rotation_error_deg, tol.truth_rotation_error_deg),
+                );
+            }
+            out.insert(
+                "frames_rejected".into(),
+                (s.frames.rejected as f64, tol.frames_rejected),
+            );
         }
-    }
-    if let Some(v) = summary["truth"]["corner_error_mm"]["mean"].as_f64() {
-        out.insert("truth_corner_error_mm".into(), (v, tol("truth_corner_error_mm", 0.05)));
-    }
-    if let Some(v) = summary["truth"]["rotation_error_deg"].as_f64() {
-        out.insert(
-            "truth_rotation_error_deg".into(),
-            (v, tol("truth_rotation_error_deg", 0.05)),
-        );
-    }
-    if let Some(v) = summary["frames"]["rejected"].as_f64() {
-        out.insert("frames_rejected".into(), (v, tol("frames_rejected", 2.0)));
-    }
-    if let Some(v) = summary["validation"]["pre3d_mm"]["mean"].as_f64() {
-        out.insert("pre3d_mean_mm".into(), (v, tol("pre3d_mm", 0.02)));
+        RunSummary::Tracked(s) => {
+            let tol = &s.regression_tolerances;
+            out.insert(
+                "frames_rejected".into(),
+                (s.frames.rejected as f64, tol.frames_rejected),
+            );
+            if let Some(pre3d) = &s.validation.pre3d_mm {
+                out.insert("pre3d_mean_mm".into(), (pre3d.mean, tol.pre3d_mm));
+            }
+        }
     }
     out
 }
@@ -213,8 +217,8 @@ pub fn load_baseline(path: &Path) -> Result<Baseline, CheckError> {
 
 /// Writes the baselines of the given runs (one file per experiment), replacing the
 /// datasets they contain and keeping the others.
-pub fn update(runs: &[RunSummary], baselines: &Path) -> Result<Vec<PathBuf>, CheckError> {
-    let mut by_experiment: BTreeMap<&str, Vec<&RunSummary>> = BTreeMap::new();
+pub fn update(runs: &[FoundSummary], baselines: &Path) -> Result<Vec<PathBuf>, CheckError> {
+    let mut by_experiment: BTreeMap<&str, Vec<&FoundSummary>> = BTreeMap::new();
     for r in runs {
         by_experiment.entry(&r.experiment).or_default().push(r);
     }
@@ -232,7 +236,7 @@ pub fn update(runs: &[RunSummary], baselines: &Path) -> Result<Vec<PathBuf>, Che
         for r in runs {
             // Four decimals keep the file readable; the tolerances are far coarser.
             let round = |v: f64| (v * 1e4).round() / 1e4;
-            let m = metrics(&r.json)
+            let m = metrics(&r.summary)
                 .into_iter()
                 .map(|(k, (value, tolerance))| {
                     (
@@ -264,7 +268,7 @@ pub fn update(runs: &[RunSummary], baselines: &Path) -> Result<Vec<PathBuf>, Che
 }
 
 /// Compares runs with their baselines.
-pub fn compare(runs: &[RunSummary], baselines: &Path) -> Result<Vec<Comparison>, CheckError> {
+pub fn compare(runs: &[FoundSummary], baselines: &Path) -> Result<Vec<Comparison>, CheckError> {
     let mut out = Vec::new();
     for r in runs {
         let path = baseline_path(baselines, &r.experiment);
@@ -289,7 +293,7 @@ pub fn compare(runs: &[RunSummary], baselines: &Path) -> Result<Vec<Comparison>,
                 message: format!("has no dataset `{}`; add it with `probecal check --update`", r.dataset),
             });
         };
-        let current = metrics(&r.json);
+        let current = metrics(&r.summary);
         for (name, metric) in expected {
             let value = current.get(name).map(|c| c.0);
             let verdict = match value {
@@ -313,23 +317,18 @@ pub fn compare(runs: &[RunSummary], baselines: &Path) -> Result<Vec<Comparison>,
 }
 
 /// Failed absolute gates recorded in the summaries: (run, gate name, value, limit).
-pub fn failed_gates(runs: &[RunSummary]) -> Vec<String> {
+pub fn failed_gates(runs: &[FoundSummary]) -> Vec<String> {
     let mut out = Vec::new();
     for r in runs {
-        for g in r.json["gates"].as_array().into_iter().flatten() {
-            if g["passed"] != Value::Bool(true) {
-                out.push(format!(
-                    "{} / {}: gate {} = {} exceeds {}",
-                    r.experiment,
-                    r.dataset,
-                    g["name"].as_str().unwrap_or("?"),
-                    g["value"]
-                        .as_f64()
-                        .map(|v| format!("{v:.3}"))
-                        .unwrap_or_else(|| "missing".into()),
-                    g["limit"]
-                ));
-            }
+        for g in r.summary.gates().iter().filter(|g| !g.passed) {
+            out.push(format!(
+                "{} / {}: gate {} = {} exceeds {}",
+                r.experiment,
+                r.dataset,
+                g.name,
+                g.value.map(|v| format!("{v:.3}")).unwrap_or_else(|| "missing".into()),
+                serde_json::json!(g.limit)
+            ));
         }
     }
     out
@@ -363,31 +362,119 @@ pub fn table(comparisons: &[Comparison]) -> String {
     s
 }
 
+/// `probecal check`: compares the runs with their baselines (or, with `update`,
+/// writes the baselines), prints the table and every failure; the exit code.
+pub fn run(runs: &[PathBuf], baselines: &Path, write_baselines: bool) -> u8 {
+    let summaries = match find_summaries(runs) {
+        Ok(s) => s,
+        Err(e) => {
+            eprintln!("error: {e}");
+            return 2;
+        }
+    };
+    if write_baselines {
+        return match update(&summaries, baselines) {
+            Ok(written) => {
+                for path in written {
+                    println!("baseline written: {}", path.display());
+                }
+                0
+            }
+            Err(e) => {
+                eprintln!("error: {e}");
+                1
+            }
+        };
+    }
+    let comparisons = match compare(&summaries, baselines) {
+        Ok(c) => c,
+        Err(e) => {
+            eprintln!("error: {e}");
+            return 2;
+        }
+    };
+    print!("{}", table(&comparisons));
+    let mut failed = false;
+    for c in &comparisons {
+        if matches!(c.verdict, Verdict::Regressed | Verdict::Missing) {
+            failed = true;
+            eprintln!(
+                "{}: {} / {}: {} is {} (baseline {:.3} + tolerance {:.3}); look at {}",
+                c.verdict.label(),
+                c.experiment,
+                c.dataset,
+                c.metric,
+                c.current.map(|v| format!("{v:.3}")).unwrap_or_else(|| "missing".into()),
+                c.baseline.value,
+                c.baseline.tolerance,
+                c.report.display()
+            );
+        }
+    }
+    for gate in failed_gates(&summaries) {
+        failed = true;
+        eprintln!("GATE FAILED: {gate}");
+    }
+    if failed {
+        1
+    } else {
+        println!(
+            "{} metrics of {} runs: no regression",
+            comparisons.len(),
+            summaries.len()
+        );
+        0
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
-    use serde_json::json;
+    use crate::evaluate::AxisStats;
+    use crate::pipeline::record::GateResult;
+    use crate::report::summary::{BreSummary, FrameCounts, MeanMax, Summary, TruthSummaryJson};
 
-    fn summary(corner: f64, rejected: u64) -> Value {
-        json!({
-            "experiment": "e", "dataset": "d",
-            "frames": {"rejected": rejected},
-            "bre_mm": {"x": {"mean": 0.2}, "y": {"mean": 0.3}, "z": {"mean": 0.4}},
-            "truth": {"corner_error_mm": {"mean": corner}, "rotation_error_deg": 0.1},
-            "regression_tolerances": {"truth_corner_error_mm": 0.05},
-            "gates": [{"name": "truth_corner_error_mm", "limit": 1.0, "value": corner, "passed": corner <= 1.0}]
-        })
+    fn summary(corner: f64, rejected: usize) -> RunSummary {
+        let axis = |mean| AxisStats {
+            mean,
+            ..AxisStats::default()
+        };
+        RunSummary::Camera(Box::new(Summary {
+            experiment: "e".into(),
+            dataset: "d".into(),
+            frames: FrameCounts {
+                rejected,
+                ..FrameCounts::default()
+            },
+            bre_mm: Some(BreSummary {
+                x: axis(0.2),
+                y: axis(0.3),
+                z: axis(0.4),
+            }),
+            truth: Some(TruthSummaryJson {
+                corner_error_mm: MeanMax { mean: corner, max: 0.0 },
+                rotation_error_deg: 0.1,
+                ..TruthSummaryJson::default()
+            }),
+            gates: vec![GateResult {
+                name: "truth_corner_error_mm".into(),
+                limit: 1.0,
+                value: Some(corner),
+                passed: corner <= 1.0,
+            }],
+            ..Summary::default()
+        }))
     }
 
     #[test]
     fn verdicts_follow_the_tolerance() {
         let dir = std::env::temp_dir().join(format!("probecal-check-{}", std::process::id()));
         let _ = std::fs::remove_dir_all(&dir);
-        let run = |corner, rejected| RunSummary {
+        let run = |corner, rejected| FoundSummary {
             path: dir.join("run/e/d/summary.json"),
             experiment: "e".into(),
             dataset: "d".into(),
-            json: summary(corner, rejected),
+            summary: summary(corner, rejected),
         };
         update(&[run(0.30, 1)], &dir).unwrap();
         let verdict = |corner, rejected| {
@@ -401,7 +488,7 @@ mod tests {
         assert_eq!(verdict(0.36, 4), (Verdict::Regressed, Verdict::Regressed));
         assert_eq!(verdict(0.20, 1), (Verdict::Improved, Verdict::WithinNoise));
         let missing = compare(
-            &[RunSummary {
+            &[FoundSummary {
                 experiment: "other".into(),
                 ..run(0.3, 1)
             }],

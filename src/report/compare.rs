@@ -5,14 +5,15 @@
 use serde::Serialize;
 
 use crate::core::geometry::pixel_to_image_mm;
+use crate::core::stats::mean;
 use crate::evaluate::cutoff_label;
 use crate::manifest::Manifest;
-use crate::pipeline::run::{DatasetRun, Stage};
+use crate::pipeline::record::{DatasetRun, Stage};
 use crate::spec::rig::Rig;
 
 /// One column of the comparison.
 #[derive(Debug, Clone, Serialize)]
-pub struct Column {
+pub struct CompareColumn {
     pub experiment: String,
     pub dataset: String,
     pub rig: String,
@@ -41,17 +42,12 @@ pub(crate) fn rig_label(rig: &Rig) -> String {
     }
 }
 
-fn mean(values: impl Iterator<Item = f64>) -> Option<f64> {
-    let v: Vec<f64> = values.collect();
-    (!v.is_empty()).then(|| v.iter().sum::<f64>() / v.len() as f64)
-}
-
 fn mm(v: Option<f64>) -> String {
     v.map(|v| format!("{v:.3}")).unwrap_or_else(|| "—".into())
 }
 
 /// Builds one column from a dataset run.
-pub fn column(manifest: &Manifest, run: &DatasetRun) -> Column {
+pub fn column(manifest: &Manifest, run: &DatasetRun) -> CompareColumn {
     let used: Vec<_> = run.frames.iter().filter(|f| f.rejection.is_none()).collect();
     let rejected_at = |stage: Stage| {
         run.frames
@@ -168,7 +164,7 @@ pub fn column(manifest: &Manifest, run: &DatasetRun) -> Column {
             c.corner_error_mean_mm
         );
     }
-    Column {
+    CompareColumn {
         experiment: run.experiment.clone(),
         dataset: run.dataset.clone(),
         rig: match &manifest.camera {
@@ -181,7 +177,7 @@ pub fn column(manifest: &Manifest, run: &DatasetRun) -> Column {
 }
 
 /// The comparison as a Markdown table (rows: quantities; columns: experiments).
-pub fn markdown(columns: &[Column]) -> String {
+pub fn markdown(columns: &[CompareColumn]) -> String {
     let mut s = String::from("| |");
     for c in columns {
         s.push_str(&format!(" {} / {} ({}) |", c.experiment, c.dataset, c.rig));
@@ -217,16 +213,16 @@ pub fn markdown(columns: &[Column]) -> String {
 const COMPARE_TEMPLATE: &str = include_str!("../../templates/compare.html.tera");
 
 /// The comparison page.
-pub fn render_html(columns: &[Column]) -> Result<String, String> {
+pub fn render_html(columns: &[CompareColumn]) -> Result<String, String> {
     render(columns, "compare.html")
 }
 
 /// The comparison as LaTeX (landscape, one column per experiment).
-pub fn render_tex(columns: &[Column]) -> Result<String, String> {
+pub fn render_tex(columns: &[CompareColumn]) -> Result<String, String> {
     render(columns, "compare.tex")
 }
 
-fn render(columns: &[Column], template: &str) -> Result<String, String> {
+fn render(columns: &[CompareColumn], template: &str) -> Result<String, String> {
     let rows: Vec<String> = columns
         .first()
         .map(|c| c.values.iter().map(|v| v.0.clone()).collect())
@@ -257,9 +253,31 @@ fn render(columns: &[Column], template: &str) -> Result<String, String> {
         ("compare.html", COMPARE_TEMPLATE),
         ("compare.tex", COMPARE_TEX_TEMPLATE),
     ])
-    .map_err(|e| crate::report::error_chain(&e))?;
-    crate::report::register_tex_filter(&mut t);
-    t.render(template, &ctx).map_err(|e| crate::report::error_chain(&e))
+    .map_err(|e| crate::report::render::error_chain(&e))?;
+    crate::report::render::register_tex_filter(&mut t);
+    t.render(template, &ctx)
+        .map_err(|e| crate::report::render::error_chain(&e))
 }
 
 const COMPARE_TEX_TEMPLATE: &str = include_str!("../../templates/compare.tex.tera");
+
+/// Writes `compare.md`, `compare.html` and `compare.tex` into `out` for the runs
+/// (each with its manifest's index); the markdown is printed unless quiet.
+pub fn write(
+    out: &std::path::Path,
+    manifests: &[Manifest],
+    runs: &[(usize, DatasetRun)],
+    quiet: bool,
+) -> Result<(), String> {
+    use crate::io::fs::write_atomic;
+    let columns: Vec<CompareColumn> = runs.iter().map(|(i, r)| column(&manifests[*i], r)).collect();
+    let markdown = markdown(&columns);
+    if !quiet {
+        println!("{markdown}");
+    }
+    write_atomic(&out.join("compare.md"), markdown.as_bytes()).map_err(|e| e.to_string())?;
+    let html = render_html(&columns)?;
+    write_atomic(&out.join("compare.html"), html.as_bytes()).map_err(|e| e.to_string())?;
+    let tex = render_tex(&columns)?;
+    write_atomic(&out.join("compare.tex"), tex.as_bytes()).map_err(|e| e.to_string())
+}

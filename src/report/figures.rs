@@ -8,7 +8,7 @@ use plotters::coord::Shift;
 use plotters::prelude::*;
 
 use crate::core::geometry::pixel_to_image_mm;
-use crate::pipeline::run::DatasetRun;
+use crate::pipeline::record::DatasetRun;
 
 /// A named set of points of one chart.
 pub struct Series {
@@ -138,7 +138,7 @@ pub fn draw<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, chart: &Chart) ->
 
 /// The chart as SVG text (760 x 320).
 pub fn svg(chart: &Chart) -> Result<String, String> {
-    crate::report::register_font()?;
+    super::render::register_font()?;
     let mut text = String::new();
     {
         let root = SVGBackend::with_string(&mut text, (760, 320)).into_drawing_area();
@@ -149,7 +149,7 @@ pub fn svg(chart: &Chart) -> Result<String, String> {
 
 /// The chart as PNG bytes (1140 x 480).
 pub fn png(chart: &Chart) -> Result<Vec<u8>, String> {
-    crate::report::register_font()?;
+    super::render::register_font()?;
     let (w, h) = (1140u32, 480u32);
     let mut rgb = vec![0u8; (w * h * 3) as usize];
     {
@@ -360,4 +360,39 @@ pub fn charts(run: &DatasetRun) -> Vec<Chart> {
     .into_iter()
     .flatten()
     .collect()
+}
+
+fn bre_chart(run: &DatasetRun) -> Chart {
+    let points: Vec<(usize, [f64; 3])> = run
+        .frames
+        .iter()
+        .filter_map(|f| f.bre_mm.map(|b| (f.files.frame, b.0)))
+        .collect();
+    let colours = [RGBColor(200, 40, 40), RGBColor(40, 140, 40), RGBColor(40, 70, 200)];
+    Chart {
+        id: "bre_per_frame",
+        caption: "Per-frame BRE along each axis of the phantom frame, all-frames calibration.".into(),
+        x_desc: "frame".into(),
+        y_desc: "BRE (mm)".into(),
+        style: Style::Lines,
+        series: ["x", "y", "z"]
+            .iter()
+            .enumerate()
+            .map(|(a, name)| Series {
+                name: name.to_string(),
+                colour: colours[a],
+                points: points.iter().map(|(f, b)| (*f as f64, b[a])).collect(),
+            })
+            .collect(),
+        equal_axes: false,
+    }
+}
+
+pub fn bre_figure(run: &DatasetRun) -> Result<String, String> {
+    svg(&bre_chart(run))
+}
+
+/// The per-frame BRE plot as a PNG (for LaTeX, which cannot include SVG).
+pub fn bre_figure_png(run: &DatasetRun) -> Result<Vec<u8>, String> {
+    png(&bre_chart(run))
 }

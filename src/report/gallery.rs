@@ -6,7 +6,7 @@ use opencv::core::{Mat, Point, Scalar, Size, Vector};
 use opencv::imgproc;
 use opencv::prelude::*;
 
-use crate::pipeline::run::DatasetRun;
+use crate::pipeline::record::DatasetRun;
 
 /// One picture of the gallery.
 #[derive(Debug, Clone)]
@@ -28,7 +28,7 @@ fn point(p: [f64; 2]) -> Point {
     Point::new(p[0].round() as i32, p[1].round() as i32)
 }
 
-fn draw(run: &DatasetRun, record: &crate::pipeline::run::FrameRecord) -> Result<Option<Vec<u8>>, opencv::Error> {
+fn draw(run: &DatasetRun, record: &crate::pipeline::record::FrameRecord) -> Result<Option<Vec<u8>>, opencv::Error> {
     let Ok(grey) = crate::io::image::read_gray(&record.files.bscan_image) else {
         return Ok(None);
     };

@@ -8,7 +8,9 @@
 use std::path::Path;
 
 use serde::Serialize;
-use serde_json::Value;
+
+use crate::evaluate::{AxisStats, STAT_ROWS};
+use crate::report::summary::{BreSummary, RunSummary, Summary};
 
 /// One of the thesis's three-axis tables (Std./Mean/Min/Max × x, y, z).
 struct AxisTable {
@@ -21,7 +23,6 @@ struct AxisTable {
 }
 
 const ROWS: [&str; 4] = ["Std.", "Mean", "Min", "Max"];
-const STATS: [&str; 4] = ["std", "mean", "min", "max"];
 
 const AXIS_TABLES: [AxisTable; 3] = [
     AxisTable {
@@ -134,22 +135,28 @@ fn fmt(v: Option<f64>) -> String {
     }
 }
 
-fn summary(root: &Path, experiment: &str, dataset: &str) -> Option<Value> {
-    let text = std::fs::read_to_string(root.join(experiment).join(dataset).join("summary.json")).ok()?;
-    serde_json::from_str(&text).ok()
+/// A camera run's summary under `root`, if it is there and reads.
+fn summary(root: &Path, experiment: &str, dataset: &str) -> Option<Summary> {
+    match RunSummary::read(&root.join(experiment).join(dataset).join("summary.json")).ok()? {
+        RunSummary::Camera(s) => Some(*s),
+        RunSummary::Tracked(_) => None,
+    }
 }
 
-fn truth_note(s: &Value) -> String {
-    match s["truth"]["corner_error_mm"]["mean"].as_f64() {
-        Some(e) => format!(
-            " probecal's calibration (frames above {} mm removed) places the image corners within {e:.3} mm of the truth on average.",
-            match &s["calibration"]["cutoff_mm"] {
-                Value::String(c) => c.clone(),
-                other => other.to_string(),
-            }
+fn truth_note(s: &Summary) -> String {
+    match &s.truth {
+        Some(t) => format!(
+            " probecal's calibration (frames above {} mm removed) places the image corners within {:.3} mm of the truth on average.",
+            s.calibration.cutoff_mm.written(),
+            t.corner_error_mm.mean
         ),
         None => String::new(),
     }
+}
+
+/// One statistic of one axis of a BRE table, if the table is there.
+fn stat(bre: Option<&BreSummary>, axis: usize, get: fn(&AxisStats) -> f64) -> Option<f64> {
+    bre.map(|b| get(&b.axes()[axis]))
 }
 
 /// Lays out the chapter from the runs under `root` (`<experiment>/<dataset>/summary.json`).
@@ -162,18 +169,17 @@ pub fn chapter(root: &Path) -> Chapter {
             continue;
         };
         // The thesis's tables for these datasets are over all frames: the first cut-off (∞).
-        let all = &s["thresholds"][0];
-        let frames = all["frames"].as_u64().unwrap_or(0);
+        let all = s.thresholds.first();
+        let frames = all.map_or(0, |r| r.frames);
+        let bre = all.and_then(|r| r.bre_mm.as_ref());
         let rows = ROWS
             .iter()
-            .zip(STATS)
+            .zip(STAT_ROWS)
             .enumerate()
-            .map(|(r, (label, stat))| Row {
+            .map(|(r, (label, (_, get)))| Row {
                 label: label.to_string(),
-                cells: ["x", "y", "z"]
-                    .iter()
-                    .enumerate()
-                    .flat_map(|(a, axis)| [fmt(all["bre_mm"][axis][stat].as_f64()), fmt(Some(t.thesis[r][a]))])
+                cells: (0..3)
+                    .flat_map(|a| [fmt(stat(bre, a, get)), fmt(Some(t.thesis[r][a]))])
                     .collect(),
             })
             .collect();
@@ -198,35 +204,31 @@ pub fn chapter(root: &Path) -> Chapter {
     let (experiment, dataset) = DATASET3_EXPERIMENT;
     match summary(root, experiment, dataset) {
         Some(s) => {
-            let rows = s["thresholds"].as_array().cloned().unwrap_or_default();
+            let rows = &s.thresholds;
             let groups: Vec<String> = rows
                 .iter()
                 .zip(DATASET3_THESIS_FRAMES)
                 .map(|(r, thesis_frames)| {
-                    let cutoff = match r["cutoff_mm"].as_f64() {
-                        Some(c) => crate::evaluate::cutoff_label(c),
-                        None => "<∞".to_string(),
-                    };
-                    format!("{cutoff} ({} / {thesis_frames})", r["frames"].as_u64().unwrap_or(0))
+                    let cutoff = crate::evaluate::cutoff_label(r.cutoff_mm.0);
+                    format!("{cutoff} ({} / {thesis_frames})", r.frames)
                 })
                 .collect();
             let blocks = ["X", "Y", "Z"]
                 .iter()
                 .enumerate()
                 .map(|(a, axis)| {
-                    let key = axis.to_lowercase();
                     let rows = ROWS
                         .iter()
-                        .zip(STATS)
+                        .zip(STAT_ROWS)
                         .enumerate()
-                        .map(|(r, (label, stat))| Row {
+                        .map(|(r, (label, (_, get)))| Row {
                             label: label.to_string(),
                             cells: rows
                                 .iter()
                                 .enumerate()
                                 .flat_map(|(c, row)| {
                                     [
-                                        fmt(row["bre_mm"][&key][stat].as_f64()),
+                                        fmt(stat(row.bre_mm.as_ref(), a, get)),
                                         fmt(DATASET3_THESIS[a].get(r).and_then(|v| v.get(c)).copied()),
                                     ]
                                 })
@@ -315,7 +317,7 @@ pub fn layout(chapter: &Chapter) -> String {
     out
 }
 
-use crate::report::error_chain;
+use crate::report::render::error_chain;
 
 const HTML_TEMPLATE: &str = include_str!("../../templates/thesis.html.tera");
 const TEX_TEMPLATE: &str = include_str!("../../templates/thesis.tex.tera");
@@ -330,7 +332,7 @@ pub fn render(root: &Path) -> Result<Option<(Chapter, String, String)>, String> 
     let mut t = tera::Tera::default();
     t.add_raw_templates(vec![("thesis.html", HTML_TEMPLATE), ("thesis.tex", TEX_TEMPLATE)])
         .map_err(|e| error_chain(&e))?;
-    crate::report::register_tex_filter(&mut t);
+    crate::report::render::register_tex_filter(&mut t);
     let mut ctx = tera::Context::from_serialize(&chapter).map_err(|e| e.to_string())?;
     ctx.insert("probecal_version", env!("CARGO_PKG_VERSION"));
     let html = t.render("thesis.html", &ctx).map_err(|e| error_chain(&e))?;

@@ -5,14 +5,17 @@ use std::path::Path;
 
 use nalgebra::{Matrix3, Matrix4};
 use polars::prelude::*;
-use serde::Serialize;
-use serde_json::{json, Value};
 
 use crate::core::geometry::euler_zyx_deg;
+use crate::core::stats::{mean_sd_of, MeanSd};
 use crate::io::fs::write_atomic;
 use crate::io::plus::result::PlusResult;
 use crate::manifest::tracked::TrackedManifest;
-use crate::pipeline::tracked::{ErrorStats, Role, TrackedRun};
+use crate::pipeline::tracked::{best_95, Role, TrackedRun};
+use crate::report::summary::{
+    to_text, ConstraintCounts, ImageToProbeSummary, ParameterSd, PlusResultSummary, Pre3d, PublishedPre3d, Segmented,
+    TrackedFrameCounts, TrackedSummary, TrackedTolerances, TRACKED_KIND,
+};
 use crate::report::write::OutputError;
 
 /// PRE3D of a general `ImageToProbe` matrix (e.g. PLUS's) on this run's segmented dots.
@@ -34,89 +37,76 @@ fn rows(m: &Matrix4<f64>) -> Vec<Vec<f64>> {
     (0..4).map(|r| (0..4).map(|c| m[(r, c)]).collect()).collect()
 }
 
-fn stats_json(s: Option<ErrorStats>) -> Value {
-    s.map(|s| json!({"mean": s.mean, "std": s.std, "n": s.n}))
-        .unwrap_or(Value::Null)
-}
-
-/// A gate of a tracked run.
-#[derive(Debug, Clone, Serialize)]
-pub struct TrackedGate {
-    pub name: String,
-    pub value: Option<f64>,
-    pub limit: f64,
-    pub passed: bool,
-}
-
-pub fn gates(run: &TrackedRun, manifest: &TrackedManifest) -> Vec<TrackedGate> {
-    let mut out = Vec::new();
-    if let Some(limit) = manifest.gates.pre3d_mm {
-        let value = ErrorStats::best_95(&run.pre3d(Role::Validation)).map(|s| s.mean);
-        out.push(TrackedGate {
-            name: "validation PRE3D (mean of best 95 %, mm)".into(),
-            value,
-            limit,
-            passed: value.is_some_and(|v| v <= limit),
-        });
+fn pre3d(values: &[f64]) -> Pre3d {
+    Pre3d {
+        pre3d_mm: best_95(values),
+        pre3d_all_mm: mean_sd_of(values),
     }
-    out
 }
 
 /// `summary.json`.
-pub fn summary(run: &TrackedRun, manifest: &TrackedManifest, plus: Option<&PlusResult>) -> Value {
+pub fn summary(run: &TrackedRun, manifest: &TrackedManifest, plus: Option<&PlusResult>) -> TrackedSummary {
     let fit = &run.fit.image_to_probe;
     let matrix = fit.matrix();
     let (cal_used, cal_total) = run.segmented(Role::Calibration);
     let (val_used, val_total) = run.segmented(Role::Validation);
-    let validation = run.pre3d(Role::Validation);
-    let calibration = run.pre3d(Role::Calibration);
-    let mut s = json!({
-        "experiment": manifest.experiment,
-        "dataset": manifest.dataset,
-        "kind": "tracked_sequence",
-        "frames": {
-            "calibration": {"segmented": cal_used, "total": cal_total},
-            "validation": {"segmented": val_used, "total": val_total},
-            "rejected": (cal_total - cal_used) + (val_total - val_used),
+    let t = fit.probe_T_image.translation.vector;
+    TrackedSummary {
+        experiment: manifest.experiment.clone(),
+        dataset: manifest.dataset.clone(),
+        kind: TRACKED_KIND.into(),
+        frames: TrackedFrameCounts {
+            calibration: Segmented {
+                segmented: cal_used,
+                total: cal_total,
+            },
+            validation: Segmented {
+                segmented: val_used,
+                total: val_total,
+            },
+            rejected: (cal_total - cal_used) + (val_total - val_used),
         },
-        "constraints": {"model": manifest.model, "count": run.constraints, "kept": run.fit.inlier.iter().filter(|k| **k).count()},
-        "time_offset_s": run.time_offset_s,
-        "image_to_probe": {
-            "matrix": rows(&matrix),
-            "spacing_mm_per_px": fit.spacing_mm_per_px,
-            "rotation_zyx_deg": euler_zyx_deg(&fit.probe_T_image),
-            "translation_mm": fit.probe_T_image.translation.vector.as_slice(),
-            "sd": {
-                "rotation_mrad": run.fit.sd.iter().take(3).map(|v| v * 1000.0).collect::<Vec<_>>(),
-                "translation_mm": run.fit.sd.iter().skip(3).take(3).copied().collect::<Vec<_>>(),
-                "spacing_mm_per_px": run.fit.sd.iter().skip(6).take(2).copied().collect::<Vec<_>>(),
+        constraints: ConstraintCounts {
+            model: manifest.model,
+            count: run.constraints,
+            kept: run.fit.inlier.iter().filter(|k| **k).count(),
+        },
+        time_offset_s: run.time_offset_s,
+        image_to_probe: ImageToProbeSummary {
+            matrix: rows(&matrix),
+            spacing_mm_per_px: fit.spacing_mm_per_px,
+            rotation_zyx_deg: euler_zyx_deg(&fit.probe_T_image),
+            translation_mm: [t.x, t.y, t.z],
+            sd: ParameterSd {
+                rotation_mrad: run.fit.sd.iter().take(3).map(|v| v * 1000.0).collect(),
+                translation_mm: run.fit.sd.iter().skip(3).take(3).copied().collect(),
+                spacing_mm_per_px: run.fit.sd.iter().skip(6).take(2).copied().collect(),
             },
         },
-        "validation": {
-            "pre3d_mm": stats_json(ErrorStats::best_95(&validation)),
-            "pre3d_all_mm": stats_json(ErrorStats::of(&validation)),
+        validation: pre3d(&run.pre3d(Role::Validation)),
+        calibration: pre3d(&run.pre3d(Role::Calibration)),
+        gates: crate::pipeline::tracked::gates(run, manifest),
+        regression_tolerances: TrackedTolerances {
+            pre3d_mm: manifest.regression.pre3d_mm,
+            frames_rejected: manifest.regression.frames_rejected,
         },
-        "calibration": {
-            "pre3d_mm": stats_json(ErrorStats::best_95(&calibration)),
-            "pre3d_all_mm": stats_json(ErrorStats::of(&calibration)),
-        },
-        "gates": gates(run, manifest),
-        "regression_tolerances": {
-            "pre3d_mm": manifest.regression.pre3d_mm,
-            "frames_rejected": manifest.regression.frames_rejected,
-        },
-    });
-    if let Some(p) = plus {
-        let on_ours = pre3d_of_matrix(run, manifest, &p.image_to_probe, Role::Validation);
-        s["plus_result"] = json!({
-            "matrix": rows(&p.image_to_probe),
-            "published_validation_pre3d_mm": {"mean": p.validation_mean_mm, "std": p.validation_std_mm},
-            "published_calibration_pre3d_mm": {"mean": p.calibration_mean_mm, "std": p.calibration_std_mm},
-            "validation_pre3d_on_our_dots_mm": stats_json(ErrorStats::best_95(&on_ours)),
-            "validation_pre3d_all_on_our_dots_mm": stats_json(ErrorStats::of(&on_ours)),
-        });
+        plus_result: plus.map(|p| {
+            let on_ours = pre3d_of_matrix(run, manifest, &p.image_to_probe, Role::Validation);
+            PlusResultSummary {
+                matrix: rows(&p.image_to_probe),
+                published_validation_pre3d_mm: PublishedPre3d {
+                    mean: p.validation_mean_mm,
+                    std: p.validation_std_mm,
+                },
+                published_calibration_pre3d_mm: PublishedPre3d {
+                    mean: p.calibration_mean_mm,
+                    std: p.calibration_std_mm,
+                },
+                validation_pre3d_on_our_dots_mm: best_95(&on_ours),
+                validation_pre3d_all_on_our_dots_mm: mean_sd_of(&on_ours),
+            }
+        }),
     }
-    s
 }
 
 /// The per-frame table.
@@ -207,7 +197,7 @@ pub fn write(
     manifest: &TrackedManifest,
     plus: Option<&PlusResult>,
     folder: &Path,
-) -> Result<Value, OutputError> {
+) -> Result<TrackedSummary, OutputError> {
     std::fs::create_dir_all(folder).map_err(|e| OutputError::Io {
         path: folder.to_path_buf(),
         message: e.to_string(),
@@ -220,15 +210,130 @@ pub fn write(
     ParquetWriter::new(&mut parquet).finish(&mut table)?;
     write_atomic(&folder.join("frames.parquet"), &parquet)?;
     let summary = summary(run, manifest, plus);
-    let text = serde_json::to_string_pretty(&summary).map_err(|e| OutputError::Report(e.to_string()))? + "\n";
+    let text = to_text(&summary).map_err(|e| OutputError::Report(e.to_string()))?;
     write_atomic(&folder.join("summary.json"), text.as_bytes())?;
     let matrix = run.fit.image_to_probe.matrix();
     write_atomic(&folder.join("ImageToProbe.xml"), plus_xml(&matrix).as_bytes())?;
     let tfm = itk_tfm(&matrix).ok_or_else(|| OutputError::Report("ImageToProbe is singular".into()))?;
     write_atomic(&folder.join("ImageToProbe.tfm"), tfm.as_bytes())?;
-    let html = crate::report::render_tracked(run, manifest, &summary)?;
+    let html = render_page(run, manifest, &summary)?;
     write_atomic(&folder.join("report.html"), html.as_bytes())?;
     Ok(summary)
+}
+
+const TRACKED_TEMPLATE: &str = include_str!("../../templates/tracked.html.tera");
+
+/// The page of a tracked (sequence-file) run, from its summary.
+fn render_page(run: &TrackedRun, manifest: &TrackedManifest, summary: &TrackedSummary) -> Result<String, OutputError> {
+    let f3 = |v: Option<f64>| v.map(|x| format!("{x:.3}")).unwrap_or_else(|| "—".into());
+    let mut ctx = tera::Context::new();
+    ctx.insert("experiment", &manifest.experiment);
+    ctx.insert("dataset", &manifest.dataset);
+    ctx.insert("description", &manifest.description);
+    ctx.insert(
+        "calibration_sequence",
+        &manifest.calibration_sequence.display().to_string(),
+    );
+    ctx.insert(
+        "validation_sequence",
+        &manifest
+            .validation_sequence
+            .as_ref()
+            .map(|p| p.display().to_string())
+            .unwrap_or_else(|| "—".into()),
+    );
+    let definition = match &manifest.plus_config {
+        Some(path) => path.display().to_string(),
+        None => "the manifest's patterns".to_string(),
+    };
+    ctx.insert("plus_config", &definition);
+    ctx.insert("nwires", &manifest.nwires.len());
+    ctx.insert("model", &format!("{:?}", manifest.model));
+    ctx.insert("constraints", &run.constraints);
+    ctx.insert("kept", &run.fit.inlier.iter().filter(|k| **k).count());
+    ctx.insert("time_offset_ms", &format!("{:.0}", run.time_offset_s * 1000.0));
+    ctx.insert("probecal_version", env!("CARGO_PKG_VERSION"));
+    ctx.insert("opencv_version", &super::provenance::opencv_version());
+    let (cs, ct) = run.segmented(Role::Calibration);
+    let (vs, vt) = run.segmented(Role::Validation);
+    ctx.insert("cal_segmented", &cs);
+    ctx.insert("cal_total", &ct);
+    ctx.insert("val_segmented", &vs);
+    ctx.insert("val_total", &vt);
+    let rejected: Vec<serde_json::Value> = run
+        .frames
+        .iter()
+        .filter_map(|f| {
+            f.rejected.as_ref().map(|r| {
+                serde_json::json!({"sequence": format!("{:?}", f.role).to_lowercase(), "frame": f.index, "reason": r})
+            })
+        })
+        .collect();
+    ctx.insert("rejected", &rejected);
+    let m = run.fit.image_to_probe.matrix();
+    let matrix_text = (0..4)
+        .map(|r| {
+            (0..4)
+                .map(|c| format!("{:>13.6}", m[(r, c)]))
+                .collect::<Vec<_>>()
+                .join(" ")
+        })
+        .collect::<Vec<_>>()
+        .join("\n");
+    ctx.insert("matrix_text", &matrix_text);
+    let s = run.fit.image_to_probe.spacing_mm_per_px;
+    ctx.insert("spacing_u", &format!("{:.5}", s[0]));
+    ctx.insert("spacing_v", &format!("{:.5}", s[1]));
+    let e = crate::core::geometry::euler_zyx_deg(&run.fit.image_to_probe.probe_T_image);
+    ctx.insert("euler", &format!("[{:.2}, {:.2}, {:.2}]", e[0], e[1], e[2]));
+    let t = run.fit.image_to_probe.probe_T_image.translation.vector;
+    ctx.insert("translation", &format!("[{:.2}, {:.2}, {:.2}]", t.x, t.y, t.z));
+    let n = |v: Option<MeanSd>| v.map(|s| serde_json::json!(s.n)).unwrap_or(serde_json::Value::Null);
+    let row = |estimate: &str, frames: &str, best: Option<MeanSd>, all: Option<MeanSd>| {
+        serde_json::json!({
+            "estimate": estimate, "frames": frames,
+            "mean": f3(best.map(|s| s.mean)), "std": f3(best.map(|s| s.std)), "n": n(best),
+            "mean_all": f3(all.map(|s| s.mean)), "std_all": f3(all.map(|s| s.std)), "n_all": n(all),
+        })
+    };
+    let mut pre3d = vec![
+        row(
+            "probecal",
+            "validation",
+            summary.validation.pre3d_mm,
+            summary.validation.pre3d_all_mm,
+        ),
+        row(
+            "probecal",
+            "calibration",
+            summary.calibration.pre3d_mm,
+            summary.calibration.pre3d_all_mm,
+        ),
+    ];
+    if let Some(plus) = &summary.plus_result {
+        pre3d.push(row(
+            "PLUS's ImageToProbe, our dots",
+            "validation",
+            plus.validation_pre3d_on_our_dots_mm,
+            plus.validation_pre3d_all_on_our_dots_mm,
+        ));
+        pre3d.push(serde_json::json!({
+            "estimate": "PLUS as published (its own dots)", "frames": "validation",
+            "mean": f3(plus.published_validation_pre3d_mm.mean), "std": f3(plus.published_validation_pre3d_mm.std),
+            "n": "—", "mean_all": "—", "std_all": "—", "n_all": "—",
+        }));
+    }
+    ctx.insert("pre3d", &pre3d);
+    let gates: Vec<serde_json::Value> = summary
+        .gates
+        .iter()
+        .map(|g| serde_json::json!({"name": g.name, "value": f3(g.value), "limit": g.limit, "passed": g.passed}))
+        .collect();
+    ctx.insert("gates", &gates);
+    let mut t = tera::Tera::default();
+    t.add_raw_template("tracked.html", TRACKED_TEMPLATE)
+        .and_then(|_| t.render("tracked.html", &ctx))
+        .map_err(|e| OutputError::Report(super::render::error_chain(&e)))
 }
 
 #[cfg(test)]

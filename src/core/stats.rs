@@ -1,0 +1,93 @@
+//! Summary statistics, written once: mean and sample SD, mean and maximum,
+//! median, and percentiles (interpolated, or nearest rank on sorted values).
+
+use serde::{Deserialize, Serialize};
+
+/// Mean, sample SD (n − 1; 0 for fewer than two values) and count.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+pub struct MeanSd {
+    pub mean: f64,
+    pub std: f64,
+    pub n: usize,
+}
+
+/// Mean and sample SD of `values`; all zero when there are none.
+pub fn mean_sd(values: &[f64]) -> MeanSd {
+    let n = values.len();
+    let mean = values.iter().sum::<f64>() / n.max(1) as f64;
+    let var = values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n.max(2) - 1) as f64;
+    MeanSd {
+        mean,
+        std: var.sqrt(),
+        n,
+    }
+}
+
+/// Mean and sample SD, `None` for no values.
+pub fn mean_sd_of(values: &[f64]) -> Option<MeanSd> {
+    (!values.is_empty()).then(|| mean_sd(values))
+}
+
+/// The mean, `None` for no values.
+pub fn mean(values: impl Iterator<Item = f64>) -> Option<f64> {
+    let v: Vec<f64> = values.collect();
+    (!v.is_empty()).then(|| v.iter().sum::<f64>() / v.len() as f64)
+}
+
+/// Mean and largest value (the largest at least 0), `None` for no values.
+pub fn mean_max(values: &[f64]) -> Option<(f64, f64)> {
+    (!values.is_empty()).then(|| {
+        (
+            values.iter().sum::<f64>() / values.len() as f64,
+            values.iter().cloned().fold(0.0, f64::max),
+        )
+    })
+}
+
+/// The median (sorts `values` in place); the mean of the middle two for an even count.
+pub fn median(values: &mut [f64]) -> f64 {
+    values.sort_by(|a, b| a.total_cmp(b));
+    let n = values.len();
+    if n % 2 == 1 {
+        values[n / 2]
+    } else {
+        (values[n / 2 - 1] + values[n / 2]) / 2.0
+    }
+}
+
+/// The `q` quantile (0..=1) by linear interpolation between the sorted values.
+/// `values` must not be empty.
+pub fn percentile(values: &[f64], q: f64) -> f64 {
+    let mut values = values.to_vec();
+    values.sort_by(|a, b| a.total_cmp(b));
+    let pos = q * (values.len() - 1) as f64;
+    let (lo, hi) = (pos.floor() as usize, pos.ceil() as usize);
+    values[lo] + (values[hi] - values[lo]) * (pos - lo as f64)
+}
+
+/// The `q` quantile of already sorted grey levels, nearest rank; 0 for none.
+pub fn percentile_sorted_nearest(sorted: &[f32], q: f64) -> f32 {
+    if sorted.is_empty() {
+        return 0.0;
+    }
+    sorted[((sorted.len() - 1) as f64 * q).round() as usize]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn hand_computed_values() {
+        let s = mean_sd(&[1.0, 2.0, 3.0, 4.0]);
+        assert_eq!((s.mean, s.n), (2.5, 4));
+        assert!((s.std - (5.0f64 / 3.0).sqrt()).abs() < 1e-15);
+        assert_eq!(mean_sd(&[7.0]).std, 0.0);
+        assert_eq!(mean_sd_of(&[]), None);
+        assert_eq!(mean_max(&[1.0, 3.0]), Some((2.0, 3.0)));
+        assert_eq!(median(&mut [3.0, 1.0, 2.0, 10.0]), 2.5);
+        assert_eq!(percentile(&[0.0, 10.0, 20.0], 0.25), 5.0);
+        assert_eq!(percentile_sorted_nearest(&[1.0, 2.0, 3.0], 0.74), 2.0);
+        assert_eq!(mean([1.0, 2.0].into_iter()), Some(1.5));
+    }
+}

@@ -1,0 +1,193 @@
+//! Stages 2 and 3 per frame: both board poses from the photo (or the tracker's
+//! poses) and the phantom's feature in the B-scan. A frame that fails a stage is
+//! kept with the stage and the reason.
+
+use opencv::prelude::MatTraitConst;
+
+use super::record::{CameraStage, FrameRecord, Stage};
+use super::run::RunError;
+use crate::core::parallel::parallel_map;
+use crate::detect::arc::{self, ArcSettings};
+use crate::detect::board_pose::{self, RigBoards};
+use crate::detect::spot::{self, Spot, SpotSettings};
+use crate::io::dataset::FrameFiles;
+use crate::io::image::{read_gray, read_gray_sized};
+use crate::spec::phantom::Wire;
+
+/// The B-scan feature detector of a phantom.
+#[derive(Debug, Clone, Copy)]
+pub enum Detector {
+    Arc(ArcSettings),
+    PinHead(SpotSettings),
+    WireDots(SpotSettings),
+}
+
+/// Where a phantom's features lie: one known point, or on known wires.
+#[derive(Debug, Clone, Copy)]
+pub enum Targets<'a> {
+    Point([f64; 3]),
+    Wires(&'a [Wire]),
+}
+
+/// Two pin-head candidates closer in strength than this make the pin head ambiguous.
+const PIN_HEAD_MIN_STRENGTH_RATIO: f64 = 1.5;
+
+/// The echoes that look like a pin head of radius `r`: no wider across the beam
+/// than the head plus the beam's blur, followed by a comet tail (the head's
+/// reverberation) along the beam. Strongest first.
+fn pin_head_candidates(spots: &[Spot], r: f64) -> Vec<Spot> {
+    spots
+        .iter()
+        .filter(|s| s.width_mm <= 2.0 * r + 1.0 && s.length_mm >= 2.0 * r + 1.5)
+        .cloned()
+        .collect()
+}
+
+pub fn process_frame(
+    files: &FrameFiles,
+    camera: &CameraStage,
+    rig: &RigBoards,
+    detector: &Detector,
+) -> Result<FrameRecord, RunError> {
+    let mut record = FrameRecord {
+        files: files.clone(),
+        rejection: None,
+        poses: None,
+        tracked: None,
+        arc: None,
+        spots: Vec::new(),
+        features_px: Vec::new(),
+        wire_labels: Vec::new(),
+        bre_mm: None,
+        truth_kind: None,
+        truth_arc_centre_error_px: None,
+        truth_elevation_offset_mm: None,
+        truth_probe_pose_error: None,
+        truth_phantom_pose_error: None,
+        truth_probe_depth_error_mm: None,
+        bscan_size_px: None,
+    };
+    match (&camera.intrinsics, &camera.tracker) {
+        (Some(intrinsics), _) => {
+            let Some(photo_file) = &files.camera_image else {
+                record.rejection = Some((Stage::CameraImage, "the frame list names no camera image".into()));
+                return Ok(record);
+            };
+            let photo = match read_gray_sized(photo_file, intrinsics.image_size_px) {
+                Ok(m) => m,
+                Err(e) => {
+                    record.rejection = Some((Stage::CameraImage, e.to_string()));
+                    return Ok(record);
+                }
+            };
+            match board_pose::estimate(&photo, intrinsics, rig)? {
+                Ok(poses) => record.poses = Some(poses),
+                Err(reason) => {
+                    record.rejection = Some((Stage::BoardPose, reason));
+                    return Ok(record);
+                }
+            }
+        }
+        (None, Some(t)) => match t.poses.frame(files.frame, &t.probe_transform, &t.reference_transform) {
+            Ok(tracked) => record.tracked = Some(tracked),
+            Err(reason) => {
+                record.rejection = Some((Stage::TrackerPose, reason));
+                return Ok(record);
+            }
+        },
+        (None, None) => {
+            return Err(RunError::Unsupported(
+                "neither a camera nor a tracker gives the poses".into(),
+            ))
+        }
+    }
+    let bscan = match read_gray(&files.bscan_image) {
+        Ok(m) => m,
+        Err(e) => {
+            record.rejection = Some((Stage::BscanImage, e.to_string()));
+            return Ok(record);
+        }
+    };
+    record.bscan_size_px = Some([bscan.cols() as usize, bscan.rows() as usize]);
+    let spots = match detector {
+        Detector::Arc(arc) => {
+            match arc::detect(&bscan, arc) {
+                Ok(Ok(feature)) => {
+                    record.features_px = vec![feature.centre_px];
+                    record.arc = Some(feature);
+                }
+                Ok(Err(reason)) => record.rejection = Some((Stage::Arc, reason)),
+                Err(e) => record.rejection = Some((Stage::BscanImage, e.to_string())),
+            }
+            return Ok(record);
+        }
+        Detector::PinHead(settings) | Detector::WireDots(settings) => match spot::detect(&bscan, settings) {
+            Ok(spots) => spots,
+            Err(e) => {
+                record.rejection = Some((Stage::BscanImage, e.to_string()));
+                return Ok(record);
+            }
+        },
+    };
+    record.spots = spots.spots.clone();
+    let px = |p: [f64; 2]| format!("({:.0}, {:.0})", p[0], p[1]);
+    match detector {
+        Detector::PinHead(settings) => match pin_head_candidates(&spots.spots, settings.object_radius_mm).as_slice() {
+            [] => {
+                record.rejection = Some((
+                    Stage::Spot,
+                    format!(
+                        "no echo as wide as the pin head with a comet tail behind it ({} compact echoes, {} surface echoes)",
+                        spots.spots.len(),
+                        spots.surfaces
+                    ),
+                ))
+            }
+            [first, second, ..] if first.strength < PIN_HEAD_MIN_STRENGTH_RATIO * second.strength => {
+                record.rejection = Some((
+                    Stage::Spot,
+                    format!(
+                        "ambiguous: compact echoes of similar strength at {} and {} px",
+                        px(first.echo_px),
+                        px(second.echo_px)
+                    ),
+                ))
+            }
+            [first, ..] => record.features_px = vec![first.centre_px],
+        },
+        _ => {
+            if spots.spots.len() < 2 {
+                record.rejection = Some((
+                    Stage::Wires,
+                    format!(
+                        "{} compact echoes, at least 2 wire dots are needed ({} surface echoes)",
+                        spots.spots.len(),
+                        spots.surfaces
+                    ),
+                ));
+            } else {
+                record.features_px = spots.spots.iter().map(|s| s.centre_px).collect();
+            }
+        }
+    }
+    Ok(record)
+}
+
+/// Every frame through stages 2 and 3, in parallel; the records in frame-list order.
+pub fn process_all(
+    files: &[FrameFiles],
+    camera: &CameraStage,
+    rig: &RigBoards,
+    detector: &Detector,
+) -> Result<Vec<FrameRecord>, RunError> {
+    let progress = crate::core::progress::Progress::new(files.len(), "board poses and B-scan features");
+    let frames = parallel_map(files.len(), |i| {
+        let record = process_frame(&files[i], camera, rig, detector);
+        progress.inc();
+        record
+    })
+    .into_iter()
+    .collect::<Result<Vec<_>, _>>()?;
+    progress.finish();
+    Ok(frames)
+}

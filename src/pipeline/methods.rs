@@ -1,0 +1,247 @@
+//! Beside the reported calibration: the thesis's one-shot procedure, RANSAC and
+//! LMedS over frames, Levenberg–Marquardt with the pixel size, the sphere fit;
+//! and the resampling metrics (leave-one-out, half-splits, bootstrap) of the
+//! reported calibration's frames. Each returns its parameters and numbers.
+
+use nalgebra::Point3;
+
+use super::record::{FrameRecord, Method, MethodResult, ResamplingSummary};
+use crate::core::geometry::Rigid;
+use crate::estimate::correspondence::{self, Correspondence};
+use crate::estimate::horn::{HornError, HornFit};
+use crate::estimate::image_to_probe::{self, Constraint, ImageToProbe};
+use crate::estimate::robust::{self, RobustMethod, RobustSettings};
+use crate::estimate::sphere_fit::{self, ArcFrame, SphereSettings};
+use crate::evaluate::resampling::{self, FitInputs};
+use crate::evaluate::{self, CutoffRule, ThresholdRow, TruthComparison};
+use crate::manifest::Manifest;
+
+/// Leave-one-out PRE, CR over half-splits and bootstrap intervals of the frames
+/// of the reported calibration.
+pub fn resampling_stage(
+    manifest: &Manifest,
+    frames: &[Correspondence],
+    primary: &ThresholdRow,
+    inputs: &FitInputs<'_>,
+) -> Result<ResamplingSummary, HornError> {
+    let full = primary.fit.clone()?;
+    let v = &manifest.validation;
+    Ok(ResamplingSummary {
+        leave_one_out: resampling::leave_one_out(frames, inputs)?,
+        reproducibility: resampling::reproducibility(frames, inputs, v.cr_half_splits, v.seed)?,
+        bootstrap: resampling::bootstrap(frames, &full, inputs, v.bootstrap_resamples, v.seed)?,
+    })
+}
+
+/// Ground-truth error of a calibration that maps pixels with `spacing` (the truth
+/// maps them with the manifest's `truth_spacing`).
+fn truth_of(
+    marker_T_image: &Rigid,
+    spacing: [f64; 2],
+    truth_spacing: [f64; 2],
+    truth: Option<(Rigid, [usize; 2])>,
+) -> Option<TruthComparison> {
+    let (t, size) = truth?;
+    let estimate = HornFit {
+        target_T_source: *marker_T_image,
+        scale: 1.0,
+        rms_residual_mm: 0.0,
+    };
+    Some(evaluate::compare_mapped(&estimate, spacing, &t, truth_spacing, size))
+}
+
+/// The frames (their numbers) an estimator did not keep.
+fn left_out(frames: &[Correspondence], kept: impl Fn(&Correspondence) -> bool) -> Vec<usize> {
+    frames.iter().filter(|f| !kept(f)).map(|f| f.frame).collect()
+}
+
+/// The frames outside a robust estimator's consensus (`inliers` runs along `frames`).
+fn outside_consensus(frames: &[Correspondence], inliers: &[bool]) -> Vec<usize> {
+    frames
+        .iter()
+        .zip(inliers)
+        .filter(|(_, k)| !**k)
+        .map(|(f, _)| f.frame)
+        .collect()
+}
+
+/// What the estimators share: the frames, the reported calibration's row and the
+/// phantom's point feature (with the sphere's radius for a hemisphere).
+pub struct MethodInputs<'a> {
+    pub records: &'a [FrameRecord],
+    pub frames: &'a [Correspondence],
+    pub reported: &'a ThresholdRow,
+    pub fit: &'a FitInputs<'a>,
+    pub feature_in_phantom_mm: [f64; 3],
+    pub sphere_radius_mm: Option<f64>,
+    /// `marker_T_image` and the B-scan size of the truth (evaluation only).
+    pub truth: Option<(Rigid, [usize; 2])>,
+}
+
+/// Every estimator on the same frames, the reported one first.
+pub fn methods_stage(manifest: &Manifest, inputs: &MethodInputs<'_>, log: &mut dyn FnMut(&str)) -> Vec<MethodResult> {
+    let MethodInputs {
+        records,
+        frames,
+        reported,
+        ..
+    } = *inputs;
+    let spacing = inputs.fit.spacing;
+    let variant = inputs.fit.variant;
+    let result =
+        |method: Method, frames_used: usize, frames_left_out: Vec<usize>, m: &Rigid, s: [f64; 2]| MethodResult {
+            method,
+            frames_used,
+            frames_left_out,
+            marker_T_image: *m,
+            spacing_mm_per_px: s,
+            truth: truth_of(m, s, spacing, inputs.truth),
+        };
+    let mut out = Vec::new();
+    if let Ok(fit) = &reported.fit {
+        out.push(result(
+            Method::CutoffWorstFirst {
+                cutoff_mm: reported.cutoff_mm,
+            },
+            reported.frames.len(),
+            left_out(frames, |f| reported.frames.contains(&f.frame)),
+            &fit.target_T_source,
+            spacing,
+        ));
+    }
+    // The thesis's own procedure: one Horn fit on all frames, every frame whose BRE
+    // under it exceeds the cut-off dropped at once, Horn again.
+    if reported.cutoff_mm.is_finite() {
+        if let Ok(all) = correspondence::solve(frames, spacing, variant, None) {
+            let kept: Vec<Correspondence> = frames
+                .iter()
+                .filter(|f| {
+                    let (axes, norm) = correspondence::bre(f, &all, spacing);
+                    let value = match manifest.thresholds.cutoff_rule {
+                        CutoffRule::MaxAxis => axes.iter().cloned().fold(0.0, f64::max),
+                        CutoffRule::Norm => norm,
+                    };
+                    value < reported.cutoff_mm
+                })
+                .cloned()
+                .collect();
+            if let Ok(fit) = correspondence::solve(&kept, spacing, variant, None) {
+                out.push(result(
+                    Method::ThesisOneShot {
+                        cutoff_mm: reported.cutoff_mm,
+                    },
+                    kept.len(),
+                    left_out(frames, |f| kept.iter().any(|c| c.frame == f.frame)),
+                    &fit.target_T_source,
+                    spacing,
+                ));
+            }
+        }
+    }
+    let mut ransac = None;
+    for method in [RobustMethod::Ransac, RobustMethod::Lmeds] {
+        let settings = RobustSettings {
+            method,
+            ..manifest.robust
+        };
+        match robust::solve(frames, spacing, variant, &settings) {
+            Ok(r) => {
+                let used = r.inliers.iter().filter(|k| **k).count();
+                let named = match method {
+                    RobustMethod::Ransac => Method::Ransac {
+                        threshold_mm: r.threshold_mm,
+                        threshold_from_manifest: settings.threshold_mm.is_some(),
+                    },
+                    RobustMethod::Lmeds => Method::Lmeds {
+                        threshold_mm: r.threshold_mm,
+                    },
+                };
+                out.push(result(
+                    named,
+                    used,
+                    outside_consensus(frames, &r.inliers),
+                    &r.fit.target_T_source,
+                    spacing,
+                ));
+                if method == RobustMethod::Ransac {
+                    ransac = Some(r);
+                }
+            }
+            Err(e) => log(&format!("{method:?}: {e}")),
+        }
+    }
+    let Some(ransac) = ransac else { return out };
+    let ransac_left_out = outside_consensus(frames, &ransac.inliers);
+    let inliers: Vec<&Correspondence> = frames
+        .iter()
+        .zip(&ransac.inliers)
+        .filter(|(_, k)| **k)
+        .map(|(f, _)| f)
+        .collect();
+    // Levenberg–Marquardt with the pixel size as two more unknowns.
+    let constraints: Vec<Constraint> = inliers
+        .iter()
+        .flat_map(|f| {
+            let marker_T_phantom = f.marker_T_phantom().to_homogeneous();
+            f.features.iter().map(move |o| Constraint {
+                pixel: o.pixel,
+                probe_T_phantom: marker_T_phantom,
+                target_in_phantom: o.target_in_phantom,
+            })
+        })
+        .collect();
+    let start = ImageToProbe {
+        probe_T_image: ransac.fit.target_T_source,
+        spacing_mm_per_px: spacing,
+    };
+    match image_to_probe::refine(&start, &constraints, None, false) {
+        Ok(fit) => {
+            let m = &fit.image_to_probe;
+            out.push(result(
+                Method::RansacLmScales,
+                inliers.len(),
+                ransac_left_out.clone(),
+                &m.probe_T_image,
+                m.spacing_mm_per_px,
+            ));
+        }
+        Err(e) => log(&format!("LM with pixel scales: {e}")),
+    }
+    let Some(radius_mm) = inputs.sphere_radius_mm else {
+        return out;
+    };
+    let arcs: Vec<ArcFrame> = inliers
+        .iter()
+        .filter_map(|c| {
+            let record = records.iter().find(|r| r.files.frame == c.frame)?;
+            Some(ArcFrame {
+                frame: c.frame,
+                edge_px: record.arc.as_ref()?.arc_points_px.clone(),
+                camera_T_marker: c.camera_T_marker,
+                camera_T_phantom: c.camera_T_phantom,
+            })
+        })
+        .collect();
+    let settings = SphereSettings {
+        centre_in_phantom_mm: Point3::from(nalgebra::Vector3::from(inputs.feature_in_phantom_mm)),
+        radius_mm,
+        spacing_mm_per_px: spacing,
+        elevation_prior_sd_mm: manifest.sphere_fit.elevation_prior_sd_mm,
+        fit_radius_offset: manifest.sphere_fit.fit_radius_offset,
+        points_per_frame: 20.0,
+    };
+    match sphere_fit::refine(&ransac.fit.target_T_source, &arcs, &settings) {
+        Ok(fit) => out.push(result(
+            Method::RansacSphereFit {
+                elevation_prior_sd_mm: settings.elevation_prior_sd_mm,
+                edge_offset_mm: fit.radius_offset_mm,
+            },
+            arcs.len(),
+            ransac_left_out,
+            &fit.marker_T_image,
+            spacing,
+        )),
+        Err(e) => log(&format!("sphere fit: {e}")),
+    }
+    out
+}

@@ -1,0 +1,241 @@
+//! What a dataset's run produced: every frame's fate, the camera (or tracker)
+//! stage, the calibrations, the truth and the gates. Built by the stages of
+//! [`crate::pipeline`], read by [`crate::report`].
+
+use std::path::PathBuf;
+
+use crate::core::geometry::Rigid;
+use crate::detect::arc::ArcFeature;
+use crate::detect::board_pose::FramePoses;
+use crate::detect::camera_calibration::CameraCalibration;
+use crate::detect::spot::Spot;
+use crate::estimate::correspondence::Correspondence;
+use crate::estimate::horn::HornFit;
+use crate::evaluate::resampling;
+use crate::evaluate::{ThresholdRow, TruthComparison};
+use crate::io::camera_model::CameraIntrinsics;
+use crate::io::dataset::FrameFiles;
+use crate::io::tracker_poses::{TrackedFrame, TrackerPoses};
+use crate::pipeline::solve::SolveSettings;
+
+/// Which stage rejected a frame.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Stage {
+    CameraImage,
+    BoardPose,
+    BscanImage,
+    Arc,
+    /// The pin head of the point phantom.
+    Spot,
+    /// Wire dots, or their pairing with the wires.
+    Wires,
+    /// The tracker gave no pose.
+    TrackerPose,
+}
+
+impl Stage {
+    pub fn label(self) -> &'static str {
+        match self {
+            Stage::CameraImage => "camera image",
+            Stage::BoardPose => "board pose",
+            Stage::BscanImage => "B-scan image",
+            Stage::Arc => "arc detection",
+            Stage::Spot => "pin-head detection",
+            Stage::Wires => "wire dots",
+            Stage::TrackerPose => "tracker pose",
+        }
+    }
+}
+
+/// What happened to one frame.
+#[derive(Debug, Clone)]
+pub struct FrameRecord {
+    pub files: FrameFiles,
+    pub rejection: Option<(Stage, String)>,
+    /// Board poses from the photo (camera stage).
+    pub poses: Option<FramePoses>,
+    /// Poses from a tracker instead (no camera).
+    pub tracked: Option<TrackedFrame>,
+    pub arc: Option<ArcFeature>,
+    /// Compact echoes found (point and wire phantoms), strongest first.
+    pub spots: Vec<Spot>,
+    /// The feature pixels used: the arc's centre, the pin head, the wire dots.
+    pub features_px: Vec<[f64; 2]>,
+    /// Wire phantoms: the wire of each feature.
+    pub wire_labels: Vec<String>,
+    /// All-frames BRE `[x, y, z]` and 3D distance, mm (used frames).
+    pub bre_mm: Option<([f64; 3], f64)>,
+    /// Truth: frame kind and errors of the detections (rendered data).
+    pub truth_kind: Option<String>,
+    pub truth_arc_centre_error_px: Option<f64>,
+    pub truth_elevation_offset_mm: Option<f64>,
+    pub truth_probe_pose_error: Option<(f64, f64)>,
+    /// Phantom board pose error (mm, degrees) against the truth.
+    pub truth_phantom_pose_error: Option<(f64, f64)>,
+    /// Probe board position error along the camera's viewing axis, mm.
+    pub truth_probe_depth_error_mm: Option<f64>,
+    /// Size of the B-scan image, px (when it could be read).
+    pub bscan_size_px: Option<[usize; 2]>,
+}
+
+impl FrameRecord {
+    /// `(camera_T_marker, camera_T_phantom)`, from the photo or the tracker (whose
+    /// frame takes the camera's place).
+    pub fn pose_pair(&self) -> Option<(Rigid, Rigid)> {
+        match (&self.poses, &self.tracked) {
+            (Some(p), _) => Some((p.camera_T_marker.camera_T_board, p.camera_T_phantom.camera_T_board)),
+            (None, Some(t)) => Some((t.tracker_T_marker, t.tracker_T_phantom)),
+            (None, None) => None,
+        }
+    }
+}
+
+/// Camera intrinsics and, if calibrated here, the calibration; or the tracker
+/// that replaces the camera.
+#[derive(Debug, Clone)]
+pub struct CameraStage {
+    /// `None` when the poses come from a tracker.
+    pub intrinsics: Option<CameraIntrinsics>,
+    pub calibration: Option<CameraCalibration>,
+    pub source: String,
+    pub tracker: Option<TrackerSource>,
+}
+
+/// A tracker's poses and the names of the probe's and the phantom's transforms.
+#[derive(Debug, Clone)]
+pub struct TrackerSource {
+    pub poses: TrackerPoses,
+    pub probe_transform: String,
+    pub reference_transform: String,
+}
+
+/// An accuracy gate's verdict.
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct GateResult {
+    pub name: String,
+    pub limit: f64,
+    pub value: Option<f64>,
+    pub passed: bool,
+}
+
+/// Truth for the whole dataset.
+#[derive(Debug, Clone)]
+pub struct TruthSummary {
+    pub calibration: TruthComparison,
+    /// `None` without a camera (tracker poses).
+    pub camera_focal_error_px: Option<f64>,
+    pub camera_principal_error_px: Option<f64>,
+    pub arc_centre_error_px: Option<(f64, f64)>,
+    pub probe_pose_translation_error_mm: Option<(f64, f64)>,
+    pub probe_pose_rotation_error_deg: Option<(f64, f64)>,
+    pub phantom_pose_translation_error_mm: Option<(f64, f64)>,
+}
+
+/// An estimator and the parameters it ran with; the report writes the words.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Method {
+    /// The reported calibration: Horn on the feature centres, frames above the
+    /// cut-off removed worst first, re-solving after each.
+    CutoffWorstFirst { cutoff_mm: f64 },
+    /// The thesis's procedure: Horn on all frames, every frame above the cut-off
+    /// dropped at once, Horn again.
+    ThesisOneShot { cutoff_mm: f64 },
+    /// RANSAC over frames (samples of 3, Horn inside).
+    Ransac {
+        threshold_mm: f64,
+        /// The threshold was the manifest's (`solve.robust.threshold_mm`), not the data's.
+        threshold_from_manifest: bool,
+    },
+    /// LMedS over frames (samples of 3, Horn inside); its threshold from the data.
+    Lmeds { threshold_mm: f64 },
+    /// RANSAC's frames, Levenberg–Marquardt with the pixel size as two more unknowns.
+    RansacLmScales,
+    /// RANSAC's frames, every arc edge point on the sphere of known radius.
+    RansacSphereFit {
+        elevation_prior_sd_mm: Option<f64>,
+        /// The echo edge's fitted offset from the sphere's surface.
+        edge_offset_mm: f64,
+    },
+}
+
+impl Method {
+    /// The estimator's name in `summary.json` and the reports.
+    pub fn name(&self) -> &'static str {
+        match self {
+            Method::CutoffWorstFirst { .. } => "cutoff_worst_first",
+            Method::ThesisOneShot { .. } => "thesis_one_shot",
+            Method::Ransac { .. } => "ransac",
+            Method::Lmeds { .. } => "lmeds",
+            Method::RansacLmScales => "ransac_lm_scales",
+            Method::RansacSphereFit { .. } => "ransac_sphere_fit",
+        }
+    }
+}
+
+/// One estimator's calibration beside the thesis's (robust, refined, sphere fit).
+#[derive(Debug, Clone)]
+pub struct MethodResult {
+    pub method: Method,
+    pub frames_used: usize,
+    /// Frames left out of the fit (robust estimators: the frames outside the consensus).
+    pub frames_left_out: Vec<usize>,
+    pub marker_T_image: Rigid,
+    /// Pixel size the calibration maps with (estimated by the scale refinement).
+    pub spacing_mm_per_px: [f64; 2],
+    pub truth: Option<TruthComparison>,
+}
+
+/// Leave-one-out PRE, CR and bootstrap intervals of the primary calibration's frames.
+#[derive(Debug, Clone)]
+pub struct ResamplingSummary {
+    pub leave_one_out: resampling::LeaveOneOut,
+    pub reproducibility: resampling::Reproducibility,
+    pub bootstrap: resampling::Bootstrap,
+}
+
+/// Everything one dataset's run produced.
+#[derive(Debug)]
+pub struct DatasetRun {
+    pub experiment: String,
+    pub dataset: String,
+    pub dataset_folder: PathBuf,
+    pub rendered: bool,
+    pub camera: CameraStage,
+    pub frames: Vec<FrameRecord>,
+    pub all_frames_fit: HornFit,
+    /// The usable frames' point pairs as solved, and how they were solved: what
+    /// `probecal resolve` solves again from the run's folder.
+    pub pairs: Vec<Correspondence>,
+    pub solve: SolveSettings,
+    pub thresholds: Vec<ThresholdRow>,
+    /// Index into `thresholds` of the calibration that is the result.
+    pub primary: usize,
+    pub truth: Option<TruthSummary>,
+    pub gates: Vec<GateResult>,
+    pub spacing_mm_per_px: [f64; 2],
+    /// The phantom's point feature (hemisphere centre, pin head); `None` for wires.
+    pub feature_in_phantom_mm: Option<[f64; 3]>,
+    /// Other estimators on the same frames (point phantoms).
+    pub methods: Vec<MethodResult>,
+    pub validation: Option<ResamplingSummary>,
+    pub timings_s: Vec<(&'static str, f64)>,
+    /// Every file the run read (for provenance).
+    pub input_files: Vec<PathBuf>,
+    pub seed: Option<u64>,
+}
+
+impl DatasetRun {
+    pub fn primary_fit(&self) -> &HornFit {
+        match &self.thresholds[self.primary].fit {
+            Ok(fit) => fit,
+            Err(_) => &self.all_frames_fit,
+        }
+    }
+    pub fn used_frames(&self) -> usize {
+        self.frames.iter().filter(|f| f.rejection.is_none()).count()
+    }
+    pub fn gates_passed(&self) -> bool {
+        self.gates.iter().all(|g| g.passed)
+    }
+}

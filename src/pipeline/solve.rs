@@ -1,0 +1,229 @@
+//! Stage 4: the frames' point pairs (or wire dots paired with their wires) and
+//! the all-frames calibration, with each frame's BRE under it.
+
+use nalgebra::Point3;
+
+use super::frames::Targets;
+use super::record::{FrameRecord, Stage};
+use super::run::RunError;
+use crate::core::geometry::Rigid;
+use crate::estimate::correspondence::{self, Correspondence};
+use crate::estimate::horn::{HornFit, Variant};
+use crate::estimate::wire_matching::{self, FrameWireDots, WireAxis};
+use crate::evaluate::{self, CutoffRule, EvaluationInputs, ThresholdRow};
+
+/// A frame that passed every stage and has poses and a feature.
+fn usable(f: &FrameRecord) -> bool {
+    f.rejection.is_none() && f.pose_pair().is_some() && !f.features_px.is_empty()
+}
+
+/// What pairing the frames needs besides the frames.
+pub struct PairingInputs<'a> {
+    pub dataset: &'a str,
+    pub spacing_mm_per_px: [f64; 2],
+    /// The rough `marker_T_image` wire dots are paired from.
+    pub initial_marker_T_image: Option<Rigid>,
+    pub min_frames: usize,
+}
+
+/// The usable frames' measurements. Point phantoms: one pair per frame. Wire
+/// phantoms: dots paired with their wires (frames left unpaired are rejected
+/// with the reason, and the paired dots and their wires kept on the record).
+pub fn point_pairs(
+    frames: &mut [FrameRecord],
+    targets: Targets<'_>,
+    inputs: &PairingInputs<'_>,
+    log: &mut dyn FnMut(&str),
+) -> Result<Vec<Correspondence>, RunError> {
+    match targets {
+        Targets::Point(feature) => Ok(frames
+            .iter()
+            .filter(|f| usable(f))
+            .filter_map(|f| {
+                let (camera_T_marker, camera_T_phantom) = f.pose_pair()?;
+                Some(Correspondence::point(
+                    f.files.frame,
+                    f.features_px[0],
+                    Point3::from(nalgebra::Vector3::from(feature)),
+                    camera_T_marker,
+                    camera_T_phantom,
+                ))
+            })
+            .collect()),
+        Targets::Wires(wires) => {
+            let axes: Vec<WireAxis> = wires
+                .iter()
+                .map(|w| WireAxis {
+                    name: w.name.clone(),
+                    start_in_phantom_mm: Point3::from(w.start_in_phantom_mm),
+                    end_in_phantom_mm: Point3::from(w.end_in_phantom_mm),
+                })
+                .collect();
+            let dots: Vec<FrameWireDots> = frames
+                .iter()
+                .filter(|f| usable(f))
+                .filter_map(|f| {
+                    let (camera_T_marker, camera_T_phantom) = f.pose_pair()?;
+                    Some(FrameWireDots {
+                        frame: f.files.frame,
+                        dots_px: f.features_px.clone(),
+                        camera_T_marker,
+                        camera_T_phantom,
+                    })
+                })
+                .collect();
+            let start = inputs.initial_marker_T_image.ok_or_else(|| {
+                RunError::Unsupported("the four_wire phantom needs solve.initial_marker_T_image".into())
+            })?;
+            let matching =
+                wire_matching::match_and_solve(&dots, &axes, &start, inputs.spacing_mm_per_px, inputs.min_frames)
+                    .map_err(|source| RunError::Solve {
+                        dataset: inputs.dataset.to_string(),
+                        source,
+                    })?;
+            log(&format!(
+                "wires: {} frames paired in {} rounds, {} left out",
+                matching.correspondences.len(),
+                matching.rounds,
+                matching.rejected.len()
+            ));
+            for f in frames.iter_mut() {
+                if let Some((_, reason)) = matching.rejected.iter().find(|(k, _)| *k == f.files.frame) {
+                    f.rejection = Some((Stage::Wires, reason.clone()));
+                }
+                if let Some((_, labels)) = matching.labels.iter().find(|(k, _)| *k == f.files.frame) {
+                    f.wire_labels = labels.clone();
+                }
+                if let Some(c) = matching.correspondences.iter().find(|c| c.frame == f.files.frame) {
+                    f.features_px = c.features.iter().map(|o| o.pixel).collect();
+                }
+            }
+            Ok(matching.correspondences)
+        }
+    }
+}
+
+/// Refuses a dataset with fewer usable frames than the manifest asks for,
+/// listing every rejection.
+pub fn enough_frames(
+    frames: &[FrameRecord],
+    pairs: &[Correspondence],
+    min_frames: usize,
+    dataset: &str,
+) -> Result<(), RunError> {
+    if pairs.len() >= min_frames {
+        return Ok(());
+    }
+    let reasons = frames
+        .iter()
+        .filter_map(|f| {
+            f.rejection
+                .as_ref()
+                .map(|(s, r)| format!("  frame {}: {}: {r}", f.files.frame, s.label()))
+        })
+        .collect::<Vec<_>>()
+        .join("\n");
+    Err(RunError::TooFewFrames {
+        dataset: dataset.to_string(),
+        used: pairs.len(),
+        total: frames.len(),
+        needed: min_frames,
+        reasons,
+    })
+}
+
+/// How a dataset's pairs are solved: everything the solve reads besides the pairs.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SolveSettings {
+    pub spacing_mm_per_px: [f64; 2],
+    pub variant: Variant,
+    /// Descending; infinity (all frames) first.
+    pub cutoffs_mm: Vec<f64>,
+    pub rule: CutoffRule,
+    /// The cut-off whose calibration is the result.
+    pub calibration_cutoff_mm: f64,
+    pub min_frames: usize,
+    /// Where line fits (wire phantoms) start.
+    pub initial_marker_T_image: Option<Rigid>,
+}
+
+/// The calibrations of a dataset: on all frames, and at each cut-off.
+#[derive(Debug)]
+pub struct Calibrations {
+    pub all_frames_fit: HornFit,
+    /// Where line fits start at the cut-offs (the all-frames fit, for wires).
+    pub start: Option<Rigid>,
+    pub thresholds: Vec<ThresholdRow>,
+    /// Index into `thresholds` of the calibration that is the result.
+    pub primary: usize,
+}
+
+impl Calibrations {
+    /// The reported calibration (the all-frames fit if its cut-off left too few frames).
+    pub fn reported(&self) -> &HornFit {
+        match &self.thresholds[self.primary].fit {
+            Ok(fit) => fit,
+            Err(_) => &self.all_frames_fit,
+        }
+    }
+}
+
+/// Solves `pairs` on all frames, then at every cut-off (frames above it removed
+/// worst first); `truth` (evaluation only) scores each cut-off's calibration.
+/// The run and `probecal resolve` both solve through here.
+pub fn calibrate(
+    pairs: &[Correspondence],
+    settings: &SolveSettings,
+    truth: Option<(Rigid, [usize; 2])>,
+    dataset: &str,
+) -> Result<Calibrations, RunError> {
+    let spacing = settings.spacing_mm_per_px;
+    let all_frames_fit = correspondence::solve(
+        pairs,
+        spacing,
+        settings.variant,
+        settings.initial_marker_T_image.as_ref(),
+    )
+    .map_err(|source| RunError::Solve {
+        dataset: dataset.to_string(),
+        source,
+    })?;
+    let start = settings.initial_marker_T_image.map(|_| all_frames_fit.target_T_source);
+    let inputs = EvaluationInputs {
+        start,
+        spacing,
+        cutoffs_mm: &settings.cutoffs_mm,
+        rule: settings.rule,
+        min_frames: settings.min_frames,
+        variant: settings.variant,
+        truth,
+    };
+    let thresholds = evaluate::threshold_table(pairs, &inputs)?;
+    let primary = thresholds
+        .iter()
+        .position(|r| r.cutoff_mm == settings.calibration_cutoff_mm)
+        .unwrap_or(0);
+    if let Err(e) = &thresholds[primary].fit {
+        return Err(RunError::Cutoff {
+            dataset: dataset.to_string(),
+            cutoff: evaluate::cutoff_label(thresholds[primary].cutoff_mm),
+            kept: thresholds[primary].frames.len(),
+            source: e.clone(),
+        });
+    }
+    Ok(Calibrations {
+        all_frames_fit,
+        start,
+        thresholds,
+        primary,
+    })
+}
+
+/// Each frame's BRE under the all-frames calibration, kept on its record.
+pub fn record_bre(frames: &mut [FrameRecord], pairs: &[Correspondence], fit: &HornFit, spacing: [f64; 2]) {
+    for f in frames.iter_mut() {
+        if let Some(c) = pairs.iter().find(|c| c.frame == f.files.frame) {
+            f.bre_mm = Some(correspondence::bre(c, fit, spacing));
+        }
+    }
+}

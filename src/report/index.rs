@@ -1,0 +1,99 @@
+//! `index.html`: one line per dataset run, and the studies and the thesis chapter beside them.
+
+use std::path::Path;
+
+use serde::Serialize;
+
+use super::render::{error_chain, tera};
+use super::study::StudyFile;
+use crate::io::fs::write_atomic;
+
+/// One line of the index page.
+#[derive(Debug, Serialize)]
+pub struct IndexEntry {
+    pub experiment: String,
+    pub dataset: String,
+    pub link: String,
+    pub frames: String,
+    pub bre_mean: String,
+    pub truth_corner: String,
+    pub passed: bool,
+}
+
+/// The index page linking every dataset run, and `studies` (link, title) beside them.
+pub fn render_index(entries: &[IndexEntry], studies: &[(String, String)]) -> Result<String, String> {
+    let mut ctx = tera::Context::new();
+    ctx.insert("entries", entries);
+    ctx.insert("studies", studies);
+    ctx.insert("probecal_version", env!("CARGO_PKG_VERSION"));
+    tera()
+        .and_then(|t| t.render("index.html", &ctx))
+        .map_err(|e| error_chain(&e))
+}
+
+/// The index's words for a study folder: its experiment and seed count from
+/// `study.json`, or the folder's name when that cannot be read.
+pub fn study_label(study_json: &Path, folder: &str) -> String {
+    match StudyFile::read(study_json).ok().and_then(|s| s.monte_carlo) {
+        Some(mc) => format!(
+            "Monte Carlo accuracy study of {} ({} seeds)",
+            mc.experiment,
+            mc.seeds.len()
+        ),
+        None => format!("Study: {}", folder.replace('_', " ")),
+    }
+}
+
+/// The pages beside the runs in `out`, as (link, title): the thesis chapter
+/// (written here from the runs' summaries), the study in `study/` and the
+/// further studies in `study/<name>/`.
+pub fn pages_beside(out: &Path) -> (Vec<(String, String)>, Vec<String>) {
+    let mut studies: Vec<(String, String)> = Vec::new();
+    let mut errors = Vec::new();
+    // The thesis's results chapter, from whichever of its experiments are in `out`.
+    match super::thesis::write(out) {
+        Ok(Some(_)) => studies.push((
+            "thesis.html".into(),
+            "The thesis's results chapter, regenerated (also thesis.tex)".into(),
+        )),
+        Ok(None) => {}
+        Err(e) => errors.push(format!("thesis chapter: {e}")),
+    }
+    if out.join("study/study.html").is_file() {
+        studies.push((
+            "study/study.html".into(),
+            "The thesis's σ-table and the Monte Carlo accuracy study of every estimator".into(),
+        ));
+    }
+    // Further studies (`probecal study <manifest> --out <out>/study/<name>`), e.g. the
+    // error budget of `experiments/studies/`.
+    let mut more: Vec<String> = std::fs::read_dir(out.join("study"))
+        .into_iter()
+        .flatten()
+        .flatten()
+        .filter(|e| e.path().join("study.html").is_file())
+        .filter_map(|e| e.file_name().to_str().map(str::to_string))
+        .collect();
+    more.sort();
+    for name in more {
+        studies.push((
+            format!("study/{name}/study.html"),
+            study_label(&out.join("study").join(&name).join("study.json"), &name),
+        ));
+    }
+    (studies, errors)
+}
+
+/// Writes `out/index.html` for `entries` and the pages beside them; the errors met.
+pub fn write(out: &Path, entries: &[IndexEntry]) -> Vec<String> {
+    let (studies, mut errors) = pages_beside(out);
+    match render_index(entries, &studies) {
+        Ok(html) => {
+            if let Err(e) = write_atomic(&out.join("index.html"), html.as_bytes()) {
+                errors.push(e.to_string());
+            }
+        }
+        Err(e) => errors.push(format!("index page: {e}")),
+    }
+    errors
+}

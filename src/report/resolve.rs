@@ -1,0 +1,62 @@
+//! `probecal resolve <run folder>`: the run's calibration solved again from its
+//! own folder, compared with the `marker_T_image` its `summary.json` reports.
+
+use std::path::Path;
+
+use super::summary::RunSummary;
+use crate::core::geometry::to_rows;
+use crate::pipeline::resolve::{solve_again, SolveInputs};
+
+/// Largest difference between two transforms' matrix entries that still counts
+/// as the same calibration (mm for the translation, unitless for the rotation).
+pub const SAME_CALIBRATION: f64 = 1e-9;
+
+/// The largest entry-wise difference between the re-solved and the reported
+/// `marker_T_image`, and the re-solved matrix.
+pub fn resolve(run_folder: &Path) -> Result<(f64, [[f64; 4]; 4]), String> {
+    let summary = match RunSummary::read(&run_folder.join("summary.json"))? {
+        RunSummary::Camera(s) => s,
+        RunSummary::Tracked(_) => {
+            return Err(format!(
+                "{}: a tracked-sequence run; its inputs are its sequence files: run its manifest again",
+                run_folder.display()
+            ))
+        }
+    };
+    let inputs = SolveInputs::read(run_folder)?;
+    let solved = solve_again(&inputs)?;
+    let again = to_rows(&solved.reported().target_T_source);
+    let reported = summary.calibration.marker_T_image;
+    let difference = (0..4)
+        .flat_map(|r| (0..4).map(move |c| (r, c)))
+        .map(|(r, c)| (again[r][c] - reported[r][c]).abs())
+        .fold(0.0, f64::max);
+    Ok((difference, again))
+}
+
+/// The command: prints the re-solved matrix and the difference; exit 0 when it is
+/// the same calibration, 1 when not or when the folder cannot be solved again.
+pub fn command(run_folder: &Path) -> u8 {
+    match resolve(run_folder) {
+        Ok((difference, again)) => {
+            println!("marker_T_image solved again from {}:", run_folder.display());
+            for row in again {
+                println!("  {:>14.9} {:>14.9} {:>14.9} {:>14.9}", row[0], row[1], row[2], row[3]);
+            }
+            let same = difference <= SAME_CALIBRATION;
+            println!(
+                "largest difference from summary.json: {difference:.3e} ({})",
+                if same {
+                    "the same calibration"
+                } else {
+                    "NOT the calibration the run reports"
+                }
+            );
+            u8::from(!same)
+        }
+        Err(e) => {
+            eprintln!("error: {e}");
+            1
+        }
+    }
+}

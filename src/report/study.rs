@@ -1,0 +1,168 @@
+//! A study's pages: `study.json` (typed, [`StudyFile`]), `study.md` and `study.html`.
+
+use std::path::Path;
+
+use serde::{Deserialize, Serialize};
+
+use crate::pipeline::study::{MonteCarlo, SigmaRow};
+use crate::report::summary::to_text;
+
+/// `study.json`: the σ-table and, when seeds were run, the Monte Carlo study.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct StudyFile {
+    pub sigma_table: Vec<SigmaRow>,
+    pub monte_carlo: Option<MonteCarlo>,
+}
+
+impl StudyFile {
+    /// Reads a `study.json`.
+    pub fn read(path: &Path) -> Result<StudyFile, String> {
+        let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+        serde_json::from_str(&text).map_err(|e| format!("{}: {e}", path.display()))
+    }
+}
+
+/// The study's tables as Markdown (also the body of the HTML page).
+pub fn markdown(sigma: &[SigmaRow], monte_carlo: Option<&MonteCarlo>) -> String {
+    let mut md = String::from("# Studies\n\n## The thesis's synthetic experiment (σ-table)\n\n");
+    md.push_str(
+        "Protocol: a fixed phantom point; per frame a random image point, a probe tilted up to ±20° about X and Y \
+         with a fixed rotation about Z, and the marker placed so the image point lands on the phantom point; Gaussian \
+         noise of SD σ on each axis of the marker's position; Horn's closed form; 50 frames, 200 repetitions.\n\n",
+    );
+    md.push_str("| σ (mm) | thesis: Std (mm) | probecal: Std of \\|residual\\| per axis (mm) | probecal: Std of 3D residual (mm) |\n|---|---|---|---|\n");
+    for r in sigma {
+        md.push_str(&format!(
+            "| {} | {:.3} | {:.3} | {:.3} |\n",
+            r.sigma_mm, r.thesis_std_mm, r.std_per_axis_mm, r.std_distance_mm
+        ));
+    }
+    if let Some(mc) = monte_carlo {
+        md.push_str(&format!(
+            "\n## Monte Carlo accuracy study: `{}`, {} seeds\n\n",
+            mc.experiment,
+            mc.seeds.len()
+        ));
+        md.push_str(
+            "Each seed renders the experiment's dataset anew (photos, B-scans, outlier and missing frames) and runs the \
+             whole pipeline; the error is the RMS distance of the image's four corners and centre from the truth. The \
+             Cramér–Rao bound is that of the point-pair model (independent Gaussian pair residuals with the covariance \
+             of the true residuals of the inlier frames, measured per seed).\n\n",
+        );
+        md.push_str("| method | mean (mm) | 95th percentile (mm) | RMS (mm) | RMS / CRLB |\n|---|---|---|---|---|\n");
+        for m in &mc.methods {
+            md.push_str(&format!(
+                "| {} | {:.3} | {:.3} | {:.3} | {:.2} |\n",
+                m.method,
+                m.mean_mm,
+                m.p95_mm,
+                m.rms_mm,
+                m.rms_mm / mc.crlb_rms_mm
+            ));
+        }
+        md.push_str(&format!(
+            "| Cramér–Rao bound of the point-pair model (independent frames) | | | {:.3} | 1.00 |\n",
+            mc.crlb_rms_mm
+        ));
+    }
+    md
+}
+
+fn escape_html(text: &str) -> String {
+    text.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;")
+}
+
+/// A self-contained HTML page from the Markdown tables.
+fn html(md: &str) -> String {
+    let mut body = String::new();
+    let mut in_table = false;
+    for line in md.lines() {
+        if line.starts_with('|') {
+            let cells: Vec<String> = line
+                .trim_matches('|')
+                .split(" | ")
+                .map(|c| escape_html(c.trim()).replace("\\|", "|"))
+                .collect();
+            if cells.iter().all(|c| c.chars().all(|ch| ch == '-')) {
+                continue;
+            }
+            if !in_table {
+                body.push_str("<table><thead><tr>");
+                body.push_str(&cells.iter().map(|c| format!("<th>{c}</th>")).collect::<String>());
+                body.push_str("</tr></thead><tbody>\n");
+                in_table = true;
+            } else {
+                body.push_str("<tr>");
+                body.push_str(&cells.iter().map(|c| format!("<td>{c}</td>")).collect::<String>());
+                body.push_str("</tr>\n");
+            }
+            continue;
+        }
+        if in_table {
+            body.push_str("</tbody></table>\n");
+            in_table = false;
+        }
+        if let Some(h) = line.strip_prefix("## ") {
+            body.push_str(&format!("<h2>{}</h2>\n", escape_html(h).replace('`', "")));
+        } else if let Some(h) = line.strip_prefix("# ") {
+            body.push_str(&format!("<h1>{}</h1>\n", escape_html(h)));
+        } else if !line.trim().is_empty() {
+            body.push_str(&format!("<p>{}</p>\n", escape_html(line).replace('`', "")));
+        }
+    }
+    if in_table {
+        body.push_str("</tbody></table>\n");
+    }
+    format!(
+        "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>probecal studies</title>\n<style>body{{font-family:sans-serif;max-width:60rem;margin:2rem auto;padding:0 1rem}}table{{border-collapse:collapse;margin:1rem 0}}td,th{{border:1px solid #bbb;padding:.3rem .6rem;text-align:right}}td:first-child,th:first-child{{text-align:left}}</style></head><body>\n{body}</body></html>\n"
+    )
+}
+
+/// Writes `study.json`, `study.md` and `study.html` into `out`.
+pub fn write(out: &Path, sigma: &[SigmaRow], monte_carlo: Option<&MonteCarlo>) -> std::io::Result<()> {
+    std::fs::create_dir_all(out)?;
+    let file = StudyFile {
+        sigma_table: sigma.to_vec(),
+        monte_carlo: monte_carlo.cloned(),
+    };
+    std::fs::write(out.join("study.json"), to_text(&file).map_err(std::io::Error::other)?)?;
+    let md = markdown(sigma, monte_carlo);
+    std::fs::write(out.join("study.md"), &md)?;
+    std::fs::write(out.join("study.html"), html(&md))
+}
+
+/// `probecal study`: the σ-table and, for `seeds` seeds from `first_seed`, the
+/// Monte Carlo study of the manifest, written to `out`; the exit code.
+pub fn command(manifest: &Path, seeds: u64, first_seed: u64, out: &Path, datasets: &Path, keep: bool) -> u8 {
+    let manifest = match crate::manifest::Manifest::load(manifest) {
+        Ok(m) => m,
+        Err(e) => {
+            eprintln!("error: {e}");
+            return 2;
+        }
+    };
+    crate::core::progress::set_quiet(true);
+    let sigma = crate::pipeline::study::sigma_table(50, 200, 1);
+    let seeds: Vec<u64> = (first_seed..first_seed + seeds).collect();
+    let monte_carlo = if seeds.is_empty() {
+        None
+    } else {
+        match crate::pipeline::study::monte_carlo(&manifest, &seeds, datasets, keep, &mut |l| eprintln!("{l}")) {
+            Ok(m) => Some(m),
+            Err(e) => {
+                eprintln!("error: {e}");
+                return 1;
+            }
+        }
+    };
+    match write(out, &sigma, monte_carlo.as_ref()) {
+        Ok(()) => {
+            eprintln!("written to {}", out.display());
+            0
+        }
+        Err(e) => {
+            eprintln!("error: {e}");
+            1
+        }
+    }
+}

@@ -1,0 +1,141 @@
+//! The reporter the command line runs experiments with: every dataset's files
+//! and provenance, the terminal's lines, and the index with the pages beside it.
+
+use std::path::Path;
+use std::time::SystemTime;
+
+use super::index::IndexEntry;
+use super::provenance::Provenance;
+use super::summary::RunSummary;
+use crate::io::plus::result::PlusResult;
+use crate::manifest::tracked::TrackedManifest;
+use crate::manifest::Manifest;
+use crate::pipeline::experiment::Reporter;
+use crate::pipeline::record::DatasetRun;
+use crate::pipeline::tracked::TrackedRun;
+
+/// Writes each run's folder and the index; prints unless quiet.
+pub struct ReportWriter {
+    pub quiet: bool,
+    pub entries: Vec<IndexEntry>,
+}
+
+impl ReportWriter {
+    pub fn new(quiet: bool) -> ReportWriter {
+        ReportWriter {
+            quiet,
+            entries: Vec::new(),
+        }
+    }
+}
+
+fn f3(v: Option<f64>) -> String {
+    v.map(|x| format!("{x:.3}")).unwrap_or_else(|| "—".into())
+}
+
+/// The index line of a run, from its summary.
+pub fn index_entry(summary: &RunSummary) -> IndexEntry {
+    let (experiment, dataset) = (summary.experiment(), summary.dataset());
+    let link = format!("{experiment}/{dataset}/report.html");
+    let passed = summary.gates().iter().all(|g| g.passed);
+    match summary {
+        RunSummary::Camera(s) => IndexEntry {
+            experiment: experiment.into(),
+            dataset: dataset.into(),
+            link,
+            frames: format!("{} / {}", s.frames.used, s.frames.total),
+            bre_mean: s
+                .bre_mm
+                .map(|b| format!("{:.3}", b.max_mean()))
+                .unwrap_or_else(|| "—".into()),
+            truth_corner: s
+                .truth
+                .as_ref()
+                .map(|t| format!("{:.3}", t.corner_error_mm.mean))
+                .unwrap_or_else(|| "—".into()),
+            passed,
+        },
+        RunSummary::Tracked(s) => IndexEntry {
+            experiment: experiment.into(),
+            dataset: dataset.into(),
+            link,
+            frames: format!("{} / {}", s.frames.calibration.segmented, s.frames.calibration.total),
+            bre_mean: format!("PRE3D {}", f3(s.validation.pre3d_mm.map(|p| p.mean))),
+            truth_corner: "—".into(),
+            passed,
+        },
+    }
+}
+
+impl Reporter for ReportWriter {
+    fn dataset_started(&mut self, experiment: &str, dataset: &str) {
+        if !self.quiet {
+            eprintln!("== {experiment} / {dataset}");
+        }
+    }
+
+    fn dataset_done(
+        &mut self,
+        manifest: &Manifest,
+        run: &DatasetRun,
+        folder: &Path,
+        started: SystemTime,
+    ) -> Result<(), String> {
+        let summary = super::write::write_dataset_run(run, manifest, folder).map_err(|e| e.to_string())?;
+        let mut provenance = Provenance::new(
+            &manifest.path,
+            &manifest.sha256,
+            &run.dataset,
+            &run.dataset_folder,
+            &run.input_files,
+            started,
+        );
+        provenance.seed = run.seed;
+        provenance.timings_s = run.timings_s.iter().map(|(k, v)| (k.to_string(), *v)).collect();
+        let written = provenance.write(folder).map_err(|e| e.to_string());
+        if !self.quiet {
+            super::console::dataset_run(run, &summary, folder);
+        }
+        self.entries.push(index_entry(&RunSummary::Camera(Box::new(summary))));
+        written
+    }
+
+    fn tracked_done(
+        &mut self,
+        manifest: &TrackedManifest,
+        run: &TrackedRun,
+        plus: Option<&PlusResult>,
+        folder: &Path,
+        started: SystemTime,
+    ) -> Result<(), String> {
+        let summary = super::tracked::write(run, manifest, plus, folder).map_err(|e| e.to_string())?;
+        Provenance::new(
+            &manifest.path,
+            &manifest.sha256,
+            &manifest.dataset,
+            &manifest.calibration_sequence,
+            &manifest.input_files(),
+            started,
+        )
+        .write(folder)
+        .map_err(|e| e.to_string())?;
+        if !self.quiet {
+            super::console::tracked_run(run, &summary, folder);
+        }
+        self.entries.push(index_entry(&RunSummary::Tracked(Box::new(summary))));
+        Ok(())
+    }
+
+    fn gate_failed(&mut self, line: &str) {
+        eprintln!("GATE FAILED: {line}");
+    }
+
+    fn finished(&mut self, out: &Path) -> Result<(), String> {
+        let errors = super::index::write(out, &self.entries);
+        if errors.is_empty() {
+            Ok(())
+        } else {
+            Err(errors.join("\n"))
+        }
+    }
+}
