@@ -86,7 +86,7 @@ fn board_corners_and_identity_match_the_truth() {
             Ok(p) => p,
             // Something lies across the probe board in this photo: it may be lost.
             Err(reason) if !frame["occluder"].is_null() => {
-                assert!(reason.contains("probe board"), "frame {k}: {reason}");
+                assert!(reason.to_string().contains("probe board"), "frame {k}: {reason}");
                 occluded_rejected += 1;
                 continue;
             }

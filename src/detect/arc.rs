@@ -64,6 +64,37 @@ const FILL_BIN_DEG: f64 = 5.0;
 /// Smallest fraction of the arc's span that must hold echo points.
 const MIN_FILL: f64 = 0.75;
 
+/// Why a B-scan shows no usable arc.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ArcRejection {
+    #[error("no ultrasound image content (empty fan)")]
+    EmptyFan,
+    #[error("no echo arc: only {found} bright echo points (need {needed})")]
+    TooFewEchoPoints { found: usize, needed: usize },
+    #[error("no circular arc in the Hough accumulator")]
+    NoHoughPeak,
+    #[error("arc has only {found} echo points on a circle (need {needed})")]
+    TooFewOnCircle { found: usize, needed: usize },
+    #[error("circle fit did not converge")]
+    FitDiverged,
+    #[error("arc radius {radius_mm:.2} mm is outside the searched {min_mm:.2}–{max_mm:.2} mm")]
+    RadiusOutside { radius_mm: f64, min_mm: f64, max_mm: f64 },
+    #[error("arc spans only {span_deg:.0}° (need {needed_deg:.0}°)")]
+    ShortSpan { span_deg: f64, needed_deg: f64 },
+    /// A wall or the floor: a line fits the echo nearly as well as the circle.
+    #[error("the echo is nearly straight (a line fits it {line_to_circle:.1}x as well as the circle; need {needed}x): a wall or the floor, not the dome")]
+    Straight { line_to_circle: f64, needed: f64 },
+    /// Pieces of other echoes, not one arc.
+    #[error("echo points cover only {covered_percent:.0}% of the {span_deg:.0}° arc (need {needed_percent:.0}%): pieces of other echoes, not one arc")]
+    Patchy {
+        covered_percent: f64,
+        span_deg: f64,
+        needed_percent: f64,
+    },
+    #[error("arc is not circular: RMS {rms_px:.2} px from the fitted circle (limit {limit_px:.2} px)")]
+    NotCircular { rms_px: f64, limit_px: f64 },
+}
+
 /// Geometric circle fit (Gauss–Newton) from a start; returns centre, radius, RMS (mm).
 /// With `fixed_radius` the radius stays at the start's value.
 fn fit_circle(points: &[[f64; 2]], start: ([f64; 2], f64), fixed_radius: bool) -> Option<([f64; 2], f64, f64)> {
@@ -122,7 +153,7 @@ fn line_rms(points: &[[f64; 2]]) -> f64 {
 const MIN_LINE_TO_CIRCLE_RMS: f64 = 2.0;
 
 /// Detects the arc. The inner `Err` is the frame's rejection reason.
-pub fn detect(image: &Mat, settings: &ArcSettings) -> Result<Result<ArcFeature, String>, ImageError> {
+pub fn detect(image: &Mat, settings: &ArcSettings) -> Result<Result<ArcFeature, ArcRejection>, ImageError> {
     let gray = mat_to_gray8(image)?;
     let (w, h) = (gray.width, gray.height);
     let [sx, sy] = settings.spacing_mm_per_px;
@@ -160,7 +191,7 @@ pub fn detect(image: &Mat, settings: &ArcSettings) -> Result<Result<ArcFeature, 
         }
     }
     if values.is_empty() {
-        return Ok(Err("no ultrasound image content (empty fan)".into()));
+        return Ok(Err(ArcRejection::EmptyFan));
     }
     values.sort_by(|a, b| a.total_cmp(b));
     let median = percentile_sorted_nearest(&values, 0.5);
@@ -222,11 +253,10 @@ pub fn detect(image: &Mat, settings: &ArcSettings) -> Result<Result<ArcFeature, 
         }
     }
     if points_mm.len() < settings.min_points {
-        return Ok(Err(format!(
-            "no echo arc: only {} bright echo points (need {})",
-            points_mm.len(),
-            settings.min_points
-        )));
+        return Ok(Err(ArcRejection::TooFewEchoPoints {
+            found: points_mm.len(),
+            needed: settings.min_points,
+        }));
     }
 
     // 2. Hough accumulator: each point votes along its normal, towards the centre
@@ -266,7 +296,7 @@ pub fn detect(image: &Mat, settings: &ArcSettings) -> Result<Result<ArcFeature, 
         .enumerate()
         .fold((0, 0f32), |acc, (i, v)| if *v > acc.1 { (i, *v) } else { acc });
     if best_votes <= 0.0 {
-        return Ok(Err("no circular arc in the Hough accumulator".into()));
+        return Ok(Err(ArcRejection::NoHoughPeak));
     }
     let (bx, by) = (best % gw, best / gw);
     let exclusion = (3.0 / CELL_MM) as i64;
@@ -328,15 +358,14 @@ pub fn detect(image: &Mat, settings: &ArcSettings) -> Result<Result<ArcFeature, 
             .copied()
             .collect();
         if inliers.len() < settings.min_points {
-            return Ok(Err(format!(
-                "arc has only {} echo points on a circle (need {})",
-                inliers.len(),
-                settings.min_points
-            )));
+            return Ok(Err(ArcRejection::TooFewOnCircle {
+                found: inliers.len(),
+                needed: settings.min_points,
+            }));
         }
         let start = (centre_fit, settings.fixed_radius_mm.unwrap_or(radius));
         let Some((c, r, rms)) = fit_circle(&inliers, start, settings.fixed_radius_mm.is_some()) else {
-            return Ok(Err("circle fit did not converge".into()));
+            return Ok(Err(ArcRejection::FitDiverged));
         };
         centre_fit = c;
         radius = r;
@@ -373,34 +402,37 @@ pub fn detect(image: &Mat, settings: &ArcSettings) -> Result<Result<ArcFeature, 
         arc_points_px: inliers.iter().map(|p| [p[0] / sx, p[1] / sy]).collect(),
     };
     if !(r_min..=r_max).contains(&radius) {
-        return Ok(Err(format!(
-            "arc radius {radius:.2} mm is outside the searched {r_min:.2}–{r_max:.2} mm"
-        )));
+        return Ok(Err(ArcRejection::RadiusOutside {
+            radius_mm: radius,
+            min_mm: r_min,
+            max_mm: r_max,
+        }));
     }
     if span < settings.min_span_deg {
-        return Ok(Err(format!(
-            "arc spans only {span:.0}° (need {:.0}°)",
-            settings.min_span_deg
-        )));
+        return Ok(Err(ArcRejection::ShortSpan {
+            span_deg: span,
+            needed_deg: settings.min_span_deg,
+        }));
     }
     let straightness = line_rms(&inliers) / rms_mm.max(1e-9);
     if straightness < MIN_LINE_TO_CIRCLE_RMS {
-        return Ok(Err(format!(
-            "the echo is nearly straight (a line fits it {straightness:.1}x as well as the circle; need {MIN_LINE_TO_CIRCLE_RMS}x): a wall or the floor, not the dome"
-        )));
+        return Ok(Err(ArcRejection::Straight {
+            line_to_circle: straightness,
+            needed: MIN_LINE_TO_CIRCLE_RMS,
+        }));
     }
     if fill < MIN_FILL {
-        return Ok(Err(format!(
-            "echo points cover only {:.0}% of the {span:.0}° arc (need {:.0}%): pieces of other echoes, not one arc",
-            100.0 * fill,
-            100.0 * MIN_FILL
-        )));
+        return Ok(Err(ArcRejection::Patchy {
+            covered_percent: 100.0 * fill,
+            span_deg: span,
+            needed_percent: 100.0 * MIN_FILL,
+        }));
     }
     if rms_px > settings.max_rms_px {
-        return Ok(Err(format!(
-            "arc is not circular: RMS {rms_px:.2} px from the fitted circle (limit {:.2} px)",
-            settings.max_rms_px
-        )));
+        return Ok(Err(ArcRejection::NotCircular {
+            rms_px,
+            limit_px: settings.max_rms_px,
+        }));
     }
     Ok(Ok(feature))
 }

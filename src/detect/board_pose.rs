@@ -49,6 +49,54 @@ pub const SEARCH_MAX_SIDE_PX: i32 = 1000;
 /// Reprojection error above which a pose is not trusted, px.
 pub const MAX_REPROJECTION_RMS_PX: f64 = 1.0;
 
+/// Why a photo gives no pair of board poses. `board` is `probe` or `phantom`.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum BoardRejection {
+    #[error("a {}x{} board was found but no identification dot beside any of its corners", .inner_corners[0], .inner_corners[1])]
+    NoOriginDot { inner_corners: [u32; 2] },
+    #[error("a {}x{} board shows {candidates} candidate origin dots: ambiguous", .inner_corners[0], .inner_corners[1])]
+    AmbiguousOrigin { inner_corners: [u32; 2], candidates: usize },
+    #[error("found a {}x{} board with {dots} identification dot(s), which no board of the rig has", .inner_corners[0], .inner_corners[1])]
+    UnknownBoard { inner_corners: [u32; 2], dots: u8 },
+    #[error("found the {board} board twice")]
+    FoundTwice { board: &'static str },
+    #[error("{board} board: {found} of {total} markers found (need {needed})")]
+    TooFewMarkers {
+        board: &'static str,
+        found: usize,
+        total: usize,
+        needed: usize,
+    },
+    #[error("{board} board: no pose from {markers} markers")]
+    NoPose { board: &'static str, markers: usize },
+    /// Both planar-PnP solutions explain the corners about equally.
+    #[error("{board} board: ambiguous pose, two solutions {apart_deg:.1}° apart fit with {:.2} and {:.2} px", .errors_px[0], .errors_px[1])]
+    AmbiguousPose {
+        board: &'static str,
+        apart_deg: f64,
+        errors_px: [f64; 2],
+    },
+    #[error("{board} board pose has a reprojection error of {rms_px:.2} px (limit {limit_px} px)")]
+    Reprojection {
+        board: &'static str,
+        rms_px: f64,
+        limit_px: f64,
+    },
+    /// The marker dictionary or the marker detection failed.
+    #[error("{0}")]
+    Markers(String),
+    #[error("boards not found")]
+    NotFound,
+    #[error("the rig mixes board kinds")]
+    MixedRig,
+    #[error("probe board not found")]
+    ProbeBoardMissing,
+    #[error("phantom board not found")]
+    PhantomBoardMissing,
+    #[error("neither board found")]
+    NeitherBoard,
+}
+
 type IndexMap = fn(usize, usize, usize, usize) -> (usize, usize);
 
 /// Re-orderings of a detected `cols x rows` grid: canonical (i, j) -> detected (i', j').
@@ -154,7 +202,7 @@ fn identify(
     detected: &[[f64; 2]],
     inner_corners: [u32; 2],
     square_mm: f64,
-) -> Result<Identified, String> {
+) -> Result<Identified, BoardRejection> {
     let (cols, rows) = (inner_corners[0] as usize, inner_corners[1] as usize);
     let layout = BoardLayout {
         inner_corners,
@@ -218,16 +266,11 @@ fn identify(
                 paper_px: paper,
             })
         }
-        [] => Err(format!(
-            "a {}x{} board was found but no identification dot beside any of its corners",
-            inner_corners[0], inner_corners[1]
-        )),
-        many => Err(format!(
-            "a {}x{} board shows {} candidate origin dots: ambiguous",
-            inner_corners[0],
-            inner_corners[1],
-            many.len()
-        )),
+        [] => Err(BoardRejection::NoOriginDot { inner_corners }),
+        many => Err(BoardRejection::AmbiguousOrigin {
+            inner_corners,
+            candidates: many.len(),
+        }),
     }
 }
 
@@ -305,20 +348,22 @@ const AMBIGUITY_RATIO: f64 = 1.3;
 fn aruco_board_pose(
     camera: &CameraIntrinsics,
     layout: &ArucoLayout,
-    name: &str,
+    name: &'static str,
     markers: &[aruco::Marker],
     min_markers: usize,
-) -> opencv::Result<Result<BoardObservation, String>> {
+) -> opencv::Result<Result<BoardObservation, BoardRejection>> {
     let mine: Vec<&aruco::Marker> = markers
         .iter()
         .filter(|m| m.id >= 0 && layout.ids().contains(&(m.id as u32)))
         .collect();
     let total = layout.ids().len();
     if mine.len() < min_markers {
-        return Ok(Err(format!(
-            "{name} board: {} of {total} markers found (need {min_markers})",
-            mine.len()
-        )));
+        return Ok(Err(BoardRejection::TooFewMarkers {
+            board: name,
+            found: mine.len(),
+            total,
+            needed: min_markers,
+        }));
     }
     let mut object = Vector::<opencv::core::Point3f>::new();
     let mut corners_px = Vec::new();
@@ -352,7 +397,10 @@ fn aruco_board_pose(
         &mut errors,
     )?;
     if solutions < 1 {
-        return Ok(Err(format!("{name} board: no pose from {} markers", mine.len())));
+        return Ok(Err(BoardRejection::NoPose {
+            board: name,
+            markers: mine.len(),
+        }));
     }
     if solutions >= 2 {
         let mut errors64 = Mat::default();
@@ -364,9 +412,11 @@ fn aruco_board_pose(
             &rigid_from_rvec_tvec(&rvecs.get(1)?, &tvecs.get(1)?)?,
         );
         if e1 <= AMBIGUITY_RATIO * e0 && angle > 1.0 {
-            return Ok(Err(format!(
-                "{name} board: ambiguous pose, two solutions {angle:.1}° apart fit with {e0:.2} and {e1:.2} px"
-            )));
+            return Ok(Err(BoardRejection::AmbiguousPose {
+                board: name,
+                apart_deg: angle,
+                errors_px: [e0, e1],
+            }));
         }
     }
     let observation = pnp(camera, &object, &corners_px, Some((&rvecs.get(0)?, &tvecs.get(0)?)))?;
@@ -381,25 +431,26 @@ pub fn estimate_aruco(
     phantom: &ArucoLayout,
     subpixel_half_window_px: u32,
     min_markers: usize,
-) -> opencv::Result<Result<FramePoses, String>> {
+) -> opencv::Result<Result<FramePoses, BoardRejection>> {
     let dictionary = match aruco::predefined(&probe.dictionary) {
         Ok(d) => d,
-        Err(e) => return Ok(Err(e.to_string())),
+        Err(e) => return Ok(Err(BoardRejection::Markers(e.to_string()))),
     };
     let window = (subpixel_half_window_px > 0).then_some(subpixel_half_window_px as i32);
     let markers = match aruco::detect(image, &dictionary, window) {
         Ok(m) => m,
         Err(aruco::ArucoError::OpenCv(e)) => return Err(e),
-        Err(e) => return Ok(Err(e.to_string())),
+        Err(e) => return Ok(Err(BoardRejection::Markers(e.to_string()))),
     };
     let mut poses = Vec::new();
     for (layout, name) in [(probe, "probe"), (phantom, "phantom")] {
         match aruco_board_pose(camera, layout, name, &markers, min_markers)? {
             Ok(o) if o.reprojection_rms_px > MAX_REPROJECTION_RMS_PX => {
-                return Ok(Err(format!(
-                    "{name} board pose has a reprojection error of {:.2} px (limit {MAX_REPROJECTION_RMS_PX} px)",
-                    o.reprojection_rms_px
-                )))
+                return Ok(Err(BoardRejection::Reprojection {
+                    board: name,
+                    rms_px: o.reprojection_rms_px,
+                    limit_px: MAX_REPROJECTION_RMS_PX,
+                }))
             }
             Ok(o) => poses.push(o),
             Err(reason) => return Ok(Err(reason)),
@@ -412,12 +463,16 @@ pub fn estimate_aruco(
             camera_T_marker: m,
             camera_T_phantom: p,
         }),
-        _ => Err("boards not found".to_string()),
+        _ => Err(BoardRejection::NotFound),
     })
 }
 
 /// Finds and poses both boards of a rig. The inner `Err` is a frame rejection reason.
-pub fn estimate(image: &Mat, camera: &CameraIntrinsics, rig: &RigBoards) -> opencv::Result<Result<FramePoses, String>> {
+pub fn estimate(
+    image: &Mat,
+    camera: &CameraIntrinsics,
+    rig: &RigBoards,
+) -> opencv::Result<Result<FramePoses, BoardRejection>> {
     match (&rig.probe, &rig.phantom, &rig.detection) {
         (PrintedBoard::Checkerboard(probe), PrintedBoard::Checkerboard(phantom), _) => estimate_checkerboards(
             image,
@@ -435,7 +490,7 @@ pub fn estimate(image: &Mat, camera: &CameraIntrinsics, rig: &RigBoards) -> open
                 min_markers,
             },
         ) => estimate_aruco(image, camera, probe, phantom, *subpixel_half_window_px, *min_markers),
-        _ => Ok(Err("the rig mixes board kinds".to_string())),
+        _ => Ok(Err(BoardRejection::MixedRig)),
     }
 }
 
@@ -508,7 +563,7 @@ pub fn estimate_checkerboards(
     image: &Mat,
     camera: &CameraIntrinsics,
     rig: &RigLayout,
-) -> opencv::Result<Result<FramePoses, String>> {
+) -> opencv::Result<Result<FramePoses, BoardRejection>> {
     let mut work = image.try_clone()?;
     let subpix = SubPix {
         half_window_px: 5,
@@ -545,21 +600,22 @@ pub fn estimate_checkerboards(
             .iter()
             .position(|(b, _)| b.id_dots == identified.dots && b.inner_corners == pattern.inner_corners)
         else {
-            return Ok(Err(format!(
-                "found a {}x{} board with {} identification dot(s), which no board of the rig has",
-                pattern.inner_corners[0], pattern.inner_corners[1], identified.dots
-            )));
+            return Ok(Err(BoardRejection::UnknownBoard {
+                inner_corners: pattern.inner_corners,
+                dots: identified.dots,
+            }));
         };
         let (layout, name) = boards[slot];
         if found[slot].is_some() {
-            return Ok(Err(format!("found the {name} board twice")));
+            return Ok(Err(BoardRejection::FoundTwice { board: name }));
         }
         let observation = solve_pose(camera, &layout, &identified.corners_px)?;
         if observation.reprojection_rms_px > MAX_REPROJECTION_RMS_PX {
-            return Ok(Err(format!(
-                "{name} board pose has a reprojection error of {:.2} px (limit {MAX_REPROJECTION_RMS_PX} px)",
-                observation.reprojection_rms_px
-            )));
+            return Ok(Err(BoardRejection::Reprojection {
+                board: name,
+                rms_px: observation.reprojection_rms_px,
+                limit_px: MAX_REPROJECTION_RMS_PX,
+            }));
         }
         let polygon: Vector<Point> = identified
             .paper_px
@@ -575,8 +631,8 @@ pub fn estimate_checkerboards(
             camera_T_marker: m,
             camera_T_phantom: p,
         }),
-        (None, Some(_)) => Err("probe board not found".to_string()),
-        (Some(_), None) => Err("phantom board not found".to_string()),
-        (None, None) => Err("neither board found".to_string()),
+        (None, Some(_)) => Err(BoardRejection::ProbeBoardMissing),
+        (Some(_), None) => Err(BoardRejection::PhantomBoardMissing),
+        (None, None) => Err(BoardRejection::NeitherBoard),
     })
 }

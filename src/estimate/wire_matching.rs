@@ -47,9 +47,21 @@ pub struct Matching {
     pub correspondences: Vec<Correspondence>,
     /// Per used frame: the wire name of each feature, in the order of its features.
     pub labels: Vec<(usize, Vec<String>)>,
-    pub rejected: Vec<(usize, String)>,
+    pub rejected: Vec<(usize, WireRejection)>,
     pub fit: HornFit,
     pub rounds: usize,
+}
+
+/// Why a frame's dots were not paired with the wires.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum WireRejection {
+    #[error("{found} of {wires} wires found near their predicted dots ({dots} dots detected; {needed} needed)")]
+    TooFewWires {
+        found: usize,
+        wires: usize,
+        dots: usize,
+        needed: usize,
+    },
 }
 
 /// Fewest wires a frame must show near their predictions to be used.
@@ -153,12 +165,12 @@ pub fn match_and_solve(
             if found < MIN_WIRES_PER_FRAME.min(wires.len()) {
                 rejected.push((
                     f.frame,
-                    format!(
-                        "{found} of {} wires found near their predicted dots ({} dots detected; {} needed)",
-                        wires.len(),
-                        f.dots_px.len(),
-                        MIN_WIRES_PER_FRAME.min(wires.len())
-                    ),
+                    WireRejection::TooFewWires {
+                        found,
+                        wires: wires.len(),
+                        dots: f.dots_px.len(),
+                        needed: MIN_WIRES_PER_FRAME.min(wires.len()),
+                    },
                 ));
                 continue;
             }

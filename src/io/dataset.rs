@@ -3,6 +3,7 @@
 //! `camera_calibration/` with board views. Rendered and recorded datasets share it.
 //! A dataset tracked without a camera may leave `camera_image` empty.
 
+use super::csv;
 use std::path::{Path, PathBuf};
 
 /// Name of the frame list inside a dataset folder.
@@ -46,8 +47,7 @@ pub fn load_frame_list(folder: &Path) -> Result<Vec<FrameFiles>, DatasetError> {
 /// Parses frame-list text; paths are taken relative to `folder`.
 pub fn parse_frame_list(folder: &Path, text: &str) -> Result<Vec<FrameFiles>, DatasetError> {
     let path = folder.join(FRAME_LIST);
-    let mut lines = text.lines().enumerate();
-    let header = lines.next().map(|(_, l)| l.trim()).unwrap_or("");
+    let (header, records) = csv::split(text);
     if header != "frame,camera_image,bscan_image" {
         return Err(DatasetError::Header {
             path,
@@ -55,26 +55,19 @@ pub fn parse_frame_list(folder: &Path, text: &str) -> Result<Vec<FrameFiles>, Da
         });
     }
     let mut frames: Vec<FrameFiles> = Vec::new();
-    for (i, raw) in lines {
-        let line = i + 1;
-        if raw.trim().is_empty() {
-            continue;
-        }
+    for csv::Record { line, fields } in records {
         let fail = |message: String| DatasetError::Line {
             path: path.clone(),
             line,
             message,
         };
-        let fields: Vec<&str> = raw.split(',').map(str::trim).collect();
         if fields.len() != 3 {
             return Err(fail(format!(
                 "expected 3 comma-separated fields, found {}",
                 fields.len()
             )));
         }
-        let frame: usize = fields[0]
-            .parse()
-            .map_err(|_| fail(format!("frame `{}` is not a whole number", fields[0])))?;
+        let frame = csv::frame_number(fields[0]).map_err(fail)?;
         if frames.iter().any(|f| f.frame == frame) {
             return Err(fail(format!("frame {frame} is listed twice")));
         }

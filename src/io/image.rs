@@ -7,7 +7,7 @@ use opencv::imgcodecs;
 use opencv::prelude::*;
 
 /// Why an image could not be used.
-#[derive(Debug, thiserror::Error)]
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum ImageError {
     #[error("{path}: image file does not exist")]
     Missing { path: PathBuf },
@@ -26,7 +26,13 @@ pub enum ImageError {
     #[error("{path}: cannot write image: {message}")]
     Write { path: PathBuf, message: String },
     #[error("opencv: {0}")]
-    OpenCv(#[from] opencv::Error),
+    OpenCv(String),
+}
+
+impl From<opencv::Error> for ImageError {
+    fn from(e: opencv::Error) -> ImageError {
+        ImageError::OpenCv(e.to_string())
+    }
 }
 
 /// A grey image, row-major, one byte per pixel.

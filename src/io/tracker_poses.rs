@@ -14,6 +14,7 @@
 //! the manifest's. The tracker takes the camera's place: both poses of a frame must
 //! be in the same tracker frame.
 
+use super::csv;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
@@ -69,8 +70,7 @@ impl TrackerPoses {
     }
 
     pub fn parse(path: &Path, text: &str) -> Result<TrackerPoses, TrackerPosesError> {
-        let mut lines = text.lines().enumerate();
-        let header = lines.next().map(|(_, l)| l.trim()).unwrap_or("");
+        let (header, records) = csv::split(text);
         if header.replace(' ', "") != HEADER {
             return Err(TrackerPosesError::Header {
                 path: path.to_path_buf(),
@@ -78,25 +78,19 @@ impl TrackerPoses {
             });
         }
         let mut poses: BTreeMap<usize, BTreeMap<String, Rigid>> = BTreeMap::new();
-        for (i, raw) in lines {
-            if raw.trim().is_empty() {
-                continue;
-            }
+        for csv::Record { line, fields } in records {
             let fail = |message: String| TrackerPosesError::Line {
                 path: path.to_path_buf(),
-                line: i + 1,
+                line,
                 message,
             };
-            let fields: Vec<&str> = raw.split(',').map(str::trim).collect();
             if fields.len() != 18 {
                 return Err(fail(format!(
                     "expected 18 comma-separated fields (frame, transform, 16 matrix entries), found {}",
                     fields.len()
                 )));
             }
-            let frame: usize = fields[0]
-                .parse()
-                .map_err(|_| fail(format!("frame `{}` is not a whole number", fields[0])))?;
+            let frame = csv::frame_number(fields[0]).map_err(fail)?;
             let name = fields[1];
             if name.is_empty() {
                 return Err(fail("the transform name is empty".into()));
@@ -129,7 +123,7 @@ impl TrackerPoses {
     }
 
     /// A frame's probe and reference poses, or why the frame has none.
-    pub fn frame(&self, frame: usize, probe: &str, reference: &str) -> Result<TrackedFrame, String> {
+    pub fn frame(&self, frame: usize, probe: &str, reference: &str) -> Result<TrackedFrame, MissingPose> {
         let file = self
             .path
             .file_name()
@@ -137,16 +131,26 @@ impl TrackerPoses {
             .unwrap_or_default();
         let poses = self.poses.get(&frame);
         let get = |name: &str| {
-            poses
-                .and_then(|p| p.get(name))
-                .copied()
-                .ok_or_else(|| format!("{file} has no {name} for frame {frame}"))
+            poses.and_then(|p| p.get(name)).copied().ok_or_else(|| MissingPose {
+                file: file.clone(),
+                transform: name.to_string(),
+                frame,
+            })
         };
         Ok(TrackedFrame {
             tracker_T_marker: get(probe)?,
             tracker_T_phantom: get(reference)?,
         })
     }
+}
+
+/// A frame without one of the poses it needs.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("{file} has no {transform} for frame {frame}")]
+pub struct MissingPose {
+    pub file: String,
+    pub transform: String,
+    pub frame: usize,
 }
 
 /// A tracker's 4x4 matrix as a rigid transform: see [`check_near_rigid`]; the
@@ -224,10 +228,15 @@ mod tests {
         assert!((f.tracker_T_marker.to_homogeneous() - a.to_homogeneous()).abs().max() < 1e-9);
         assert!((f.tracker_T_phantom.to_homogeneous() - b.to_homogeneous()).abs().max() < 1e-9);
         let missing = read.frame(4, "ProbeToTracker", "ReferenceToTracker").unwrap_err();
-        assert!(
-            missing.contains("poses.csv has no ProbeToTracker for frame 4"),
-            "{missing}"
+        assert_eq!(
+            missing,
+            MissingPose {
+                file: "poses.csv".into(),
+                transform: "ProbeToTracker".into(),
+                frame: 4
+            }
         );
+        assert_eq!(missing.to_string(), "poses.csv has no ProbeToTracker for frame 4");
         std::fs::remove_dir_all(&dir).unwrap();
     }
 

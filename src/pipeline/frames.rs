@@ -4,7 +4,7 @@
 
 use opencv::prelude::MatTraitConst;
 
-use super::record::{CameraStage, FrameRecord, Stage};
+use super::record::{CameraStage, FrameRecord, Rejection};
 use super::run::RunError;
 use crate::core::parallel::parallel_map;
 use crate::detect::arc::{self, ArcSettings};
@@ -70,20 +70,20 @@ pub fn process_frame(
     match (&camera.intrinsics, &camera.tracker) {
         (Some(intrinsics), _) => {
             let Some(photo_file) = &files.camera_image else {
-                record.rejection = Some((Stage::CameraImage, "the frame list names no camera image".into()));
+                record.rejection = Some(Rejection::NoCameraImage);
                 return Ok(record);
             };
             let photo = match read_gray_sized(photo_file, intrinsics.image_size_px) {
                 Ok(m) => m,
                 Err(e) => {
-                    record.rejection = Some((Stage::CameraImage, e.to_string()));
+                    record.rejection = Some(Rejection::CameraImage(e));
                     return Ok(record);
                 }
             };
             match board_pose::estimate(&photo, intrinsics, rig)? {
                 Ok(poses) => record.poses = Some(poses),
                 Err(reason) => {
-                    record.rejection = Some((Stage::BoardPose, reason));
+                    record.rejection = Some(Rejection::BoardPose(reason));
                     return Ok(record);
                 }
             }
@@ -91,7 +91,7 @@ pub fn process_frame(
         (None, Some(t)) => match t.poses.frame(files.frame, &t.probe_transform, &t.reference_transform) {
             Ok(tracked) => record.tracked = Some(tracked),
             Err(reason) => {
-                record.rejection = Some((Stage::TrackerPose, reason));
+                record.rejection = Some(Rejection::TrackerPose(reason));
                 return Ok(record);
             }
         },
@@ -104,7 +104,7 @@ pub fn process_frame(
     let bscan = match read_gray(&files.bscan_image) {
         Ok(m) => m,
         Err(e) => {
-            record.rejection = Some((Stage::BscanImage, e.to_string()));
+            record.rejection = Some(Rejection::BscanImage(e));
             return Ok(record);
         }
     };
@@ -116,55 +116,42 @@ pub fn process_frame(
                     record.features_px = vec![feature.centre_px];
                     record.arc = Some(feature);
                 }
-                Ok(Err(reason)) => record.rejection = Some((Stage::Arc, reason)),
-                Err(e) => record.rejection = Some((Stage::BscanImage, e.to_string())),
+                Ok(Err(reason)) => record.rejection = Some(Rejection::Arc(reason)),
+                Err(e) => record.rejection = Some(Rejection::BscanImage(e)),
             }
             return Ok(record);
         }
         Detector::PinHead(settings) | Detector::WireDots(settings) => match spot::detect(&bscan, settings) {
             Ok(spots) => spots,
             Err(e) => {
-                record.rejection = Some((Stage::BscanImage, e.to_string()));
+                record.rejection = Some(Rejection::BscanImage(e));
                 return Ok(record);
             }
         },
     };
     record.spots = spots.spots.clone();
-    let px = |p: [f64; 2]| format!("({:.0}, {:.0})", p[0], p[1]);
     match detector {
         Detector::PinHead(settings) => match pin_head_candidates(&spots.spots, settings.object_radius_mm).as_slice() {
             [] => {
-                record.rejection = Some((
-                    Stage::Spot,
-                    format!(
-                        "no echo as wide as the pin head with a comet tail behind it ({} compact echoes, {} surface echoes)",
-                        spots.spots.len(),
-                        spots.surfaces
-                    ),
-                ))
+                record.rejection = Some(Rejection::NoPinHead {
+                    compact: spots.spots.len(),
+                    surfaces: spots.surfaces,
+                })
             }
             [first, second, ..] if first.strength < PIN_HEAD_MIN_STRENGTH_RATIO * second.strength => {
-                record.rejection = Some((
-                    Stage::Spot,
-                    format!(
-                        "ambiguous: compact echoes of similar strength at {} and {} px",
-                        px(first.echo_px),
-                        px(second.echo_px)
-                    ),
-                ))
+                record.rejection = Some(Rejection::AmbiguousPinHead {
+                    first_px: first.echo_px,
+                    second_px: second.echo_px,
+                })
             }
             [first, ..] => record.features_px = vec![first.centre_px],
         },
         _ => {
             if spots.spots.len() < 2 {
-                record.rejection = Some((
-                    Stage::Wires,
-                    format!(
-                        "{} compact echoes, at least 2 wire dots are needed ({} surface echoes)",
-                        spots.spots.len(),
-                        spots.surfaces
-                    ),
-                ));
+                record.rejection = Some(Rejection::TooFewWireDots {
+                    compact: spots.spots.len(),
+                    surfaces: spots.surfaces,
+                });
             } else {
                 record.features_px = spots.spots.iter().map(|s| s.centre_px).collect();
             }

@@ -1,21 +1,23 @@
 //! What a dataset's run produced: every frame's fate, the camera (or tracker)
 //! stage, the calibrations, the truth and the gates. Built by the stages of
-//! [`crate::pipeline`], read by [`crate::report`].
+//! [`crate::pipeline`], read by the report layer.
 
 use std::path::PathBuf;
 
 use crate::core::geometry::Rigid;
-use crate::detect::arc::ArcFeature;
-use crate::detect::board_pose::FramePoses;
+use crate::detect::arc::{ArcFeature, ArcRejection};
+use crate::detect::board_pose::{BoardRejection, FramePoses};
 use crate::detect::camera_calibration::CameraCalibration;
 use crate::detect::spot::Spot;
 use crate::estimate::correspondence::Correspondence;
 use crate::estimate::horn::HornFit;
+use crate::estimate::wire_matching::WireRejection;
 use crate::evaluate::resampling;
 use crate::evaluate::{ThresholdRow, TruthComparison};
 use crate::io::camera_model::CameraIntrinsics;
 use crate::io::dataset::FrameFiles;
-use crate::io::tracker_poses::{TrackedFrame, TrackerPoses};
+use crate::io::image::ImageError;
+use crate::io::tracker_poses::{MissingPose, TrackedFrame, TrackerPoses};
 use crate::pipeline::solve::SolveSettings;
 
 /// Which stage rejected a frame.
@@ -48,11 +50,53 @@ impl Stage {
     }
 }
 
+/// Why a frame was not used: what the stage that refused it found. Written as
+/// text only at the edge (its `Display`, in tables and pages).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum Rejection {
+    #[error("the frame list names no camera image")]
+    NoCameraImage,
+    #[error("{0}")]
+    CameraImage(ImageError),
+    #[error("{0}")]
+    BoardPose(BoardRejection),
+    #[error("{0}")]
+    TrackerPose(MissingPose),
+    #[error("{0}")]
+    BscanImage(ImageError),
+    #[error("{0}")]
+    Arc(ArcRejection),
+    #[error("no echo as wide as the pin head with a comet tail behind it ({compact} compact echoes, {surfaces} surface echoes)")]
+    NoPinHead { compact: usize, surfaces: usize },
+    /// Two compact echoes of similar strength: which is the pin head is a guess.
+    #[error("ambiguous: compact echoes of similar strength at ({:.0}, {:.0}) and ({:.0}, {:.0}) px", .first_px[0], .first_px[1], .second_px[0], .second_px[1])]
+    AmbiguousPinHead { first_px: [f64; 2], second_px: [f64; 2] },
+    #[error("{compact} compact echoes, at least 2 wire dots are needed ({surfaces} surface echoes)")]
+    TooFewWireDots { compact: usize, surfaces: usize },
+    #[error("{0}")]
+    Wires(WireRejection),
+}
+
+impl Rejection {
+    /// The stage that rejected the frame.
+    pub fn stage(&self) -> Stage {
+        match self {
+            Rejection::NoCameraImage | Rejection::CameraImage(_) => Stage::CameraImage,
+            Rejection::BoardPose(_) => Stage::BoardPose,
+            Rejection::TrackerPose(_) => Stage::TrackerPose,
+            Rejection::BscanImage(_) => Stage::BscanImage,
+            Rejection::Arc(_) => Stage::Arc,
+            Rejection::NoPinHead { .. } | Rejection::AmbiguousPinHead { .. } => Stage::Spot,
+            Rejection::TooFewWireDots { .. } | Rejection::Wires(_) => Stage::Wires,
+        }
+    }
+}
+
 /// What happened to one frame.
 #[derive(Debug, Clone)]
 pub struct FrameRecord {
     pub files: FrameFiles,
-    pub rejection: Option<(Stage, String)>,
+    pub rejection: Option<Rejection>,
     /// Board poses from the photo (camera stage).
     pub poses: Option<FramePoses>,
     /// Poses from a tracker instead (no camera).

@@ -1,7 +1,8 @@
-//! Results that carry their inputs: `solve_inputs.json` in a run's folder holds
+//! Results that carry their inputs: `solve_inputs.yaml` in a run's folder holds
 //! every usable frame's poses and feature pixels (with where each feature lies in
 //! the phantom) and the settings they were solved with, exactly (poses as unit
-//! quaternions and translations, as the solver held them). [`solve_again`] solves
+//! quaternions and translations, as the solver held them; YAML because its
+//! numbers are read back to the last bit). [`solve_again`] solves
 //! them through the same code as the run, so a run can be audited from its folder
 //! alone.
 
@@ -19,7 +20,7 @@ use crate::estimate::image_to_probe::Target;
 use crate::evaluate::CutoffRule;
 
 /// The file a run's solve inputs are written to.
-pub const SOLVE_INPUTS_FILE: &str = "solve_inputs.json";
+pub const SOLVE_INPUTS_FILE: &str = "solve_inputs.yaml";
 
 /// A rigid transform as stored: unit quaternion `[x, y, z, w]` and translation (mm).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -84,7 +85,7 @@ pub struct FrameInput {
     pub features: Vec<FeatureInput>,
 }
 
-/// `solve_inputs.json`.
+/// `solve_inputs.yaml`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct SolveInputs {
     pub experiment: String,
@@ -92,17 +93,13 @@ pub struct SolveInputs {
     pub spacing_mm_per_px: [f64; 2],
     /// `rigid` or `similarity`.
     pub variant: String,
-    /// Descending; `null` stands for infinity (all frames).
-    pub cutoffs_mm: Vec<Option<f64>>,
+    /// Descending; `.inf` (all frames) first.
+    pub cutoffs_mm: Vec<f64>,
     pub cutoff_rule: CutoffRule,
-    pub calibration_cutoff_mm: Option<f64>,
+    pub calibration_cutoff_mm: f64,
     pub min_frames: usize,
     pub initial_marker_T_image: Option<Pose>,
     pub frames: Vec<FrameInput>,
-}
-
-fn finite_or_none(v: f64) -> Option<f64> {
-    v.is_finite().then_some(v)
 }
 
 impl SolveInputs {
@@ -124,9 +121,9 @@ impl SolveInputs {
                 Variant::Similarity => "similarity",
             }
             .into(),
-            cutoffs_mm: settings.cutoffs_mm.iter().map(|c| finite_or_none(*c)).collect(),
+            cutoffs_mm: settings.cutoffs_mm.clone(),
             cutoff_rule: settings.rule,
-            calibration_cutoff_mm: finite_or_none(settings.calibration_cutoff_mm),
+            calibration_cutoff_mm: settings.calibration_cutoff_mm,
             min_frames: settings.min_frames,
             initial_marker_T_image: settings.initial_marker_T_image.as_ref().map(Pose::from),
             frames: pairs
@@ -148,15 +145,21 @@ impl SolveInputs {
         }
     }
 
-    /// Reads a run folder's `solve_inputs.json`; an error names the file and field.
+    /// The file's text.
+    pub fn to_yaml(&self) -> Result<String, String> {
+        serde_yaml::to_string(self).map_err(|e| e.to_string())
+    }
+
+    /// Reads a run folder's `solve_inputs.yaml`; an error names the file and field.
     pub fn read(run_folder: &Path) -> Result<SolveInputs, String> {
         let path = run_folder.join(SOLVE_INPUTS_FILE);
         let text = std::fs::read_to_string(&path).map_err(|e| format!("{}: {e}", path.display()))?;
-        let de = &mut serde_json::Deserializer::from_str(&text);
+        let de = serde_yaml::Deserializer::from_str(&text);
         serde_path_to_error::deserialize(de).map_err(|e| {
             let field = e.path().to_string();
             let inner = e.into_inner();
-            format!("{}:{}: field `{field}`: {inner}", path.display(), inner.line())
+            let line = inner.location().map(|l| format!(":{}", l.line())).unwrap_or_default();
+            format!("{}{line}: field `{field}`: {inner}", path.display())
         })
     }
 
@@ -197,9 +200,9 @@ impl SolveInputs {
         let settings = SolveSettings {
             spacing_mm_per_px: self.spacing_mm_per_px,
             variant,
-            cutoffs_mm: self.cutoffs_mm.iter().map(|c| c.unwrap_or(f64::INFINITY)).collect(),
+            cutoffs_mm: self.cutoffs_mm.clone(),
             rule: self.cutoff_rule,
-            calibration_cutoff_mm: self.calibration_cutoff_mm.unwrap_or(f64::INFINITY),
+            calibration_cutoff_mm: self.calibration_cutoff_mm,
             min_frames: self.min_frames,
             initial_marker_T_image: match &self.initial_marker_T_image {
                 Some(p) => Some(p.rigid().map_err(|e| format!("field `initial_marker_T_image`: {e}"))?),

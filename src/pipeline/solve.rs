@@ -4,7 +4,7 @@
 use nalgebra::Point3;
 
 use super::frames::Targets;
-use super::record::{FrameRecord, Stage};
+use super::record::{FrameRecord, Rejection};
 use super::run::RunError;
 use crate::core::geometry::Rigid;
 use crate::estimate::correspondence::{self, Correspondence};
@@ -89,7 +89,7 @@ pub fn point_pairs(
             ));
             for f in frames.iter_mut() {
                 if let Some((_, reason)) = matching.rejected.iter().find(|(k, _)| *k == f.files.frame) {
-                    f.rejection = Some((Stage::Wires, reason.clone()));
+                    f.rejection = Some(Rejection::Wires(reason.clone()));
                 }
                 if let Some((_, labels)) = matching.labels.iter().find(|(k, _)| *k == f.files.frame) {
                     f.wire_labels = labels.clone();
@@ -119,7 +119,7 @@ pub fn enough_frames(
         .filter_map(|f| {
             f.rejection
                 .as_ref()
-                .map(|(s, r)| format!("  frame {}: {}: {r}", f.files.frame, s.label()))
+                .map(|r| format!("  frame {}: {}: {r}", f.files.frame, r.stage().label()))
         })
         .collect::<Vec<_>>()
         .join("\n");

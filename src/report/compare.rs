@@ -52,7 +52,7 @@ pub fn column(manifest: &Manifest, run: &DatasetRun) -> CompareColumn {
     let rejected_at = |stage: Stage| {
         run.frames
             .iter()
-            .filter(|f| f.rejection.as_ref().is_some_and(|(s, _)| *s == stage))
+            .filter(|f| f.rejection.as_ref().is_some_and(|r| r.stage() == stage))
             .count()
     };
     let probe_rms = mean(

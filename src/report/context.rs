@@ -422,10 +422,10 @@ pub fn context(run: &DatasetRun, manifest: &crate::manifest::Manifest) -> RunCon
             .frames
             .iter()
             .filter_map(|f| {
-                f.rejection.as_ref().map(|(s, r)| Rejected {
+                f.rejection.as_ref().map(|r| Rejected {
                     frame: f.files.frame,
-                    stage: s.label().into(),
-                    reason: r.clone(),
+                    stage: r.stage().label().into(),
+                    reason: r.to_string(),
                 })
             })
             .collect(),

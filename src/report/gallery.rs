@@ -111,8 +111,12 @@ pub fn gallery(run: &DatasetRun) -> Result<Vec<GalleryImage>, opencv::Error> {
     for record in used.chain(rejected) {
         let Some(jpeg) = draw(run, record)? else { continue };
         let caption = match (&record.rejection, record.bre_mm) {
-            (Some((stage, reason)), _) => {
-                format!("frame {}: rejected ({}): {reason}", record.files.frame, stage.label())
+            (Some(reason), _) => {
+                format!(
+                    "frame {}: rejected ({}): {reason}",
+                    record.files.frame,
+                    reason.stage().label()
+                )
             }
             (None, Some((_, norm))) => format!("frame {}: used, BRE {norm:.3} mm", record.files.frame),
             (None, None) => format!("frame {}: used", record.files.frame),

@@ -274,8 +274,8 @@ impl Summary {
         let used = run.used_frames();
         let mut rejected_by_stage = BTreeMap::new();
         for f in &run.frames {
-            if let Some((stage, _)) = &f.rejection {
-                *rejected_by_stage.entry(stage.label().to_string()).or_insert(0) += 1;
+            if let Some(r) = &f.rejection {
+                *rejected_by_stage.entry(r.stage().label().to_string()).or_insert(0) += 1;
             }
         }
         let k = run.camera.intrinsics.as_ref();

@@ -56,13 +56,13 @@ pub fn frames_table(run: &DatasetRun) -> PolarsResult<DataFrame> {
         Column::new(
             "rejected_at".into(),
             f.iter()
-                .map(|r| r.rejection.as_ref().map(|(s, _)| s.label()))
+                .map(|r| r.rejection.as_ref().map(|j| j.stage().label()))
                 .collect::<Vec<_>>(),
         ),
         Column::new(
             "reason".into(),
             f.iter()
-                .map(|r| r.rejection.as_ref().map(|(_, m)| m.clone()))
+                .map(|r| r.rejection.as_ref().map(|j| j.to_string()))
                 .collect::<Vec<_>>(),
         ),
         Column::new(
@@ -163,7 +163,7 @@ pub fn write_dataset_run(
     ParquetWriter::new(&mut parquet).finish(&mut table)?;
     write_atomic(&folder.join("frames.parquet"), &parquet)?;
     let inputs = SolveInputs::of(&run.experiment, &run.dataset, &run.pairs, &run.solve);
-    let inputs = to_text(&inputs).map_err(|e| OutputError::Report(e.to_string()))?;
+    let inputs = inputs.to_yaml().map_err(OutputError::Report)?;
     write_atomic(&folder.join(SOLVE_INPUTS_FILE), inputs.as_bytes())?;
     let summary = Summary::of(run, manifest);
     let text = to_text(&summary).map_err(|e| OutputError::Report(e.to_string()))?;
