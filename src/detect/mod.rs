@@ -2,6 +2,7 @@
 //! calibration, the hemisphere's arc, compact echoes and N-wire dots in the B-scans.
 pub mod arc;
 pub mod aruco;
+pub mod aruco_pose;
 pub mod board;
 pub mod board_pose;
 pub mod camera_calibration;

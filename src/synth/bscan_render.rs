@@ -10,7 +10,8 @@
 
 use nalgebra::{Point3, Vector3};
 
-use super::scene::{FrameKind, Scene, Shape};
+use super::scene::{FrameKind, Scene};
+use super::shape::Shape;
 use crate::core::geometry::Rigid;
 use crate::core::rng::Rng;
 use crate::io::image::{gaussian_blur_f32, Gray8, ImageError};
@@ -97,7 +98,7 @@ pub fn draw_bubbles(
                 // Stuck on the wires near where the plane crosses them.
                 for _ in 0..2 + rng.below(3) {
                     let (a, b) = &wires_world[rng.below(wires_world.len())];
-                    let Some(p) = super::scene::segment_in_plane(world_T_image, a, b) else {
+                    let Some(p) = super::shape::segment_in_plane(world_T_image, a, b) else {
                         continue;
                     };
                     let around = rng.uniform(0.0, std::f64::consts::TAU);

@@ -9,6 +9,7 @@
 pub mod bscan_render;
 pub mod camera_render;
 pub mod scene;
+pub mod shape;
 
 use std::path::{Path, PathBuf};
 
@@ -253,11 +254,11 @@ fn render_into(lab: &Lab<'_>, spec: &RenderSpec, folder: &Path) -> Result<(), Sy
         let bubbles = bscan_render::draw_bubbles(&scene, &world_T_image, plan.kind, echo, &mut rng);
         let bscan = bscan_render::render_bscan(&scene, &world_T_image, &bubbles, echo, &mut rng)?;
         let wire_dots_px = match (lab.phantom, &scene.shape) {
-            (Phantom::FourWire { wires, .. }, scene::Shape::Wires { wires_world, .. }) => wires
+            (Phantom::FourWire { wires, .. }, shape::Shape::Wires { wires_world, .. }) => wires
                 .iter()
                 .zip(wires_world)
                 .filter_map(|(w, (a, b))| {
-                    let p = scene::segment_in_plane(&world_T_image, a, b)?;
+                    let p = shape::segment_in_plane(&world_T_image, a, b)?;
                     let [sx, sy] = scene.bscan.spacing_mm_per_px;
                     Some(crate::io::truth::WireDot {
                         wire: w.name.clone(),

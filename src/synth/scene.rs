@@ -6,6 +6,7 @@
 //! parallel to the B-scan plane. The probe sweeps over the phantom with tilts
 //! about the image's X (lateral) and Y (beam) axes and a small rotation about Z.
 
+use super::shape::{segment_in_plane, Shape};
 use nalgebra::{Matrix3, Point3, Rotation3, Translation3, UnitQuaternion, Vector3};
 
 use crate::core::geometry::Rigid;
@@ -28,73 +29,6 @@ pub enum FrameKind {
     DomeBubbles,
     /// The plane misses the feature.
     Missing,
-}
-
-/// The phantom's echoing parts in the world frame, laid out around its feature at
-/// the world origin.
-#[derive(Debug, Clone, PartialEq)]
-pub enum Shape {
-    /// A hemisphere, dome up, its centre the feature.
-    Hemisphere { radius_mm: f64 },
-    /// A pin head (a small sphere) on a pin in a silicone block; the head's centre is the feature.
-    Point { head_radius_mm: f64 },
-    /// Straight wires of one diameter, end points in the world frame.
-    Wires {
-        wires_world: Vec<(Point3<f64>, Point3<f64>)>,
-        radius_mm: f64,
-    },
-}
-
-impl Shape {
-    /// From the manifest's phantom: the shape in the world frame and the feature
-    /// the lab is laid out around (phantom frame).
-    pub fn from_phantom(phantom: &crate::spec::phantom::Phantom, world_T_phantom: &Rigid) -> (Shape, [f64; 3]) {
-        use crate::spec::phantom::Phantom;
-        match phantom {
-            Phantom::Hemisphere {
-                centre_in_phantom_mm,
-                radius_mm,
-            } => (Shape::Hemisphere { radius_mm: *radius_mm }, *centre_in_phantom_mm),
-            Phantom::Point {
-                position_in_phantom_mm,
-                head_radius_mm,
-            } => (
-                Shape::Point {
-                    head_radius_mm: *head_radius_mm,
-                },
-                *position_in_phantom_mm,
-            ),
-            Phantom::FourWire {
-                wires,
-                wire_diameter_mm,
-            } => {
-                let ends: Vec<(Point3<f64>, Point3<f64>)> = wires
-                    .iter()
-                    .map(|w| (Point3::from(w.start_in_phantom_mm), Point3::from(w.end_in_phantom_mm)))
-                    .collect();
-                let centre = crate::spec::phantom::wires_centre(&ends);
-                let wires_world = ends
-                    .iter()
-                    .map(|(a, b)| (world_T_phantom * a, world_T_phantom * b))
-                    .collect();
-                (
-                    Shape::Wires {
-                        wires_world,
-                        radius_mm: wire_diameter_mm / 2.0,
-                    },
-                    [centre.x, centre.y, centre.z],
-                )
-            }
-        }
-    }
-}
-
-/// Where a line segment meets a plane given as `world_T_image` (image z = 0), in
-/// image millimetres, if it does.
-pub fn segment_in_plane(world_T_image: &Rigid, a: &Point3<f64>, b: &Point3<f64>) -> Option<Point3<f64>> {
-    let image_T_world = world_T_image.inverse();
-    let (t, point) = crate::core::geometry::line_meets_image_plane(&(image_T_world * a), &(image_T_world * b))?;
-    (0.0..=1.0).contains(&t).then_some(point)
 }
 
 /// The probe's convex array and the B-scan raster.

@@ -1,0 +1,122 @@
+//! Collects a manifest's problems with their field paths and lines, and the
+//! checks the sections share (finite, positive, ranges, files that exist).
+
+use crate::spec::rig::Board;
+use sha2::{Digest, Sha256};
+use std::path::{Path, PathBuf};
+
+use super::*;
+
+pub(crate) struct Checker<'a> {
+    pub(crate) file: &'a Path,
+    pub(crate) text: &'a str,
+    pub(crate) errors: Vec<ManifestError>,
+}
+
+impl Checker<'_> {
+    pub(crate) fn fail(&mut self, field: &str, message: impl Into<String>) {
+        self.errors.push(ManifestError {
+            file: self.file.to_path_buf(),
+            field: field.to_string(),
+            line: locate::line_of(self.text, field),
+            message: message.into(),
+        });
+    }
+
+    pub(crate) fn positive(&mut self, field: &str, value: f64) {
+        if !(value.is_finite() && value > 0.0) {
+            self.fail(
+                field,
+                format!("must be a positive number of millimetres/units, got {value}"),
+            );
+        }
+    }
+
+    pub(crate) fn at_least(&mut self, field: &str, value: f64, min: f64) {
+        if !(value.is_finite() && value >= min) {
+            self.fail(field, format!("must be at least {min}, got {value}"));
+        }
+    }
+
+    pub(crate) fn finite(&mut self, field: &str, values: &[f64]) {
+        if values.iter().any(|v| !v.is_finite()) {
+            self.fail(field, "must hold finite numbers");
+        }
+    }
+
+    pub(crate) fn range(&mut self, field: &str, range: [f64; 2]) {
+        if !(range[0].is_finite() && range[1].is_finite() && range[0] > 0.0 && range[0] < range[1]) {
+            self.fail(
+                field,
+                format!(
+                    "must be [low, high] with 0 < low < high, got [{}, {}]",
+                    range[0], range[1]
+                ),
+            );
+        }
+    }
+
+    pub(crate) fn board(&mut self, field: &str, board: &Board) {
+        if board.inner_corners[0] < 2 || board.inner_corners[1] < 2 {
+            self.fail(&format!("{field}.inner_corners"), "needs at least 2x2 inner corners");
+        }
+        self.positive(&format!("{field}.square_mm"), board.square_mm);
+    }
+
+    pub(crate) fn existing(&mut self, field: &str, base: &Path, value: &str, want_dir: bool) -> PathBuf {
+        let path = base.join(value);
+        let ok = if want_dir { path.is_dir() } else { path.is_file() };
+        if !ok {
+            let what = if want_dir { "folder" } else { "file" };
+            self.fail(field, format!("{what} `{}` does not exist", path.display()));
+        }
+        path
+    }
+}
+
+pub(crate) fn sha256_hex(bytes: &[u8]) -> String {
+    let digest = Sha256::digest(bytes);
+    digest.iter().map(|b| format!("{b:02x}")).collect()
+}
+
+/// serde_yaml's message without the position and path it repeats (they are shown apart).
+fn strip_position<'a>(message: &'a str, field: &str) -> &'a str {
+    let message = match message.find(" at line ") {
+        Some(i) => &message[..i],
+        None => message,
+    };
+    let parent = field.rsplit_once('.').map(|(p, _)| p).unwrap_or("");
+    [field, parent]
+        .iter()
+        .filter(|p| !p.is_empty())
+        .find_map(|p| message.strip_prefix(&format!("{p}: ")))
+        .unwrap_or(message)
+}
+
+/// Deserialises YAML into `T`, locating an error by file, field path and line.
+pub(crate) fn deserialize_located<T: serde::de::DeserializeOwned>(
+    path: &Path,
+    text: &str,
+) -> Result<T, ManifestErrors> {
+    let deserializer = serde_yaml::Deserializer::from_str(text);
+    serde_path_to_error::deserialize(deserializer).map_err(|e| {
+        let field = e.path().to_string();
+        // serde_path_to_error writes `?` for a segment it could not name (syntax errors).
+        let field = field
+            .split('.')
+            .take_while(|s| *s != "?" && !s.is_empty())
+            .collect::<Vec<_>>()
+            .join(".");
+        let inner = e.inner();
+        let line = inner
+            .location()
+            .map(|l| l.line())
+            .or_else(|| locate::line_of(text, &field));
+        ManifestErrors(vec![ManifestError {
+            file: path.to_path_buf(),
+            message: strip_position(&inner.to_string(), &field).to_string(),
+            field,
+            line,
+        }])
+    })
+}
