@@ -137,14 +137,15 @@ fn parse_board(text: &str) -> Result<[u32; 2], String> {
     Ok([c, r])
 }
 
+/// Every manifest, or `None` after printing all their errors.
+fn loaded(paths: &[PathBuf]) -> Option<Vec<Experiment>> {
+    load_all(paths).map_err(|e| eprintln!("error: {e}")).ok()
+}
+
 /// `run` and `compare`: every experiment into `--out`; `compare` lays them side by side.
 fn run(args: RunArgs, side_by_side: bool) -> u8 {
-    let experiments = match load_all(&args.manifests) {
-        Ok(m) => m,
-        Err(e) => {
-            eprintln!("error: {e}");
-            return 2;
-        }
+    let Some(experiments) = loaded(&args.manifests) else {
+        return 2;
     };
     let out = args.out.unwrap_or_else(next_run_folder);
     let quiet = args.quiet || side_by_side;
@@ -175,35 +176,22 @@ fn run(args: RunArgs, side_by_side: bool) -> u8 {
 }
 
 fn validate(manifests: &[PathBuf]) -> u8 {
-    match load_all(manifests) {
-        Ok(ms) => {
-            for m in ms {
-                match m {
-                    Experiment::Camera(m) => println!("{}: ok ({} dataset(s))", m.path.display(), m.datasets.len()),
-                    Experiment::Tracked(m) => println!(
-                        "{}: ok (tracked sequence, {} N-wires)",
-                        m.path.display(),
-                        m.nwires.len()
-                    ),
-                }
-            }
-            0
-        }
-        Err(e) => {
-            eprintln!("error: {e}");
-            2
+    let Some(experiments) = loaded(manifests) else { return 2 };
+    for m in experiments {
+        match m {
+            Experiment::Camera(m) => println!("{}: ok ({} dataset(s))", m.path.display(), m.datasets.len()),
+            Experiment::Tracked(m) => println!(
+                "{}: ok (tracked sequence, {} N-wires)",
+                m.path.display(),
+                m.nwires.len()
+            ),
         }
     }
+    0
 }
 
 fn synth(manifests: &[PathBuf], datasets: &Path) -> u8 {
-    let manifests = match load_all(manifests) {
-        Ok(m) => m,
-        Err(e) => {
-            eprintln!("error: {e}");
-            return 2;
-        }
-    };
+    let Some(manifests) = loaded(manifests) else { return 2 };
     for m in manifests.iter().filter_map(|m| match m {
         Experiment::Camera(m) => Some(m),
         Experiment::Tracked(_) => None,

@@ -3,17 +3,12 @@
 //! frame is rejected with its reason and the run goes on; a bad run stops with a
 //! clear error; nothing panics.
 
+mod common;
+
+use common::{probecal, root};
+
 use std::path::{Path, PathBuf};
-use std::process::Command;
 use std::sync::OnceLock;
-
-fn probecal() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_probecal"))
-}
-
-fn root() -> &'static Path {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-}
 
 fn work() -> PathBuf {
     PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("bad_inputs")
@@ -729,6 +724,7 @@ const CASES: &[Case] = &[
 ];
 
 #[test]
+#[ignore = "needs ../shared/data and renders a lab (full tier: scripts/test.sh)"]
 fn every_bad_input_gives_its_error_and_no_panic() {
     lab();
     let mut failures = Vec::new();

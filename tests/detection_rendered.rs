@@ -62,6 +62,7 @@ fn rows(v: &Value) -> [[f64; 4]; 4] {
 }
 
 #[test]
+#[ignore = "renders datasets (full tier: scripts/test.sh)"]
 fn board_corners_and_identity_match_the_truth() {
     let (_, folder, truth) = rendered();
     let camera = true_camera(&truth);
@@ -115,6 +116,7 @@ fn board_corners_and_identity_match_the_truth() {
 }
 
 #[test]
+#[ignore = "renders datasets (full tier: scripts/test.sh)"]
 fn arc_centres_match_the_truth_and_missing_arcs_are_rejected() {
     let (_, folder, truth) = rendered();
     let settings = ArcSettings {
@@ -158,6 +160,7 @@ fn arc_centres_match_the_truth_and_missing_arcs_are_rejected() {
 }
 
 #[test]
+#[ignore = "renders datasets (full tier: scripts/test.sh)"]
 fn camera_calibration_of_rendered_views_recovers_the_true_camera() {
     let (_, folder, truth) = rendered();
     let camera = true_camera(&truth);
@@ -184,6 +187,7 @@ fn camera_calibration_of_rendered_views_recovers_the_true_camera() {
 }
 
 #[test]
+#[ignore = "renders datasets (full tier: scripts/test.sh)"]
 fn rendering_is_deterministic() {
     let (manifest, folder, _) = rendered();
     let DatasetSource::Render(spec) = &manifest.datasets[0].source else {
@@ -221,6 +225,7 @@ fn rendering_is_deterministic() {
 /// Searching a reduced photo and refining at full size finds the same corners as
 /// OpenCV's full-size search (on the single-board calibration views).
 #[test]
+#[ignore = "renders datasets (full tier: scripts/test.sh)"]
 fn reduced_search_finds_the_same_corners() {
     let (_, folder, _) = rendered();
     let subpix = probecal::detect::corners::SubPix::default();
@@ -246,6 +251,7 @@ fn reduced_search_finds_the_same_corners() {
 /// reason and the camera solved again (seed 2's view 5 has a board at the image's
 /// edge whose corners fit at 0.95 px while the others fit at 0.1 px).
 #[test]
+#[ignore = "renders datasets (full tier: scripts/test.sh)"]
 fn outlier_calibration_view_is_dropped_with_its_reason() {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("experiments/hemisphere_checkerboard_dataset2.yaml");
     let text = std::fs::read_to_string(&path)

@@ -1,14 +1,13 @@
 //! The command line end to end on a small rendered experiment: files, keys of
 //! summary.json, accuracy against the truth, the HTML page, and manifest errors.
 
+mod common;
+
+use common::probecal;
+
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
 use serde_json::Value;
-
-fn probecal() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_probecal"))
-}
 
 fn fixture() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/hemisphere_small.yaml")
@@ -21,6 +20,7 @@ fn tmp(name: &str) -> PathBuf {
 }
 
 #[test]
+#[ignore = "runs an experiment (full tier: scripts/test.sh)"]
 fn run_writes_the_tables_summary_and_page() {
     let out = tmp("run");
     let datasets = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("end_to_end_datasets");
@@ -140,6 +140,7 @@ fn run_writes_the_tables_summary_and_page() {
 }
 
 #[test]
+#[ignore = "runs an experiment twice (full tier: scripts/test.sh)"]
 fn same_inputs_give_identical_outputs() {
     let datasets = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("end_to_end_datasets_det");
     let a = tmp("det_a");
@@ -206,6 +207,7 @@ fn manifest_errors_stop_before_any_work() {
 }
 
 #[test]
+#[ignore = "runs the default experiment (full tier: scripts/test.sh)"]
 fn default_experiment_meets_its_gates() {
     let manifest = Path::new(env!("CARGO_MANIFEST_DIR")).join("experiments/hemisphere_checkerboard.yaml");
     let out = tmp("default");
@@ -243,6 +245,7 @@ fn default_experiment_meets_its_gates() {
 /// A recorded dataset is a folder with frames.csv and images; here the small
 /// rendered dataset copied without its ground truth, with intrinsics from a file.
 #[test]
+#[ignore = "runs an experiment (full tier: scripts/test.sh)"]
 fn recorded_folder_dataset_runs_without_truth() {
     let base = tmp("recorded");
     let datasets = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("end_to_end_datasets_recorded");
@@ -308,6 +311,7 @@ fn recorded_folder_dataset_runs_without_truth() {
 
 /// The ArUco rig on the same probe motion as the checkerboard rig, side by side.
 #[test]
+#[ignore = "runs two experiments (full tier: scripts/test.sh)"]
 fn compare_checkerboard_and_aruco_on_the_same_motion() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let out = tmp("compare");
@@ -367,4 +371,45 @@ fn compare_checkerboard_and_aruco_on_the_same_motion() {
             "frame {k}: the feature is at different pixels in the two rigs' datasets"
         );
     }
+}
+
+#[test]
+fn resolve_reproduces_the_committed_default_run() {
+    let folder = Path::new(env!("CARGO_MANIFEST_DIR")).join("reports/hemisphere_checkerboard/dataset3");
+    let out = probecal().arg("resolve").arg(&folder).output().unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{stdout}{}", String::from_utf8_lossy(&out.stderr));
+    assert!(stdout.contains("(the same calibration)"), "{stdout}");
+}
+
+#[test]
+fn resolve_notices_inputs_that_do_not_give_the_reported_calibration() {
+    let committed = Path::new(env!("CARGO_MANIFEST_DIR")).join("reports/hemisphere_checkerboard/dataset3");
+    let folder = tmp("resolve_tampered");
+    std::fs::create_dir_all(&folder).unwrap();
+    std::fs::copy(committed.join("summary.json"), folder.join("summary.json")).unwrap();
+    let inputs = std::fs::read_to_string(committed.join("solve_inputs.yaml")).unwrap();
+    // One feature pixel moved by a tenth of a pixel: a different calibration.
+    let at = inputs.find("  - pixel:\n    - ").unwrap() + "  - pixel:\n    - ".len();
+    let end = at + inputs[at..].find('\n').unwrap();
+    let moved: f64 = inputs[at..end].parse::<f64>().unwrap() + 0.1;
+    let tampered = format!("{}{moved}{}", &inputs[..at], &inputs[end..]);
+    std::fs::write(folder.join("solve_inputs.yaml"), tampered).unwrap();
+    let out = probecal().arg("resolve").arg(&folder).output().unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert_eq!(out.status.code(), Some(1), "{stdout}");
+    assert!(stdout.contains("NOT the calibration the run reports"), "{stdout}");
+    // A broken file names the file and the field.
+    std::fs::write(
+        folder.join("solve_inputs.yaml"),
+        inputs.replace("cutoff_rule: max_axis", "cutoff_rule: 7"),
+    )
+    .unwrap();
+    let out = probecal().arg("resolve").arg(&folder).output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains("solve_inputs.yaml") && stderr.contains("cutoff_rule"),
+        "{stderr}"
+    );
 }

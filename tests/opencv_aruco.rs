@@ -1,14 +1,14 @@
 //! ArUco detection on OpenCV's own tutorial photos (`../shared/data/opencv-aruco`),
 //! checked against what OpenCV's tests expect: the ids, and corners within 1 px.
 
+mod common;
+
 use std::path::PathBuf;
 
 use probecal::detect::aruco;
 
 fn data(file: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../shared/data/opencv-aruco")
-        .join(file)
+    common::shared_data("opencv-aruco", file)
 }
 
 fn image(file: &str) -> opencv::core::Mat {
@@ -16,6 +16,7 @@ fn image(file: &str) -> opencv::core::Mat {
 }
 
 #[test]
+#[ignore = "needs ../shared/data (full tier: scripts/test.sh)"]
 fn single_markers_photo_gives_the_six_expected_ids() {
     let dictionary = aruco::predefined("DICT_6X6_250").unwrap();
     let markers = aruco::detect(&image("singlemarkersoriginal.jpg"), &dictionary, None).unwrap();
@@ -34,6 +35,7 @@ fn single_markers_photo_gives_the_six_expected_ids() {
 }
 
 #[test]
+#[ignore = "needs ../shared/data (full tier: scripts/test.sh)"]
 fn grid_board_photo_with_custom_dictionary_gives_all_35_markers_on_a_grid() {
     let dictionary = aruco::dictionary_file(&data("tutorial_dict.yml")).unwrap();
     let markers = aruco::detect(&image("gboriginal.png"), &dictionary, None).unwrap();
@@ -93,6 +95,7 @@ fn grid_board_photo_with_custom_dictionary_gives_all_35_markers_on_a_grid() {
 }
 
 #[test]
+#[ignore = "needs ../shared/data (full tier: scripts/test.sh)"]
 fn charuco_photo_gives_17_markers_and_24_corners() {
     let dictionary = aruco::predefined("DICT_6X6_250").unwrap();
     let markers = aruco::detect(&image("choriginal.jpg"), &dictionary, None).unwrap();
@@ -108,6 +111,7 @@ fn charuco_photo_gives_17_markers_and_24_corners() {
 }
 
 #[test]
+#[ignore = "needs ../shared/data (full tier: scripts/test.sh)"]
 fn unknown_dictionary_and_bad_file_are_errors() {
     assert!(aruco::predefined("DICT_9X9_1")
         .unwrap_err()

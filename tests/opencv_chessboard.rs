@@ -2,15 +2,18 @@
 //! corners) through the pipeline's calibration stage, checked against the result
 //! OpenCV publishes and the tolerances its own regression test uses.
 
+mod common;
+
 use std::path::PathBuf;
 
 use probecal::detect::camera_calibration::calibrate_folder;
 
 fn data() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/data/opencv-chessboard")
+    common::shared_data("opencv-chessboard", "")
 }
 
 #[test]
+#[ignore = "needs ../shared/data (full tier: scripts/test.sh)"]
 fn reproduces_opencvs_published_calibration() {
     let folder = data();
     assert!(
@@ -53,6 +56,7 @@ fn reproduces_opencvs_published_calibration() {
 }
 
 #[test]
+#[ignore = "needs ../shared/data (full tier: scripts/test.sh)"]
 fn calibrate_camera_command_writes_opencv_filestorage() {
     let out = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("left_calibrated.yml");
     let _ = std::fs::remove_file(&out);
@@ -79,6 +83,7 @@ fn calibrate_camera_command_writes_opencv_filestorage() {
 }
 
 #[test]
+#[ignore = "needs ../shared/data (full tier: scripts/test.sh)"]
 fn too_few_views_is_a_clear_error() {
     let one = data().join("left01.jpg");
     let err = probecal::detect::camera_calibration::calibrate_from(&[one], [9, 6], 1.0)

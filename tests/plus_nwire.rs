@@ -4,6 +4,8 @@
 //! result, and broken sequence files.
 #![allow(non_snake_case)]
 
+mod common;
+
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -13,9 +15,7 @@ use probecal::io::plus::sequence::{FrameFault, Sequence};
 use probecal::pipeline::tracked::TrackedInputs;
 
 fn data(name: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../shared/data/plus-fcal2.0-3nwires")
-        .join(name)
+    common::shared_data("plus-fcal2.0-3nwires", name)
 }
 
 const CALIBRATION: &str = "fCal_Test_Calibration_3NWires_fCal2.0.igs.mha";
@@ -23,6 +23,7 @@ const VALIDATION: &str = "fCal_Test_Validation_3NWires_fCal2.0.igs.mha";
 const CONFIG: &str = "PlusDeviceSet_fCal_Sim_SpatialCalibration_2.0.xml";
 
 #[test]
+#[ignore = "needs ../shared/data (full tier: scripts/test.sh)"]
 fn sequence_reader_matches_the_header() {
     let s = Sequence::read(&data(CALIBRATION)).unwrap();
     assert_eq!((s.width, s.height, s.frames.len()), (820, 616, 190));
@@ -42,6 +43,7 @@ fn sequence_reader_matches_the_header() {
 }
 
 #[test]
+#[ignore = "needs ../shared/data (full tier: scripts/test.sh)"]
 fn nwire_crossings_of_the_shared_configuration() {
     let config = PlusConfig::read(&data(CONFIG)).unwrap();
     assert_eq!(config.nwires.len(), 3);
@@ -71,6 +73,7 @@ fn nwire_crossings_of_the_shared_configuration() {
 /// The same phantom written out in a manifest's YAML gives the same inputs as the
 /// PLUS device set; a YAML N that is not an N is refused with its field.
 #[test]
+#[ignore = "needs ../shared/data (full tier: scripts/test.sh)"]
 fn nwire_phantom_from_yaml_matches_the_plus_configuration() {
     use probecal::manifest::tracked::TrackedManifest;
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
@@ -132,6 +135,7 @@ fn nwire_phantom_from_yaml_matches_the_plus_configuration() {
 
 /// The default tracked experiment, run by the command line.
 #[test]
+#[ignore = "needs ../shared/data (full tier: scripts/test.sh)"]
 fn experiment_beats_plus_on_its_own_data() {
     let out = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("plus_run");
     let r = Command::new(env!("CARGO_BIN_EXE_probecal"))
@@ -178,6 +182,7 @@ fn broken_copy(name: &str, edit: impl Fn(String) -> String, cut: usize) -> PathB
 }
 
 #[test]
+#[ignore = "needs ../shared/data (full tier: scripts/test.sh)"]
 fn broken_sequences_give_clear_errors() {
     let truncated = broken_copy("truncated.igs.mha", |h| h, 200_000);
     let e = Sequence::read(&truncated).unwrap_err().to_string();

@@ -41,6 +41,7 @@ fn run_folder() -> &'static PathBuf {
 }
 
 #[test]
+#[ignore = "needs pdflatex and Chromium, runs an experiment (full tier: scripts/test.sh)"]
 fn latex_report_compiles_with_pdflatex() {
     let folder = run_folder();
     let tex = std::fs::read_to_string(folder.join("report.tex")).unwrap();
@@ -92,6 +93,7 @@ fn compile(name: &str, tex: &str) -> usize {
 }
 
 #[test]
+#[ignore = "needs pdflatex and Chromium, runs an experiment (full tier: scripts/test.sh)"]
 fn comparison_page_compiles_with_pdflatex() {
     // As the main job wrote it from the default experiments.
     let tex = std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("reports/compare.tex")).unwrap();
@@ -100,6 +102,7 @@ fn comparison_page_compiles_with_pdflatex() {
 }
 
 #[test]
+#[ignore = "needs pdflatex and Chromium, runs an experiment (full tier: scripts/test.sh)"]
 fn thesis_chapter_compiles_with_pdflatex() {
     // The chapter from the default experiments' runs.
     let reports = Path::new(env!("CARGO_MANIFEST_DIR")).join("reports");
@@ -129,6 +132,7 @@ fn chromium(args: &[&str], profile: &Path) -> std::process::Output {
 }
 
 #[test]
+#[ignore = "needs pdflatex and Chromium, runs an experiment (full tier: scripts/test.sh)"]
 fn html_report_renders_in_headless_chromium() {
     let folder = run_folder();
     let page = format!("file://{}", folder.join("report.html").display());

@@ -4,11 +4,9 @@
 //! the committed runs in `reports/` (their `summary.json` and
 //! `report_context.json`). `PROBECAL_UPDATE_GOLDEN=1` rewrites the golden file.
 
-use std::path::Path;
+mod common;
 
-fn root() -> &'static Path {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-}
+use common::root;
 
 #[test]
 fn thesis_chapter_has_the_thesis_tables() {

@@ -2,12 +2,11 @@
 //! of the outputs; `probecal check` passes an unchanged run and fails a worse one
 //! naming the metric.
 
-use std::path::{Path, PathBuf};
-use std::process::Command;
+mod common;
 
-fn probecal() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_probecal"))
-}
+use common::probecal;
+
+use std::path::{Path, PathBuf};
 
 fn fixture_text() -> String {
     std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/hemisphere_small.yaml")).unwrap()
@@ -38,6 +37,7 @@ fn run(manifest: &Path, out: &Path, datasets: &Path, threads: usize) -> std::pro
 }
 
 #[test]
+#[ignore = "runs an experiment twice (full tier: scripts/test.sh)"]
 fn thread_count_does_not_change_a_byte() {
     let base = fresh("threads");
     let manifest = base.join("small.yaml");
@@ -85,6 +85,7 @@ fn thread_count_does_not_change_a_byte() {
 }
 
 #[test]
+#[ignore = "runs an experiment (full tier: scripts/test.sh)"]
 fn check_passes_unchanged_and_fails_planted_regressions() {
     let base = fresh("check");
     let datasets = base.join("datasets");

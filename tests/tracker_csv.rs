@@ -1,12 +1,12 @@
 //! Poses from a tracker CSV instead of the camera: the rendered dataset's
 //! simulated tracker, read back through the command line, against the truth.
 
-use std::path::{Path, PathBuf};
-use std::process::Command;
+mod common;
 
-fn root() -> &'static Path {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-}
+use common::root;
+
+use std::path::PathBuf;
+use std::process::Command;
 
 /// The small hemisphere fixture with its camera replaced by the tracker's poses,
 /// with tracker noise `sd_mm` / `sd_deg`, run through `probecal run`.
@@ -51,6 +51,7 @@ fn run_with_tracker(name: &str, sd_mm: f64, sd_deg: f64) -> (PathBuf, serde_json
 }
 
 #[test]
+#[ignore = "renders and runs experiments (full tier: scripts/test.sh)"]
 fn exact_tracker_poses_are_read_in_the_right_frames() {
     let (folder, summary) = run_with_tracker("exact", 0.0, 0.0);
     // No camera stage: no intrinsics, no photo read.
@@ -85,6 +86,7 @@ fn exact_tracker_poses_are_read_in_the_right_frames() {
 }
 
 #[test]
+#[ignore = "renders and runs experiments (full tier: scripts/test.sh)"]
 fn noisy_tracker_poses_calibrate_within_the_gate() {
     let (_, summary) = run_with_tracker("noisy", 0.15, 0.1);
     let corner = summary["truth"]["corner_error_mm"]["mean"].as_f64().unwrap();

@@ -126,6 +126,39 @@ pub fn pixel_to_image_mm(pixel: [f64; 2], spacing_mm_per_px: [f64; 2]) -> Point3
     Point3::new(pixel[0] * spacing_mm_per_px[0], pixel[1] * spacing_mm_per_px[1], 0.0)
 }
 
+/// A probe calibration: `marker_T_image` after the B-scan's pixel size, so that
+/// pixel `(u, v)` sits at `marker_T_image · (sx u, sy v, 0)` in the marker frame
+/// (mm). PLUS calls the marker frame `Probe` and this calibration `Calibration`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Calibration {
+    pub marker_T_image: Rigid,
+    pub spacing_mm_per_px: [f64; 2],
+}
+
+impl Calibration {
+    /// A pixel in the marker frame, mm.
+    pub fn apply(&self, pixel: [f64; 2]) -> Point3<f64> {
+        self.marker_T_image
+            * Point3::new(
+                pixel[0] * self.spacing_mm_per_px[0],
+                pixel[1] * self.spacing_mm_per_px[1],
+                0.0,
+            )
+    }
+
+    /// The homogeneous matrix mapping `(u, v, 0, 1)` (PLUS's `Calibration`).
+    pub fn matrix(&self) -> Matrix4<f64> {
+        let scale = Matrix4::from_diagonal(&nalgebra::Vector4::new(
+            self.spacing_mm_per_px[0],
+            self.spacing_mm_per_px[1],
+            // The out-of-plane axis is scaled like the mean pixel size, as PLUS does.
+            (self.spacing_mm_per_px[0] + self.spacing_mm_per_px[1]) / 2.0,
+            1.0,
+        ));
+        self.marker_T_image.to_homogeneous() * scale
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

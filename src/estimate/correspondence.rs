@@ -114,7 +114,7 @@ pub fn solve(
             let marker_T_phantom = f.marker_T_phantom().to_homogeneous();
             f.features.iter().map(move |o| Constraint {
                 pixel: o.pixel,
-                probe_T_phantom: marker_T_phantom,
+                marker_T_phantom,
                 target_in_phantom: o.target_in_phantom,
             })
         })

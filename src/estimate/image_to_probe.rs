@@ -1,6 +1,6 @@
-//! Calibration from tracked B-scans with the pixel size unknown: `probe_T_image`
+//! Calibration from tracked B-scans with the pixel size unknown: `marker_T_image`
 //! (rigid) and the pixel spacing `(sx, sy)`, so that pixel `(u, v)` sits at
-//! `probe_T_image * (sx u, sy v, 0)` in the probe frame (mm).
+//! `marker_T_image * (sx u, sy v, 0)` in the probe frame (mm).
 //!
 //! Each segmented dot gives a constraint: either a known point (an N-wire's middle
 //! dot, a crossing) or a known line (a wire) in the probe frame. The start comes
@@ -11,7 +11,7 @@
 use nalgebra::{DVector, Matrix4, Point3, Vector3};
 use serde::{Deserialize, Serialize};
 
-use crate::core::geometry::{perturbed, rigid_from_axis_angle, Rigid};
+use crate::core::geometry::{perturbed, rigid_from_axis_angle, Calibration, Rigid};
 use crate::core::lm::{self, LmError};
 use crate::estimate::horn::{self, HornError, Variant};
 
@@ -34,25 +34,25 @@ pub enum Target {
     Line(Point3<f64>, Vector3<f64>),
 }
 
-/// One segmented pixel, the frame's `probe_T_phantom` and its target.
+/// One segmented pixel, the frame's `marker_T_phantom` and its target.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Constraint {
     pub pixel: [f64; 2],
-    pub probe_T_phantom: Matrix4<f64>,
+    pub marker_T_phantom: Matrix4<f64>,
     pub target_in_phantom: Target,
 }
 
 impl Constraint {
     /// The 3D residual (probe frame, mm) of a pixel mapped by `model`, with the
     /// phantom's registration corrected by `phantom_correction` (phantom frame).
-    pub fn residual_with(&self, model: &ImageToProbe, phantom_correction: &Rigid) -> Vector3<f64> {
-        let probe_T_phantom = self.probe_T_phantom * phantom_correction.to_homogeneous();
+    pub fn residual_with(&self, model: &Calibration, phantom_correction: &Rigid) -> Vector3<f64> {
+        let marker_T_phantom = self.marker_T_phantom * phantom_correction.to_homogeneous();
         let mapped = model.apply(self.pixel);
         match self.target_in_phantom {
-            Target::Point(p) => mapped - probe_T_phantom.transform_point(&p),
+            Target::Point(p) => mapped - marker_T_phantom.transform_point(&p),
             Target::Line(p, d) => {
-                let point = probe_T_phantom.transform_point(&p);
-                let direction = probe_T_phantom.transform_vector(&d).normalize();
+                let point = marker_T_phantom.transform_point(&p);
+                let direction = marker_T_phantom.transform_vector(&d).normalize();
                 let w = mapped - point;
                 w - direction * w.dot(&direction)
             }
@@ -60,38 +60,8 @@ impl Constraint {
     }
 
     /// The 3D residual vector of a pixel mapped by `model` (mm).
-    pub fn residual(&self, model: &ImageToProbe) -> Vector3<f64> {
+    pub fn residual(&self, model: &Calibration) -> Vector3<f64> {
         self.residual_with(model, &Rigid::identity())
-    }
-}
-
-/// `ImageToProbe`: a rigid transform after a per-axis pixel scaling.
-#[derive(Debug, Clone, PartialEq)]
-pub struct ImageToProbe {
-    pub probe_T_image: Rigid,
-    pub spacing_mm_per_px: [f64; 2],
-}
-
-impl ImageToProbe {
-    pub fn apply(&self, pixel: [f64; 2]) -> Point3<f64> {
-        self.probe_T_image
-            * Point3::new(
-                pixel[0] * self.spacing_mm_per_px[0],
-                pixel[1] * self.spacing_mm_per_px[1],
-                0.0,
-            )
-    }
-
-    /// The homogeneous matrix mapping `(u, v, 0, 1)` (PLUS's `ImageToProbe`).
-    pub fn matrix(&self) -> Matrix4<f64> {
-        let scale = Matrix4::from_diagonal(&nalgebra::Vector4::new(
-            self.spacing_mm_per_px[0],
-            self.spacing_mm_per_px[1],
-            // The out-of-plane axis is scaled like the mean pixel size, as PLUS does.
-            (self.spacing_mm_per_px[0] + self.spacing_mm_per_px[1]) / 2.0,
-            1.0,
-        ));
-        self.probe_T_image.to_homogeneous() * scale
     }
 }
 
@@ -110,7 +80,7 @@ pub enum FitError {
 /// The fit and which constraints it kept.
 #[derive(Debug, Clone)]
 pub struct Fit {
-    pub image_to_probe: ImageToProbe,
+    pub image_to_probe: Calibration,
     /// Correction of the phantom's registration (`registered_T_refined`, phantom
     /// frame), identity unless it was refined.
     pub phantom_correction: Rigid,
@@ -124,9 +94,9 @@ pub struct Fit {
     pub sd: Vec<f64>,
 }
 
-fn unpack(start: &Rigid, start_correction: &Rigid, x: &DVector<f64>) -> (ImageToProbe, Rigid) {
-    let model = ImageToProbe {
-        probe_T_image: perturbed(start, Vector3::new(x[0], x[1], x[2]), Vector3::new(x[3], x[4], x[5])),
+fn unpack(start: &Rigid, start_correction: &Rigid, x: &DVector<f64>) -> (Calibration, Rigid) {
+    let model = Calibration {
+        marker_T_image: perturbed(start, Vector3::new(x[0], x[1], x[2]), Vector3::new(x[3], x[4], x[5])),
         spacing_mm_per_px: [x[6], x[7]],
     };
     let correction = if x.len() > 8 {
@@ -137,7 +107,7 @@ fn unpack(start: &Rigid, start_correction: &Rigid, x: &DVector<f64>) -> (ImageTo
     (model, correction)
 }
 
-fn residuals(model: &ImageToProbe, correction: &Rigid, constraints: &[&Constraint]) -> DVector<f64> {
+fn residuals(model: &Calibration, correction: &Rigid, constraints: &[&Constraint]) -> DVector<f64> {
     let mut out = DVector::zeros(constraints.len() * 3);
     for (i, c) in constraints.iter().enumerate() {
         let r = c.residual_with(model, correction);
@@ -147,13 +117,13 @@ fn residuals(model: &ImageToProbe, correction: &Rigid, constraints: &[&Constrain
 }
 
 /// Closed-form start: Horn with isotropic scale on the point constraints.
-pub fn closed_form(constraints: &[Constraint]) -> Result<ImageToProbe, FitError> {
+pub fn closed_form(constraints: &[Constraint]) -> Result<Calibration, FitError> {
     let (source, target): (Vec<Point3<f64>>, Vec<Point3<f64>>) = constraints
         .iter()
         .filter_map(|c| match c.target_in_phantom {
             Target::Point(p) => Some((
                 Point3::new(c.pixel[0], c.pixel[1], 0.0),
-                c.probe_T_phantom.transform_point(&p),
+                c.marker_T_phantom.transform_point(&p),
             )),
             Target::Line(..) => None,
         })
@@ -162,8 +132,8 @@ pub fn closed_form(constraints: &[Constraint]) -> Result<ImageToProbe, FitError>
         return Err(FitError::TooFewPoints(source.len()));
     }
     let fit = horn::solve(&source, &target, Variant::Similarity)?;
-    Ok(ImageToProbe {
-        probe_T_image: fit.target_T_source,
+    Ok(Calibration {
+        marker_T_image: fit.target_T_source,
         spacing_mm_per_px: [fit.scale, fit.scale],
     })
 }
@@ -172,7 +142,7 @@ pub fn closed_form(constraints: &[Constraint]) -> Result<ImageToProbe, FitError>
 /// (repeated until none is dropped, at most 10 rounds; `None`: keep all). With
 /// `refine_phantom`, the phantom's registration is corrected too (6 more unknowns).
 pub fn refine(
-    start: &ImageToProbe,
+    start: &Calibration,
     constraints: &[Constraint],
     reject_sd: Option<f64>,
     refine_phantom: bool,
@@ -191,7 +161,7 @@ pub fn refine(
             .filter(|(_, k)| **k)
             .map(|(c, _)| c)
             .collect();
-        let base = model.probe_T_image;
+        let base = model.marker_T_image;
         let base_correction = correction;
         let mut x0 = DVector::zeros(unknowns);
         x0[6] = model.spacing_mm_per_px[0];
@@ -257,12 +227,12 @@ pub fn refine(
     })
 }
 
-/// A rigid `probe_T_image` with the pixel spacing trusted, refined by
+/// A rigid `marker_T_image` with the pixel spacing trusted, refined by
 /// Levenberg–Marquardt on point and line constraints from `start`. Returns the fit
 /// and its RMS residual (mm).
 pub fn refine_rigid(start: &Rigid, spacing: [f64; 2], constraints: &[Constraint]) -> Result<(Rigid, f64), LmError> {
-    let model_at = |x: &DVector<f64>| ImageToProbe {
-        probe_T_image: perturbed(start, Vector3::new(x[0], x[1], x[2]), Vector3::new(x[3], x[4], x[5])),
+    let model_at = |x: &DVector<f64>| Calibration {
+        marker_T_image: perturbed(start, Vector3::new(x[0], x[1], x[2]), Vector3::new(x[3], x[4], x[5])),
         spacing_mm_per_px: spacing,
     };
     let refs: Vec<&Constraint> = constraints.iter().collect();
@@ -274,7 +244,7 @@ pub fn refine_rigid(start: &Rigid, spacing: [f64; 2], constraints: &[Constraint]
         residuals(&model_at(x), &Rigid::identity(), &refs)
     })?;
     let rms = (out.cost / constraints.len().max(1) as f64).sqrt();
-    Ok((model_at(&out.x).probe_T_image, rms))
+    Ok((model_at(&out.x).marker_T_image, rms))
 }
 
 #[cfg(test)]
@@ -284,8 +254,8 @@ mod tests {
 
     #[test]
     fn recovers_pixel_size_and_pose_from_noisy_points_with_an_outlier() {
-        let truth = ImageToProbe {
-            probe_T_image: rigid_from_axis_angle(Vector3::new(0.3, -1.4, 0.2), Vector3::new(11.0, 48.0, -0.4)),
+        let truth = Calibration {
+            marker_T_image: rigid_from_axis_angle(Vector3::new(0.3, -1.4, 0.2), Vector3::new(11.0, 48.0, -0.4)),
             spacing_mm_per_px: [0.0803, 0.0745],
         };
         let mut rng = Rng::new(4);
@@ -295,7 +265,7 @@ mod tests {
                 let noise = Vector3::new(rng.normal(0.0, 0.2), rng.normal(0.0, 0.2), rng.normal(0.0, 0.2));
                 Constraint {
                     pixel,
-                    probe_T_phantom: Matrix4::identity(),
+                    marker_T_phantom: Matrix4::identity(),
                     target_in_phantom: Target::Point(truth.apply(pixel) + noise),
                 }
             })
@@ -323,10 +293,10 @@ mod tests {
             })
             .collect();
         let start =
-            truth.probe_T_image * rigid_from_axis_angle(Vector3::new(0.03, -0.04, 0.02), Vector3::new(5.0, -3.0, 2.0));
+            truth.marker_T_image * rigid_from_axis_angle(Vector3::new(0.03, -0.04, 0.02), Vector3::new(5.0, -3.0, 2.0));
         let (rigid, rms) = refine_rigid(&start, truth.spacing_mm_per_px, &lines).unwrap();
-        let refined = ImageToProbe {
-            probe_T_image: rigid,
+        let refined = Calibration {
+            marker_T_image: rigid,
             spacing_mm_per_px: truth.spacing_mm_per_px,
         };
         assert!(rms < 0.3, "{rms}");

@@ -137,8 +137,7 @@ pub struct Bootstrap {
     pub corner_shift_p95_mm: f64,
 }
 
-/// The `q` quantile (0..1) of non-empty `values`, linearly interpolated.
-
+/// The 95 % percentile interval (2.5 %, 97.5 %) of non-empty `values`.
 fn interval(values: &[f64]) -> Interval {
     Interval {
         low: percentile(values, 0.025),

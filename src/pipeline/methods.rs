@@ -6,10 +6,11 @@
 use nalgebra::Point3;
 
 use super::record::{FrameRecord, Method, MethodResult, ResamplingSummary};
+use crate::core::geometry::Calibration;
 use crate::core::geometry::Rigid;
 use crate::estimate::correspondence::{self, Correspondence};
 use crate::estimate::horn::{HornError, HornFit};
-use crate::estimate::image_to_probe::{self, Constraint, ImageToProbe};
+use crate::estimate::image_to_probe::{self, Constraint};
 use crate::estimate::robust::{self, RobustMethod, RobustSettings};
 use crate::estimate::sphere_fit::{self, ArcFrame, SphereSettings};
 use crate::evaluate::resampling::{self, FitInputs};
@@ -185,13 +186,13 @@ pub fn methods_stage(manifest: &Manifest, inputs: &MethodInputs<'_>, log: &mut d
             let marker_T_phantom = f.marker_T_phantom().to_homogeneous();
             f.features.iter().map(move |o| Constraint {
                 pixel: o.pixel,
-                probe_T_phantom: marker_T_phantom,
+                marker_T_phantom,
                 target_in_phantom: o.target_in_phantom,
             })
         })
         .collect();
-    let start = ImageToProbe {
-        probe_T_image: ransac.fit.target_T_source,
+    let start = Calibration {
+        marker_T_image: ransac.fit.target_T_source,
         spacing_mm_per_px: spacing,
     };
     match image_to_probe::refine(&start, &constraints, None, false) {
@@ -201,7 +202,7 @@ pub fn methods_stage(manifest: &Manifest, inputs: &MethodInputs<'_>, log: &mut d
                 Method::RansacLmScales,
                 inliers.len(),
                 ransac_left_out.clone(),
-                &m.probe_T_image,
+                &m.marker_T_image,
                 m.spacing_mm_per_px,
             ));
         }

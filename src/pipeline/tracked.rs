@@ -3,7 +3,7 @@
 //!
 //! Stages: read the sequences ([`crate::io::plus::sequence`]) and the phantom
 //! definition ([`crate::io::plus::config`]); segment each B-scan's wire dots
-//! ([`crate::detect::nwire`]); build constraints in the probe frame; fit `ImageToProbe`
+//! ([`crate::detect::nwire`]); build constraints in the probe frame; fit `Calibration`
 //! ([`crate::estimate::image_to_probe`]); evaluate PRE3D on the validation frames.
 
 use std::path::PathBuf;
@@ -12,10 +12,11 @@ use nalgebra::{Matrix4, Point3};
 use rayon::prelude::*;
 use serde::Serialize;
 
+use crate::core::geometry::Calibration;
 use crate::core::stats::{mean_sd_of, MeanSd};
 use crate::detect::nwire::{self, Segmentation};
 use crate::estimate::image_to_probe::ConstraintModel;
-use crate::estimate::image_to_probe::{self, Constraint, FitError, ImageToProbe, Target};
+use crate::estimate::image_to_probe::{self, Constraint, FitError, Target};
 use crate::io::plus::config::ConfigError;
 use crate::io::plus::sequence::{Sequence, SequenceError};
 use crate::manifest::tracked::{TimeOffset, TrackedManifest};
@@ -112,9 +113,9 @@ pub struct TrackedFrame {
     pub rejected: Option<String>,
     /// Per pattern: wire 1, 2, 3 dots (px).
     pub dots_px: Vec<[[f64; 2]; 3]>,
-    /// `probe_T_phantom` of the frame (row-major), when the transforms were usable.
+    /// `marker_T_phantom` of the frame (row-major), when the transforms were usable.
     #[serde(skip)]
-    pub probe_T_phantom: Option<Matrix4<f64>>,
+    pub marker_T_phantom: Option<Matrix4<f64>>,
     /// Per pattern: PRE3D of the middle dot under the result, mm.
     pub pre3d_mm: Vec<f64>,
 }
@@ -146,7 +147,7 @@ pub fn gates(run: &TrackedRun, manifest: &TrackedManifest) -> Vec<GateResult> {
 pub struct TrackedRun {
     pub frames: Vec<TrackedFrame>,
     pub fit: image_to_probe::Fit,
-    pub closed_form: ImageToProbe,
+    pub closed_form: Calibration,
     pub constraints: usize,
     pub image_size_px: [usize; 2],
     /// The tracker lag used, s.
@@ -171,7 +172,7 @@ impl TrackedRun {
     }
 }
 
-/// `probe_T_phantom` of each frame (or why not) and the segmented dots (or why not).
+/// `marker_T_phantom` of each frame (or why not) and the segmented dots (or why not).
 fn process(sequence: &Sequence, role: Role, inputs: &TrackedInputs, clip: [usize; 4]) -> Vec<TrackedFrame> {
     let widths: Vec<f64> = inputs
         .nwires
@@ -192,7 +193,7 @@ fn process(sequence: &Sequence, role: Role, inputs: &TrackedInputs, clip: [usize
                 timestamp_s,
                 rejected: None,
                 dots_px: Vec::new(),
-                probe_T_phantom: None,
+                marker_T_phantom: None,
                 pre3d_mm: Vec::new(),
             };
             if let Some(status) = sequence.frame_field(index, "ImageStatus") {
@@ -244,7 +245,7 @@ fn process(sequence: &Sequence, role: Role, inputs: &TrackedInputs, clip: [usize
         .collect()
 }
 
-/// Sets each frame's `probe_T_phantom` for a tracker lag of `offset_s` (frames whose
+/// Sets each frame's `marker_T_phantom` for a tracker lag of `offset_s` (frames whose
 /// transforms are unusable are rejected with the reason; earlier pose rejections
 /// are re-evaluated).
 fn attach_poses(sequence: &Sequence, frames: &mut [TrackedFrame], inputs: &TrackedInputs, offset_s: f64) {
@@ -252,7 +253,7 @@ fn attach_poses(sequence: &Sequence, frames: &mut [TrackedFrame], inputs: &Track
         if frame.rejected.as_deref().is_some_and(|r| r.starts_with("pose: ")) {
             frame.rejected = None;
         }
-        frame.probe_T_phantom = None;
+        frame.marker_T_phantom = None;
         if frame.rejected.is_some() {
             continue;
         }
@@ -263,7 +264,7 @@ fn attach_poses(sequence: &Sequence, frames: &mut [TrackedFrame], inputs: &Track
         });
         match poses {
             Ok((tracker_T_probe, tracker_T_reference)) => {
-                frame.probe_T_phantom = Some(
+                frame.marker_T_phantom = Some(
                     tracker_T_probe.inverse().to_homogeneous()
                         * tracker_T_reference.to_homogeneous()
                         * inputs.reference_T_phantom,
@@ -317,21 +318,21 @@ fn pose_at(
 
 /// The constraints one frame gives.
 pub fn constraints(frame: &TrackedFrame, nwires: &[NWire], model: ConstraintModel) -> Vec<Constraint> {
-    let Some(probe_T_phantom) = frame.probe_T_phantom else {
+    let Some(marker_T_phantom) = frame.marker_T_phantom else {
         return Vec::new();
     };
     let mut out = Vec::new();
     for (dots, nwire) in frame.dots_px.iter().zip(nwires) {
         out.push(Constraint {
             pixel: dots[1],
-            probe_T_phantom,
+            marker_T_phantom,
             target_in_phantom: Target::Point(nwire.middle_in_phantom_mm(dots)),
         });
         if model == ConstraintModel::Wires {
             for (dot, wire) in dots.iter().zip(&nwire.wires) {
                 out.push(Constraint {
                     pixel: *dot,
-                    probe_T_phantom,
+                    marker_T_phantom,
                     target_in_phantom: Target::Line(wire.front_in_phantom_mm, wire.direction().normalize()),
                 });
             }
@@ -349,16 +350,16 @@ pub fn pre3d(
     image_to_probe: impl Fn([f64; 2]) -> Point3<f64>,
     phantom_correction: &crate::core::geometry::Rigid,
 ) -> Vec<f64> {
-    let Some(probe_T_phantom) = frame.probe_T_phantom else {
+    let Some(marker_T_phantom) = frame.marker_T_phantom else {
         return Vec::new();
     };
-    let probe_T_phantom = probe_T_phantom * phantom_correction.to_homogeneous();
+    let marker_T_phantom = marker_T_phantom * phantom_correction.to_homogeneous();
     frame
         .dots_px
         .iter()
         .zip(nwires)
         .map(|(dots, nwire)| {
-            let expected: Point3<f64> = probe_T_phantom.transform_point(&nwire.middle_in_phantom_mm(dots));
+            let expected: Point3<f64> = marker_T_phantom.transform_point(&nwire.middle_in_phantom_mm(dots));
             (image_to_probe(dots[1]) - expected).norm()
         })
         .collect()
@@ -379,7 +380,7 @@ fn fit_quality(fit: &image_to_probe::Fit) -> f64 {
 fn calibrate(
     frames: &[TrackedFrame],
     inputs: &TrackedInputs,
-) -> Result<(ImageToProbe, image_to_probe::Fit, usize), FitError> {
+) -> Result<(Calibration, image_to_probe::Fit, usize), FitError> {
     let all: Vec<Constraint> = frames
         .iter()
         .filter(|f| f.role == Role::Calibration && f.rejected.is_none())

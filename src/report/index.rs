@@ -2,10 +2,9 @@
 
 use std::path::Path;
 
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 use super::render::{error_chain, tera};
-use super::study::StudyFile;
 use crate::io::fs::write_atomic;
 
 /// One line of the index page.
@@ -31,10 +30,26 @@ pub fn render_index(entries: &[IndexEntry], studies: &[(String, String)]) -> Res
         .map_err(|e| error_chain(&e))
 }
 
+/// What the index reads of a `study.json`: the Monte Carlo study's experiment and seeds.
+#[derive(Deserialize)]
+struct StudyHead {
+    monte_carlo: Option<MonteCarloHead>,
+}
+
+#[derive(Deserialize)]
+struct MonteCarloHead {
+    experiment: String,
+    seeds: Vec<serde::de::IgnoredAny>,
+}
+
 /// The index's words for a study folder: its experiment and seed count from
 /// `study.json`, or the folder's name when that cannot be read.
 pub fn study_label(study_json: &Path, folder: &str) -> String {
-    match StudyFile::read(study_json).ok().and_then(|s| s.monte_carlo) {
+    let head = std::fs::read_to_string(study_json)
+        .ok()
+        .and_then(|text| serde_json::from_str::<StudyHead>(&text).ok())
+        .and_then(|s| s.monte_carlo);
+    match head {
         Some(mc) => format!(
             "Monte Carlo accuracy study of {} ({} seeds)",
             mc.experiment,

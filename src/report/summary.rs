@@ -423,7 +423,7 @@ pub struct ParameterSd {
     pub spacing_mm_per_px: Vec<f64>,
 }
 
-/// PLUS's `ImageToProbe`: `marker_T_image` after the pixel size.
+/// PLUS's `Calibration`: `marker_T_image` after the pixel size.
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct ImageToProbeSummary {
     pub matrix: Vec<Vec<f64>>,

@@ -1,5 +1,5 @@
 //! Outputs of a tracked (sequence-file) run: frames.csv/.parquet, summary.json,
-//! `ImageToProbe.xml` (PLUS), `ImageToProbe.tfm` (ITK/Slicer) and report.html.
+//! `Calibration.xml` (PLUS), `Calibration.tfm` (ITK/Slicer) and report.html.
 
 use std::path::Path;
 
@@ -18,7 +18,7 @@ use crate::report::summary::{
 };
 use crate::report::write::OutputError;
 
-/// PRE3D of a general `ImageToProbe` matrix (e.g. PLUS's) on this run's segmented dots.
+/// PRE3D of a general `Calibration` matrix (e.g. PLUS's) on this run's segmented dots.
 pub fn pre3d_of_matrix(
     run: &TrackedRun,
     manifest: &TrackedManifest,
@@ -50,7 +50,7 @@ pub fn summary(run: &TrackedRun, manifest: &TrackedManifest, plus: Option<&PlusR
     let matrix = fit.matrix();
     let (cal_used, cal_total) = run.segmented(Role::Calibration);
     let (val_used, val_total) = run.segmented(Role::Validation);
-    let t = fit.probe_T_image.translation.vector;
+    let t = fit.marker_T_image.translation.vector;
     TrackedSummary {
         experiment: manifest.experiment.clone(),
         dataset: manifest.dataset.clone(),
@@ -75,7 +75,7 @@ pub fn summary(run: &TrackedRun, manifest: &TrackedManifest, plus: Option<&PlusR
         image_to_probe: ImageToProbeSummary {
             matrix: rows(&matrix),
             spacing_mm_per_px: fit.spacing_mm_per_px,
-            rotation_zyx_deg: euler_zyx_deg(&fit.probe_T_image),
+            rotation_zyx_deg: euler_zyx_deg(&fit.marker_T_image),
             translation_mm: [t.x, t.y, t.z],
             sd: ParameterSd {
                 rotation_mrad: run.fit.sd.iter().take(3).map(|v| v * 1000.0).collect(),
@@ -168,9 +168,9 @@ pub fn plus_xml(matrix: &Matrix4<f64>) -> String {
     text
 }
 
-/// An ITK transform file that 3D Slicer loads as the `ImageToProbe` linear transform.
+/// An ITK transform file that 3D Slicer loads as the `Calibration` linear transform.
 /// ITK files hold the resampling (inverse) transform in LPS; Slicer works in RAS,
-/// so the file holds `F * inverse(ImageToProbe) * F` with `F = diag(-1, -1, 1)`.
+/// so the file holds `F * inverse(Calibration) * F` with `F = diag(-1, -1, 1)`.
 pub fn itk_tfm(matrix: &Matrix4<f64>) -> Option<String> {
     let inverse = matrix.try_inverse()?;
     let f = Matrix4::from_diagonal(&nalgebra::Vector4::new(-1.0, -1.0, 1.0, 1.0));
@@ -284,9 +284,9 @@ fn render_page(run: &TrackedRun, manifest: &TrackedManifest, summary: &TrackedSu
     let s = run.fit.image_to_probe.spacing_mm_per_px;
     ctx.insert("spacing_u", &format!("{:.5}", s[0]));
     ctx.insert("spacing_v", &format!("{:.5}", s[1]));
-    let e = crate::core::geometry::euler_zyx_deg(&run.fit.image_to_probe.probe_T_image);
+    let e = crate::core::geometry::euler_zyx_deg(&run.fit.image_to_probe.marker_T_image);
     ctx.insert("euler", &format!("[{:.2}, {:.2}, {:.2}]", e[0], e[1], e[2]));
-    let t = run.fit.image_to_probe.probe_T_image.translation.vector;
+    let t = run.fit.image_to_probe.marker_T_image.translation.vector;
     ctx.insert("translation", &format!("[{:.2}, {:.2}, {:.2}]", t.x, t.y, t.z));
     let n = |v: Option<MeanSd>| v.map(|s| serde_json::json!(s.n)).unwrap_or(serde_json::Value::Null);
     let row = |estimate: &str, frames: &str, best: Option<MeanSd>, all: Option<MeanSd>| {

@@ -1,5 +1,5 @@
 //! PLUS's own calibration result file (`ProbeCalibrationResult` XML): its
-//! `ImageToProbe` and its PRE3D statistics, read for comparison only.
+//! `Calibration` and its PRE3D statistics, read for comparison only.
 
 use std::path::Path;
 

@@ -1,0 +1,228 @@
+//! The architecture's fitness test: the layers of `src/` point down only.
+//!
+//! Every `crate::<module>` path in a top-level module's files (its test modules
+//! left out) is an edge to that module. An edge to a module of the same or a
+//! higher layer fails the test, and so does any cycle; so do a `main.rs` above
+//! 250 lines and a source file above 600. The checks themselves are tested on
+//! planted graphs, so they can fail.
+
+mod common;
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::path::Path;
+
+/// The layers, lowest first (as the crate's documentation draws them).
+const LAYERS: &[(&str, usize)] = &[
+    ("core", 0),
+    ("spec", 1),
+    ("io", 2),
+    ("detect", 3),
+    ("estimate", 3),
+    ("evaluate", 4),
+    ("synth", 4),
+    ("manifest", 5),
+    ("pipeline", 6),
+    ("report", 7),
+];
+
+type Graph = BTreeMap<String, BTreeSet<String>>;
+
+/// A file's text without its `#[cfg(test)]` items (brace-matched).
+fn without_tests(src: &str) -> String {
+    let mut out = String::new();
+    let mut rest = src;
+    while let Some(at) = rest.find("#[cfg(test)]") {
+        out.push_str(&rest[..at]);
+        let after = &rest[at..];
+        let Some(open) = after.find(['{', ';']) else { break };
+        if after.as_bytes()[open] == b';' {
+            rest = &after[open + 1..];
+            continue;
+        }
+        let mut depth = 0usize;
+        let mut end = after.len();
+        for (i, c) in after.char_indices().skip(open) {
+            match c {
+                '{' => depth += 1,
+                '}' => {
+                    depth -= 1;
+                    if depth == 0 {
+                        end = i + 1;
+                        break;
+                    }
+                }
+                _ => {}
+            }
+        }
+        rest = &after[end..];
+    }
+    out.push_str(rest);
+    out
+}
+
+/// The modules named after `crate::` in a text, also inside `crate::{a, b}`.
+fn crate_paths(src: &str) -> BTreeSet<String> {
+    let mut out = BTreeSet::new();
+    for (i, _) in src.match_indices("crate::") {
+        let rest = &src[i + "crate::".len()..];
+        if let Some(group) = rest.strip_prefix('{') {
+            let inner = &group[..group.find('}').unwrap_or(group.len())];
+            for item in inner.split(',') {
+                let name: String = item
+                    .trim()
+                    .chars()
+                    .take_while(|c| c.is_alphanumeric() || *c == '_')
+                    .collect();
+                out.insert(name);
+            }
+        } else {
+            out.insert(rest.chars().take_while(|c| c.is_alphanumeric() || *c == '_').collect());
+        }
+    }
+    out
+}
+
+fn rust_files(dir: &Path, out: &mut Vec<std::path::PathBuf>) {
+    for entry in std::fs::read_dir(dir).unwrap().flatten() {
+        let path = entry.path();
+        if path.is_dir() {
+            rust_files(&path, out);
+        } else if path.extension().is_some_and(|e| e == "rs") {
+            out.push(path);
+        }
+    }
+}
+
+/// The graph of the crate's top-level modules.
+fn graph(src: &Path) -> Graph {
+    let tops: BTreeSet<String> = LAYERS.iter().map(|(m, _)| m.to_string()).collect();
+    let mut g = Graph::new();
+    for top in &tops {
+        let mut files = Vec::new();
+        let folder = src.join(top);
+        if folder.is_dir() {
+            rust_files(&folder, &mut files);
+        } else {
+            files.push(src.join(format!("{top}.rs")));
+        }
+        let edges = g.entry(top.clone()).or_default();
+        for f in files {
+            let text = std::fs::read_to_string(&f).unwrap();
+            for m in crate_paths(&without_tests(&text)) {
+                if tops.contains(&m) && &m != top {
+                    edges.insert(m);
+                }
+            }
+        }
+    }
+    g
+}
+
+/// Edges that point to a module of the same or a higher layer.
+fn upward(g: &Graph, layers: &BTreeMap<String, usize>) -> Vec<String> {
+    let mut out = Vec::new();
+    for (from, to) in g {
+        for t in to {
+            if layers[t] >= layers[from] {
+                out.push(format!("{from} (layer {}) -> {t} (layer {})", layers[from], layers[t]));
+            }
+        }
+    }
+    out
+}
+
+/// A cycle, if the graph has one: the modules along it.
+fn cycle(g: &Graph) -> Option<Vec<String>> {
+    fn visit(n: &str, g: &Graph, path: &mut Vec<String>, done: &mut BTreeSet<String>) -> Option<Vec<String>> {
+        if let Some(at) = path.iter().position(|p| p == n) {
+            return Some(path[at..].to_vec());
+        }
+        if done.contains(n) {
+            return None;
+        }
+        path.push(n.to_string());
+        for next in g.get(n).into_iter().flatten() {
+            if let Some(c) = visit(next, g, path, done) {
+                return Some(c);
+            }
+        }
+        path.pop();
+        done.insert(n.to_string());
+        None
+    }
+    let mut done = BTreeSet::new();
+    g.keys().find_map(|n| visit(n, g, &mut Vec::new(), &mut done))
+}
+
+fn layers() -> BTreeMap<String, usize> {
+    LAYERS.iter().map(|(m, l)| (m.to_string(), *l)).collect()
+}
+
+#[test]
+fn layers_point_down_and_nothing_cycles() {
+    let src = common::root().join("src");
+    let on_disk: BTreeSet<String> = std::fs::read_dir(&src)
+        .unwrap()
+        .flatten()
+        .filter_map(|e| {
+            let name = e.file_name().to_string_lossy().to_string();
+            let name = name.strip_suffix(".rs").map(str::to_string).unwrap_or(name);
+            (name != "main" && name != "lib").then_some(name)
+        })
+        .collect();
+    let known: BTreeSet<String> = layers().into_keys().collect();
+    assert_eq!(
+        on_disk, known,
+        "every top-level module of src/ has a layer here, and no other"
+    );
+    let g = graph(&src);
+    assert!(g["pipeline"].contains("detect"), "the reader finds edges: {g:?}");
+    let up = upward(&g, &layers());
+    assert!(up.is_empty(), "imports that point up or sideways:\n{}", up.join("\n"));
+    assert_eq!(cycle(&g), None);
+}
+
+#[test]
+fn the_checks_catch_planted_faults() {
+    let planted = |edges: &[(&str, &str)]| {
+        let mut g = Graph::new();
+        for (a, b) in edges {
+            g.entry(a.to_string()).or_default().insert(b.to_string());
+            g.entry(b.to_string()).or_default();
+        }
+        g
+    };
+    let g = planted(&[("core", "report"), ("pipeline", "detect")]);
+    assert_eq!(upward(&g, &layers()), vec!["core (layer 0) -> report (layer 7)"]);
+    let g = planted(&[("detect", "estimate")]);
+    assert_eq!(
+        upward(&g, &layers()).len(),
+        1,
+        "a sideways edge in one layer is refused"
+    );
+    let g = planted(&[("io", "detect"), ("detect", "evaluate"), ("evaluate", "io")]);
+    assert_eq!(cycle(&g).map(|c| c.len()), Some(3));
+    assert_eq!(cycle(&planted(&[("report", "core")])), None);
+    let src =
+        "use crate::core::geometry;\nuse crate::{io, spec::rig};\n#[cfg(test)]\nmod tests {\n use crate::report;\n}\n";
+    let found = crate_paths(&without_tests(src));
+    assert_eq!(found, ["core", "io", "spec"].iter().map(|s| s.to_string()).collect());
+}
+
+#[test]
+fn files_stay_small_and_main_only_dispatches() {
+    let mut files = Vec::new();
+    rust_files(&common::root().join("src"), &mut files);
+    let lines = |p: &Path| std::fs::read_to_string(p).unwrap().lines().count();
+    let long: Vec<String> = files
+        .iter()
+        .filter(|f| lines(f) > 600)
+        .map(|f| format!("{} ({} lines)", f.display(), lines(f)))
+        .collect();
+    assert!(long.is_empty(), "source files above 600 lines: {long:?}");
+    let main = lines(&common::root().join("src/main.rs"));
+    assert!(
+        main <= 250,
+        "src/main.rs has {main} lines; it holds clap and dispatch only"
+    );
+}

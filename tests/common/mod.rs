@@ -1,0 +1,33 @@
+//! What the integration tests share: the binary, the checkout, scratch folders,
+//! the real third-party data beside the checkout.
+//!
+//! Tiers: a plain `cargo test` runs the fast tests. Tests that need
+//! `../shared/data`, pdflatex or Chromium, or that run a whole experiment or a
+//! statistical check, are `#[ignore]`d with the reason; the README's test command
+//! (`scripts/test.sh`, which CI runs) includes them with `--include-ignored`.
+#![allow(dead_code)]
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+/// The `probecal` binary under test.
+pub fn probecal() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_probecal"))
+}
+
+/// The checkout's root.
+pub fn root() -> &'static Path {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// An empty scratch folder for a test (`<group>/<name>` under cargo's test tmp dir).
+pub fn scratch(group: &str, name: &str) -> PathBuf {
+    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(group).join(name);
+    let _ = std::fs::remove_dir_all(&dir);
+    dir
+}
+
+/// A file of the real third-party data beside the checkout (`../shared/data/<set>/<name>`).
+pub fn shared_data(set: &str, name: &str) -> PathBuf {
+    root().join("../shared/data").join(set).join(name)
+}
