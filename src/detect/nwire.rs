@@ -208,6 +208,22 @@ struct Row {
     mean_v: f64,
 }
 
+/// Why a B-scan's dots do not make the phantom's N-wire patterns.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum NWireRejection {
+    #[error("{spots} bright spots above grey level {threshold_grey}, {needed} needed for {patterns} N-wires")]
+    TooFewSpots {
+        spots: usize,
+        threshold_grey: u8,
+        needed: usize,
+        patterns: usize,
+    },
+    #[error("{rows} rows of 3 collinear dots among {spots} spots, {patterns} needed")]
+    TooFewRows { rows: usize, spots: usize, patterns: usize },
+    #[error("no {patterns} disjoint, parallel rows of 3 collinear dots (of {rows} candidate rows)")]
+    NoParallelRows { patterns: usize, rows: usize },
+}
+
 /// Finds one row of three collinear dots per pattern and assigns them to the wires.
 ///
 /// `widths_px` is the expected distance between the outer dots of each pattern
@@ -219,14 +235,14 @@ pub fn segment(
     widths_px: (f64, f64),
     spacing_mm_per_px: f64,
     settings: &Segmentation,
-) -> Result<NWireDots, String> {
+) -> Result<NWireDots, NWireRejection> {
     if spots.len() < 3 * patterns {
-        return Err(format!(
-            "{} bright spots above grey level {}, {} needed for {patterns} N-wires",
-            spots.len(),
-            settings.threshold_grey,
-            3 * patterns
-        ));
+        return Err(NWireRejection::TooFewSpots {
+            spots: spots.len(),
+            threshold_grey: settings.threshold_grey,
+            needed: 3 * patterns,
+            patterns,
+        });
     }
     let tolerance_px = settings.collinear_tolerance_mm / spacing_mm_per_px;
     let max_angle = settings.max_row_angle_deg.to_radians();
@@ -261,11 +277,11 @@ pub fn segment(
         }
     }
     if rows.len() < patterns {
-        return Err(format!(
-            "{} rows of 3 collinear dots among {} spots, {patterns} needed",
-            rows.len(),
-            spots.len()
-        ));
+        return Err(NWireRejection::TooFewRows {
+            rows: rows.len(),
+            spots: spots.len(),
+            patterns,
+        });
     }
     rows.sort_by(|a, b| b.weight.total_cmp(&a.weight));
     rows.truncate(60);
@@ -274,11 +290,9 @@ pub fn segment(
     let mut best: Option<(f64, Vec<usize>)> = None;
     let mut chosen = Vec::new();
     search(&rows, patterns, max_diff, 0, &mut chosen, &mut best);
-    let (_, picked) = best.ok_or_else(|| {
-        format!(
-            "no {patterns} disjoint, parallel rows of 3 collinear dots (of {} candidate rows)",
-            rows.len()
-        )
+    let (_, picked) = best.ok_or(NWireRejection::NoParallelRows {
+        patterns,
+        rows: rows.len(),
     })?;
     let mut picked: Vec<Row> = picked.into_iter().map(|i| rows[i]).collect();
     picked.sort_by(|a, b| a.mean_v.total_cmp(&b.mean_v));

@@ -47,6 +47,16 @@ impl Correspondence {
         }
     }
 
+    /// Each feature as a constraint of the calibration with the pixel size.
+    pub fn constraints(&self) -> impl Iterator<Item = Constraint> + '_ {
+        let marker_T_phantom = self.marker_T_phantom().to_homogeneous();
+        self.features.iter().map(move |o| Constraint {
+            pixel: o.pixel,
+            marker_T_phantom,
+            target_in_phantom: o.target_in_phantom,
+        })
+    }
+
     pub fn marker_T_phantom(&self) -> Rigid {
         self.camera_T_marker.inverse() * self.camera_T_phantom
     }
@@ -108,17 +118,7 @@ pub fn solve(
             "line features need a start (solve.initial_marker_T_image)".into(),
         ));
     };
-    let constraints: Vec<Constraint> = frames
-        .iter()
-        .flat_map(|f| {
-            let marker_T_phantom = f.marker_T_phantom().to_homogeneous();
-            f.features.iter().map(move |o| Constraint {
-                pixel: o.pixel,
-                marker_T_phantom,
-                target_in_phantom: o.target_in_phantom,
-            })
-        })
-        .collect();
+    let constraints: Vec<Constraint> = frames.iter().flat_map(Correspondence::constraints).collect();
     // Six unknowns; each line feature gives two equations, a point three.
     let equations: usize = frames
         .iter()

@@ -180,17 +180,7 @@ pub fn methods_stage(manifest: &Manifest, inputs: &MethodInputs<'_>, log: &mut d
         .map(|(f, _)| f)
         .collect();
     // Levenberg–Marquardt with the pixel size as two more unknowns.
-    let constraints: Vec<Constraint> = inliers
-        .iter()
-        .flat_map(|f| {
-            let marker_T_phantom = f.marker_T_phantom().to_homogeneous();
-            f.features.iter().map(move |o| Constraint {
-                pixel: o.pixel,
-                marker_T_phantom,
-                target_in_phantom: o.target_in_phantom,
-            })
-        })
-        .collect();
+    let constraints: Vec<Constraint> = inliers.iter().flat_map(|f| f.constraints()).collect();
     let start = Calibration {
         marker_T_image: ransac.fit.target_T_source,
         spacing_mm_per_px: spacing,

@@ -14,11 +14,11 @@ use serde::Serialize;
 
 use crate::core::geometry::Calibration;
 use crate::core::stats::{mean_sd_of, MeanSd};
-use crate::detect::nwire::{self, Segmentation};
+use crate::detect::nwire::{self, NWireRejection, Segmentation};
 use crate::estimate::image_to_probe::ConstraintModel;
 use crate::estimate::image_to_probe::{self, Constraint, FitError, Target};
 use crate::io::plus::config::ConfigError;
-use crate::io::plus::sequence::{Sequence, SequenceError};
+use crate::io::plus::sequence::{FrameFault, Sequence, SequenceError};
 use crate::manifest::tracked::{TimeOffset, TrackedManifest};
 use crate::pipeline::record::GateResult;
 use crate::spec::nwire::NWire;
@@ -110,7 +110,7 @@ pub struct TrackedFrame {
     pub index: usize,
     pub timestamp_s: Option<f64>,
     /// Why the frame was not used (`None`: used).
-    pub rejected: Option<String>,
+    pub rejected: Option<TrackedRejection>,
     /// Per pattern: wire 1, 2, 3 dots (px).
     pub dots_px: Vec<[[f64; 2]; 3]>,
     /// `marker_T_phantom` of the frame (row-major), when the transforms were usable.
@@ -118,6 +118,43 @@ pub struct TrackedFrame {
     pub marker_T_phantom: Option<Matrix4<f64>>,
     /// Per pattern: PRE3D of the middle dot under the result, mm.
     pub pre3d_mm: Vec<f64>,
+}
+
+/// Why a tracked frame was not used; written as text only in tables and pages.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum TrackedRejection {
+    #[error("image status is {0}")]
+    ImageStatus(String),
+    #[error("segmentation: morphological opening failed: {0}")]
+    Opening(String),
+    #[error("segmentation: {0}")]
+    Segmentation(NWireRejection),
+    /// The tracker's poses cannot be had at the frame's time (re-evaluated for
+    /// every tracker lag tried).
+    #[error("pose: {0}")]
+    Pose(PoseFault),
+}
+
+/// Written as its text.
+impl Serialize for TrackedRejection {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_str(&self.to_string())
+    }
+}
+
+/// Why a frame's pose cannot be had at its time plus the tracker's lag.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum PoseFault {
+    #[error("{0}")]
+    Transform(#[from] FrameFault),
+    #[error("frame {frame}: no neighbouring frame to interpolate `{transform}` {offset_s} s away")]
+    NoNeighbour {
+        frame: usize,
+        transform: String,
+        offset_s: f64,
+    },
+    #[error("frame {frame}: a timestamp is missing, cannot interpolate `{transform}`")]
+    NoTimestamp { frame: usize, transform: String },
 }
 
 /// PLUS's convention: mean and SD of the best `round(0.95 n)` values.
@@ -198,7 +235,7 @@ fn process(sequence: &Sequence, role: Role, inputs: &TrackedInputs, clip: [usize
             };
             if let Some(status) = sequence.frame_field(index, "ImageStatus") {
                 if status != "OK" {
-                    frame.rejected = Some(format!("image status is {status}"));
+                    frame.rejected = Some(TrackedRejection::ImageStatus(status.to_string()));
                     return frame;
                 }
             }
@@ -217,7 +254,7 @@ fn process(sequence: &Sequence, role: Role, inputs: &TrackedInputs, clip: [usize
                         centre_pixels = &opened;
                     }
                     Err(e) => {
-                        frame.rejected = Some(format!("segmentation: morphological opening failed: {e}"));
+                        frame.rejected = Some(TrackedRejection::Opening(e.to_string()));
                         return frame;
                     }
                 }
@@ -238,7 +275,7 @@ fn process(sequence: &Sequence, role: Role, inputs: &TrackedInputs, clip: [usize
                 &inputs.segmentation,
             ) {
                 Ok(dots) => frame.dots_px = dots.patterns,
-                Err(e) => frame.rejected = Some(format!("segmentation: {e}")),
+                Err(e) => frame.rejected = Some(TrackedRejection::Segmentation(e)),
             }
             frame
         })
@@ -250,7 +287,7 @@ fn process(sequence: &Sequence, role: Role, inputs: &TrackedInputs, clip: [usize
 /// are re-evaluated).
 fn attach_poses(sequence: &Sequence, frames: &mut [TrackedFrame], inputs: &TrackedInputs, offset_s: f64) {
     for frame in frames.iter_mut() {
-        if frame.rejected.as_deref().is_some_and(|r| r.starts_with("pose: ")) {
+        if matches!(frame.rejected, Some(TrackedRejection::Pose(_))) {
             frame.rejected = None;
         }
         frame.marker_T_phantom = None;
@@ -270,7 +307,7 @@ fn attach_poses(sequence: &Sequence, frames: &mut [TrackedFrame], inputs: &Track
                         * inputs.reference_T_phantom,
                 );
             }
-            Err(e) => frame.rejected = Some(format!("pose: {e}")),
+            Err(e) => frame.rejected = Some(TrackedRejection::Pose(e)),
         }
     }
 }
@@ -285,8 +322,8 @@ fn pose_at(
     index: usize,
     name: &str,
     offset_s: f64,
-) -> Result<crate::core::geometry::Rigid, String> {
-    let here = sequence.transform(index, name).map_err(|e| e.to_string())?;
+) -> Result<crate::core::geometry::Rigid, PoseFault> {
+    let here = sequence.transform(index, name)?;
     if offset_s == 0.0 {
         return Ok(here);
     }
@@ -299,20 +336,25 @@ fn pose_at(
         index == 0
     };
     let neighbour = if forward { index + 1 } else { index.wrapping_sub(1) };
-    let no_neighbour = || format!("frame {index}: no neighbouring frame to interpolate `{name}` {offset_s} s away");
+    let no_neighbour = || PoseFault::NoNeighbour {
+        frame: index,
+        transform: name.to_string(),
+        offset_s,
+    };
     if neighbour >= sequence.frames.len() {
         return Err(no_neighbour());
     }
     let (Some(t0), Some(t1)) = (time(index), time(neighbour)) else {
-        return Err(format!(
-            "frame {index}: a timestamp is missing, cannot interpolate `{name}`"
-        ));
+        return Err(PoseFault::NoTimestamp {
+            frame: index,
+            transform: name.to_string(),
+        });
     };
     let gap = t1 - t0;
     if gap.abs() > MAX_INTERPOLATION_GAP_S || gap.abs() < 1e-6 {
         return Err(no_neighbour());
     }
-    let there = sequence.transform(neighbour, name).map_err(|e| e.to_string())?;
+    let there = sequence.transform(neighbour, name)?;
     Ok(here.lerp_slerp(&there, offset_s / gap))
 }
 

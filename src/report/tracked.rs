@@ -135,7 +135,9 @@ pub fn frames_table(run: &TrackedRun, patterns: usize) -> PolarsResult<DataFrame
         ),
         Column::new(
             "reason".into(),
-            f.iter().map(|r| r.rejected.clone()).collect::<Vec<_>>(),
+            f.iter()
+                .map(|r| r.rejected.as_ref().map(|j| j.to_string()))
+                .collect::<Vec<_>>(),
         ),
     ];
     for p in 0..patterns {
@@ -202,13 +204,7 @@ pub fn write(
         path: folder.to_path_buf(),
         message: e.to_string(),
     })?;
-    let mut table = frames_table(run, manifest.nwires.len())?;
-    let mut csv = Vec::new();
-    CsvWriter::new(&mut csv).finish(&mut table)?;
-    write_atomic(&folder.join("frames.csv"), &csv)?;
-    let mut parquet = Vec::new();
-    ParquetWriter::new(&mut parquet).finish(&mut table)?;
-    write_atomic(&folder.join("frames.parquet"), &parquet)?;
+    super::write::write_frames_table(folder, &mut frames_table(run, manifest.nwires.len())?)?;
     let summary = summary(run, manifest, plus);
     let text = to_text(&summary).map_err(|e| OutputError::Report(e.to_string()))?;
     write_atomic(&folder.join("summary.json"), text.as_bytes())?;

@@ -141,6 +141,17 @@ pub fn frames_table(run: &DatasetRun) -> PolarsResult<DataFrame> {
     DataFrame::new(n, columns)
 }
 
+/// Writes the per-frame table as `frames.csv` and `frames.parquet` in `folder`.
+pub fn write_frames_table(folder: &Path, table: &mut DataFrame) -> Result<(), OutputError> {
+    let mut csv = Vec::new();
+    CsvWriter::new(&mut csv).finish(table)?;
+    write_atomic(&folder.join("frames.csv"), &csv)?;
+    let mut parquet = Vec::new();
+    ParquetWriter::new(&mut parquet).finish(table)?;
+    write_atomic(&folder.join("frames.parquet"), &parquet)?;
+    Ok(())
+}
+
 /// Writes a dataset run into `folder`.
 pub fn write_dataset_run(
     run: &DatasetRun,
@@ -155,13 +166,7 @@ pub fn write_dataset_run(
         }
     };
     std::fs::create_dir_all(folder).map_err(io(folder))?;
-    let mut table = frames_table(run)?;
-    let mut csv = Vec::new();
-    CsvWriter::new(&mut csv).finish(&mut table)?;
-    write_atomic(&folder.join("frames.csv"), &csv)?;
-    let mut parquet = Vec::new();
-    ParquetWriter::new(&mut parquet).finish(&mut table)?;
-    write_atomic(&folder.join("frames.parquet"), &parquet)?;
+    write_frames_table(folder, &mut frames_table(run)?)?;
     let inputs = SolveInputs::of(&run.experiment, &run.dataset, &run.pairs, &run.solve);
     let inputs = inputs.to_yaml().map_err(OutputError::Report)?;
     write_atomic(&folder.join(SOLVE_INPUTS_FILE), inputs.as_bytes())?;
