@@ -343,6 +343,27 @@ const CASES: &[Case] = &[
         expect: "tracker pose,poses.csv has no ProbeToTracker for frame 2",
         in_output: "frames",
     },
+    Case {
+        name: "tracker CSV: a rigid but absurd pose rejects its frame at the plausibility check",
+        setup: |d| {
+            // Frame 2's marker 1 km from the tracker: a rigid matrix, not a measurement.
+            tracker_csv(d, |t| {
+                t.lines()
+                    .map(|l| {
+                        let mut f: Vec<String> = l.split(',').map(String::from).collect();
+                        if l.starts_with("2,ProbeToTracker,") {
+                            f[5] = "1000000".into();
+                        }
+                        format!("{}\n", f.join(","))
+                    })
+                    .collect()
+            })
+        },
+        args: run,
+        code: 0,
+        expect: "plausibility,camera_T_marker puts its board 1000",
+        in_output: "frames",
+    },
     // Manifests: each names the file, the field and the line; nothing runs.
     Case {
         name: "unknown key",

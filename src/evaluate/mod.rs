@@ -182,11 +182,21 @@ pub struct EvaluationInputs<'a> {
     pub truth: Option<(Rigid, [usize; 2])>,
 }
 
-/// A frame's BRE as the cut-off rule measures it.
-fn rule_value(bre_axes: &[f64; 3], norm: f64, rule: CutoffRule) -> f64 {
-    match rule {
-        CutoffRule::MaxAxis => bre_axes.iter().cloned().fold(0.0, f64::max),
-        CutoffRule::Norm => norm,
+impl CutoffRule {
+    /// A frame's BRE as the rule measures it; not a number when any of its
+    /// components is not (`f64::max` alone would drop a NaN axis).
+    pub fn measure(self, bre_axes: &[f64; 3], norm: f64) -> f64 {
+        match self {
+            CutoffRule::MaxAxis if bre_axes.iter().any(|v| v.is_nan()) => f64::NAN,
+            CutoffRule::MaxAxis => bre_axes.iter().cloned().fold(0.0, f64::max),
+            CutoffRule::Norm => norm,
+        }
+    }
+
+    /// Whether a measured BRE is below a cut-off: a value that is not a number
+    /// never is.
+    pub fn below(value: f64, cutoff_mm: f64) -> bool {
+        value < cutoff_mm
     }
 }
 
@@ -214,11 +224,13 @@ pub fn select_below(
             .enumerate()
             .map(|(i, f)| {
                 let (axes, norm) = worst_feature(f, &fit, inputs.spacing);
-                (i, rule_value(&axes, norm, inputs.rule))
+                (i, inputs.rule.measure(&axes, norm))
             })
             .max_by(|a, b| a.1.total_cmp(&b.1));
         match worst {
-            Some((i, value)) if value >= cutoff => {
+            // NaN sorts above every number, so a frame whose BRE is not a number
+            // goes first.
+            Some((i, value)) if !CutoffRule::below(value, cutoff) => {
                 kept.remove(i);
             }
             _ => return (kept, Ok(fit)),
@@ -265,6 +277,17 @@ mod tests {
     use crate::core::geometry::rigid_from_axis_angle;
     use crate::estimate::correspondence::bre;
     use nalgebra::{Point3, Vector3};
+
+    #[test]
+    fn a_bre_that_is_not_a_number_passes_no_cut_off() {
+        for rule in [CutoffRule::MaxAxis, CutoffRule::Norm] {
+            let nan = rule.measure(&[0.1, f64::NAN, 0.2], f64::NAN);
+            assert!(nan.is_nan(), "{rule:?}");
+            assert!(!CutoffRule::below(nan, 1.0) && !CutoffRule::below(nan, f64::INFINITY));
+            assert!(CutoffRule::below(rule.measure(&[0.1, 0.3, 0.2], 0.4), 1.0));
+        }
+        assert_eq!(CutoffRule::MaxAxis.measure(&[0.1, 0.3, 0.2], 9.0), 0.3);
+    }
 
     #[test]
     fn stats_match_hand_computation() {

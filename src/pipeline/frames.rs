@@ -4,7 +4,7 @@
 
 use opencv::prelude::MatTraitConst;
 
-use super::record::{CameraStage, FrameRecord, Rejection};
+use super::record::{CameraStage, FrameRecord, Implausible, Rejection};
 use super::run::RunError;
 use crate::core::parallel::parallel_map;
 use crate::detect::arc::{self, ArcSettings};
@@ -43,7 +43,7 @@ fn pin_head_candidates(spots: &[Spot], r: f64) -> Vec<Spot> {
         .collect()
 }
 
-pub fn process_frame(
+fn detect_frame(
     files: &FrameFiles,
     camera: &CameraStage,
     rig: &RigBoards,
@@ -155,6 +155,23 @@ pub fn process_frame(
             } else {
                 record.features_px = spots.spots.iter().map(|s| s.centre_px).collect();
             }
+        }
+    }
+    Ok(record)
+}
+
+/// One frame through stages 2 and 3; poses and feature pixels that are not finite
+/// or not physically possible reject the frame at the stage boundary.
+pub fn process_frame(
+    files: &FrameFiles,
+    camera: &CameraStage,
+    rig: &RigBoards,
+    detector: &Detector,
+) -> Result<FrameRecord, RunError> {
+    let mut record = detect_frame(files, camera, rig, detector)?;
+    if record.rejection.is_none() {
+        if let Some(fault) = Implausible::of(record.pose_pair(), &record.features_px) {
+            record.rejection = Some(Rejection::Implausible(fault));
         }
     }
     Ok(record)

@@ -118,11 +118,8 @@ pub fn methods_stage(manifest: &Manifest, inputs: &MethodInputs<'_>, log: &mut d
                 .iter()
                 .filter(|f| {
                     let (axes, norm) = correspondence::bre(f, &all, spacing);
-                    let value = match manifest.thresholds.cutoff_rule {
-                        CutoffRule::MaxAxis => axes.iter().cloned().fold(0.0, f64::max),
-                        CutoffRule::Norm => norm,
-                    };
-                    value < reported.cutoff_mm
+                    let value = manifest.thresholds.cutoff_rule.measure(&axes, norm);
+                    CutoffRule::below(value, reported.cutoff_mm)
                 })
                 .cloned()
                 .collect();

@@ -34,6 +34,8 @@ pub enum Stage {
     Wires,
     /// The tracker gave no pose.
     TrackerPose,
+    /// A measurement that is not a finite, physically possible number.
+    Plausibility,
 }
 
 impl Stage {
@@ -46,6 +48,7 @@ impl Stage {
             Stage::Spot => "pin-head detection",
             Stage::Wires => "wire dots",
             Stage::TrackerPose => "tracker pose",
+            Stage::Plausibility => "plausibility",
         }
     }
 }
@@ -75,6 +78,57 @@ pub enum Rejection {
     TooFewWireDots { compact: usize, surfaces: usize },
     #[error("{0}")]
     Wires(WireRejection),
+    #[error("{0}")]
+    Implausible(Implausible),
+}
+
+/// Poses farther than this from the camera or tracker are not measurements: no
+/// camera sees a board, and no tracker a marker, 10 m away.
+pub const MAX_POSE_DISTANCE_MM: f64 = 10_000.0;
+
+/// A measurement a stage gave that is not a finite, physically possible number.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum Implausible {
+    #[error("{pose} is not finite")]
+    PoseNotFinite { pose: &'static str },
+    #[error("{pose} puts its board {distance_mm:.0} mm away (more than {limit_mm:.0} mm: no camera or tracker measures that far)")]
+    PoseTooFar {
+        pose: &'static str,
+        distance_mm: f64,
+        limit_mm: f64,
+    },
+    #[error("a feature pixel ({u}, {v}) is not finite")]
+    FeatureNotFinite { u: f64, v: f64 },
+}
+
+impl Implausible {
+    /// The first implausible value of a frame's poses and feature pixels.
+    pub fn of(poses: Option<(Rigid, Rigid)>, features_px: &[[f64; 2]]) -> Option<Implausible> {
+        if let Some((camera_T_marker, camera_T_phantom)) = poses {
+            for (pose, t) in [
+                ("camera_T_marker", camera_T_marker),
+                ("camera_T_phantom", camera_T_phantom),
+            ] {
+                let finite = t.translation.vector.iter().all(|v| v.is_finite())
+                    && t.rotation.coords.iter().all(|v| v.is_finite());
+                if !finite {
+                    return Some(Implausible::PoseNotFinite { pose });
+                }
+                let distance_mm = t.translation.vector.norm();
+                if distance_mm > MAX_POSE_DISTANCE_MM {
+                    return Some(Implausible::PoseTooFar {
+                        pose,
+                        distance_mm,
+                        limit_mm: MAX_POSE_DISTANCE_MM,
+                    });
+                }
+            }
+        }
+        features_px
+            .iter()
+            .find(|p| !(p[0].is_finite() && p[1].is_finite()))
+            .map(|p| Implausible::FeatureNotFinite { u: p[0], v: p[1] })
+    }
 }
 
 impl Rejection {
@@ -88,6 +142,7 @@ impl Rejection {
             Rejection::Arc(_) => Stage::Arc,
             Rejection::NoPinHead { .. } | Rejection::AmbiguousPinHead { .. } => Stage::Spot,
             Rejection::TooFewWireDots { .. } | Rejection::Wires(_) => Stage::Wires,
+            Rejection::Implausible(_) => Stage::Plausibility,
         }
     }
 }
@@ -281,5 +336,39 @@ impl DatasetRun {
     }
     pub fn gates_passed(&self) -> bool {
         self.gates.iter().all(|g| g.passed)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::core::geometry::rigid_from_axis_angle;
+    use nalgebra::Vector3;
+
+    #[test]
+    fn implausible_measurements_are_named() {
+        let near = rigid_from_axis_angle(Vector3::new(0.1, 0.0, 0.0), Vector3::new(10.0, 20.0, 600.0));
+        let far = rigid_from_axis_angle(Vector3::zeros(), Vector3::new(0.0, 0.0, 1e12));
+        let nan = rigid_from_axis_angle(Vector3::zeros(), Vector3::new(f64::NAN, 0.0, 0.0));
+        assert_eq!(Implausible::of(Some((near, near)), &[[10.0, 20.0]]), None);
+        assert_eq!(Implausible::of(None, &[[1.0, 2.0]]), None);
+        assert_eq!(
+            Implausible::of(Some((near, nan)), &[]),
+            Some(Implausible::PoseNotFinite {
+                pose: "camera_T_phantom"
+            })
+        );
+        let too_far = Implausible::of(Some((far, near)), &[]).unwrap();
+        assert!(matches!(
+            too_far,
+            Implausible::PoseTooFar {
+                pose: "camera_T_marker",
+                ..
+            }
+        ));
+        assert!(too_far.to_string().contains("more than 10000 mm"), "{too_far}");
+        let pixel = Implausible::of(Some((near, near)), &[[f64::INFINITY, 3.0]]).unwrap();
+        assert_eq!(pixel.to_string(), "a feature pixel (inf, 3) is not finite");
+        assert_eq!(Rejection::Implausible(pixel).stage(), Stage::Plausibility);
     }
 }
