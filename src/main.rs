@@ -68,6 +68,9 @@ enum Command {
         /// Write the baselines from these runs instead of comparing.
         #[arg(long)]
         update: bool,
+        /// With --update: let a run that lacks a metric drop it from the baseline.
+        #[arg(long)]
+        allow_drop: bool,
     },
     /// Check manifests without running anything.
     Validate {
@@ -221,7 +224,8 @@ fn main() -> ExitCode {
             runs,
             baselines,
             update,
-        } => probecal::report::check::run(&runs, &baselines, update),
+            allow_drop,
+        } => probecal::report::check::run(&runs, &baselines, update, allow_drop),
         Command::Validate { manifests } => validate(&manifests),
         Command::Study {
             manifest,

@@ -32,3 +32,201 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), WriteError> {
 pub fn display_path(path: &Path) -> String {
     path.to_string_lossy().replace('\\', "/")
 }
+
+/// An exclusive claim, held while the value lives: a file holding the process
+/// id, created only when absent. A claim left by a process that no longer runs
+/// (killed) is taken over.
+#[derive(Debug)]
+pub struct Lock {
+    path: PathBuf,
+}
+
+/// Whether process `pid` runs (`None`: this system cannot tell).
+fn process_runs(pid: u32) -> Option<bool> {
+    let proc = Path::new("/proc");
+    proc.join("self").exists().then(|| proc.join(pid.to_string()).exists())
+}
+
+impl Lock {
+    /// Claims `path`; an error names the process that holds it.
+    pub fn acquire(path: &Path) -> Result<Lock, String> {
+        if let Some(parent) = path.parent() {
+            std::fs::create_dir_all(parent).map_err(|e| format!("{}: {e}", parent.display()))?;
+        }
+        for _ in 0..2 {
+            match std::fs::OpenOptions::new().write(true).create_new(true).open(path) {
+                Ok(mut file) => {
+                    use std::io::Write;
+                    writeln!(file, "{}", std::process::id()).map_err(|e| format!("{}: {e}", path.display()))?;
+                    return Ok(Lock {
+                        path: path.to_path_buf(),
+                    });
+                }
+                Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {
+                    let holder = std::fs::read_to_string(path)
+                        .ok()
+                        .and_then(|t| t.trim().parse::<u32>().ok());
+                    match holder.map(|pid| (pid, process_runs(pid))) {
+                        Some((pid, Some(false))) if pid != std::process::id() => {
+                            // Left by a process that no longer runs.
+                            let _ = std::fs::remove_file(path);
+                        }
+                        Some((pid, _)) => {
+                            return Err(format!(
+                                "{}: another probecal (process {pid}) is writing here; wait for it to finish",
+                                path.display()
+                            ))
+                        }
+                        None => {
+                            return Err(format!(
+                                "{}: held by another probecal; remove the file if none is running",
+                                path.display()
+                            ))
+                        }
+                    }
+                }
+                Err(e) => return Err(format!("{}: {e}", path.display())),
+            }
+        }
+        Err(format!("{}: could not be claimed", path.display()))
+    }
+}
+
+impl Drop for Lock {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_file(&self.path);
+    }
+}
+
+/// A folder's new content, written beside it (`.<name>.partial`) and swapped in
+/// only when complete: until [`Staged::commit`], the old folder is untouched, and
+/// a run that fails or is killed leaves it as it was.
+#[derive(Debug)]
+pub struct Staged {
+    target: PathBuf,
+    partial: PathBuf,
+}
+
+fn sibling(path: &Path, suffix: &str) -> PathBuf {
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().to_string())
+        .unwrap_or_default();
+    path.with_file_name(format!(".{name}.{suffix}"))
+}
+
+fn io_error(path: &Path) -> impl Fn(std::io::Error) -> WriteError + '_ {
+    move |e| WriteError {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    }
+}
+
+impl Staged {
+    /// Starts writing `target`'s new content (a stale partial folder is removed;
+    /// a swap that was cut off half-way is undone first).
+    pub fn begin(target: &Path) -> Result<Staged, WriteError> {
+        let partial = sibling(target, "partial");
+        let old = sibling(target, "old");
+        if old.exists() && !target.exists() {
+            std::fs::rename(&old, target).map_err(io_error(target))?;
+        }
+        if partial.exists() {
+            std::fs::remove_dir_all(&partial).map_err(io_error(&partial))?;
+        }
+        std::fs::create_dir_all(&partial).map_err(io_error(&partial))?;
+        Ok(Staged {
+            target: target.to_path_buf(),
+            partial,
+        })
+    }
+
+    /// Where the new content is written.
+    pub fn path(&self) -> &Path {
+        &self.partial
+    }
+
+    /// Swaps the new content in; the old folder is removed only then.
+    pub fn commit(self) -> Result<(), WriteError> {
+        let old = sibling(&self.target, "old");
+        if old.exists() {
+            std::fs::remove_dir_all(&old).map_err(io_error(&old))?;
+        }
+        if self.target.exists() {
+            std::fs::rename(&self.target, &old).map_err(io_error(&self.target))?;
+        }
+        std::fs::rename(&self.partial, &self.target).map_err(io_error(&self.target))?;
+        if old.exists() {
+            std::fs::remove_dir_all(&old).map_err(io_error(&old))?;
+        }
+        Ok(())
+    }
+
+    /// Keeps the old folder and moves what was written to `.<name>.failed` (for
+    /// a look; replaced by the next failure); its path.
+    pub fn abandon(self) -> Result<PathBuf, WriteError> {
+        let failed = sibling(&self.target, "failed");
+        if failed.exists() {
+            std::fs::remove_dir_all(&failed).map_err(io_error(&failed))?;
+        }
+        std::fs::rename(&self.partial, &failed).map_err(io_error(&failed))?;
+        Ok(failed)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn scratch(name: &str) -> PathBuf {
+        let dir = std::env::temp_dir().join(format!("probecal-fs-{name}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        dir
+    }
+
+    #[test]
+    fn staged_content_replaces_the_old_only_on_commit() {
+        let dir = scratch("staged");
+        let target = dir.join("exp");
+        std::fs::create_dir_all(&target).unwrap();
+        std::fs::write(target.join("old.txt"), "old").unwrap();
+        let staged = Staged::begin(&target).unwrap();
+        std::fs::write(staged.path().join("new.txt"), "new").unwrap();
+        assert!(
+            target.join("old.txt").is_file(),
+            "the old content stays until the commit"
+        );
+        staged.commit().unwrap();
+        assert!(target.join("new.txt").is_file() && !target.join("old.txt").exists());
+        let staged = Staged::begin(&target).unwrap();
+        std::fs::write(staged.path().join("half.txt"), "half").unwrap();
+        let failed = staged.abandon().unwrap();
+        assert!(target.join("new.txt").is_file(), "a failure keeps the previous content");
+        assert!(failed.join("half.txt").is_file());
+        // A swap cut off between its two renames is undone by the next begin.
+        std::fs::rename(&target, dir.join(".exp.old")).unwrap();
+        let staged = Staged::begin(&target).unwrap();
+        assert!(target.join("new.txt").is_file());
+        drop(staged);
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn a_lock_is_exclusive_and_a_dead_holder_s_is_taken_over() {
+        let dir = scratch("lock");
+        let path = dir.join(".probecal.lock");
+        let lock = Lock::acquire(&path).unwrap();
+        let again = Lock::acquire(&path).unwrap_err();
+        assert!(again.contains("another probecal (process"), "{again}");
+        drop(lock);
+        assert!(!path.exists());
+        // A process id that runs no process (above Linux's pid_max).
+        std::fs::write(&path, "4294967295\n").unwrap();
+        if process_runs(1).is_some() {
+            let taken = Lock::acquire(&path).unwrap();
+            drop(taken);
+        }
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+}

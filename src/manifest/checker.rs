@@ -13,7 +13,39 @@ pub(crate) struct Checker<'a> {
     pub(crate) errors: Vec<ManifestError>,
 }
 
+/// Folder names a run writes beside the experiments' folders in `--out`.
+pub const RESERVED_NAMES: [&str; 2] = ["study", "runs"];
+
+/// Longest experiment or dataset name.
+pub const MAX_NAME_LEN: usize = 100;
+
+/// Why a name cannot name a folder of the run's output, if it cannot: only
+/// letters, digits, `_` and `-` (no path, no dots), not reserved, not too long.
+pub fn name_fault(name: &str) -> Option<String> {
+    if name.is_empty() || name.len() > MAX_NAME_LEN {
+        return Some(format!("must be 1 to {MAX_NAME_LEN} characters long"));
+    }
+    if !name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-') {
+        return Some(format!(
+            "`{name}` must use only letters, digits, `_` and `-` (it names a folder of the run's output)"
+        ));
+    }
+    if RESERVED_NAMES.contains(&name) {
+        return Some(format!(
+            "`{name}` is reserved (the output folder's `{name}/` holds other results)"
+        ));
+    }
+    None
+}
+
 impl Checker<'_> {
+    /// A name of a folder of the run's output (see [`name_fault`]).
+    pub(crate) fn name(&mut self, field: &str, name: &str) {
+        if let Some(message) = name_fault(name) {
+            self.fail(field, message);
+        }
+    }
+
     pub(crate) fn fail(&mut self, field: &str, message: impl Into<String>) {
         self.errors.push(ManifestError {
             file: self.file.to_path_buf(),

@@ -13,6 +13,7 @@ pub mod tracked;
 mod validate;
 
 pub(crate) use checker::{deserialize_located, sha256_hex, Checker};
+pub use checker::{name_fault, MAX_NAME_LEN, RESERVED_NAMES};
 use validate::validate;
 
 use std::fmt;

@@ -275,17 +275,10 @@ impl TrackedManifest {
             text,
             errors: Vec::new(),
         };
-        if raw.experiment.trim().is_empty() || raw.experiment.contains(['/', '\\']) {
-            c.fail(
-                "experiment",
-                "must be a non-empty name without slashes (it names the run folder)",
-            );
-        }
+        c.name("experiment", &raw.experiment);
         let Tracking::PlusSequence(seq) = &raw.tracking;
         let f = "tracking.plus_sequence";
-        if seq.dataset.trim().is_empty() || seq.dataset.contains(['/', '\\']) || seq.dataset.starts_with('.') {
-            c.fail(&format!("{f}.dataset"), "must be a non-empty name without slashes");
-        }
+        c.name(&format!("{f}.dataset"), &seq.dataset);
         let calibration_sequence = c.existing(&format!("{f}.calibration"), &base, &seq.calibration, false);
         let validation_sequence = seq
             .validation

@@ -10,12 +10,7 @@ use std::path::{Path, PathBuf};
 use super::*;
 
 pub(super) fn validate(c: &mut Checker<'_>, base: &Path, raw: raw::RawManifest, path: &Path, text: &str) -> Manifest {
-    if raw.experiment.trim().is_empty() || raw.experiment.contains(['/', '\\']) {
-        c.fail(
-            "experiment",
-            "must be a non-empty name without slashes (it names the run folder)",
-        );
-    }
+    c.name("experiment", &raw.experiment);
     phantom_section(c, &raw);
     solve_section(c, &raw);
     rig_section(c, &raw);
@@ -474,9 +469,7 @@ fn datasets_section(c: &mut Checker<'_>, base: &Path, raw: &raw::RawManifest, ca
     let mut datasets = Vec::new();
     for (i, d) in raw.datasets.iter().enumerate() {
         let field = format!("datasets[{i}]");
-        if d.name.trim().is_empty() || d.name.contains(['/', '\\']) || d.name.starts_with('.') {
-            c.fail(&format!("{field}.name"), "must be a non-empty name without slashes");
-        }
+        c.name(&format!("{field}.name"), &d.name);
         if raw.datasets[..i].iter().any(|o| o.name == d.name) {
             c.fail(
                 &format!("{field}.name"),

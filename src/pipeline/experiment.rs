@@ -7,22 +7,31 @@ use std::time::SystemTime;
 
 use super::record::DatasetRun;
 use super::tracked::{self, TrackedInputs, TrackedRun};
-use crate::io::fs::write_atomic;
+use crate::io::fs::{write_atomic, Lock, Staged};
 use crate::io::plus::result::PlusResult;
 use crate::manifest::tracked::TrackedManifest;
-use crate::manifest::{Experiment, Manifest};
+use crate::manifest::{CameraSource, DatasetSource, Experiment, Manifest};
+
+/// Where a dataset's outputs are written now, and where they will be once its
+/// experiment's folder is swapped in.
+#[derive(Debug, Clone, Copy)]
+pub struct RunFolder<'a> {
+    pub write_to: &'a Path,
+    pub final_path: &'a Path,
+}
 
 /// What the loop tells as the experiments run (as criterion's reports are told).
 /// Every hook but the errors' defaults to nothing.
 pub trait Reporter {
     /// A dataset is about to run.
     fn dataset_started(&mut self, _experiment: &str, _dataset: &str) {}
-    /// A camera experiment's dataset has run; its outputs go into `folder`.
+    /// A camera experiment's dataset has run; its outputs go into `folder.write_to`
+    /// (the experiment's folder is swapped in when all its datasets are written).
     fn dataset_done(
         &mut self,
         _manifest: &Manifest,
         _run: &DatasetRun,
-        _folder: &Path,
+        _folder: &RunFolder<'_>,
         _started: SystemTime,
     ) -> Result<(), String> {
         Ok(())
@@ -33,7 +42,7 @@ pub trait Reporter {
         _manifest: &TrackedManifest,
         _run: &TrackedRun,
         _plus: Option<&PlusResult>,
-        _folder: &Path,
+        _folder: &RunFolder<'_>,
         _started: SystemTime,
     ) -> Result<(), String> {
         Ok(())
@@ -102,7 +111,78 @@ pub struct RunOptions<'a> {
     pub force: bool,
 }
 
-/// Runs every experiment into `options.out`.
+/// Every file or folder an experiment reads (the rendered datasets' cache aside).
+fn inputs_of(experiment: &Experiment) -> Vec<PathBuf> {
+    match experiment {
+        Experiment::Tracked(m) => {
+            let mut inputs = m.input_files();
+            inputs.push(m.path.clone());
+            inputs
+        }
+        Experiment::Camera(m) => {
+            let mut inputs = vec![m.path.clone()];
+            match &m.camera {
+                CameraSource::IntrinsicsFile(p) => inputs.push(p.clone()),
+                CameraSource::Calibrate { images: Some(p), .. } => inputs.push(p.clone()),
+                CameraSource::Calibrate { images: None, .. } | CameraSource::TrackerCsv(_) => {}
+            }
+            inputs.extend(m.datasets.iter().filter_map(|d| match &d.source {
+                DatasetSource::Folder(f) => Some(f.clone()),
+                DatasetSource::Render(_) => None,
+            }));
+            inputs
+        }
+    }
+}
+
+/// Why the experiments cannot be written into `out` as they are: two of them
+/// with one folder, an existing folder without `--force`, or a folder that would
+/// be replaced while it holds an input of the run (or the datasets' cache).
+fn refusal(experiments: &[Experiment], options: &RunOptions<'_>) -> Option<String> {
+    for (i, m) in experiments.iter().enumerate() {
+        if let Some(other) = experiments[..i].iter().find(|o| o.experiment() == m.experiment()) {
+            return Some(format!(
+                "{} and {} both name experiment `{}`: one would replace the other's folder in {}",
+                other.path().display(),
+                m.path().display(),
+                m.experiment(),
+                options.out.display()
+            ));
+        }
+    }
+    for m in experiments {
+        let folder = options.out.join(m.experiment());
+        if !folder.exists() {
+            continue;
+        }
+        if !options.force {
+            return Some(format!(
+                "{} exists already; pass --force to replace it, or choose another --out",
+                folder.display()
+            ));
+        }
+        let Ok(replaced) = folder.canonicalize() else { continue };
+        let mut guarded = inputs_of(m);
+        guarded.push(options.datasets.to_path_buf());
+        for input in guarded {
+            if input.canonicalize().is_ok_and(|p| p.starts_with(&replaced)) {
+                return Some(format!(
+                    "{} would be replaced, and it holds {}, which the run reads; choose another --out",
+                    folder.display(),
+                    input.display()
+                ));
+            }
+        }
+    }
+    None
+}
+
+/// The file that claims an output folder for one run at a time.
+pub const OUT_LOCK: &str = ".probecal.lock";
+
+/// Runs every experiment into `options.out`. Each experiment's folder is written
+/// beside the old one and swapped in when all its datasets are written; a failed
+/// experiment leaves the old folder as it was.
 pub fn run_all(
     experiments: &[Experiment],
     options: &RunOptions<'_>,
@@ -110,42 +190,47 @@ pub fn run_all(
     log: &mut dyn FnMut(&str),
 ) -> Outcome {
     let out = options.out;
-    for m in experiments {
-        let folder = out.join(m.experiment());
-        if folder.exists() && !options.force {
-            reporter.error(&format!(
-                "{} exists already; pass --force to replace it, or choose another --out",
-                folder.display()
-            ));
+    if let Some(reason) = refusal(experiments, options) {
+        reporter.error(&reason);
+        return Outcome::failed(2);
+    }
+    let _lock = match Lock::acquire(&out.join(OUT_LOCK)) {
+        Ok(lock) => lock,
+        Err(e) => {
+            reporter.error(&e);
             return Outcome::failed(2);
         }
-    }
+    };
     let mut failed = false;
     let mut gates_failed = false;
     let mut manifests = Vec::new();
     let mut runs = Vec::new();
     for experiment in experiments {
-        let folder = out.join(experiment.experiment());
-        if folder.exists() {
-            if let Err(e) = std::fs::remove_dir_all(&folder) {
-                reporter.error(&format!("cannot replace {}: {e}", folder.display()));
+        let target = out.join(experiment.experiment());
+        let staged = match Staged::begin(&target) {
+            Ok(s) => s,
+            Err(e) => {
+                reporter.error(&e.to_string());
                 return Outcome::failed(1);
             }
-        }
+        };
+        let folder = staged.path().to_path_buf();
         if let Err(e) = write_atomic(&folder.join("manifest.yaml"), experiment.text().as_bytes()) {
             reporter.error(&e.to_string());
             return Outcome::failed(1);
         }
+        let mut written = true;
         let m = match experiment {
             Experiment::Camera(m) => m.as_ref(),
             Experiment::Tracked(m) => {
-                match run_tracked(m, &folder, reporter) {
+                match run_tracked(m, &folder, &target, reporter) {
                     Ok(passed) => gates_failed |= !passed,
                     Err(e) => {
                         reporter.error(&e);
-                        failed = true;
+                        written = false;
                     }
                 }
+                failed |= !swap_in(staged, written, reporter);
                 continue;
             }
         };
@@ -158,13 +243,19 @@ pub fn run_all(
                 Ok(r) => r,
                 Err(e) => {
                     reporter.error(&format!("{}: {e}", m.path.display()));
-                    failed = true;
+                    written = false;
                     continue;
                 }
             };
-            if let Err(e) = reporter.dataset_done(m, &run, &folder.join(&d.name), started) {
+            let write_to = folder.join(&d.name);
+            let final_path = target.join(&d.name);
+            let run_folder = RunFolder {
+                write_to: &write_to,
+                final_path: &final_path,
+            };
+            if let Err(e) = reporter.dataset_done(m, &run, &run_folder, started) {
                 reporter.error(&e);
-                failed = true;
+                written = false;
                 continue;
             }
             for g in run.gates.iter().filter(|g| !g.passed) {
@@ -180,6 +271,7 @@ pub fn run_all(
             }
             runs.push((index, run));
         }
+        failed |= !swap_in(staged, written, reporter);
     }
     if let Err(e) = reporter.finished(out) {
         reporter.error(&e);
@@ -195,8 +287,31 @@ pub fn run_all(
     Outcome { code, manifests, runs }
 }
 
+/// Swaps a written experiment in, or keeps the old folder when any of its
+/// datasets failed (what was written goes to `.<experiment>.failed`); whether
+/// the experiment's folder is now the new one.
+fn swap_in(staged: Staged, written: bool, reporter: &mut dyn Reporter) -> bool {
+    if written {
+        return match staged.commit() {
+            Ok(()) => true,
+            Err(e) => {
+                reporter.error(&e.to_string());
+                false
+            }
+        };
+    }
+    match staged.abandon() {
+        Ok(kept) => reporter.error(&format!(
+            "the experiment's previous folder is kept; what this run wrote is in {}",
+            kept.display()
+        )),
+        Err(e) => reporter.error(&e.to_string()),
+    }
+    false
+}
+
 /// Runs a tracked-sequence experiment into `folder`: whether its gates passed.
-fn run_tracked(m: &TrackedManifest, folder: &Path, reporter: &mut dyn Reporter) -> Result<bool, String> {
+fn run_tracked(m: &TrackedManifest, folder: &Path, target: &Path, reporter: &mut dyn Reporter) -> Result<bool, String> {
     let started = SystemTime::now();
     reporter.dataset_started(&m.experiment, &m.dataset);
     let run = tracked::run(&TrackedInputs::from_manifest(m), m.min_frames)
@@ -205,7 +320,12 @@ fn run_tracked(m: &TrackedManifest, folder: &Path, reporter: &mut dyn Reporter) 
         Some(p) => Some(PlusResult::read(p).map_err(|e| e.to_string())?),
         None => None,
     };
-    reporter.tracked_done(m, &run, plus.as_ref(), &folder.join(&m.dataset), started)?;
+    let (write_to, final_path) = (folder.join(&m.dataset), target.join(&m.dataset));
+    let run_folder = RunFolder {
+        write_to: &write_to,
+        final_path: &final_path,
+    };
+    reporter.tracked_done(m, &run, plus.as_ref(), &run_folder, started)?;
     let gates = tracked::gates(&run, m);
     for g in gates.iter().filter(|g| !g.passed) {
         reporter.gate_failed(&format!(

@@ -120,7 +120,11 @@ pub fn find_summaries(inputs: &[PathBuf]) -> Result<Vec<FoundSummary>, CheckErro
                     message: e.to_string(),
                 })?
                 .path();
-            if !experiment.is_dir() {
+            // Dot folders are a run's unfinished or failed writes, never results.
+            let hidden = experiment
+                .file_name()
+                .is_some_and(|n| n.to_string_lossy().starts_with('.'));
+            if !experiment.is_dir() || hidden {
                 continue;
             }
             for dataset in read(&experiment)? {
@@ -131,6 +135,17 @@ pub fn find_summaries(inputs: &[PathBuf]) -> Result<Vec<FoundSummary>, CheckErro
                     })?
                     .path();
                 if dataset.join("summary.json").is_file() {
+                    // A run writes these with its summary; without them the folder is not a
+                    // complete run, whatever its summary says.
+                    if let Some(missing) = ["frames.csv", "report.html"]
+                        .iter()
+                        .find(|f| !dataset.join(f).is_file())
+                    {
+                        return Err(CheckError::Read {
+                            path: dataset.clone(),
+                            message: format!("an incomplete run folder: it has summary.json but no {missing}"),
+                        });
+                    }
                     found.push(dataset.join("summary.json"));
                 }
             }
@@ -148,6 +163,13 @@ pub fn find_summaries(inputs: &[PathBuf]) -> Result<Vec<FoundSummary>, CheckErro
                 path: path.clone(),
                 message,
             })?;
+            // The experiment's name picks its baseline file: it must be a plain name.
+            if let Some(fault) = crate::manifest::name_fault(summary.experiment()) {
+                return Err(CheckError::Read {
+                    path: path.clone(),
+                    message: format!("field `experiment`: {fault}"),
+                });
+            }
             Ok(FoundSummary {
                 experiment: summary.experiment().to_string(),
                 dataset: summary.dataset().to_string(),
@@ -209,15 +231,44 @@ pub fn load_baseline(path: &Path) -> Result<Baseline, CheckError> {
         path: path.to_path_buf(),
         message: e.to_string(),
     })?;
-    serde_yaml::from_str(&text).map_err(|e| CheckError::Read {
+    let baseline: Baseline = serde_yaml::from_str(&text).map_err(|e| CheckError::Read {
         path: path.to_path_buf(),
         message: e.to_string(),
-    })
+    })?;
+    let bad = |message: String| CheckError::Read {
+        path: path.to_path_buf(),
+        message,
+    };
+    if baseline.datasets.is_empty() {
+        return Err(bad(
+            "holds no dataset: a baseline that judges nothing passes everything".into(),
+        ));
+    }
+    for (dataset, metrics) in &baseline.datasets {
+        if metrics.is_empty() {
+            return Err(bad(format!("dataset `{dataset}` has no metric")));
+        }
+        for (name, m) in metrics {
+            if !m.value.is_finite() {
+                return Err(bad(format!(
+                    "{dataset}.{name}.value is {}, not a finite number",
+                    m.value
+                )));
+            }
+            if !(m.tolerance.is_finite() && m.tolerance >= 0.0) {
+                return Err(bad(format!(
+                    "{dataset}.{name}.tolerance is {}, not a finite number of at least 0",
+                    m.tolerance
+                )));
+            }
+        }
+    }
+    Ok(baseline)
 }
 
 /// Writes the baselines of the given runs (one file per experiment), replacing the
 /// datasets they contain and keeping the others.
-pub fn update(runs: &[FoundSummary], baselines: &Path) -> Result<Vec<PathBuf>, CheckError> {
+pub fn update(runs: &[FoundSummary], baselines: &Path, allow_drop: bool) -> Result<Vec<PathBuf>, CheckError> {
     let mut by_experiment: BTreeMap<&str, Vec<&FoundSummary>> = BTreeMap::new();
     for r in runs {
         by_experiment.entry(&r.experiment).or_default().push(r);
@@ -248,6 +299,22 @@ pub fn update(runs: &[FoundSummary], baselines: &Path) -> Result<Vec<PathBuf>, C
                     )
                 })
                 .collect();
+            let m: BTreeMap<String, Metric> = m;
+            if let Some(previous) = baseline.datasets.get(&r.dataset) {
+                let dropped: Vec<&String> = previous.keys().filter(|k| !m.contains_key(*k)).collect();
+                if !dropped.is_empty() && !allow_drop {
+                    return Err(CheckError::Write {
+                        path: path.clone(),
+                        message: format!(
+                            "the run {} has no {}, which the baseline of `{}` judges; pass --allow-drop to drop {}",
+                            r.path.display(),
+                            dropped.iter().map(|k| format!("`{k}`")).collect::<Vec<_>>().join(", "),
+                            r.dataset,
+                            if dropped.len() == 1 { "it" } else { "them" }
+                        ),
+                    });
+                }
+            }
             baseline.datasets.insert(r.dataset.clone(), m);
         }
         let body = serde_yaml::to_string(&baseline).map_err(|e| CheckError::Write {
@@ -364,7 +431,7 @@ pub fn table(comparisons: &[Comparison]) -> String {
 
 /// `probecal check`: compares the runs with their baselines (or, with `update`,
 /// writes the baselines), prints the table and every failure; the exit code.
-pub fn run(runs: &[PathBuf], baselines: &Path, write_baselines: bool) -> u8 {
+pub fn run(runs: &[PathBuf], baselines: &Path, write_baselines: bool, allow_drop: bool) -> u8 {
     let summaries = match find_summaries(runs) {
         Ok(s) => s,
         Err(e) => {
@@ -373,7 +440,7 @@ pub fn run(runs: &[PathBuf], baselines: &Path, write_baselines: bool) -> u8 {
         }
     };
     if write_baselines {
-        return match update(&summaries, baselines) {
+        return match update(&summaries, baselines, allow_drop) {
             Ok(written) => {
                 for path in written {
                     println!("baseline written: {}", path.display());
@@ -476,7 +543,7 @@ mod tests {
             dataset: "d".into(),
             summary: summary(corner, rejected),
         };
-        update(&[run(0.30, 1)], &dir).unwrap();
+        update(&[run(0.30, 1)], &dir, false).unwrap();
         let verdict = |corner, rejected| {
             let c = compare(&[run(corner, rejected)], &dir).unwrap();
             let m = c.iter().find(|c| c.metric == "truth_corner_error_mm").unwrap();
@@ -501,6 +568,32 @@ mod tests {
         );
         assert_eq!(failed_gates(&[run(1.2, 0)]).len(), 1);
         assert!(failed_gates(&[run(0.3, 0)]).is_empty());
+        // A run without a metric the baseline judges does not silently drop it.
+        let mut fewer = run(0.3, 1);
+        if let RunSummary::Camera(s) = &mut fewer.summary {
+            s.truth = None;
+        }
+        let refused = update(std::slice::from_ref(&fewer), &dir, false).unwrap_err();
+        assert!(refused.to_string().contains("pass --allow-drop"), "{refused}");
+        update(&[fewer], &dir, true).unwrap();
+        // Baselines that judge nothing, or with numbers that are not numbers, are refused.
+        for (text, expect) in [
+            ("experiment: e\ndatasets: {}\n", "holds no dataset"),
+            ("experiment: e\ndatasets: {d: {}}\n", "dataset `d` has no metric"),
+            (
+                "experiment: e\ndatasets: {d: {m: {value: .nan, tolerance: 0.1}}}\n",
+                "d.m.value is NaN",
+            ),
+            (
+                "experiment: e\ndatasets: {d: {m: {value: 1.0, tolerance: -0.1}}}\n",
+                "d.m.tolerance is -0.1",
+            ),
+        ] {
+            let path = dir.join("bad.yaml");
+            std::fs::write(&path, text).unwrap();
+            let e = load_baseline(&path).unwrap_err().to_string();
+            assert!(e.contains(expect), "{e}");
+        }
         std::fs::remove_dir_all(&dir).ok();
     }
 }

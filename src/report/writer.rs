@@ -10,7 +10,7 @@ use super::summary::RunSummary;
 use crate::io::plus::result::PlusResult;
 use crate::manifest::tracked::TrackedManifest;
 use crate::manifest::Manifest;
-use crate::pipeline::experiment::Reporter;
+use crate::pipeline::experiment::{Reporter, RunFolder};
 use crate::pipeline::record::DatasetRun;
 use crate::pipeline::tracked::TrackedRun;
 
@@ -78,9 +78,10 @@ impl Reporter for ReportWriter {
         &mut self,
         manifest: &Manifest,
         run: &DatasetRun,
-        folder: &Path,
+        folder: &RunFolder<'_>,
         started: SystemTime,
     ) -> Result<(), String> {
+        let (shown, folder) = (folder.final_path, folder.write_to);
         let summary = super::write::write_dataset_run(run, manifest, folder).map_err(|e| e.to_string())?;
         let mut provenance = Provenance::new(
             &manifest.path,
@@ -94,7 +95,7 @@ impl Reporter for ReportWriter {
         provenance.timings_s = run.timings_s.iter().map(|(k, v)| (k.to_string(), *v)).collect();
         let written = provenance.write(folder).map_err(|e| e.to_string());
         if !self.quiet {
-            super::console::dataset_run(run, &summary, folder);
+            super::console::dataset_run(run, &summary, shown);
         }
         self.entries.push(index_entry(&RunSummary::Camera(Box::new(summary))));
         written
@@ -105,9 +106,10 @@ impl Reporter for ReportWriter {
         manifest: &TrackedManifest,
         run: &TrackedRun,
         plus: Option<&PlusResult>,
-        folder: &Path,
+        folder: &RunFolder<'_>,
         started: SystemTime,
     ) -> Result<(), String> {
+        let (shown, folder) = (folder.final_path, folder.write_to);
         let summary = super::tracked::write(run, manifest, plus, folder).map_err(|e| e.to_string())?;
         Provenance::new(
             &manifest.path,
@@ -120,7 +122,7 @@ impl Reporter for ReportWriter {
         .write(folder)
         .map_err(|e| e.to_string())?;
         if !self.quiet {
-            super::console::tracked_run(run, &summary, folder);
+            super::console::tracked_run(run, &summary, shown);
         }
         self.entries.push(index_entry(&RunSummary::Tracked(Box::new(summary))));
         Ok(())

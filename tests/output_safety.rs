@@ -1,0 +1,208 @@
+//! What a run does to the folders around it: it never deletes what it did not
+//! write, swaps an experiment's folder in only when it is complete, keeps the old
+//! one when a rerun fails or is killed, refuses names and folders that would
+//! collide, and lets one run at a time write into an output folder.
+
+mod common;
+
+use std::path::{Path, PathBuf};
+use std::process::Output;
+use std::time::{Duration, Instant};
+
+use common::{probecal, root, scratch};
+
+fn fixture_text() -> String {
+    std::fs::read_to_string(root().join("tests/fixtures/hemisphere_small.yaml")).unwrap()
+}
+
+fn datasets() -> PathBuf {
+    PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("output_safety_datasets")
+}
+
+fn run(manifests: &[&Path], out: &Path, force: bool) -> Output {
+    let mut cmd = probecal();
+    cmd.arg("run")
+        .args(manifests)
+        .arg("--out")
+        .arg(out)
+        .arg("--datasets")
+        .arg(datasets())
+        .arg("--quiet");
+    if force {
+        cmd.arg("--force");
+    }
+    cmd.output().unwrap()
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).to_string()
+}
+
+fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
+    std::fs::create_dir_all(dir).unwrap();
+    let path = dir.join(name);
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
+#[test]
+fn names_that_would_escape_or_collide_are_refused() {
+    let dir = scratch("output_safety", "names");
+    for (name, expect) in [
+        (
+            "..",
+            "field `experiment`: `..` must use only letters, digits, `_` and `-`",
+        ),
+        (".", "field `experiment`: `.` must use only letters"),
+        ("a/b", "must use only letters"),
+        ("study", "field `experiment`: `study` is reserved"),
+    ] {
+        let manifest = write(
+            &dir,
+            "m.yaml",
+            &fixture_text().replace("experiment: hemisphere_small", &format!("experiment: \"{name}\"")),
+        );
+        let out = probecal().arg("validate").arg(&manifest).output().unwrap();
+        assert_eq!(out.status.code(), Some(2), "{name}: {}", stderr(&out));
+        assert!(stderr(&out).contains(expect), "{name}: {}", stderr(&out));
+    }
+    let manifest = write(
+        &dir,
+        "m.yaml",
+        &fixture_text().replace("- name: small", "- name: ../small"),
+    );
+    let out = probecal().arg("validate").arg(&manifest).output().unwrap();
+    assert!(stderr(&out).contains("field `datasets[0].name`"), "{}", stderr(&out));
+}
+
+#[test]
+fn two_manifests_with_one_experiment_name_are_refused_before_any_work() {
+    let dir = scratch("output_safety", "twice");
+    let a = write(&dir, "a.yaml", &fixture_text());
+    let b = write(&dir, "b.yaml", &fixture_text());
+    let out = run(&[&a, &b], &dir.join("out"), false);
+    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+    assert!(
+        stderr(&out).contains("both name experiment `hemisphere_small`"),
+        "{}",
+        stderr(&out)
+    );
+    assert!(!dir.join("out/hemisphere_small").exists());
+}
+
+#[test]
+fn a_folder_holding_an_input_is_not_replaced() {
+    let dir = scratch("output_safety", "input_inside");
+    // The manifest sits inside the folder its experiment would replace.
+    let manifest = write(&dir.join("out/hemisphere_small"), "m.yaml", &fixture_text());
+    let out = run(&[&manifest], &dir.join("out"), true);
+    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+    assert!(
+        stderr(&out).contains("would be replaced, and it holds"),
+        "{}",
+        stderr(&out)
+    );
+    assert!(manifest.is_file(), "the input is still there");
+}
+
+#[test]
+#[ignore = "renders and runs an experiment, kills runs (full tier: scripts/test.sh)"]
+fn a_failed_or_killed_rerun_keeps_the_previous_report_and_one_run_writes_at_a_time() {
+    let dir = scratch("output_safety", "rerun");
+    let out_dir = dir.join("out");
+    let good = write(&dir, "good.yaml", &fixture_text());
+    let first = run(&[&good], &out_dir, false);
+    assert!(first.status.success(), "{}", stderr(&first));
+    let summary = out_dir.join("hemisphere_small/small/summary.json");
+    let before = std::fs::read(&summary).unwrap();
+    let baselines = dir.join("baselines");
+    let update = probecal()
+        .args(["check", "--update", "--baselines"])
+        .arg(&baselines)
+        .arg(&out_dir)
+        .output()
+        .unwrap();
+    assert!(update.status.success(), "{}", stderr(&update));
+
+    // A rerun that fails at run time (too few usable frames) keeps the old folder.
+    let failing = write(
+        &dir,
+        "failing.yaml",
+        &fixture_text().replace("min_frames: 6", "min_frames: 1000"),
+    );
+    let failed = run(&[&failing], &out_dir, true);
+    assert_eq!(failed.status.code(), Some(1), "{}", stderr(&failed));
+    assert!(
+        stderr(&failed).contains("previous folder is kept"),
+        "{}",
+        stderr(&failed)
+    );
+    assert_eq!(
+        std::fs::read(&summary).unwrap(),
+        before,
+        "the previous summary is untouched"
+    );
+    assert!(out_dir.join(".hemisphere_small.failed/manifest.yaml").is_file());
+
+    // A run holding the folder keeps a second one out.
+    std::fs::write(out_dir.join(".probecal.lock"), format!("{}\n", std::process::id())).unwrap();
+    let locked = run(&[&good], &out_dir, true);
+    assert_eq!(locked.status.code(), Some(2), "{}", stderr(&locked));
+    assert!(
+        stderr(&locked).contains("another probecal (process"),
+        "{}",
+        stderr(&locked)
+    );
+    std::fs::remove_file(out_dir.join(".probecal.lock")).unwrap();
+
+    // Killed mid-run (SIGKILL and SIGINT): the previous report is intact, nothing
+    // half-written sits where a reader would take it as complete, and the next
+    // run takes over the dead run's lock.
+    for signal in ["-KILL", "-INT"] {
+        let mut child = probecal()
+            .arg("run")
+            .arg(&good)
+            .arg("--out")
+            .arg(&out_dir)
+            .arg("--datasets")
+            .arg(datasets())
+            .arg("--force")
+            .arg("--quiet")
+            .spawn()
+            .unwrap();
+        // Wait until it has started writing, then kill it.
+        let started = Instant::now();
+        while !out_dir.join(".hemisphere_small.partial").exists() && started.elapsed() < Duration::from_secs(60) {
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        let killed = std::process::Command::new("kill")
+            .arg(signal)
+            .arg(child.id().to_string())
+            .status()
+            .unwrap();
+        assert!(killed.success());
+        let status = child.wait().unwrap();
+        assert!(!status.success(), "{signal}: the run was not cut off");
+        assert_eq!(
+            std::fs::read(&summary).unwrap(),
+            before,
+            "{signal}: the previous summary changed"
+        );
+        let check = probecal()
+            .arg("check")
+            .arg(&out_dir)
+            .arg("--baselines")
+            .arg(&baselines)
+            .output()
+            .unwrap();
+        assert!(check.status.success(), "{signal}: {}", stderr(&check));
+    }
+    let again = run(&[&good], &out_dir, true);
+    assert!(again.status.success(), "{}", stderr(&again));
+    assert_eq!(
+        std::fs::read(&summary).unwrap(),
+        before,
+        "the same inputs give the same summary"
+    );
+    assert!(!out_dir.join(".hemisphere_small.partial").exists());
+}
