@@ -48,9 +48,9 @@ enum Command {
     Run {
         #[command(flatten)]
         args: RunArgs,
-        /// Worker threads (0: one per core). Outputs do not depend on it.
-        #[arg(long, default_value_t = 0)]
-        threads: usize,
+        /// Worker threads (0: one per core; at most 256). Outputs do not depend on it.
+        #[arg(long, default_value_t = 0, value_parser = clap::value_parser!(u16).range(0..=probecal::core::limits::MAX_THREADS as i64))]
+        threads: u16,
     },
     /// Run several experiments and lay them side by side (rigs as columns).
     Compare {
@@ -214,7 +214,7 @@ fn main() -> ExitCode {
     }
     // Every command runs with the same thread setting (OpenCV's included).
     probecal::core::parallel::set_threads(match &cli.command {
-        Command::Run { threads, .. } => *threads,
+        Command::Run { threads, .. } => usize::from(*threads),
         _ => 0,
     });
     ExitCode::from(match cli.command {

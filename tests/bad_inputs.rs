@@ -364,6 +364,58 @@ const CASES: &[Case] = &[
         expect: "plausibility,camera_T_marker puts its board 1000",
         in_output: "frames",
     },
+    Case {
+        name: "a B-scan whose PNG header claims 50000x50000 px is refused before decoding",
+        setup: |d| {
+            let mut bytes = png(8, 8, 40);
+            bytes[16..20].copy_from_slice(&50_000u32.to_be_bytes());
+            bytes[20..24].copy_from_slice(&50_000u32.to_be_bytes());
+            replace_photo(d, Some(bytes), true)
+        },
+        args: run,
+        code: 0,
+        expect: "image is 50000x50000 px, more than the 100000000 pixels probecal decodes",
+        in_output: "frames",
+    },
+    Case {
+        name: "a frame number wider than 32 bits is refused, not truncated",
+        setup: |d| {
+            standard(d);
+            let list = edit_line(&frame_list(14), 2, |l| l.replacen("0,", "4294967296,", 1));
+            std::fs::write(d.join("session/frames.csv"), list).unwrap();
+        },
+        args: run,
+        code: 1,
+        expect: "frames.csv:2: frame 4294967296 is above 4294967295, the largest frame number",
+        in_output: "stderr",
+    },
+    Case {
+        name: "a manifest nested past the limit is refused before parsing",
+        setup: |d| {
+            let deep = format!("{}{}", "[".repeat(40), "]".repeat(40));
+            with_manifest(
+                d,
+                "experiment: lab_run\n",
+                &format!("experiment: lab_run\ndescription: {deep}\n"),
+            )
+        },
+        args: validate,
+        code: 2,
+        expect: "experiment.yaml:2: nested 33 levels deep; a manifest nests at most 32",
+        in_output: "stderr",
+    },
+    Case {
+        name: "more worker threads than the limit",
+        setup: standard,
+        args: |d| {
+            let mut a = run(d);
+            a.extend(["--threads".into(), "1000".into()]);
+            a
+        },
+        code: 2,
+        expect: "1000 is not in 0..=256",
+        in_output: "stderr",
+    },
     // Manifests: each names the file, the field and the line; nothing runs.
     Case {
         name: "unknown key",

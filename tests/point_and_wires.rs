@@ -124,7 +124,9 @@ fn wire_dots_are_found_on_their_wires() {
 }
 
 fn run(name: &str) -> Value {
-    let out = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("point_and_wires_runs");
+    let out = PathBuf::from(env!("CARGO_TARGET_TMPDIR"))
+        .join("point_and_wires_runs")
+        .join(name);
     let result = Command::new(env!("CARGO_BIN_EXE_probecal"))
         .arg("run")
         .arg(fixture(name))

@@ -1,6 +1,7 @@
 //! The numeric core: frames and rigid transforms, the random generator, the
 //! Levenberg–Marquardt solver, statistics, the thread pool and progress bars.
 pub mod geometry;
+pub mod limits;
 pub mod lm;
 pub mod parallel;
 pub mod progress;

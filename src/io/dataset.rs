@@ -4,6 +4,7 @@
 //! A dataset tracked without a camera may leave `camera_image` empty.
 
 use super::csv;
+use crate::core::limits::MAX_FRAMES;
 use std::path::{Path, PathBuf};
 
 /// Name of the frame list inside a dataset folder.
@@ -68,6 +69,15 @@ pub fn parse_frame_list(folder: &Path, text: &str) -> Result<Vec<FrameFiles>, Da
             )));
         }
         let frame = csv::frame_number(fields[0]).map_err(fail)?;
+        if frame > u32::MAX as usize {
+            return Err(fail(format!(
+                "frame {frame} is above {}, the largest frame number",
+                u32::MAX
+            )));
+        }
+        if frames.len() >= MAX_FRAMES {
+            return Err(fail(format!("more than {MAX_FRAMES} frames")));
+        }
         if frames.iter().any(|f| f.frame == frame) {
             return Err(fail(format!("frame {frame} is listed twice")));
         }

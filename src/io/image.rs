@@ -1,5 +1,6 @@
 //! 8-bit grey images on disk and their exchange with OpenCV.
 
+use crate::core::limits::{MAX_IMAGE_PIXELS, MAX_IMAGE_SIDE_PX};
 use std::path::{Path, PathBuf};
 
 use opencv::core::{Mat, Vector, CV_8UC1};
@@ -22,6 +23,13 @@ pub enum ImageError {
         got_h: i32,
         want_w: u32,
         want_h: u32,
+    },
+    #[error("{path}: image is {width}x{height} px, more than the {limit} pixels probecal decodes")]
+    TooLarge {
+        path: PathBuf,
+        width: u64,
+        height: u64,
+        limit: u64,
     },
     #[error("{path}: cannot write image: {message}")]
     Write { path: PathBuf, message: String },
@@ -81,6 +89,31 @@ pub fn encode_png_bgr(bgr: &[u8], width: usize, height: usize) -> Result<Vec<u8>
     Ok(buffer.to_vec())
 }
 
+/// Width and height from a PNG's or a JPEG's header, read before decoding; `None`
+/// for other formats or a header that cannot be read (the decoder then says so).
+pub fn header_size(bytes: &[u8]) -> Option<(u64, u64)> {
+    let be16 = |i: usize| Some(u16::from_be_bytes([*bytes.get(i)?, *bytes.get(i + 1)?]) as u64);
+    let be32 = |i: usize| Some(u32::from_be_bytes(bytes.get(i..i + 4)?.try_into().ok()?) as u64);
+    if bytes.starts_with(b"\x89PNG\r\n\x1a\n") && bytes.get(12..16) == Some(b"IHDR") {
+        return Some((be32(16)?, be32(20)?));
+    }
+    if bytes.starts_with(&[0xFF, 0xD8]) {
+        // Segments up to the first start-of-frame marker (SOF0..SOF15 but DHT, JPG, DAC).
+        let mut i = 2;
+        while i + 4 <= bytes.len() {
+            if bytes[i] != 0xFF {
+                return None;
+            }
+            let marker = bytes[i + 1];
+            if (0xC0..=0xCF).contains(&marker) && ![0xC4, 0xC8, 0xCC].contains(&marker) {
+                return Some((be16(i + 7)?, be16(i + 5)?));
+            }
+            i += 2 + be16(i + 2)? as usize;
+        }
+    }
+    None
+}
+
 /// Reads an image file as 8-bit grey, saying exactly what is wrong with a bad one.
 pub fn read_gray(path: &Path) -> Result<Mat, ImageError> {
     let meta = std::fs::metadata(path).map_err(|_| ImageError::Missing {
@@ -94,6 +127,16 @@ pub fn read_gray(path: &Path) -> Result<Mat, ImageError> {
     let bytes = std::fs::read(path).map_err(|_| ImageError::Missing {
         path: path.to_path_buf(),
     })?;
+    if let Some((width, height)) = header_size(&bytes) {
+        if width * height > MAX_IMAGE_PIXELS || width.max(height) > MAX_IMAGE_SIDE_PX {
+            return Err(ImageError::TooLarge {
+                path: path.to_path_buf(),
+                width,
+                height,
+                limit: MAX_IMAGE_PIXELS,
+            });
+        }
+    }
     let buffer = Vector::<u8>::from_slice(&bytes);
     let mat = imgcodecs::imdecode(&buffer, imgcodecs::IMREAD_GRAYSCALE).map_err(|_| ImageError::Undecodable {
         path: path.to_path_buf(),
@@ -160,4 +203,25 @@ pub fn gaussian_blur_f32(
     )?;
     levels.copy_from_slice(dst.data_typed::<f32>()?);
     Ok(())
+}
+
+#[cfg(test)]
+mod header_tests {
+    use super::*;
+
+    #[test]
+    fn png_and_jpeg_headers_give_the_size_before_decoding() {
+        let mat = Mat::new_rows_cols_with_default(30, 40, CV_8UC1, opencv::core::Scalar::all(9.0)).unwrap();
+        for ext in [".png", ".jpg"] {
+            let mut buffer = Vector::<u8>::new();
+            imgcodecs::imencode(ext, &mat, &mut buffer, &Vector::new()).unwrap();
+            assert_eq!(header_size(buffer.as_slice()), Some((40, 30)), "{ext}");
+        }
+        assert_eq!(header_size(b"GIF89a"), None);
+        assert_eq!(
+            header_size(&[0xFF, 0xD8, 0xFF]),
+            None,
+            "a cut-off header is left to the decoder"
+        );
+    }
 }

@@ -6,6 +6,7 @@ use sha2::{Digest, Sha256};
 use std::path::{Path, PathBuf};
 
 use super::*;
+use crate::core::limits::{MAX_BOARD_CORNERS, MAX_YAML_DEPTH};
 
 pub(crate) struct Checker<'a> {
     pub(crate) file: &'a Path,
@@ -92,6 +93,12 @@ impl Checker<'_> {
         if board.inner_corners[0] < 2 || board.inner_corners[1] < 2 {
             self.fail(&format!("{field}.inner_corners"), "needs at least 2x2 inner corners");
         }
+        if board.inner_corners.iter().any(|&n| n > MAX_BOARD_CORNERS) {
+            self.fail(
+                &format!("{field}.inner_corners"),
+                format!("at most {MAX_BOARD_CORNERS} inner corners per side"),
+            );
+        }
         self.positive(&format!("{field}.square_mm"), board.square_mm);
     }
 
@@ -126,10 +133,52 @@ fn strip_position<'a>(message: &'a str, field: &str) -> &'a str {
 }
 
 /// Deserialises YAML into `T`, locating an error by file, field path and line.
+/// The first line (1-based) where the YAML nests deeper than [`MAX_YAML_DEPTH`]
+/// (indented blocks and `[`/`{` inside each other), and how deep; checked before
+/// parsing, whose time grows fast with the depth.
+pub(super) fn too_deep(text: &str) -> Option<(usize, usize)> {
+    let mut indents: Vec<usize> = Vec::new();
+    let mut flow = 0usize;
+    for (i, line) in text.lines().enumerate() {
+        let content = line.trim_start();
+        if flow == 0 && !(content.is_empty() || content.starts_with('#')) {
+            let indent = line.len() - content.len();
+            while indents.last().is_some_and(|&top| top >= indent) {
+                indents.pop();
+            }
+            indents.push(indent);
+        }
+        let mut quote = None;
+        for c in content.chars() {
+            match (quote, c) {
+                (None, '#') => break,
+                (None, '"' | '\'') => quote = Some(c),
+                (Some(q), c) if c == q => quote = None,
+                (None, '[' | '{') => flow += 1,
+                (None, ']' | '}') => flow = flow.saturating_sub(1),
+                _ => {}
+            }
+            let depth = indents.len() + flow;
+            if depth > MAX_YAML_DEPTH {
+                return Some((i + 1, depth));
+            }
+        }
+    }
+    None
+}
+
 pub(crate) fn deserialize_located<T: serde::de::DeserializeOwned>(
     path: &Path,
     text: &str,
 ) -> Result<T, ManifestErrors> {
+    if let Some((line, depth)) = too_deep(text) {
+        return Err(ManifestErrors(vec![ManifestError {
+            file: path.to_path_buf(),
+            field: String::new(),
+            line: Some(line),
+            message: format!("nested {depth} levels deep; a manifest nests at most {MAX_YAML_DEPTH}"),
+        }]));
+    }
     let deserializer = serde_yaml::Deserializer::from_str(text);
     serde_path_to_error::deserialize(deserializer).map_err(|e| {
         let field = e.path().to_string();

@@ -395,3 +395,17 @@ fn shipped_experiments_validate() {
     }
     assert!(count >= 1, "no experiments found in {}", dir.display());
 }
+
+#[test]
+fn nesting_past_the_limit_is_refused_with_its_line() {
+    let deep = format!("{}{}", "[".repeat(40), "]".repeat(40));
+    let text = GOOD.replacen(
+        "experiment: demo\n",
+        &format!("experiment: demo\ndescription: {deep}\n"),
+        1,
+    );
+    let e = parse(&text).unwrap_err().to_string();
+    assert!(e.contains(":2: nested 33 levels deep"), "{e}");
+    let shallow = format!("{}{}", "[".repeat(20), "]".repeat(20));
+    assert!(checker::too_deep(&format!("a: {shallow}\nb:\n  c: 1\n")).is_none());
+}

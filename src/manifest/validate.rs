@@ -8,6 +8,7 @@ use raw::SolveVariant;
 use std::path::{Path, PathBuf};
 
 use super::*;
+use crate::core::limits::{MAX_BOARD_MARKERS, MAX_CALIBRATION_VIEWS, MAX_FRAMES, MAX_IMAGE_PIXELS};
 
 pub(super) fn validate(c: &mut Checker<'_>, base: &Path, raw: raw::RawManifest, path: &Path, text: &str) -> Manifest {
     c.name("experiment", &raw.experiment);
@@ -93,6 +94,25 @@ fn validate_render(c: &mut Checker<'_>, field: &str, spec: &RenderSpec) {
         c.fail(
             &format!("{field}.frames"),
             format!("at least 3 frames are needed, got {}", spec.frames),
+        );
+    }
+    if spec.frames > MAX_FRAMES {
+        c.fail(
+            &format!("{field}.frames"),
+            format!("at most {MAX_FRAMES} frames, got {}", spec.frames),
+        );
+    }
+    if spec.calibration_views > MAX_CALIBRATION_VIEWS {
+        c.fail(
+            &format!("{field}.calibration_views"),
+            format!("at most {MAX_CALIBRATION_VIEWS} views, got {}", spec.calibration_views),
+        );
+    }
+    let pixels = spec.camera.image_size_px[0] as u64 * spec.camera.image_size_px[1] as u64;
+    if pixels > MAX_IMAGE_PIXELS {
+        c.fail(
+            &format!("{field}.camera.image_size_px"),
+            format!("at most {MAX_IMAGE_PIXELS} pixels, got {pixels}"),
         );
     }
     if spec.calibration_views < 4 {
@@ -315,12 +335,16 @@ fn rig_section(c: &mut Checker<'_>, raw: &raw::RawManifest) {
         }
         for (name, b) in [("probe_board", probe_board), ("phantom_board", phantom_board)] {
             let field = format!("rig.aruco.{name}");
-            if b.markers[0] < 1 || b.markers[1] < 1 {
-                c.fail(&format!("{field}.markers"), "needs at least 1x1 markers");
+            if b.markers[0] < 1 || b.markers[1] < 1 || b.markers.iter().any(|&n| n > MAX_BOARD_MARKERS) {
+                c.fail(
+                    &format!("{field}.markers"),
+                    format!("1x1 to {MAX_BOARD_MARKERS}x{MAX_BOARD_MARKERS} markers"),
+                );
+                continue;
             }
             c.positive(&format!("{field}.marker_mm"), b.marker_mm);
             c.at_least(&format!("{field}.separation_mm"), b.separation_mm, 0.0);
-            let last = b.first_id as usize + (b.markers[0] * b.markers[1]) as usize;
+            let last = b.first_id as usize + b.markers[0] as usize * b.markers[1] as usize;
             if let Some((count, _)) = size {
                 if last > count {
                     c.fail(
@@ -334,7 +358,10 @@ fn rig_section(c: &mut Checker<'_>, raw: &raw::RawManifest) {
                 }
             }
         }
-        let range = |b: &ArucoBoard| b.first_id..b.first_id + b.markers[0] * b.markers[1];
+        let range = |b: &ArucoBoard| {
+            let first = b.first_id as u64;
+            first..first + b.markers[0].min(MAX_BOARD_MARKERS) as u64 * b.markers[1].min(MAX_BOARD_MARKERS) as u64
+        };
         let (p, q) = (range(probe_board), range(phantom_board));
         if p.start < q.end && q.start < p.end {
             c.fail(

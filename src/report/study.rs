@@ -4,6 +4,7 @@ use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 
+use crate::core::limits::MAX_SEEDS;
 use crate::pipeline::study::{MonteCarlo, SigmaRow};
 use crate::report::summary::to_text;
 
@@ -143,7 +144,14 @@ pub fn command(manifest: &Path, seeds: u64, first_seed: u64, out: &Path, dataset
     };
     crate::core::progress::set_quiet(true);
     let sigma = crate::pipeline::study::sigma_table(50, 200, 1);
-    let seeds: Vec<u64> = (first_seed..first_seed + seeds).collect();
+    let last = first_seed.checked_add(seeds).filter(|_| seeds <= MAX_SEEDS);
+    let Some(last) = last else {
+        eprintln!(
+            "error: --seeds {seeds} from --first-seed {first_seed}: at most {MAX_SEEDS} seeds, and the last below 2^64"
+        );
+        return 2;
+    };
+    let seeds: Vec<u64> = (first_seed..last).collect();
     let monte_carlo = if seeds.is_empty() {
         None
     } else {
