@@ -98,3 +98,26 @@ fn too_few_views_is_a_clear_error() {
         "{wrong_board}"
     );
 }
+
+#[test]
+#[ignore = "needs ../shared/data (full tier: scripts/test.sh)"]
+fn one_photo_repeated_as_every_view_is_refused() {
+    let dir = std::path::PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("repeated_views");
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    for i in 0..6 {
+        std::fs::copy(data().join("left01.jpg"), dir.join(format!("view{i}.jpg"))).unwrap();
+    }
+    let out = common::probecal()
+        .arg("calibrate-camera")
+        .arg(&dir)
+        .args(["--board", "9x6", "--square-mm", "25", "--out"])
+        .arg(dir.join("camera.yml"))
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("was found in 1 of 6 views"), "{stderr}");
+    assert!(stderr.contains("the same view as"), "{stderr}");
+    assert!(!dir.join("camera.yml").exists());
+}

@@ -33,7 +33,18 @@ pub struct CameraCalibration {
     pub views: Vec<CalibrationView>,
     pub inner_corners: [u32; 2],
     pub square_mm: f64,
+    /// What the views leave poorly constrained (the calibration is kept).
+    pub warnings: Vec<String>,
 }
+
+/// A view whose every corner lies within this many pixels of an earlier view's
+/// is the same view again: it adds nothing, and repeated it would make one pose
+/// look like many.
+pub const DUPLICATE_VIEW_PX: f64 = 0.5;
+
+/// Views whose boards all face the camera within this angle of each other leave
+/// the focal length and the board distance confounded.
+pub const MIN_ORIENTATION_SPREAD_DEG: f64 = 10.0;
 
 #[derive(Debug, thiserror::Error)]
 pub enum CalibrationError {
@@ -122,6 +133,7 @@ pub fn calibrate(
     let mut imagep = Vector::<Vector<opencv::core::Point2f>>::new();
     let mut size: Option<(PathBuf, Size)> = None;
     let mut used_index: Vec<usize> = Vec::new();
+    let mut used_corners: Vec<Vec<[f64; 2]>> = Vec::new();
     for path in images {
         let image = match read_gray(path) {
             Ok(m) => m,
@@ -151,17 +163,32 @@ pub fn calibrate(
             _ => {}
         }
         match detect_chessboard_reduced(&image, inner_corners, subpix, SEARCH_MAX_SIDE_PX)? {
-            Some(corners) => {
-                object.push(board_points.clone());
-                imagep.push(image_points(&corners));
-                used_index.push(views.len());
-                views.push(CalibrationView {
-                    image: path.clone(),
-                    used: true,
-                    reason: None,
-                    rms_px: None,
-                });
-            }
+            Some(corners) => match duplicate_of(&corners, &used_corners) {
+                Some(same) => {
+                    let shift_px = max_shift_px(&corners, &used_corners[same]);
+                    let earlier = views[used_index[same]].image.display().to_string();
+                    views.push(CalibrationView {
+                        image: path.clone(),
+                        used: false,
+                        reason: Some(format!(
+                            "the same view as {earlier} (every corner within {shift_px:.2} px): it adds nothing"
+                        )),
+                        rms_px: None,
+                    });
+                }
+                None => {
+                    used_corners.push(corners.clone());
+                    object.push(board_points.clone());
+                    imagep.push(image_points(&corners));
+                    used_index.push(views.len());
+                    views.push(CalibrationView {
+                        image: path.clone(),
+                        used: true,
+                        reason: None,
+                        rms_px: None,
+                    });
+                }
+            },
             None => views.push(CalibrationView {
                 image: path.clone(),
                 used: false,
@@ -217,11 +244,20 @@ pub fn calibrate(
     for (i, view_index) in used_index.iter().enumerate() {
         views[*view_index].rms_px = Some(solved.per_view[i]);
     }
+    let mut warnings = Vec::new();
+    if solved.orientation_spread_deg < MIN_ORIENTATION_SPREAD_DEG {
+        warnings.push(format!(
+            "the boards of the {} views used face the camera within {:.1}° of each other (less than {MIN_ORIENTATION_SPREAD_DEG}°): the focal length is poorly constrained; add views with the board tilted",
+            used_index.len(),
+            solved.orientation_spread_deg
+        ));
+    }
     let Solved {
         camera_matrix: k,
         distortion: d,
         rms,
         per_view,
+        ..
     } = solved;
     Ok(CameraCalibration {
         intrinsics: CameraIntrinsics {
@@ -234,7 +270,23 @@ pub fn calibrate(
         views,
         inner_corners,
         square_mm,
+        warnings,
     })
+}
+
+/// The largest distance between corresponding corners of two views, px.
+fn max_shift_px(a: &[[f64; 2]], b: &[[f64; 2]]) -> f64 {
+    a.iter()
+        .zip(b)
+        .map(|(p, q)| ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2)).sqrt())
+        .fold(0.0, f64::max)
+}
+
+/// The earlier view these corners repeat, if any (see [`DUPLICATE_VIEW_PX`]).
+fn duplicate_of(corners: &[[f64; 2]], earlier: &[Vec<[f64; 2]>]) -> Option<usize> {
+    earlier
+        .iter()
+        .position(|e| e.len() == corners.len() && max_shift_px(corners, e) < DUPLICATE_VIEW_PX)
 }
 
 /// A view is an outlier above this multiple of the median per-view RMS...
@@ -247,6 +299,8 @@ struct Solved {
     distortion: [f64; 5],
     rms: f64,
     per_view: Vec<f64>,
+    /// The largest angle between two views' board normals, degrees.
+    orientation_spread_deg: f64,
 }
 
 /// `calibrateCamera` (flags 0) and the per-view RMS, as OpenCV's sample computes it.
@@ -297,11 +351,25 @@ fn solve(
             .sum();
         per_view.push((sum / measured.len() as f64).sqrt());
     }
+    let mut normals = Vec::new();
+    for r in rvecs.iter() {
+        let mut rotation = Mat::default();
+        calib3d::rodrigues_def(&r, &mut rotation)?;
+        // The board's z axis in the camera frame: the rotation's third column.
+        let column = |row: i32| rotation.at_2d::<f64>(row, 2).copied();
+        normals.push(nalgebra::Vector3::new(column(0)?, column(1)?, column(2)?));
+    }
+    let orientation_spread_deg = normals
+        .iter()
+        .enumerate()
+        .flat_map(|(i, a)| normals[i + 1..].iter().map(move |b| a.angle(b).to_degrees()))
+        .fold(0.0, f64::max);
     Ok(Solved {
         camera_matrix: k,
         distortion: d,
         rms,
         per_view,
+        orientation_spread_deg,
     })
 }
 
@@ -322,4 +390,62 @@ pub fn calibrate_folder(
     square_mm: f64,
 ) -> Result<CameraCalibration, CalibrationError> {
     calibrate_from(&[folder.to_path_buf()], inner_corners, square_mm)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Board corners seen by a known camera from boards tilted by `tilt_deg` at most.
+    fn views(
+        tilt_deg: f64,
+    ) -> (
+        Vector<Vector<opencv::core::Point3f>>,
+        Vector<Vector<opencv::core::Point2f>>,
+    ) {
+        let layout = BoardLayout {
+            inner_corners: [9, 6],
+            square_mm: 30.0,
+            id_dots: 0,
+        };
+        let board = object_points(&layout.corners_in_board_mm());
+        let k = Mat::from_slice_2d(&[[1000.0, 0.0, 640.0], [0.0, 1000.0, 360.0], [0.0, 0.0, 1.0]]).unwrap();
+        let mut object = Vector::new();
+        let mut image = Vector::new();
+        for i in 0..8 {
+            let a = (i as f64 / 7.0 - 0.5) * tilt_deg.to_radians();
+            let r = [a, -0.7 * a, 0.1 * i as f64];
+            let t = [-120.0 + 10.0 * i as f64, -75.0, 900.0 + 40.0 * i as f64];
+            let rvec = Mat::from_slice(&r).unwrap();
+            let tvec = Mat::from_slice(&t).unwrap();
+            let mut projected = Vector::<opencv::core::Point2f>::new();
+            calib3d::project_points_def(&board, &rvec, &tvec, &k, &Mat::default(), &mut projected).unwrap();
+            object.push(board.clone());
+            image.push(projected);
+        }
+        (object, image)
+    }
+
+    #[test]
+    fn the_orientation_spread_of_the_views_is_measured() {
+        let (object, image) = views(40.0);
+        let wide = solve(&object, &image, Size::new(1280, 720)).unwrap();
+        assert!(wide.orientation_spread_deg > 30.0, "{}", wide.orientation_spread_deg);
+        let (object, image) = views(2.0);
+        let flat = solve(&object, &image, Size::new(1280, 720)).unwrap();
+        assert!(
+            flat.orientation_spread_deg < MIN_ORIENTATION_SPREAD_DEG,
+            "{}",
+            flat.orientation_spread_deg
+        );
+    }
+
+    #[test]
+    fn a_repeated_view_is_found() {
+        let a = vec![[10.0, 20.0], [30.0, 40.0]];
+        let moved = vec![[10.3, 20.0], [30.0, 40.2]];
+        let other = vec![[15.0, 20.0], [30.0, 40.0]];
+        assert_eq!(duplicate_of(&moved, std::slice::from_ref(&a)), Some(0));
+        assert_eq!(duplicate_of(&other, &[a]), None);
+    }
 }

@@ -121,6 +121,9 @@ pub fn camera_calibration(cal: &CameraCalibration) {
             _ => {}
         }
     }
+    for w in &cal.warnings {
+        eprintln!("warning: {w}");
+    }
     let k = &cal.intrinsics;
     println!(
         "fx {:.4} fy {:.4} cx {:.4} cy {:.4} px; distortion {:?}; RMS {:.6} px",
