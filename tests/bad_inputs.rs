@@ -416,6 +416,35 @@ const CASES: &[Case] = &[
         expect: "1000 is not in 0..=256",
         in_output: "stderr",
     },
+    Case {
+        name: "a B-scan of another size than the dataset's is rejected with both sizes",
+        setup: |d| {
+            use opencv::prelude::*;
+            // The real B-scan with 24 more columns: its arc is still found.
+            let bscan = lab().join("shared/frames/bscan_002.png");
+            let image = probecal::io::image::read_gray(&bscan).unwrap();
+            let mut wider = opencv::core::Mat::default();
+            opencv::core::copy_make_border(
+                &image,
+                &mut wider,
+                0,
+                0,
+                0,
+                24,
+                opencv::core::BORDER_CONSTANT,
+                opencv::core::Scalar::all(0.0),
+            )
+            .unwrap();
+            let mut png = opencv::core::Vector::<u8>::new();
+            opencv::imgcodecs::imencode(".png", &wider, &mut png, &opencv::core::Vector::new()).unwrap();
+            assert_eq!(wider.cols(), image.cols() + 24);
+            replace_photo(d, Some(png.to_vec()), true)
+        },
+        args: run,
+        code: 0,
+        expect: "session/local/bscan_002.png: image is 825x601 px, expected 801x601",
+        in_output: "frames",
+    },
     // Manifests: each names the file, the field and the line; nothing runs.
     Case {
         name: "unknown key",

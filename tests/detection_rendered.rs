@@ -277,3 +277,41 @@ fn outlier_calibration_view_is_dropped_with_its_reason() {
     println!("outlier view dropped; RMS after {rms:.3} px");
     assert!(rms < 0.12, "RMS {rms}");
 }
+
+#[test]
+#[ignore = "renders datasets (full tier: scripts/test.sh)"]
+fn a_damaged_rendered_cache_is_rendered_again() {
+    use probecal::synth::{ensure_rendered, RenderOutcome};
+    let (manifest, _, _) = rendered();
+    let DatasetSource::Render(spec) = &manifest.datasets[0].source else {
+        unreachable!()
+    };
+    let mut one = (**spec).clone();
+    one.frames = 3;
+    one.calibration_views = 4;
+    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("damaged_cache");
+    let _ = std::fs::remove_dir_all(&dir);
+    let lab = probecal::pipeline::settings::lab(&manifest);
+    assert_eq!(ensure_rendered(&lab, &one, &dir).unwrap(), RenderOutcome::Rendered);
+    assert_eq!(ensure_rendered(&lab, &one, &dir).unwrap(), RenderOutcome::UpToDate);
+    let photo = dir.join("frames/camera_001.png");
+    let good = std::fs::read(&photo).unwrap();
+    for (damage, expect) in [
+        (Some(good[..good.len() / 2].to_vec()), "frames/camera_001.png has"),
+        (None, "frames/camera_001.png is missing"),
+        (
+            Some([&good[..100], &[0u8; 1][..], &good[101..]].concat()),
+            "differs from what was rendered",
+        ),
+    ] {
+        match &damage {
+            Some(bytes) => std::fs::write(&photo, bytes).unwrap(),
+            None => std::fs::remove_file(&photo).unwrap(),
+        }
+        match ensure_rendered(&lab, &one, &dir).unwrap() {
+            RenderOutcome::Repaired(reason) => assert!(reason.contains(expect), "{reason}"),
+            other => panic!("{expect}: {other:?}"),
+        }
+        assert_eq!(std::fs::read(&photo).unwrap(), good, "rendered again, byte for byte");
+    }
+}

@@ -11,7 +11,7 @@ use crate::detect::arc::{self, ArcSettings};
 use crate::detect::board_pose::{self, RigBoards};
 use crate::detect::spot::{self, Spot, SpotSettings};
 use crate::io::dataset::FrameFiles;
-use crate::io::image::{read_gray, read_gray_sized};
+use crate::io::image::{read_gray, read_gray_sized, ImageError};
 use crate::spec::phantom::Wire;
 
 /// The B-scan feature detector of a phantom.
@@ -193,5 +193,35 @@ pub fn process_all(
     .into_iter()
     .collect::<Result<Vec<_>, _>>()?;
     progress.finish();
+    let mut frames = frames;
+    one_bscan_size(&mut frames);
     Ok(frames)
+}
+
+/// A dataset's B-scans are one image size (its pixel size and geometry hold for
+/// one): a frame whose B-scan is not the size most of them have is rejected.
+fn one_bscan_size(frames: &mut [FrameRecord]) {
+    let mut counts: Vec<([usize; 2], usize)> = Vec::new();
+    for size in frames.iter().filter_map(|f| f.bscan_size_px) {
+        match counts.iter_mut().find(|(s, _)| *s == size) {
+            Some((_, n)) => *n += 1,
+            None => counts.push((size, 1)),
+        }
+    }
+    let Some(&(common, _)) = counts.iter().rev().max_by_key(|(_, n)| *n) else {
+        return;
+    };
+    for f in frames.iter_mut() {
+        if let Some(size) = f.bscan_size_px.filter(|s| *s != common) {
+            if f.rejection.is_none() {
+                f.rejection = Some(Rejection::BscanImage(ImageError::WrongSize {
+                    path: f.files.bscan_image.clone(),
+                    got_w: size[0] as i32,
+                    got_h: size[1] as i32,
+                    want_w: common[0] as u32,
+                    want_h: common[1] as u32,
+                }));
+            }
+        }
+    }
 }

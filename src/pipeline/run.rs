@@ -100,11 +100,7 @@ fn dataset_folder(
             log(&format!(
                 "dataset `{name}`: {} ({})",
                 folder.display(),
-                if outcome == synth::RenderOutcome::Rendered {
-                    "rendered"
-                } else {
-                    "up to date"
-                }
+                outcome_words(&outcome)
             ));
             Ok((folder, true))
         }
@@ -309,6 +305,15 @@ fn evaluate_gates(manifest: &Manifest, primary: &ThresholdRow, truth: Option<&Tr
     out
 }
 
+/// What a render did, in words.
+fn outcome_words(outcome: &synth::RenderOutcome) -> String {
+    match outcome {
+        synth::RenderOutcome::Rendered => "rendered".into(),
+        synth::RenderOutcome::UpToDate => "up to date".into(),
+        synth::RenderOutcome::Repaired(reason) => format!("rendered again: {reason}"),
+    }
+}
+
 /// Renders the datasets of a manifest without running the pipeline.
 pub fn synth_only(manifest: &Manifest, datasets_root: &Path, log: &mut dyn FnMut(&str)) -> Result<(), RunError> {
     for d in &manifest.datasets {
@@ -324,11 +329,7 @@ pub fn synth_only(manifest: &Manifest, datasets_root: &Path, log: &mut dyn FnMut
                 "dataset `{}`: {} ({}, {:.1} s)",
                 d.name,
                 folder.display(),
-                if outcome == synth::RenderOutcome::Rendered {
-                    "rendered"
-                } else {
-                    "up to date"
-                },
+                outcome_words(&outcome),
                 clock.elapsed().as_secs_f64()
             ));
         } else {

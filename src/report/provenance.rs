@@ -3,12 +3,13 @@
 //! count, start time. It is kept apart from the fingerprinted outputs (tables,
 //! summary, pages), which do not carry times or machine facts.
 
-use std::io::Read;
 use std::path::{Path, PathBuf};
 use std::time::{SystemTime, UNIX_EPOCH};
 
 use serde::Serialize;
 use sha2::{Digest, Sha256};
+
+use crate::io::fs::{file_sha256, hex};
 
 #[derive(Debug, Serialize)]
 pub struct InputFile {
@@ -78,27 +79,6 @@ impl Provenance {
             serde_json::to_string_pretty(self).map_err(|e| crate::report::write::OutputError::Report(e.to_string()))?;
         crate::io::fs::write_atomic(&folder.join("provenance.json"), text.as_bytes()).map_err(Into::into)
     }
-}
-
-/// SHA-256 of a file, streamed.
-pub fn file_sha256(path: &Path) -> std::io::Result<(u64, String)> {
-    let mut file = std::fs::File::open(path)?;
-    let mut hasher = Sha256::new();
-    let mut buffer = vec![0u8; 1 << 16];
-    let mut total = 0u64;
-    loop {
-        let n = file.read(&mut buffer)?;
-        if n == 0 {
-            break;
-        }
-        total += n as u64;
-        hasher.update(&buffer[..n]);
-    }
-    Ok((total, hex(&hasher.finalize())))
-}
-
-pub fn hex(bytes: &[u8]) -> String {
-    bytes.iter().map(|b| format!("{b:02x}")).collect()
 }
 
 /// Hashes input files (missing ones are listed with an empty hash).

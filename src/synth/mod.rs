@@ -123,6 +123,62 @@ pub fn render_inputs(lab: &Lab<'_>, spec: &RenderSpec) -> Result<RenderInputs, S
 pub enum RenderOutcome {
     Rendered,
     UpToDate,
+    /// The cached dataset was damaged (the reason) and was rendered again.
+    Repaired(String),
+}
+
+/// Every rendered file's SHA-256, size and path, checked before a cached dataset
+/// is reused: a deleted, truncated or altered file has it rendered again.
+pub const RENDERED_FILES: &str = "rendered_files.sha256";
+
+/// The files of a rendered folder, relative and sorted (the listing and the spec aside).
+fn rendered_files(folder: &Path) -> Result<Vec<String>, SynthError> {
+    fn walk(dir: &Path, root: &Path, out: &mut Vec<String>) -> std::io::Result<()> {
+        for entry in std::fs::read_dir(dir)? {
+            let path = entry?.path();
+            if path.is_dir() {
+                walk(&path, root, out)?;
+            } else if let Ok(rel) = path.strip_prefix(root) {
+                out.push(crate::io::fs::display_path(rel));
+            }
+        }
+        Ok(())
+    }
+    let mut out = Vec::new();
+    walk(folder, folder, &mut out).map_err(io_err(folder))?;
+    out.retain(|f| f != RENDERED_FILES && f != "render_spec.json");
+    out.sort();
+    Ok(out)
+}
+
+/// The listing of a rendered folder: `sha256 size path` per file.
+fn listing(folder: &Path) -> Result<String, SynthError> {
+    let mut text = String::new();
+    for rel in rendered_files(folder)? {
+        let (size, sha) = crate::io::fs::file_sha256(&folder.join(&rel)).map_err(io_err(folder))?;
+        text.push_str(&format!("{sha} {size} {rel}\n"));
+    }
+    Ok(text)
+}
+
+/// What is wrong with a cached rendered folder against its listing, if anything.
+fn damage(folder: &Path) -> Option<String> {
+    let Ok(listed) = std::fs::read_to_string(folder.join(RENDERED_FILES)) else {
+        return Some(format!("{RENDERED_FILES} is missing"));
+    };
+    for line in listed.lines() {
+        let mut parts = line.splitn(3, ' ');
+        let (Some(sha), Some(size), Some(rel)) = (parts.next(), parts.next(), parts.next()) else {
+            return Some(format!("{RENDERED_FILES} has a malformed line"));
+        };
+        match crate::io::fs::file_sha256(&folder.join(rel)) {
+            Err(_) => return Some(format!("{rel} is missing")),
+            Ok((n, _)) if n.to_string() != size => return Some(format!("{rel} has {n} bytes, {size} were rendered")),
+            Ok((_, h)) if h != sha => return Some(format!("{rel} differs from what was rendered")),
+            Ok(_) => {}
+        }
+    }
+    None
 }
 
 /// Renders `spec` into `folder` unless the folder already holds exactly this render.
@@ -133,10 +189,12 @@ pub fn ensure_rendered(lab: &Lab<'_>, spec: &RenderSpec, folder: &Path) -> Resul
         message: e.to_string(),
     })?;
     let spec_file = folder.join("render_spec.json");
-    if std::fs::read_to_string(&spec_file).ok().as_deref() == Some(inputs_json.as_str())
-        && folder.join(FRAME_LIST).is_file()
-    {
-        return Ok(RenderOutcome::UpToDate);
+    let mut outcome = RenderOutcome::Rendered;
+    if std::fs::read_to_string(&spec_file).ok().as_deref() == Some(inputs_json.as_str()) {
+        match damage(folder) {
+            None => return Ok(RenderOutcome::UpToDate),
+            Some(reason) => outcome = RenderOutcome::Repaired(reason),
+        }
     }
     let parent = folder.parent().map(Path::to_path_buf).unwrap_or_default();
     std::fs::create_dir_all(&parent).map_err(io_err(&parent))?;
@@ -149,12 +207,14 @@ pub fn ensure_rendered(lab: &Lab<'_>, spec: &RenderSpec, folder: &Path) -> Resul
         std::fs::remove_dir_all(&partial).map_err(io_err(&partial))?;
     }
     render_into(lab, spec, &partial)?;
+    let files = listing(&partial)?;
+    std::fs::write(partial.join(RENDERED_FILES), files).map_err(io_err(&partial))?;
     std::fs::write(partial.join("render_spec.json"), &inputs_json).map_err(io_err(&partial))?;
     if folder.exists() {
         std::fs::remove_dir_all(folder).map_err(io_err(folder))?;
     }
     std::fs::rename(&partial, folder).map_err(io_err(folder))?;
-    Ok(RenderOutcome::Rendered)
+    Ok(outcome)
 }
 
 #[derive(Serialize)]
