@@ -235,3 +235,32 @@ fn broken_sequences_give_clear_errors() {
         "{e}"
     );
 }
+
+#[test]
+#[ignore = "needs ../shared/data (full tier: scripts/test.sh)"]
+fn a_timestamp_that_is_not_a_number_rejects_only_its_frame() {
+    let broken = broken_copy(
+        "nan_time.igs.mha",
+        |h| {
+            let key = "Seq_Frame0007_Timestamp = ";
+            let start = h.find(key).unwrap() + key.len();
+            let end = start + h[start..].find('\n').unwrap();
+            format!("{}nan{}", &h[..start], &h[end..])
+        },
+        0,
+    );
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let path = root.join("experiments/plus_fcal2_nwire.yaml");
+    let text = std::fs::read_to_string(&path).unwrap();
+    let manifest = probecal::manifest::tracked::TrackedManifest::from_text(&path, &text).unwrap();
+    let mut inputs = TrackedInputs::from_manifest(&manifest);
+    inputs.calibration_sequence = broken;
+    inputs.validation_sequence = None;
+    inputs.time_offset = probecal::manifest::tracked::TimeOffset::Fixed(0.05);
+    let run = probecal::pipeline::tracked::run(&inputs, 20).unwrap();
+    let frame = run.frames.iter().find(|f| f.index == 7).unwrap();
+    assert_eq!(frame.timestamp_s, None);
+    let reason = frame.rejected.as_ref().map(|r| r.to_string()).unwrap_or_default();
+    assert!(reason.contains("frame 7: a timestamp is missing"), "{reason}");
+    assert!(run.frames.iter().filter(|f| f.rejected.is_none()).count() >= 150);
+}

@@ -223,7 +223,7 @@ fn process(sequence: &Sequence, role: Role, inputs: &TrackedInputs, clip: [usize
     (0..sequence.frames.len())
         .into_par_iter()
         .map(|index| {
-            let timestamp_s = sequence.frame_field(index, "Timestamp").and_then(|t| t.parse().ok());
+            let timestamp_s = timestamp_s(sequence, index);
             let mut frame = TrackedFrame {
                 role,
                 index,
@@ -312,6 +312,15 @@ fn attach_poses(sequence: &Sequence, frames: &mut [TrackedFrame], inputs: &Track
     }
 }
 
+/// A frame's timestamp, s; `None` when it is missing or not a finite number
+/// (a `nan` parses as a number but times nothing).
+fn timestamp_s(sequence: &Sequence, index: usize) -> Option<f64> {
+    sequence
+        .frame_field(index, "Timestamp")
+        .and_then(|t| t.parse::<f64>().ok())
+        .filter(|t| t.is_finite())
+}
+
 /// Largest gap between two frames a pose is interpolated across, s.
 const MAX_INTERPOLATION_GAP_S: f64 = 0.25;
 
@@ -327,7 +336,7 @@ fn pose_at(
     if offset_s == 0.0 {
         return Ok(here);
     }
-    let time = |i: usize| sequence.frame_field(i, "Timestamp").and_then(|t| t.parse::<f64>().ok());
+    let time = |i: usize| timestamp_s(sequence, i);
     // The neighbour in the offset's direction; at either end of the sequence, the
     // other one (a short extrapolation).
     let forward = if offset_s > 0.0 {
