@@ -361,7 +361,7 @@ const CASES: &[Case] = &[
         },
         args: run,
         code: 0,
-        expect: "plausibility,camera_T_marker puts its board 1000",
+        expect: "plausibility,tracker_T_marker puts its board 1000",
         in_output: "frames",
     },
     Case {

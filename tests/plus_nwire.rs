@@ -264,3 +264,34 @@ fn a_timestamp_that_is_not_a_number_rejects_only_its_frame() {
     assert!(reason.contains("frame 7: a timestamp is missing"), "{reason}");
     assert!(run.frames.iter().filter(|f| f.rejected.is_none()).count() >= 150);
 }
+
+#[test]
+#[ignore = "needs ../shared/data (full tier: scripts/test.sh)"]
+fn a_rigid_but_absurd_tracker_pose_rejects_only_its_frame() {
+    // Frame 9's probe marker 1 km from the tracker: rigid, finite, and no measurement.
+    let broken = broken_copy(
+        "far.igs.mha",
+        |h| {
+            let key = "Seq_Frame0009_ProbeToTrackerTransform = ";
+            let start = h.find(key).unwrap() + key.len();
+            let end = start + h[start..].find('\n').unwrap();
+            let mut m: Vec<String> = h[start..end].split_whitespace().map(String::from).collect();
+            m[3] = "1000000".into();
+            format!("{}{}{}", &h[..start], m.join(" "), &h[end..])
+        },
+        0,
+    );
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let path = root.join("experiments/plus_fcal2_nwire.yaml");
+    let text = std::fs::read_to_string(&path).unwrap();
+    let manifest = probecal::manifest::tracked::TrackedManifest::from_text(&path, &text).unwrap();
+    let mut inputs = TrackedInputs::from_manifest(&manifest);
+    inputs.calibration_sequence = broken;
+    inputs.validation_sequence = None;
+    inputs.time_offset = probecal::manifest::tracked::TimeOffset::Fixed(0.0);
+    let run = probecal::pipeline::tracked::run(&inputs, 20).unwrap();
+    let frame = run.frames.iter().find(|f| f.index == 9).unwrap();
+    let reason = frame.rejected.as_ref().map(|r| r.to_string()).unwrap_or_default();
+    assert!(reason.contains("tracker_T_probe puts its board 1000"), "{reason}");
+    assert!(run.frames.iter().filter(|f| f.rejected.is_none()).count() >= 150);
+}

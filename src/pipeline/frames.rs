@@ -170,7 +170,11 @@ pub fn process_frame(
 ) -> Result<FrameRecord, RunError> {
     let mut record = detect_frame(files, camera, rig, detector)?;
     if record.rejection.is_none() {
-        if let Some(fault) = Implausible::of(record.pose_pair(), &record.features_px) {
+        let names = match record.tracked {
+            Some(_) => ["tracker_T_marker", "tracker_T_phantom"],
+            None => ["camera_T_marker", "camera_T_phantom"],
+        };
+        if let Some(fault) = Implausible::of(record.pose_pair(), names, &record.features_px) {
             record.rejection = Some(Rejection::Implausible(fault));
         }
     }

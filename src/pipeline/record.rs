@@ -102,13 +102,14 @@ pub enum Implausible {
 }
 
 impl Implausible {
-    /// The first implausible value of a frame's poses and feature pixels.
-    pub fn of(poses: Option<(Rigid, Rigid)>, features_px: &[[f64; 2]]) -> Option<Implausible> {
-        if let Some((camera_T_marker, camera_T_phantom)) = poses {
-            for (pose, t) in [
-                ("camera_T_marker", camera_T_marker),
-                ("camera_T_phantom", camera_T_phantom),
-            ] {
+    /// The first implausible value of a frame's poses (named `names`) and feature pixels.
+    pub fn of(
+        poses: Option<(Rigid, Rigid)>,
+        names: [&'static str; 2],
+        features_px: &[[f64; 2]],
+    ) -> Option<Implausible> {
+        if let Some((marker, phantom)) = poses {
+            for (pose, t) in [(names[0], marker), (names[1], phantom)] {
                 let finite = t.translation.vector.iter().all(|v| v.is_finite())
                     && t.rotation.coords.iter().all(|v| v.is_finite());
                 if !finite {
@@ -350,15 +351,16 @@ mod tests {
         let near = rigid_from_axis_angle(Vector3::new(0.1, 0.0, 0.0), Vector3::new(10.0, 20.0, 600.0));
         let far = rigid_from_axis_angle(Vector3::zeros(), Vector3::new(0.0, 0.0, 1e12));
         let nan = rigid_from_axis_angle(Vector3::zeros(), Vector3::new(f64::NAN, 0.0, 0.0));
-        assert_eq!(Implausible::of(Some((near, near)), &[[10.0, 20.0]]), None);
-        assert_eq!(Implausible::of(None, &[[1.0, 2.0]]), None);
+        let names = ["camera_T_marker", "camera_T_phantom"];
+        assert_eq!(Implausible::of(Some((near, near)), names, &[[10.0, 20.0]]), None);
+        assert_eq!(Implausible::of(None, names, &[[1.0, 2.0]]), None);
         assert_eq!(
-            Implausible::of(Some((near, nan)), &[]),
+            Implausible::of(Some((near, nan)), names, &[]),
             Some(Implausible::PoseNotFinite {
                 pose: "camera_T_phantom"
             })
         );
-        let too_far = Implausible::of(Some((far, near)), &[]).unwrap();
+        let too_far = Implausible::of(Some((far, near)), names, &[]).unwrap();
         assert!(matches!(
             too_far,
             Implausible::PoseTooFar {
@@ -367,7 +369,7 @@ mod tests {
             }
         ));
         assert!(too_far.to_string().contains("more than 10000 mm"), "{too_far}");
-        let pixel = Implausible::of(Some((near, near)), &[[f64::INFINITY, 3.0]]).unwrap();
+        let pixel = Implausible::of(Some((near, near)), names, &[[f64::INFINITY, 3.0]]).unwrap();
         assert_eq!(pixel.to_string(), "a feature pixel (inf, 3) is not finite");
         assert_eq!(Rejection::Implausible(pixel).stage(), Stage::Plausibility);
     }

@@ -20,7 +20,7 @@ use crate::estimate::image_to_probe::{self, Constraint, FitError, Target};
 use crate::io::plus::config::ConfigError;
 use crate::io::plus::sequence::{FrameFault, Sequence, SequenceError};
 use crate::manifest::tracked::{TimeOffset, TrackedManifest};
-use crate::pipeline::record::GateResult;
+use crate::pipeline::record::{GateResult, Implausible};
 use crate::spec::nwire::NWire;
 
 /// Everything the tracked pipeline needs, resolved.
@@ -155,6 +155,9 @@ pub enum PoseFault {
     },
     #[error("frame {frame}: a timestamp is missing, cannot interpolate `{transform}`")]
     NoTimestamp { frame: usize, transform: String },
+    /// Not finite, or a marker farther from the tracker than any tracker measures.
+    #[error("{0}")]
+    Implausible(Implausible),
 }
 
 /// PLUS's convention: mean and SD of the best `round(0.95 n)` values.
@@ -298,6 +301,17 @@ fn attach_poses(sequence: &Sequence, frames: &mut [TrackedFrame], inputs: &Track
         let poses = pose_at(sequence, index, &inputs.probe_transform, offset_s).and_then(|tracker_T_probe| {
             pose_at(sequence, index, &inputs.reference_transform, offset_s)
                 .map(|tracker_T_reference| (tracker_T_probe, tracker_T_reference))
+        });
+        // The same plausibility check as the camera pipeline's, at this stage boundary.
+        let poses = poses.and_then(|(probe, reference)| {
+            match Implausible::of(
+                Some((probe, reference)),
+                ["tracker_T_probe", "tracker_T_reference"],
+                &[],
+            ) {
+                Some(fault) => Err(PoseFault::Implausible(fault)),
+                None => Ok((probe, reference)),
+            }
         });
         match poses {
             Ok((tracker_T_probe, tracker_T_reference)) => {
