@@ -236,6 +236,19 @@ fn broken_sequences_give_clear_errors() {
     );
 }
 
+/// The shared tracked experiment on another calibration sequence, with a fixed
+/// tracker lag and no validation sequence.
+fn run_shared_experiment_on(calibration: PathBuf, lag_s: f64) -> probecal::pipeline::tracked::TrackedRun {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("experiments/plus_fcal2_nwire.yaml");
+    let text = std::fs::read_to_string(&path).unwrap();
+    let manifest = probecal::manifest::tracked::TrackedManifest::from_text(&path, &text).unwrap();
+    let mut inputs = TrackedInputs::from_manifest(&manifest);
+    inputs.calibration_sequence = calibration;
+    inputs.validation_sequence = None;
+    inputs.time_offset = probecal::manifest::tracked::TimeOffset::Fixed(lag_s);
+    probecal::pipeline::tracked::run(&inputs, 20).unwrap()
+}
+
 #[test]
 #[ignore = "needs ../shared/data (full tier: scripts/test.sh)"]
 fn a_timestamp_that_is_not_a_number_rejects_only_its_frame() {
@@ -249,15 +262,7 @@ fn a_timestamp_that_is_not_a_number_rejects_only_its_frame() {
         },
         0,
     );
-    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
-    let path = root.join("experiments/plus_fcal2_nwire.yaml");
-    let text = std::fs::read_to_string(&path).unwrap();
-    let manifest = probecal::manifest::tracked::TrackedManifest::from_text(&path, &text).unwrap();
-    let mut inputs = TrackedInputs::from_manifest(&manifest);
-    inputs.calibration_sequence = broken;
-    inputs.validation_sequence = None;
-    inputs.time_offset = probecal::manifest::tracked::TimeOffset::Fixed(0.05);
-    let run = probecal::pipeline::tracked::run(&inputs, 20).unwrap();
+    let run = run_shared_experiment_on(broken, 0.05);
     let frame = run.frames.iter().find(|f| f.index == 7).unwrap();
     assert_eq!(frame.timestamp_s, None);
     let reason = frame.rejected.as_ref().map(|r| r.to_string()).unwrap_or_default();
@@ -281,15 +286,7 @@ fn a_rigid_but_absurd_tracker_pose_rejects_only_its_frame() {
         },
         0,
     );
-    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
-    let path = root.join("experiments/plus_fcal2_nwire.yaml");
-    let text = std::fs::read_to_string(&path).unwrap();
-    let manifest = probecal::manifest::tracked::TrackedManifest::from_text(&path, &text).unwrap();
-    let mut inputs = TrackedInputs::from_manifest(&manifest);
-    inputs.calibration_sequence = broken;
-    inputs.validation_sequence = None;
-    inputs.time_offset = probecal::manifest::tracked::TimeOffset::Fixed(0.0);
-    let run = probecal::pipeline::tracked::run(&inputs, 20).unwrap();
+    let run = run_shared_experiment_on(broken, 0.0);
     let frame = run.frames.iter().find(|f| f.index == 9).unwrap();
     let reason = frame.rejected.as_ref().map(|r| r.to_string()).unwrap_or_default();
     assert!(reason.contains("tracker_T_probe puts its board 1000"), "{reason}");
