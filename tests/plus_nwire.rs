@@ -133,10 +133,11 @@ fn nwire_phantom_from_yaml_matches_the_plus_configuration() {
     }
 }
 
-/// The default tracked experiment, run by the command line.
+/// The default tracked experiment, run by the command line: the model chosen on
+/// the calibration frames, PLUS's matrix scored on the same dots and poses.
 #[test]
 #[ignore = "needs ../shared/data (full tier: scripts/test.sh)"]
-fn experiment_beats_plus_on_its_own_data() {
+fn experiment_on_plus_data_chooses_on_calibration_frames_and_compares_like_for_like() {
     let out = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("plus_run");
     let r = Command::new(env!("CARGO_BIN_EXE_probecal"))
         .args(["run", "--quiet", "--force", "--out"])
@@ -156,6 +157,29 @@ fn experiment_beats_plus_on_its_own_data() {
         "validation PRE3D {pre3d} mm is not below PLUS's 0.5399 mm"
     );
     assert!(all >= pre3d);
+    // PLUS's matrix on the same dots, poses and convention, beside ours.
+    let plus = summary["validation"]["plus_matrix_pre3d_mm"]["mean"].as_f64().unwrap();
+    assert_eq!(
+        summary["validation"]["plus_matrix_pre3d_mm"]["n"].as_u64().unwrap(),
+        294
+    );
+    assert!((pre3d - plus).abs() < 0.05, "ours {pre3d} mm, PLUS's matrix {plus} mm");
+    // The model: every candidate of the family scored on the calibration frames
+    // alone, and the chosen one within one standard error of the best.
+    let selection = &summary["model_selection"];
+    assert_eq!(selection["frames"].as_u64().unwrap(), 190);
+    let candidates = selection["candidates"].as_array().unwrap();
+    assert_eq!(candidates.len(), 6);
+    let score = |c: &serde_json::Value| c["cv_pre3d_mm"]["mean"].as_f64().unwrap();
+    let best = candidates.iter().min_by(|a, b| score(a).total_cmp(&score(b))).unwrap();
+    let chosen = candidates
+        .iter()
+        .find(|c| {
+            c["constraints"] == selection["chosen_constraints"] && c["pixel_model"] == selection["chosen_pixel_model"]
+        })
+        .unwrap();
+    let se = best["cv_pre3d_mm"]["std"].as_f64().unwrap() / (best["cv_pre3d_mm"]["n"].as_f64().unwrap()).sqrt();
+    assert!(score(chosen) <= score(best) + se, "{selection}");
     // PLUS segmented 184 of 190 calibration frames.
     assert!(summary["frames"]["calibration"]["segmented"].as_u64().unwrap() >= 184);
     assert_eq!(summary["validation"]["pre3d_mm"]["n"].as_u64().unwrap(), 294);

@@ -127,34 +127,52 @@ pub fn pixel_to_image_mm(pixel: [f64; 2], spacing_mm_per_px: [f64; 2]) -> Point3
 }
 
 /// A probe calibration: `marker_T_image` after the B-scan's pixel size, so that
-/// pixel `(u, v)` sits at `marker_T_image · (sx u, sy v, 0)` in the marker frame
-/// (mm). PLUS calls the marker frame `Probe` and this calibration `Calibration`.
+/// pixel `(u, v)` sits at `marker_T_image · (sx u + k v, sy v, 0)` in the marker
+/// frame (mm), `k` the shear (0 but for PLUS's affine model: any linear map of the
+/// image plane is a rotation times this upper-triangular one). PLUS calls the
+/// marker frame `Probe` and this calibration `Calibration`.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Calibration {
     pub marker_T_image: Rigid,
     pub spacing_mm_per_px: [f64; 2],
+    /// `k`: mm along the image's x axis per pixel row.
+    pub shear_mm_per_px: f64,
 }
 
 impl Calibration {
+    /// A calibration without shear.
+    pub fn new(marker_T_image: Rigid, spacing_mm_per_px: [f64; 2]) -> Calibration {
+        Calibration {
+            marker_T_image,
+            spacing_mm_per_px,
+            shear_mm_per_px: 0.0,
+        }
+    }
+
+    /// A pixel in the image frame, mm.
+    pub fn pixel_in_image_mm(&self, pixel: [f64; 2]) -> Point3<f64> {
+        Point3::new(
+            pixel[0] * self.spacing_mm_per_px[0] + pixel[1] * self.shear_mm_per_px,
+            pixel[1] * self.spacing_mm_per_px[1],
+            0.0,
+        )
+    }
+
     /// A pixel in the marker frame, mm.
     pub fn apply(&self, pixel: [f64; 2]) -> Point3<f64> {
-        self.marker_T_image
-            * Point3::new(
-                pixel[0] * self.spacing_mm_per_px[0],
-                pixel[1] * self.spacing_mm_per_px[1],
-                0.0,
-            )
+        self.marker_T_image * self.pixel_in_image_mm(pixel)
     }
 
     /// The homogeneous matrix mapping `(u, v, 0, 1)` (PLUS's `Calibration`).
     pub fn matrix(&self) -> Matrix4<f64> {
-        let scale = Matrix4::from_diagonal(&nalgebra::Vector4::new(
+        let mut scale = Matrix4::from_diagonal(&nalgebra::Vector4::new(
             self.spacing_mm_per_px[0],
             self.spacing_mm_per_px[1],
             // The out-of-plane axis is scaled like the mean pixel size, as PLUS does.
             (self.spacing_mm_per_px[0] + self.spacing_mm_per_px[1]) / 2.0,
             1.0,
         ));
+        scale[(0, 1)] = self.shear_mm_per_px;
         self.marker_T_image.to_homogeneous() * scale
     }
 }

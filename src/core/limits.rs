@@ -21,3 +21,5 @@ pub const MAX_THREADS: usize = 256;
 pub const MAX_YAML_DEPTH: usize = 32;
 /// Seeds of one study.
 pub const MAX_SEEDS: u64 = 10_000;
+/// Folds of a cross-validation.
+pub const MAX_FOLDS: usize = 20;

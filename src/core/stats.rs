@@ -28,6 +28,14 @@ pub fn mean_sd_of(values: &[f64]) -> Option<MeanSd> {
     (!values.is_empty()).then(|| mean_sd(values))
 }
 
+/// PLUS's convention: mean and SD of the best `round(0.95 n)` values.
+pub fn best_95(values: &[f64]) -> Option<MeanSd> {
+    let mut sorted = values.to_vec();
+    sorted.sort_by(f64::total_cmp);
+    let keep = (0.95 * sorted.len() as f64).round() as usize;
+    mean_sd_of(&sorted[..keep])
+}
+
 /// The mean, `None` for no values.
 pub fn mean(values: impl Iterator<Item = f64>) -> Option<f64> {
     let v: Vec<f64> = values.collect();

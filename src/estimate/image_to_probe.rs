@@ -26,6 +26,41 @@ pub enum ConstraintModel {
     Wires,
 }
 
+/// How the pixel grid maps onto the image plane (PLUS's model family).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum PixelModel {
+    /// One pixel size for both axes (7 unknowns with the pose).
+    Isotropic,
+    /// A pixel size per axis (8 unknowns).
+    #[default]
+    Anisotropic,
+    /// Any linear map of the image plane: both pixel sizes and a shear (9
+    /// unknowns); PLUS's least-squares `ImageToProbe`.
+    Affine,
+}
+
+impl PixelModel {
+    pub const ALL: [PixelModel; 3] = [PixelModel::Isotropic, PixelModel::Anisotropic, PixelModel::Affine];
+
+    /// Unknowns of the image plane's map beyond the pose.
+    fn unknowns(self) -> usize {
+        match self {
+            PixelModel::Isotropic => 1,
+            PixelModel::Anisotropic => 2,
+            PixelModel::Affine => 3,
+        }
+    }
+
+    pub fn name(self) -> &'static str {
+        match self {
+            PixelModel::Isotropic => "isotropic",
+            PixelModel::Anisotropic => "anisotropic",
+            PixelModel::Affine => "affine",
+        }
+    }
+}
+
 /// What a segmented pixel must map onto, in the phantom frame (mm).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Target {
@@ -89,18 +124,32 @@ pub struct Fit {
     /// Per input constraint: residual norm under the final fit, mm.
     pub residual_mm: Vec<f64>,
     pub iterations: usize,
-    /// Standard deviations of the unknowns `[rx, ry, rz (rad), tx, ty, tz (mm), sx, sy (mm/px)]`
-    /// from the residual variance and `(J^T J)^-1`.
+    /// Standard deviations of the unknowns `[rx, ry, rz (rad), tx, ty, tz (mm), sx, sy,
+    /// k (mm/px)]` from the residual variance and `(J^T J)^-1` (an isotropic model's
+    /// `sy` is its `sx`; a shear not fitted has SD 0).
     pub sd: Vec<f64>,
+    pub pixel_model: PixelModel,
 }
 
-fn unpack(start: &Rigid, start_correction: &Rigid, x: &DVector<f64>) -> (Calibration, Rigid) {
-    let model = Calibration {
-        marker_T_image: perturbed(start, Vector3::new(x[0], x[1], x[2]), Vector3::new(x[3], x[4], x[5])),
-        spacing_mm_per_px: [x[6], x[7]],
+/// The calibration and phantom correction at unknowns `x`: the pose's 6, the
+/// pixel model's, then the phantom correction's 6 when refined.
+fn unpack(start: &Rigid, start_correction: &Rigid, pixel: PixelModel, x: &DVector<f64>) -> (Calibration, Rigid) {
+    let marker_T_image = perturbed(start, Vector3::new(x[0], x[1], x[2]), Vector3::new(x[3], x[4], x[5]));
+    let model = match pixel {
+        PixelModel::Isotropic => Calibration::new(marker_T_image, [x[6], x[6]]),
+        PixelModel::Anisotropic => Calibration::new(marker_T_image, [x[6], x[7]]),
+        PixelModel::Affine => Calibration {
+            marker_T_image,
+            spacing_mm_per_px: [x[6], x[7]],
+            shear_mm_per_px: x[8],
+        },
     };
-    let correction = if x.len() > 8 {
-        rigid_from_axis_angle(Vector3::new(x[8], x[9], x[10]), Vector3::new(x[11], x[12], x[13])) * start_correction
+    let c = 6 + pixel.unknowns();
+    let correction = if x.len() > c {
+        rigid_from_axis_angle(
+            Vector3::new(x[c], x[c + 1], x[c + 2]),
+            Vector3::new(x[c + 3], x[c + 4], x[c + 5]),
+        ) * start_correction
     } else {
         *start_correction
     };
@@ -114,6 +163,34 @@ fn residuals(model: &Calibration, correction: &Rigid, constraints: &[&Constraint
         out.fixed_rows_mut::<3>(i * 3).copy_from(&r);
     }
     out
+}
+
+/// The unknowns' start (the pose at zero, the pixel map at `model`'s) and their
+/// finite-difference steps.
+fn start_vector(
+    model: &Calibration,
+    pixel: PixelModel,
+    unknowns: usize,
+    pose_and_pixel: usize,
+) -> (DVector<f64>, DVector<f64>) {
+    let mut x0 = DVector::zeros(unknowns);
+    let mut steps = DVector::from_element(unknowns, 1e-5);
+    for k in [0, 1, 2, pose_and_pixel, pose_and_pixel + 1, pose_and_pixel + 2] {
+        if k < unknowns {
+            steps[k] = 1e-6;
+        }
+    }
+    let [sx, sy] = model.spacing_mm_per_px;
+    let pixel_start = match pixel {
+        PixelModel::Isotropic => vec![(sx + sy) / 2.0],
+        PixelModel::Anisotropic => vec![sx, sy],
+        PixelModel::Affine => vec![sx, sy, model.shear_mm_per_px],
+    };
+    for (k, v) in pixel_start.into_iter().enumerate() {
+        x0[6 + k] = v;
+        steps[6 + k] = 1e-8;
+    }
+    (x0, steps)
 }
 
 /// Closed-form start: Horn with isotropic scale on the point constraints.
@@ -132,27 +209,31 @@ pub fn closed_form(constraints: &[Constraint]) -> Result<Calibration, FitError> 
         return Err(FitError::TooFewPoints(source.len()));
     }
     let fit = horn::solve(&source, &target, Variant::Similarity)?;
-    Ok(Calibration {
-        marker_T_image: fit.target_T_source,
-        spacing_mm_per_px: [fit.scale, fit.scale],
-    })
+    Ok(Calibration::new(fit.target_T_source, [fit.scale, fit.scale]))
+}
+
+/// What [`refine`] fits and drops.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RefineSettings {
+    pub pixel_model: PixelModel,
+    /// Drop constraints above mean + this many SD and refit (`None`: keep all).
+    pub reject_sd: Option<f64>,
+    /// Also correct the phantom's registration (6 more unknowns).
+    pub refine_phantom: bool,
 }
 
 /// Refines `start` on the given constraints, dropping those above mean + `reject_sd` SD
-/// (repeated until none is dropped, at most 10 rounds; `None`: keep all). With
-/// `refine_phantom`, the phantom's registration is corrected too (6 more unknowns).
-pub fn refine(
-    start: &Calibration,
-    constraints: &[Constraint],
-    reject_sd: Option<f64>,
-    refine_phantom: bool,
-) -> Result<Fit, FitError> {
+/// (repeated until none is dropped, at most 10 rounds).
+pub fn refine(start: &Calibration, constraints: &[Constraint], settings: &RefineSettings) -> Result<Fit, FitError> {
+    let pixel = settings.pixel_model;
+    let reject_sd = settings.reject_sd;
     let mut inlier = vec![true; constraints.len()];
     let mut model = start.clone();
     let mut correction = Rigid::identity();
     let mut iterations = 0;
     let mut last_cost = 0.0;
-    let unknowns = if refine_phantom { 14 } else { 8 };
+    let pose_and_pixel = 6 + pixel.unknowns();
+    let unknowns = pose_and_pixel + if settings.refine_phantom { 6 } else { 0 };
     let mut last_normal = nalgebra::DMatrix::zeros(unknowns, unknowns);
     for _round in 0..10 {
         let kept: Vec<&Constraint> = constraints
@@ -163,23 +244,13 @@ pub fn refine(
             .collect();
         let base = model.marker_T_image;
         let base_correction = correction;
-        let mut x0 = DVector::zeros(unknowns);
-        x0[6] = model.spacing_mm_per_px[0];
-        x0[7] = model.spacing_mm_per_px[1];
-        let mut steps = DVector::from_element(unknowns, 1e-5);
-        for k in [0, 1, 2, 8, 9, 10] {
-            if k < unknowns {
-                steps[k] = 1e-6;
-            }
-        }
-        steps[6] = 1e-8;
-        steps[7] = 1e-8;
+        let (x0, steps) = start_vector(&model, pixel, unknowns, pose_and_pixel);
         let out = lm::minimise(x0, &steps, 100, |x| {
-            let (m, c) = unpack(&base, &base_correction, x);
+            let (m, c) = unpack(&base, &base_correction, pixel, x);
             residuals(&m, &c, &kept)
         })?;
         iterations += out.iterations;
-        (model, correction) = unpack(&base, &base_correction, &out.x);
+        (model, correction) = unpack(&base, &base_correction, pixel, &out.x);
         last_cost = out.cost / (kept.len() * 3).saturating_sub(unknowns).max(1) as f64;
         last_normal = out.normal_matrix;
         let Some(k) = reject_sd else { break };
@@ -209,7 +280,7 @@ pub fn refine(
         .iter()
         .map(|c| c.residual_with(&model, &correction).norm())
         .collect();
-    let sd = last_normal
+    let fitted: Vec<f64> = last_normal
         .try_inverse()
         .map(|inv| {
             (0..unknowns)
@@ -217,6 +288,14 @@ pub fn refine(
                 .collect()
         })
         .unwrap_or_else(|| vec![f64::NAN; unknowns]);
+    // One layout whatever the model: pose, sx, sy, shear.
+    let mut sd = fitted[..6].to_vec();
+    match pixel {
+        PixelModel::Isotropic => sd.extend([fitted[6], fitted[6], 0.0]),
+        PixelModel::Anisotropic => sd.extend([fitted[6], fitted[7], 0.0]),
+        PixelModel::Affine => sd.extend_from_slice(&fitted[6..9]),
+    }
+    sd.extend_from_slice(&fitted[pose_and_pixel..]);
     Ok(Fit {
         image_to_probe: model,
         phantom_correction: correction,
@@ -224,6 +303,7 @@ pub fn refine(
         residual_mm,
         iterations,
         sd,
+        pixel_model: pixel,
     })
 }
 
@@ -231,9 +311,11 @@ pub fn refine(
 /// Levenberg–Marquardt on point and line constraints from `start`. Returns the fit
 /// and its RMS residual (mm).
 pub fn refine_rigid(start: &Rigid, spacing: [f64; 2], constraints: &[Constraint]) -> Result<(Rigid, f64), LmError> {
-    let model_at = |x: &DVector<f64>| Calibration {
-        marker_T_image: perturbed(start, Vector3::new(x[0], x[1], x[2]), Vector3::new(x[3], x[4], x[5])),
-        spacing_mm_per_px: spacing,
+    let model_at = |x: &DVector<f64>| {
+        Calibration::new(
+            perturbed(start, Vector3::new(x[0], x[1], x[2]), Vector3::new(x[3], x[4], x[5])),
+            spacing,
+        )
     };
     let refs: Vec<&Constraint> = constraints.iter().collect();
     let mut steps = DVector::from_element(6, 1e-5);
@@ -254,10 +336,10 @@ mod tests {
 
     #[test]
     fn recovers_pixel_size_and_pose_from_noisy_points_with_an_outlier() {
-        let truth = Calibration {
-            marker_T_image: rigid_from_axis_angle(Vector3::new(0.3, -1.4, 0.2), Vector3::new(11.0, 48.0, -0.4)),
-            spacing_mm_per_px: [0.0803, 0.0745],
-        };
+        let truth = Calibration::new(
+            rigid_from_axis_angle(Vector3::new(0.3, -1.4, 0.2), Vector3::new(11.0, 48.0, -0.4)),
+            [0.0803, 0.0745],
+        );
         let mut rng = Rng::new(4);
         let mut constraints: Vec<Constraint> = (0..200)
             .map(|_| {
@@ -274,7 +356,12 @@ mod tests {
             p.x += 8.0;
         }
         let start = closed_form(&constraints).unwrap();
-        let fit = refine(&start, &constraints, Some(3.0), false).unwrap();
+        let settings = RefineSettings {
+            pixel_model: PixelModel::Anisotropic,
+            reject_sd: Some(3.0),
+            refine_phantom: false,
+        };
+        let fit = refine(&start, &constraints, &settings).unwrap();
         assert!(!fit.inlier[7]);
         // The rigid refinement with the spacing trusted, from a start 5 mm and 3° off, on lines.
         let lines: Vec<Constraint> = constraints
@@ -295,10 +382,7 @@ mod tests {
         let start =
             truth.marker_T_image * rigid_from_axis_angle(Vector3::new(0.03, -0.04, 0.02), Vector3::new(5.0, -3.0, 2.0));
         let (rigid, rms) = refine_rigid(&start, truth.spacing_mm_per_px, &lines).unwrap();
-        let refined = Calibration {
-            marker_T_image: rigid,
-            spacing_mm_per_px: truth.spacing_mm_per_px,
-        };
+        let refined = Calibration::new(rigid, truth.spacing_mm_per_px);
         assert!(rms < 0.3, "{rms}");
         for pixel in [[0.0, 0.0], [820.0, 616.0]] {
             let e = (refined.apply(pixel) - truth.apply(pixel)).norm();
@@ -309,6 +393,62 @@ mod tests {
         for pixel in [[0.0, 0.0], [820.0, 616.0]] {
             let e = (fit.image_to_probe.apply(pixel) - truth.apply(pixel)).norm();
             assert!(e < 0.3, "{e}");
+        }
+    }
+
+    /// Points from a sheared pixel grid: the affine model finds the shear, the
+    /// rigid models cannot and leave a larger residual.
+    #[test]
+    fn the_affine_model_recovers_a_shear_the_others_cannot() {
+        let truth = Calibration {
+            marker_T_image: rigid_from_axis_angle(Vector3::new(0.3, -1.4, 0.2), Vector3::new(11.0, 48.0, -0.4)),
+            spacing_mm_per_px: [0.0803, 0.0745],
+            shear_mm_per_px: 0.004,
+        };
+        let mut rng = Rng::new(5);
+        let constraints: Vec<Constraint> = (0..300)
+            .map(|_| {
+                let pixel = [rng.uniform(100.0, 700.0), rng.uniform(100.0, 550.0)];
+                let noise = Vector3::new(rng.normal(0.0, 0.1), rng.normal(0.0, 0.1), rng.normal(0.0, 0.1));
+                Constraint {
+                    pixel,
+                    marker_T_phantom: Matrix4::identity(),
+                    target_in_phantom: Target::Point(truth.apply(pixel) + noise),
+                }
+            })
+            .collect();
+        let start = closed_form(&constraints).unwrap();
+        let rms = |pixel_model| {
+            let settings = RefineSettings {
+                pixel_model,
+                reject_sd: None,
+                refine_phantom: false,
+            };
+            let fit = refine(&start, &constraints, &settings).unwrap();
+            let n = fit.residual_mm.len() as f64;
+            let rms = (fit.residual_mm.iter().map(|r| r * r).sum::<f64>() / n).sqrt();
+            (fit, rms)
+        };
+        let (affine, affine_rms) = rms(PixelModel::Affine);
+        assert!(
+            (affine.image_to_probe.shear_mm_per_px - 0.004).abs() < 2e-4,
+            "{affine:?}"
+        );
+        assert_eq!(affine.sd.len(), 9);
+        assert!(affine.sd[8] > 0.0 && affine.sd[8] < 1e-3, "{:?}", affine.sd);
+        let (anisotropic, anisotropic_rms) = rms(PixelModel::Anisotropic);
+        assert_eq!(anisotropic.image_to_probe.shear_mm_per_px, 0.0);
+        let (isotropic, isotropic_rms) = rms(PixelModel::Isotropic);
+        let [sx, sy] = isotropic.image_to_probe.spacing_mm_per_px;
+        assert_eq!(sx, sy);
+        assert!(
+            affine_rms < 0.2 && anisotropic_rms > affine_rms + 0.1,
+            "{affine_rms} {anisotropic_rms}"
+        );
+        assert!(isotropic_rms > anisotropic_rms, "{isotropic_rms} {anisotropic_rms}");
+        for pixel in [[0.0, 0.0], [820.0, 616.0]] {
+            let e = (affine.image_to_probe.apply(pixel) - truth.apply(pixel)).norm();
+            assert!(e < 0.2, "{e}");
         }
     }
 }

@@ -3,6 +3,7 @@
 pub mod correspondence;
 pub mod horn;
 pub mod image_to_probe;
+pub mod model_selection;
 pub mod robust;
 pub mod sphere_fit;
 pub mod wire_matching;

@@ -1,11 +1,16 @@
-//! Robust estimation over frames: RANSAC and LMedS with Horn's closed form inside.
+//! Robust estimation over frames: RANSAC (MSAC) and LMedS with Horn's closed form
+//! inside: two methods, each with its own sample choice and threshold.
 //!
 //! The thesis drops frames by hand-set BRE cut-offs; its future work asks for
 //! RANSAC or LMedS. A minimal sample is 3 frames (3 point pairs fix a rigid
 //! transform); each sample's calibration scores every frame by its residual in the
 //! phantom frame (mm):
-//! - RANSAC keeps the sample with most frames within the inlier threshold (ties:
-//!   the smaller sum of inlier residuals, MSAC's rule);
+//! - RANSAC keeps the sample of least MSAC cost `Σ min(r², t²)` (Torr &
+//!   Zisserman), with the inlier threshold `t` from a stated noise model: a
+//!   pair's residual has SD `σ` per axis, so `|r|² / σ²` is χ² with 3 degrees of
+//!   freedom and `t = √11.34 σ = 3.37 σ` keeps 99 % of good frames. `σ` is the
+//!   manifest's `solve.robust.noise_sd_mm` (or `t` its `threshold_mm`), never
+//!   taken from the data it judges;
 //! - LMedS keeps the sample with the least median squared residual and derives
 //!   the threshold from it: 2.5 robust SDs, `σ = 1.4826 (1 + 5 / (n − 3)) √median`
 //!   (Rousseeuw & Leroy).
@@ -29,14 +34,20 @@ pub enum RobustMethod {
     Lmeds,
 }
 
+/// `√χ²₃(0.99)`: a 3D residual of per-axis SD σ is below this many σ with
+/// probability 0.99.
+pub const CHI3_99_SIGMAS: f64 = 3.368;
+
 /// Settings of a robust fit.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct RobustSettings {
     pub method: RobustMethod,
-    /// Inlier threshold on a frame's residual (mm); absent: derived from the data
-    /// by LMedS's robust scale.
+    /// RANSAC's inlier threshold on a frame's residual (mm); absent:
+    /// `3.37 noise_sd_mm`. LMedS always takes its own from the data.
     pub threshold_mm: Option<f64>,
+    /// The stated SD of a good frame's residual per axis (mm), RANSAC's noise model.
+    pub noise_sd_mm: f64,
     /// Random minimal samples drawn.
     pub samples: usize,
     pub seed: u64,
@@ -49,6 +60,12 @@ impl Default for RobustSettings {
         RobustSettings {
             method: RobustMethod::Ransac,
             threshold_mm: None,
+            // A pair's residual per axis: 1 px of feature localisation at
+            // 0.2 mm/px (0.2 mm) and each of the two tracked boards' pose error at
+            // the feature, about 0.25 mm (printed boards seen by a webcam at half a
+            // metre are tracked to a few tenths of a millimetre):
+            // √(0.2² + 2 · 0.25²) ≈ 0.4 mm.
+            noise_sd_mm: 0.4,
             samples: 500,
             seed: 1,
         }
@@ -65,6 +82,13 @@ pub struct RobustFit {
     pub method: RobustMethod,
     /// Median squared residual of the best sample (LMedS's criterion), mm².
     pub median_squared_mm2: f64,
+}
+
+impl RobustSettings {
+    /// RANSAC's inlier threshold, mm.
+    pub fn ransac_threshold_mm(&self) -> f64 {
+        self.threshold_mm.unwrap_or(CHI3_99_SIGMAS * self.noise_sd_mm)
+    }
 }
 
 impl RobustFit {
@@ -114,41 +138,52 @@ pub fn solve(
         return Err(HornError::TooFewPairs(n));
     }
     let mut rng = Rng::new(settings.seed);
-    // (RANSAC score: inliers, then -sum) / (LMedS: median squared residual).
-    let mut best_ransac: Option<(usize, f64, HornFit)> = None;
-    let mut best_lmeds: Option<(f64, HornFit)> = None;
+    let t = settings.ransac_threshold_mm();
+    // The best sample's calibration and its criterion: MSAC's cost, or LMedS's
+    // median squared residual.
+    let mut best: Option<(f64, HornFit)> = None;
+    let mut best_median = f64::INFINITY;
     for _ in 0..settings.samples.max(1) {
         let sample = draw3(&mut rng, n);
         let subset: Vec<Correspondence> = sample.iter().map(|&i| frames[i].clone()).collect();
         let Ok(fit) = correspondence::solve(&subset, spacing, variant, None) else {
             continue; // a degenerate sample (e.g. collinear centres)
         };
-        let residuals: Vec<f64> = frames.iter().map(|f| frame_residual(f, &fit, spacing)).collect();
-        let mut squared: Vec<f64> = residuals.iter().map(|r| r * r).collect();
-        let med = median(&mut squared);
-        if best_lmeds.as_ref().is_none_or(|(m, _)| med < *m) {
-            best_lmeds = Some((med, fit.clone()));
-        }
-        if let Some(t) = settings.threshold_mm {
-            let inside: Vec<f64> = residuals.iter().copied().filter(|r| *r < t).collect();
-            let score = (inside.len(), inside.iter().sum::<f64>());
-            let better = match &best_ransac {
-                None => true,
-                Some((count, sum, _)) => score.0 > *count || (score.0 == *count && score.1 < *sum),
-            };
-            if better {
-                best_ransac = Some((score.0, score.1, fit));
+        let mut squared: Vec<f64> = frames
+            .iter()
+            .map(|f| frame_residual(f, &fit, spacing).powi(2))
+            .collect();
+        let criterion = match settings.method {
+            RobustMethod::Ransac => squared.iter().map(|r2| r2.min(t * t)).sum::<f64>(),
+            RobustMethod::Lmeds => median(&mut squared),
+        };
+        // A NaN criterion never wins.
+        if criterion < best.as_ref().map_or(f64::INFINITY, |(c, _)| *c) {
+            if settings.method == RobustMethod::Lmeds {
+                best_median = criterion;
             }
+            best = Some((criterion, fit));
         }
     }
-    let Some((median_squared_mm2, lmeds_fit)) = best_lmeds else {
+    let Some((_, start)) = best else {
         return Err(HornError::Degenerate("all sampled frame triples'"));
     };
-    let robust_sd = 1.4826 * (1.0 + 5.0 / (n as f64 - 3.0)) * median_squared_mm2.sqrt();
-    let (threshold_mm, start) = match (settings.method, settings.threshold_mm, best_ransac) {
-        (RobustMethod::Ransac, Some(t), Some((_, _, fit))) => (t, fit),
-        // RANSAC without a threshold: the data's robust scale gives it.
-        _ => ((2.5 * robust_sd).max(1e-9), lmeds_fit),
+    let median_squared_mm2 = match settings.method {
+        RobustMethod::Lmeds => best_median,
+        RobustMethod::Ransac => {
+            let mut squared: Vec<f64> = frames
+                .iter()
+                .map(|f| frame_residual(f, &start, spacing).powi(2))
+                .collect();
+            median(&mut squared)
+        }
+    };
+    let threshold_mm = match settings.method {
+        RobustMethod::Ransac => t,
+        RobustMethod::Lmeds => {
+            let robust_sd = 1.4826 * (1.0 + 5.0 / (n as f64 - 3.0)) * median_squared_mm2.sqrt();
+            (2.5 * robust_sd).max(1e-9)
+        }
     };
     // Refit on the consensus until it is stable.
     let mut inliers: Vec<bool> = frames
@@ -203,7 +238,7 @@ mod tests {
             },
             RobustSettings {
                 method: RobustMethod::Ransac,
-                threshold_mm: None,
+                noise_sd_mm: 0.5,
                 ..RobustSettings::default()
             },
             RobustSettings {
@@ -231,5 +266,35 @@ mod tests {
         let b = solve(&frames, [0.2, 0.2], Variant::Rigid, &s).unwrap();
         assert_eq!(a.inliers, b.inliers);
         assert_eq!(a.fit.target_T_source, b.fit.target_T_source);
+    }
+
+    /// Two methods, two thresholds: RANSAC's follows the stated noise model and
+    /// not the data; LMedS's follows the data's spread.
+    #[test]
+    fn ransac_threshold_is_the_noise_models_and_lmeds_the_datas() {
+        let ransac = RobustSettings {
+            noise_sd_mm: 0.3,
+            ..RobustSettings::default()
+        };
+        let lmeds = RobustSettings {
+            method: RobustMethod::Lmeds,
+            ..RobustSettings::default()
+        };
+        let mut lmeds_thresholds = Vec::new();
+        for noise_px in [1.0, 3.0] {
+            let (_, _, frames) = frames(40, noise_px, &[2, 9], 6);
+            let r = solve(&frames, [0.2, 0.2], Variant::Rigid, &ransac).unwrap();
+            assert!(
+                (r.threshold_mm - CHI3_99_SIGMAS * 0.3).abs() < 1e-12,
+                "{}",
+                r.threshold_mm
+            );
+            assert!(!r.inliers[2] && !r.inliers[9]);
+            let l = solve(&frames, [0.2, 0.2], Variant::Rigid, &lmeds).unwrap();
+            lmeds_thresholds.push(l.threshold_mm);
+        }
+        // Three times the pixel noise: LMedS's threshold grows about threefold.
+        let ratio = lmeds_thresholds[1] / lmeds_thresholds[0];
+        assert!((2.0..4.5).contains(&ratio), "{lmeds_thresholds:?}");
     }
 }

@@ -57,6 +57,9 @@ pub struct Solve {
 pub struct SphereFitOptions {
     /// Prior spread of the plane's distance from the sphere centre (mm); absent: none.
     pub elevation_prior_sd_mm: Option<f64>,
+    /// Replace the stated prior by the data's own: fit with it, take the RMS of
+    /// the fitted elevations as the spread and fit again (empirical Bayes).
+    pub elevation_prior_from_data: bool,
     /// Estimate a constant offset of the echo edge from the sphere surface.
     pub fit_radius_offset: bool,
 }
@@ -66,6 +69,7 @@ impl Default for SphereFitOptions {
         // A careful sweep keeps the plane within about a millimetre of the centre.
         SphereFitOptions {
             elevation_prior_sd_mm: Some(1.0),
+            elevation_prior_from_data: false,
             fit_radius_offset: true,
         }
     }

@@ -35,8 +35,9 @@ use serde::{Deserialize, Serialize};
 use super::{deserialize_located, sha256_hex, Checker, ManifestErrors};
 use nalgebra::Point3;
 
+use crate::core::limits::MAX_FOLDS;
 use crate::detect::nwire::Segmentation;
-use crate::estimate::image_to_probe::ConstraintModel;
+use crate::estimate::image_to_probe::{ConstraintModel, PixelModel};
 use crate::io::plus::config::PlusConfig;
 use crate::io::tracker_poses::{check_near_rigid, ORTHONORMAL_TOLERANCE};
 use crate::spec::nwire::{NWire, WireSegment};
@@ -163,7 +164,14 @@ struct TrackedBscan {
 #[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields, default)]
 struct TrackedSolve {
-    constraints: ConstraintModel,
+    /// Which constraints the dots give; absent: chosen by cross-validation on
+    /// the calibration frames.
+    constraints: Option<ConstraintModel>,
+    /// How pixels map onto the image plane; absent: chosen by cross-validation
+    /// on the calibration frames.
+    pixel_model: Option<PixelModel>,
+    /// Folds of the calibration frames' cross-validation (contiguous blocks).
+    folds: usize,
     /// Drop constraints above mean + k SD and refit; absent: keep all.
     reject_sd: Option<f64>,
     /// Also correct the phantom's registration from the calibration frames.
@@ -172,9 +180,11 @@ struct TrackedSolve {
 
 impl Default for TrackedSolve {
     fn default() -> Self {
-        // PLUS's outlier rule (mean + 3 SD) and its constraints (middle dots).
+        // PLUS's outlier rule (mean + 3 SD); the model chosen on the calibration frames.
         TrackedSolve {
-            constraints: ConstraintModel::MiddlePoints,
+            constraints: None,
+            pixel_model: None,
+            folds: 5,
             reject_sd: Some(3.0),
             refine_phantom_registration: false,
         }
@@ -257,7 +267,10 @@ pub struct TrackedManifest {
     pub spacing_guess_mm_per_px: f64,
     pub clip_rectangle_px: Option<[usize; 4]>,
     pub segmentation: Segmentation,
-    pub model: ConstraintModel,
+    /// Fixed by the manifest, or `None`: chosen by cross-validation.
+    pub model: Option<ConstraintModel>,
+    pub pixel_model: Option<PixelModel>,
+    pub folds: usize,
     pub reject_sd: Option<f64>,
     pub refine_phantom: bool,
     pub min_frames: usize,
@@ -443,6 +456,12 @@ impl TrackedManifest {
         if let Some(k) = raw.solve.reject_sd {
             c.positive("solve.reject_sd", k);
         }
+        if !(2..=MAX_FOLDS).contains(&raw.solve.folds) {
+            c.fail(
+                "solve.folds",
+                format!("must be between 2 and {MAX_FOLDS}, got {}", raw.solve.folds),
+            );
+        }
         if raw.thresholds.min_frames < 3 {
             c.fail(
                 "thresholds.min_frames",
@@ -488,6 +507,8 @@ impl TrackedManifest {
             clip_rectangle_px,
             segmentation: raw.bscan.segmentation,
             model: raw.solve.constraints,
+            pixel_model: raw.solve.pixel_model,
+            folds: raw.solve.folds,
             reject_sd: raw.solve.reject_sd,
             refine_phantom: raw.solve.refine_phantom_registration,
             min_frames: raw.thresholds.min_frames,

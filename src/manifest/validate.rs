@@ -271,6 +271,7 @@ fn solve_section(c: &mut Checker<'_>, raw: &raw::RawManifest) {
     if let Some(t) = r.threshold_mm {
         c.positive("solve.robust.threshold_mm", t);
     }
+    c.positive("solve.robust.noise_sd_mm", r.noise_sd_mm);
     c.at_least("solve.robust.samples", r.samples as f64, 1.0);
     if let Some(sd) = raw.solve.sphere_fit.elevation_prior_sd_mm {
         c.positive("solve.sphere_fit.elevation_prior_sd_mm", sd);

@@ -148,7 +148,7 @@ pub fn methods_stage(manifest: &Manifest, inputs: &MethodInputs<'_>, log: &mut d
                 let named = match method {
                     RobustMethod::Ransac => Method::Ransac {
                         threshold_mm: r.threshold_mm,
-                        threshold_from_manifest: settings.threshold_mm.is_some(),
+                        noise_sd_mm: settings.threshold_mm.is_none().then_some(settings.noise_sd_mm),
                     },
                     RobustMethod::Lmeds => Method::Lmeds {
                         threshold_mm: r.threshold_mm,
@@ -178,11 +178,13 @@ pub fn methods_stage(manifest: &Manifest, inputs: &MethodInputs<'_>, log: &mut d
         .collect();
     // Levenberg–Marquardt with the pixel size as two more unknowns.
     let constraints: Vec<Constraint> = inliers.iter().flat_map(|f| f.constraints()).collect();
-    let start = Calibration {
-        marker_T_image: ransac.fit.target_T_source,
-        spacing_mm_per_px: spacing,
+    let start = Calibration::new(ransac.fit.target_T_source, spacing);
+    let settings = image_to_probe::RefineSettings {
+        pixel_model: image_to_probe::PixelModel::Anisotropic,
+        reject_sd: None,
+        refine_phantom: false,
     };
-    match image_to_probe::refine(&start, &constraints, None, false) {
+    match image_to_probe::refine(&start, &constraints, &settings) {
         Ok(fit) => {
             let m = &fit.image_to_probe;
             out.push(result(
@@ -210,7 +212,7 @@ pub fn methods_stage(manifest: &Manifest, inputs: &MethodInputs<'_>, log: &mut d
             })
         })
         .collect();
-    let settings = SphereSettings {
+    let mut settings = SphereSettings {
         centre_in_phantom_mm: Point3::from(nalgebra::Vector3::from(inputs.feature_in_phantom_mm)),
         radius_mm,
         spacing_mm_per_px: spacing,
@@ -218,7 +220,19 @@ pub fn methods_stage(manifest: &Manifest, inputs: &MethodInputs<'_>, log: &mut d
         fit_radius_offset: manifest.sphere_fit.fit_radius_offset,
         points_per_frame: 20.0,
     };
-    match sphere_fit::refine(&ransac.fit.target_T_source, &arcs, &settings) {
+    let mut fitted = sphere_fit::refine(&ransac.fit.target_T_source, &arcs, &settings);
+    if manifest.sphere_fit.elevation_prior_from_data {
+        // The planes' spread from the data: the fitted elevations' RMS.
+        if let Ok(first) = &fitted {
+            let n = first.elevation_mm.len().max(1) as f64;
+            let rms = (first.elevation_mm.iter().map(|(_, d)| d * d).sum::<f64>() / n).sqrt();
+            if rms.is_finite() && rms > 0.0 {
+                settings.elevation_prior_sd_mm = Some(rms);
+                fitted = sphere_fit::refine(&ransac.fit.target_T_source, &arcs, &settings);
+            }
+        }
+    }
+    match fitted {
         Ok(fit) => out.push(result(
             Method::RansacSphereFit {
                 elevation_prior_sd_mm: settings.elevation_prior_sd_mm,

@@ -241,11 +241,12 @@ pub enum Method {
     /// The thesis's procedure: Horn on all frames, every frame above the cut-off
     /// dropped at once, Horn again.
     ThesisOneShot { cutoff_mm: f64 },
-    /// RANSAC over frames (samples of 3, Horn inside).
+    /// RANSAC (MSAC) over frames (samples of 3, Horn inside).
     Ransac {
         threshold_mm: f64,
-        /// The threshold was the manifest's (`solve.robust.threshold_mm`), not the data's.
-        threshold_from_manifest: bool,
+        /// The stated noise SD the threshold came from (`None`: the manifest
+        /// gave the threshold itself).
+        noise_sd_mm: Option<f64>,
     },
     /// LMedS over frames (samples of 3, Horn inside); its threshold from the data.
     Lmeds { threshold_mm: f64 },

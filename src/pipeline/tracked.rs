@@ -13,10 +13,10 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use crate::core::geometry::Calibration;
-use crate::core::stats::{mean_sd_of, MeanSd};
+use crate::core::stats::best_95;
 use crate::detect::nwire::{self, NWireRejection, Segmentation};
-use crate::estimate::image_to_probe::ConstraintModel;
-use crate::estimate::image_to_probe::{self, Constraint, FitError, Target};
+use crate::estimate::image_to_probe::{self, Constraint, ConstraintModel, FitError, PixelModel, Target};
+use crate::estimate::model_selection::{self, Candidate, FitSettings, FrameConstraints, Selection};
 use crate::io::plus::config::ConfigError;
 use crate::io::plus::sequence::{FrameFault, Sequence, SequenceError};
 use crate::manifest::tracked::{TimeOffset, TrackedManifest};
@@ -37,7 +37,10 @@ pub struct TrackedInputs {
     pub spacing_guess_mm_per_px: f64,
     pub clip_rectangle_px: Option<[usize; 4]>,
     pub segmentation: Segmentation,
-    pub model: ConstraintModel,
+    /// Fixed, or `None`: chosen by cross-validation on the calibration frames.
+    pub model: Option<ConstraintModel>,
+    pub pixel_model: Option<PixelModel>,
+    pub folds: usize,
     /// Drop constraints above mean + k SD and refit (PLUS: 3).
     pub reject_sd: Option<f64>,
     /// The tracker's lag behind the images: a frame's pose is interpolated at its
@@ -62,6 +65,8 @@ impl TrackedInputs {
             clip_rectangle_px: m.clip_rectangle_px,
             segmentation: m.segmentation.clone(),
             model: m.model,
+            pixel_model: m.pixel_model,
+            folds: m.folds,
             reject_sd: m.reject_sd,
             time_offset: m.time_offset,
             refine_phantom: m.refine_phantom,
@@ -160,14 +165,6 @@ pub enum PoseFault {
     Implausible(Implausible),
 }
 
-/// PLUS's convention: mean and SD of the best `round(0.95 n)` values.
-pub fn best_95(values: &[f64]) -> Option<MeanSd> {
-    let mut sorted = values.to_vec();
-    sorted.sort_by(f64::total_cmp);
-    let keep = (0.95 * sorted.len() as f64).round() as usize;
-    mean_sd_of(&sorted[..keep])
-}
-
 /// The tracked run's accuracy gates.
 pub fn gates(run: &TrackedRun, manifest: &TrackedManifest) -> Vec<GateResult> {
     let mut out = Vec::new();
@@ -194,6 +191,8 @@ pub struct TrackedRun {
     pub time_offset_s: f64,
     /// When estimated: each offset tried and the calibration's mean residual, mm.
     pub offset_scan: Vec<(f64, f64)>,
+    /// The model family's cross-validation on the calibration frames.
+    pub selection: Selection,
 }
 
 impl TrackedRun {
@@ -381,26 +380,25 @@ fn pose_at(
     Ok(here.lerp_slerp(&there, offset_s / gap))
 }
 
-/// The constraints one frame gives.
-pub fn constraints(frame: &TrackedFrame, nwires: &[NWire], model: ConstraintModel) -> Vec<Constraint> {
+/// The constraints one frame gives: each N's middle dot on its point, each dot
+/// on its wire.
+pub fn constraints(frame: &TrackedFrame, nwires: &[NWire]) -> FrameConstraints {
+    let mut out = FrameConstraints::default();
     let Some(marker_T_phantom) = frame.marker_T_phantom else {
-        return Vec::new();
+        return out;
     };
-    let mut out = Vec::new();
     for (dots, nwire) in frame.dots_px.iter().zip(nwires) {
-        out.push(Constraint {
+        out.points.push(Constraint {
             pixel: dots[1],
             marker_T_phantom,
             target_in_phantom: Target::Point(nwire.middle_in_phantom_mm(dots)),
         });
-        if model == ConstraintModel::Wires {
-            for (dot, wire) in dots.iter().zip(&nwire.wires) {
-                out.push(Constraint {
-                    pixel: *dot,
-                    marker_T_phantom,
-                    target_in_phantom: Target::Line(wire.front_in_phantom_mm, wire.direction().normalize()),
-                });
-            }
+        for (dot, wire) in dots.iter().zip(&nwire.wires) {
+            out.lines.push(Constraint {
+                pixel: *dot,
+                marker_T_phantom,
+                target_in_phantom: Target::Line(wire.front_in_phantom_mm, wire.direction().normalize()),
+            });
         }
     }
     out
@@ -442,18 +440,20 @@ fn fit_quality(fit: &image_to_probe::Fit) -> f64 {
     kept.iter().sum::<f64>() / kept.len().max(1) as f64
 }
 
-fn calibrate(
-    frames: &[TrackedFrame],
-    inputs: &TrackedInputs,
-) -> Result<(Calibration, image_to_probe::Fit, usize), FitError> {
-    let all: Vec<Constraint> = frames
+/// The usable calibration frames' constraints, in frame order.
+fn calibration_constraints(frames: &[TrackedFrame], nwires: &[NWire]) -> Vec<FrameConstraints> {
+    frames
         .iter()
         .filter(|f| f.role == Role::Calibration && f.rejected.is_none())
-        .flat_map(|f| constraints(f, &inputs.nwires, inputs.model))
-        .collect();
-    let closed_form = image_to_probe::closed_form(&all)?;
-    let fit = image_to_probe::refine(&closed_form, &all, inputs.reject_sd, inputs.refine_phantom)?;
-    Ok((closed_form, fit, all.len()))
+        .map(|f| constraints(f, nwires))
+        .collect()
+}
+
+fn fit_settings(inputs: &TrackedInputs) -> FitSettings {
+    FitSettings {
+        reject_sd: inputs.reject_sd,
+        refine_phantom: inputs.refine_phantom,
+    }
 }
 
 /// Runs the tracked pipeline.
@@ -471,11 +471,19 @@ pub fn run(inputs: &TrackedInputs, min_frames: usize) -> Result<TrackedRun, Trac
         TimeOffset::Estimate { range_s, step_s } => {
             let steps = (range_s / step_s).round() as i64;
             let mut best = (f64::INFINITY, 0.0);
+            // The lag is found with the family's first constraints and its most
+            // flexible pixel model (whose residual carries the least model error).
+            let family = Candidate::family(inputs.model, inputs.pixel_model);
+            let candidate = Candidate {
+                pixel_model: family[family.len() - 1].pixel_model,
+                ..family[0]
+            };
             for k in -steps..=steps {
                 let offset = k as f64 * step_s;
                 attach_poses(&calibration, &mut frames, inputs, offset);
-                if let Ok((_, fit, _)) = calibrate(&frames, inputs) {
-                    let q = fit_quality(&fit);
+                let usable = calibration_constraints(&frames, &inputs.nwires);
+                if let Ok(trained) = model_selection::fit(usable.iter(), candidate, fit_settings(inputs)) {
+                    let q = fit_quality(&trained.fit);
                     offset_scan.push((offset, q));
                     if q < best.0 {
                         best = (q, offset);
@@ -513,7 +521,26 @@ pub fn run(inputs: &TrackedInputs, min_frames: usize) -> Result<TrackedRun, Trac
             needed: min_frames,
         });
     }
-    let (closed_form, fit, constraints) = calibrate(&frames, inputs)?;
+    // The model, chosen on the calibration frames alone.
+    let usable = calibration_constraints(&frames, &inputs.nwires);
+    let family = Candidate::family(inputs.model, inputs.pixel_model);
+    let (scored, chosen) = model_selection::select(&usable, &family, inputs.folds, fit_settings(inputs));
+    let chosen = match chosen {
+        Some(k) => k,
+        // Nothing could be cross-validated: the fit on every frame says why.
+        None => {
+            model_selection::fit(usable.iter(), family[0], fit_settings(inputs))?;
+            0
+        }
+    };
+    let selection = Selection {
+        folds: inputs.folds,
+        frames: usable.len(),
+        scored,
+        chosen,
+    };
+    let trained = model_selection::fit(usable.iter(), selection.chosen(), fit_settings(inputs))?;
+    let (closed_form, fit, constraints) = (trained.closed_form, trained.fit, trained.constraints);
     for f in frames.iter_mut().filter(|f| f.rejected.is_none()) {
         f.pre3d_mm = pre3d(
             f,
@@ -530,5 +557,6 @@ pub fn run(inputs: &TrackedInputs, min_frames: usize) -> Result<TrackedRun, Trac
         image_size_px,
         time_offset_s,
         offset_scan,
+        selection,
     })
 }

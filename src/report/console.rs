@@ -104,9 +104,9 @@ pub fn tracked_run(run: &TrackedRun, summary: &TrackedSummary, folder: &std::pat
     );
     if let Some(plus) = &summary.plus_result {
         println!(
-            "PLUS's result: published {} mm; on our dots {} mm",
+            "PLUS's result: published {} mm; its matrix on the same dots and poses {} mm",
             f3(plus.published_validation_pre3d_mm.mean),
-            f3(plus.validation_pre3d_on_our_dots_mm.map(|s| s.mean)),
+            f3(summary.validation.plus_matrix_pre3d_mm.map(|s| s.mean)),
         );
     }
     println!("written to {}", folder.display());

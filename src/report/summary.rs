@@ -13,7 +13,7 @@ use serde::{Deserialize, Deserializer, Serialize, Serializer};
 
 use crate::core::geometry::{euler_zyx_deg, to_rows};
 use crate::core::stats::MeanSd;
-use crate::estimate::image_to_probe::ConstraintModel;
+use crate::estimate::image_to_probe::{ConstraintModel, PixelModel};
 use crate::evaluate::resampling::Bootstrap;
 use crate::evaluate::{cutoff_label, AxisStats, BreStats, TruthComparison};
 use crate::manifest::{Manifest, Regression, SolveVariant};
@@ -238,13 +238,12 @@ pub fn describe(m: &MethodResult) -> String {
         ),
         Method::Ransac {
             threshold_mm,
-            threshold_from_manifest,
+            noise_sd_mm,
         } => format!(
-            "RANSAC over frames (samples of 3, Horn inside), inlier threshold {threshold_mm:.3} mm{}",
-            if threshold_from_manifest {
-                " (manifest)"
-            } else {
-                " (from the data)"
+            "RANSAC (MSAC) over frames (samples of 3, Horn inside), inlier threshold {threshold_mm:.3} mm{}",
+            match noise_sd_mm {
+                Some(sd) => format!(" (χ² 99 % of a stated {sd:.2} mm noise SD per axis)"),
+                None => " (manifest)".into(),
             }
         ),
         Method::Lmeds { threshold_mm } => format!(
@@ -260,7 +259,7 @@ pub fn describe(m: &MethodResult) -> String {
         } => format!(
             "RANSAC's frames, every arc edge point on the sphere (LM; elevation prior {}, edge offset {edge_offset_mm:.3} mm)",
             elevation_prior_sd_mm
-                .map(|s| format!("{s} mm"))
+                .map(|s| format!("{s:.2} mm"))
                 .unwrap_or_else(|| "none".into())
         ),
     }
@@ -384,12 +383,37 @@ pub struct TrackedSummary {
     /// The tracker's lag behind the images, s.
     pub time_offset_s: f64,
     pub image_to_probe: ImageToProbeSummary,
+    /// How the model was chosen: cross-validation on the calibration frames.
+    pub model_selection: ModelSelectionSummary,
     pub validation: Pre3d,
     pub calibration: Pre3d,
     pub gates: Vec<GateResult>,
     pub regression_tolerances: TrackedTolerances,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub plus_result: Option<PlusResultSummary>,
+}
+
+/// One candidate model's cross-validated PRE3D (or why it has none).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CandidateScore {
+    pub constraints: ConstraintModel,
+    pub pixel_model: PixelModel,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cv_pre3d_mm: Option<MeanSd>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub failure: Option<String>,
+}
+
+/// The model family scored on the calibration frames and the model chosen.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct ModelSelectionSummary {
+    /// Contiguous blocks of calibration frames.
+    pub folds: usize,
+    /// Calibration frames cross-validated.
+    pub frames: usize,
+    pub candidates: Vec<CandidateScore>,
+    pub chosen_constraints: ConstraintModel,
+    pub chosen_pixel_model: PixelModel,
 }
 
 /// What `kind` says of a tracked run.
@@ -421,13 +445,17 @@ pub struct ParameterSd {
     pub rotation_mrad: Vec<f64>,
     pub translation_mm: Vec<f64>,
     pub spacing_mm_per_px: Vec<f64>,
+    pub shear_mm_per_px: f64,
 }
 
 /// PLUS's `Calibration`: `marker_T_image` after the pixel size.
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct ImageToProbeSummary {
     pub matrix: Vec<Vec<f64>>,
+    pub pixel_model: PixelModel,
     pub spacing_mm_per_px: [f64; 2],
+    /// mm along the image's x axis per pixel row (0 but for the affine model).
+    pub shear_mm_per_px: f64,
     pub rotation_zyx_deg: [f64; 3],
     pub translation_mm: [f64; 3],
     pub sd: ParameterSd,
@@ -438,6 +466,12 @@ pub struct ImageToProbeSummary {
 pub struct Pre3d {
     pub pre3d_mm: Option<MeanSd>,
     pub pre3d_all_mm: Option<MeanSd>,
+    /// PLUS's `ImageToProbe` (its result file) on the same dots and poses, same
+    /// convention: the like-for-like comparison.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub plus_matrix_pre3d_mm: Option<MeanSd>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub plus_matrix_pre3d_all_mm: Option<MeanSd>,
 }
 
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
@@ -458,8 +492,6 @@ pub struct PlusResultSummary {
     pub matrix: Vec<Vec<f64>>,
     pub published_validation_pre3d_mm: PublishedPre3d,
     pub published_calibration_pre3d_mm: PublishedPre3d,
-    pub validation_pre3d_on_our_dots_mm: Option<MeanSd>,
-    pub validation_pre3d_all_on_our_dots_mm: Option<MeanSd>,
 }
 
 /// Either kind of run summary, as read back from disk.

@@ -6,19 +6,22 @@ use std::path::Path;
 use nalgebra::{Matrix3, Matrix4};
 use polars::prelude::*;
 
-use crate::core::geometry::euler_zyx_deg;
-use crate::core::stats::{mean_sd_of, MeanSd};
+use crate::core::geometry::{euler_zyx_deg, Rigid};
+use crate::core::stats::{best_95, mean_sd_of, MeanSd};
 use crate::io::fs::write_atomic;
 use crate::io::plus::result::PlusResult;
 use crate::manifest::tracked::TrackedManifest;
-use crate::pipeline::tracked::{best_95, Role, TrackedRun};
+use crate::pipeline::tracked::{Role, TrackedRun};
 use crate::report::summary::{
-    to_text, ConstraintCounts, ImageToProbeSummary, ParameterSd, PlusResultSummary, Pre3d, PublishedPre3d, Segmented,
-    TrackedFrameCounts, TrackedSummary, TrackedTolerances, TRACKED_KIND,
+    to_text, CandidateScore, ConstraintCounts, ImageToProbeSummary, ModelSelectionSummary, ParameterSd,
+    PlusResultSummary, Pre3d, PublishedPre3d, Segmented, TrackedFrameCounts, TrackedSummary, TrackedTolerances,
+    TRACKED_KIND,
 };
 use crate::report::write::OutputError;
 
-/// PRE3D of a general `Calibration` matrix (e.g. PLUS's) on this run's segmented dots.
+/// PRE3D of a general `Calibration` matrix (e.g. PLUS's) on this run's segmented
+/// dots and poses, with the phantom's registration as configured (a correction
+/// this run may have fitted is its own, not the matrix's).
 pub fn pre3d_of_matrix(
     run: &TrackedRun,
     manifest: &TrackedManifest,
@@ -29,7 +32,7 @@ pub fn pre3d_of_matrix(
     run.frames
         .iter()
         .filter(|f| f.role == role && f.rejected.is_none())
-        .flat_map(|f| crate::pipeline::tracked::pre3d(f, &manifest.nwires, map, &run.fit.phantom_correction))
+        .flat_map(|f| crate::pipeline::tracked::pre3d(f, &manifest.nwires, map, &Rigid::identity()))
         .collect()
 }
 
@@ -37,10 +40,37 @@ fn rows(m: &Matrix4<f64>) -> Vec<Vec<f64>> {
     (0..4).map(|r| (0..4).map(|c| m[(r, c)]).collect()).collect()
 }
 
-fn pre3d(values: &[f64]) -> Pre3d {
+/// PRE3D of our calibration on `role`'s frames, and of PLUS's matrix on the same
+/// dots and poses when its result is given.
+fn pre3d(run: &TrackedRun, manifest: &TrackedManifest, plus: Option<&PlusResult>, role: Role) -> Pre3d {
+    let ours = run.pre3d(role);
+    let theirs = plus.map(|p| pre3d_of_matrix(run, manifest, &p.image_to_probe, role));
     Pre3d {
-        pre3d_mm: best_95(values),
-        pre3d_all_mm: mean_sd_of(values),
+        pre3d_mm: best_95(&ours),
+        pre3d_all_mm: mean_sd_of(&ours),
+        plus_matrix_pre3d_mm: theirs.as_deref().and_then(best_95),
+        plus_matrix_pre3d_all_mm: theirs.as_deref().and_then(mean_sd_of),
+    }
+}
+
+fn model_selection(run: &TrackedRun) -> ModelSelectionSummary {
+    let s = &run.selection;
+    let chosen = s.chosen();
+    ModelSelectionSummary {
+        folds: s.folds,
+        frames: s.frames,
+        candidates: s
+            .scored
+            .iter()
+            .map(|c| CandidateScore {
+                constraints: c.candidate.constraints,
+                pixel_model: c.candidate.pixel_model,
+                cv_pre3d_mm: c.cv_pre3d_mm,
+                failure: c.failure.clone(),
+            })
+            .collect(),
+        chosen_constraints: chosen.constraints,
+        chosen_pixel_model: chosen.pixel_model,
     }
 }
 
@@ -67,44 +97,43 @@ pub fn summary(run: &TrackedRun, manifest: &TrackedManifest, plus: Option<&PlusR
             rejected: (cal_total - cal_used) + (val_total - val_used),
         },
         constraints: ConstraintCounts {
-            model: manifest.model,
+            model: run.selection.chosen().constraints,
             count: run.constraints,
             kept: run.fit.inlier.iter().filter(|k| **k).count(),
         },
         time_offset_s: run.time_offset_s,
         image_to_probe: ImageToProbeSummary {
             matrix: rows(&matrix),
+            pixel_model: run.fit.pixel_model,
             spacing_mm_per_px: fit.spacing_mm_per_px,
+            shear_mm_per_px: fit.shear_mm_per_px,
             rotation_zyx_deg: euler_zyx_deg(&fit.marker_T_image),
             translation_mm: [t.x, t.y, t.z],
             sd: ParameterSd {
                 rotation_mrad: run.fit.sd.iter().take(3).map(|v| v * 1000.0).collect(),
                 translation_mm: run.fit.sd.iter().skip(3).take(3).copied().collect(),
                 spacing_mm_per_px: run.fit.sd.iter().skip(6).take(2).copied().collect(),
+                shear_mm_per_px: run.fit.sd.get(8).copied().unwrap_or(0.0),
             },
         },
-        validation: pre3d(&run.pre3d(Role::Validation)),
-        calibration: pre3d(&run.pre3d(Role::Calibration)),
+        model_selection: model_selection(run),
+        validation: pre3d(run, manifest, plus, Role::Validation),
+        calibration: pre3d(run, manifest, plus, Role::Calibration),
         gates: crate::pipeline::tracked::gates(run, manifest),
         regression_tolerances: TrackedTolerances {
             pre3d_mm: manifest.regression.pre3d_mm,
             frames_rejected: manifest.regression.frames_rejected,
         },
-        plus_result: plus.map(|p| {
-            let on_ours = pre3d_of_matrix(run, manifest, &p.image_to_probe, Role::Validation);
-            PlusResultSummary {
-                matrix: rows(&p.image_to_probe),
-                published_validation_pre3d_mm: PublishedPre3d {
-                    mean: p.validation_mean_mm,
-                    std: p.validation_std_mm,
-                },
-                published_calibration_pre3d_mm: PublishedPre3d {
-                    mean: p.calibration_mean_mm,
-                    std: p.calibration_std_mm,
-                },
-                validation_pre3d_on_our_dots_mm: best_95(&on_ours),
-                validation_pre3d_all_on_our_dots_mm: mean_sd_of(&on_ours),
-            }
+        plus_result: plus.map(|p| PlusResultSummary {
+            matrix: rows(&p.image_to_probe),
+            published_validation_pre3d_mm: PublishedPre3d {
+                mean: p.validation_mean_mm,
+                std: p.validation_std_mm,
+            },
+            published_calibration_pre3d_mm: PublishedPre3d {
+                mean: p.calibration_mean_mm,
+                std: p.calibration_std_mm,
+            },
         }),
     }
 }
@@ -244,7 +273,29 @@ fn render_page(run: &TrackedRun, manifest: &TrackedManifest, summary: &TrackedSu
     };
     ctx.insert("plus_config", &definition);
     ctx.insert("nwires", &manifest.nwires.len());
-    ctx.insert("model", &format!("{:?}", manifest.model));
+    let chosen = run.selection.chosen();
+    ctx.insert(
+        "model",
+        &format!("{:?}, {} pixels", chosen.constraints, chosen.pixel_model.name()),
+    );
+    let selection: Vec<serde_json::Value> = run
+        .selection
+        .scored
+        .iter()
+        .enumerate()
+        .map(|(k, c)| {
+            serde_json::json!({
+                "constraints": format!("{:?}", c.candidate.constraints),
+                "pixel_model": c.candidate.pixel_model.name(),
+                "cv": f3(c.cv_pre3d_mm.map(|s| s.mean)),
+                "note": c.failure.clone().unwrap_or_default(),
+                "chosen": k == run.selection.chosen,
+            })
+        })
+        .collect();
+    ctx.insert("selection", &selection);
+    ctx.insert("folds", &run.selection.folds);
+    ctx.insert("selection_frames", &run.selection.frames);
     ctx.insert("constraints", &run.constraints);
     ctx.insert("kept", &run.fit.inlier.iter().filter(|k| **k).count());
     ctx.insert("time_offset_ms", &format!("{:.0}", run.time_offset_s * 1000.0));
@@ -308,10 +359,10 @@ fn render_page(run: &TrackedRun, manifest: &TrackedManifest, summary: &TrackedSu
     ];
     if let Some(plus) = &summary.plus_result {
         pre3d.push(row(
-            "PLUS's ImageToProbe, our dots",
+            "PLUS's ImageToProbe, same dots and poses",
             "validation",
-            plus.validation_pre3d_on_our_dots_mm,
-            plus.validation_pre3d_all_on_our_dots_mm,
+            summary.validation.plus_matrix_pre3d_mm,
+            summary.validation.plus_matrix_pre3d_all_mm,
         ));
         pre3d.push(serde_json::json!({
             "estimate": "PLUS as published (its own dots)", "frames": "validation",
