@@ -160,7 +160,6 @@ fn point_phantom_calibrates_from_pixels() {
 #[test]
 #[ignore = "renders and runs experiments (full tier: scripts/test.sh)"]
 fn four_wire_phantom_calibrates_from_pixels_started_off_the_truth() {
-    // The manifest's start is about 7 mm and 3 degrees off the true mount.
     let summary = run("four_wire_small.yaml");
     let error = summary["truth"]["corner_error_mm"]["mean"].as_f64().unwrap();
     assert!(error < 2.0, "image corners off by {error} mm");
@@ -169,4 +168,13 @@ fn four_wire_phantom_calibrates_from_pixels_started_off_the_truth() {
         "{}",
         summary["frames"]
     );
+    // The start's offset is measured, and the basin shrinks with the offset:
+    // every start close by converges, none from far away.
+    let guess = &summary["start_guess"];
+    assert!(guess["offset_translation_mm"].as_f64().unwrap() > 1.0, "{guess}");
+    let basin = guess["basin"].as_array().unwrap();
+    let rate = |row: &serde_json::Value| row["converged"].as_f64().unwrap() / row["trials"].as_f64().unwrap();
+    assert_eq!(basin.len(), 7);
+    assert!(rate(&basin[0]) >= 0.9, "{guess}");
+    assert!(rate(&basin[6]) <= 0.2, "{guess}");
 }

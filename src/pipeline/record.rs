@@ -319,6 +319,8 @@ pub struct DatasetRun {
     pub feature_in_phantom_mm: Option<[f64; 3]>,
     /// Other estimators on the same frames (point phantoms).
     pub methods: Vec<MethodResult>,
+    /// Wire phantoms: the start guess's offset and basin of convergence.
+    pub start_guess: Option<crate::estimate::start_basin::StartGuess>,
     pub validation: Option<ResamplingSummary>,
     pub timings_s: Vec<(&'static str, f64)>,
     /// Every file the run read (for provenance).

@@ -154,7 +154,7 @@ pub fn run_dataset(
         initial_marker_T_image: manifest.initial_marker_T_image,
         min_frames,
     };
-    let correspondences = solve::point_pairs(&mut frames, targets, &pairing, log)?;
+    let (correspondences, start_guess) = solve::point_pairs(&mut frames, targets, &pairing, log)?;
     solve::enough_frames(&frames, &correspondences, min_frames, &name)?;
     // Ground truth (rendered data) is read only to score the estimates.
     let truth = GroundTruth::load(&folder).map_err(|source| RunError::Truth {
@@ -246,6 +246,7 @@ pub fn run_dataset(
             Targets::Wires(_) => None,
         },
         methods,
+        start_guess,
         validation,
         timings_s: timings,
         input_files,

@@ -9,8 +9,12 @@ use super::run::RunError;
 use crate::core::geometry::Rigid;
 use crate::estimate::correspondence::{self, Correspondence};
 use crate::estimate::horn::{HornFit, Variant};
+use crate::estimate::start_basin::{self, StartGuess};
 use crate::estimate::wire_matching::{self, FrameWireDots, WireAxis};
 use crate::evaluate::{self, CutoffRule, EvaluationInputs, ThresholdRow};
+
+/// The basin's random starts: fixed, so a run is reproducible.
+const BASIN_SEED: u64 = 17;
 
 /// A frame that passed every stage and has poses and a feature.
 fn usable(f: &FrameRecord) -> bool {
@@ -28,28 +32,32 @@ pub struct PairingInputs<'a> {
 
 /// The usable frames' measurements. Point phantoms: one pair per frame. Wire
 /// phantoms: dots paired with their wires (frames left unpaired are rejected
-/// with the reason, and the paired dots and their wires kept on the record).
+/// with the reason, and the paired dots and their wires kept on the record),
+/// and the start guess's basin of convergence on these frames.
 pub fn point_pairs(
     frames: &mut [FrameRecord],
     targets: Targets<'_>,
     inputs: &PairingInputs<'_>,
     log: &mut dyn FnMut(&str),
-) -> Result<Vec<Correspondence>, RunError> {
+) -> Result<(Vec<Correspondence>, Option<StartGuess>), RunError> {
     match targets {
-        Targets::Point(feature) => Ok(frames
-            .iter()
-            .filter(|f| usable(f))
-            .filter_map(|f| {
-                let (camera_T_marker, camera_T_phantom) = f.pose_pair()?;
-                Some(Correspondence::point(
-                    f.files.frame,
-                    f.features_px[0],
-                    Point3::from(nalgebra::Vector3::from(feature)),
-                    camera_T_marker,
-                    camera_T_phantom,
-                ))
-            })
-            .collect()),
+        Targets::Point(feature) => Ok((
+            frames
+                .iter()
+                .filter(|f| usable(f))
+                .filter_map(|f| {
+                    let (camera_T_marker, camera_T_phantom) = f.pose_pair()?;
+                    Some(Correspondence::point(
+                        f.files.frame,
+                        f.features_px[0],
+                        Point3::from(nalgebra::Vector3::from(feature)),
+                        camera_T_marker,
+                        camera_T_phantom,
+                    ))
+                })
+                .collect(),
+            None,
+        )),
         Targets::Wires(wires) => {
             let axes: Vec<WireAxis> = wires
                 .iter()
@@ -98,7 +106,16 @@ pub fn point_pairs(
                     f.features_px = c.features.iter().map(|o| o.pixel).collect();
                 }
             }
-            Ok(matching.correspondences)
+            let start_guess = start_basin::measure(
+                &dots,
+                &axes,
+                &start,
+                &matching.fit.target_T_source,
+                inputs.spacing_mm_per_px,
+                inputs.min_frames,
+                BASIN_SEED,
+            );
+            Ok((matching.correspondences, Some(start_guess)))
         }
     }
 }

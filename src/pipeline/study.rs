@@ -121,7 +121,18 @@ pub struct MethodAccuracy {
     pub mean_mm: f64,
     pub p95_mm: f64,
     pub rms_mm: f64,
+    /// Seeds where this method's error is below 0.95 times the reported
+    /// method's (the first listed), and above 1.05 times it.
+    #[serde(default)]
+    pub better_than_reported_seeds: usize,
+    #[serde(default)]
+    pub worse_than_reported_seeds: usize,
 }
+
+/// A method's error is "better" ("worse") than the reported method's below
+/// (above) these multiples of it.
+pub const BETTER_BELOW: f64 = 0.95;
+pub const WORSE_ABOVE: f64 = 1.05;
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct MonteCarlo {
@@ -299,8 +310,17 @@ pub fn monte_carlo(
                 .iter()
                 .filter_map(|r| r.rms_error_mm.iter().find(|(m, _)| m == name).map(|(_, e)| *e))
                 .collect();
+            let versus: Vec<(f64, f64)> = results
+                .iter()
+                .filter_map(|r| {
+                    let of = |n: &str| r.rms_error_mm.iter().find(|(m, _)| m == n).map(|(_, e)| *e);
+                    Some((of(name)?, of(names.first()?)?))
+                })
+                .collect();
             MethodAccuracy {
                 method: name.clone(),
+                better_than_reported_seeds: versus.iter().filter(|(e, r)| *e < BETTER_BELOW * r).count(),
+                worse_than_reported_seeds: versus.iter().filter(|(e, r)| *e > WORSE_ABOVE * r).count(),
                 mean_mm: errors.iter().sum::<f64>() / errors.len().max(1) as f64,
                 p95_mm: if errors.is_empty() {
                     f64::NAN

@@ -85,6 +85,12 @@ pub struct RunContext {
     pub bre_figure_svg: String,
     /// Other estimators on the same frames: name, description, frames, truth errors.
     pub methods: Vec<StatRow>,
+    /// Why two estimators give the same calibration, when they do.
+    pub methods_agree: Vec<String>,
+    /// Wire phantoms: the start guess's offset from where it converged.
+    pub start_offset: String,
+    /// Wire phantoms: per offset, the random starts that converged.
+    pub start_basin: Vec<StatRow>,
     pub validation: Vec<KeyValue>,
     /// Manifest summary, software versions, inputs.
     pub setup: Vec<KeyValue>,
@@ -455,9 +461,104 @@ pub fn context(run: &DatasetRun, manifest: &crate::manifest::Manifest) -> RunCon
                 ],
             })
             .collect(),
+        methods_agree: agreements(&run.methods),
+        start_offset: run
+            .start_guess
+            .as_ref()
+            .map(|g| {
+                format!(
+                    "The manifest's start guess (solve.initial_marker_T_image) is {:.1} mm and {:.1}° from the calibration it converged to.",
+                    g.offset_translation_mm, g.offset_rotation_deg
+                )
+            })
+            .unwrap_or_default(),
+        start_basin: run
+            .start_guess
+            .iter()
+            .flat_map(|g| &g.basin)
+            .map(|b| StatRow {
+                parameter: format!("{} mm, {}°", b.translation_mm, b.rotation_deg),
+                values: vec![
+                    format!("{} of {}", b.converged, b.trials),
+                    format!("{:.0} %", 100.0 * b.converged as f64 / b.trials.max(1) as f64),
+                ],
+            })
+            .collect(),
         validation: validation_rows(run),
         setup: setup_rows(run, manifest),
         gallery: Vec::new(),
         figures: Vec::new(),
+    }
+}
+
+/// One sentence per pair of estimators that ended on the same calibration: the
+/// same frames were left out, so the same final fit was solved.
+fn agreements(methods: &[crate::pipeline::record::MethodResult]) -> Vec<String> {
+    let mut out = Vec::new();
+    for (i, a) in methods.iter().enumerate() {
+        for b in &methods[i + 1..] {
+            let same_fit = a.marker_T_image.to_homogeneous() == b.marker_T_image.to_homogeneous()
+                && a.spacing_mm_per_px == b.spacing_mm_per_px;
+            if same_fit && a.frames_left_out == b.frames_left_out {
+                let left_out = if a.frames_left_out.is_empty() {
+                    "no frame".to_string()
+                } else {
+                    format!(
+                        "the same frames ({})",
+                        a.frames_left_out
+                            .iter()
+                            .map(|f| f.to_string())
+                            .collect::<Vec<_>>()
+                            .join(", ")
+                    )
+                };
+                out.push(format!(
+                    "{} and {} agree: each left out {left_out} and solved the rest with the same fit, so their calibrations are identical.",
+                    a.method.name(),
+                    b.method.name()
+                ));
+            }
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::core::geometry::Rigid;
+    use crate::pipeline::record::{Method, MethodResult};
+
+    fn result(method: Method, left_out: Vec<usize>, shift_mm: f64) -> MethodResult {
+        MethodResult {
+            method,
+            frames_used: 10 - left_out.len(),
+            frames_left_out: left_out,
+            marker_T_image: Rigid::translation(shift_mm, 0.0, 0.0),
+            spacing_mm_per_px: [0.2, 0.2],
+            truth: None,
+        }
+    }
+
+    #[test]
+    fn estimators_that_end_on_one_fit_are_explained_and_others_are_not() {
+        let methods = [
+            result(
+                Method::Ransac {
+                    threshold_mm: 1.3,
+                    noise_sd_mm: Some(0.4),
+                },
+                vec![3, 7],
+                0.0,
+            ),
+            result(Method::Lmeds { threshold_mm: 1.9 }, vec![3, 7], 0.0),
+            result(Method::CutoffWorstFirst { cutoff_mm: 2.0 }, vec![3], 0.1),
+        ];
+        let said = agreements(&methods);
+        assert_eq!(said.len(), 1, "{said:?}");
+        assert!(
+            said[0].starts_with("ransac and lmeds agree: each left out the same frames (3, 7)"),
+            "{said:?}"
+        );
     }
 }

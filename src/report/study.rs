@@ -50,19 +50,24 @@ pub fn markdown(sigma: &[SigmaRow], monte_carlo: Option<&MonteCarlo>) -> String 
              Cramér–Rao bound is that of the point-pair model (independent Gaussian pair residuals with the covariance \
              of the true residuals of the inlier frames, measured per seed).\n\n",
         );
-        md.push_str("| method | mean (mm) | 95th percentile (mm) | RMS (mm) | RMS / CRLB |\n|---|---|---|---|---|\n");
+        let reported = mc.methods.first().map(|m| m.method.as_str()).unwrap_or("—");
+        md.push_str(&format!(
+            "| method | mean (mm) | 95th percentile (mm) | RMS (mm) | RMS / CRLB | seeds better / worse than {reported} by > 5 % |\n|---|---|---|---|---|---|\n"
+        ));
         for m in &mc.methods {
             md.push_str(&format!(
-                "| {} | {:.3} | {:.3} | {:.3} | {:.2} |\n",
+                "| {} | {:.3} | {:.3} | {:.3} | {:.2} | {} / {} |\n",
                 m.method,
                 m.mean_mm,
                 m.p95_mm,
                 m.rms_mm,
-                m.rms_mm / mc.crlb_rms_mm
+                m.rms_mm / mc.crlb_rms_mm,
+                m.better_than_reported_seeds,
+                m.worse_than_reported_seeds
             ));
         }
         md.push_str(&format!(
-            "| Cramér–Rao bound of the point-pair model (independent frames) | | | {:.3} | 1.00 |\n",
+            "| Cramér–Rao bound of the point-pair model (independent frames) | | | {:.3} | 1.00 | |\n",
             mc.crlb_rms_mm
         ));
     }

@@ -14,6 +14,7 @@ use serde::{Deserialize, Deserializer, Serialize, Serializer};
 use crate::core::geometry::{euler_zyx_deg, to_rows};
 use crate::core::stats::MeanSd;
 use crate::estimate::image_to_probe::{ConstraintModel, PixelModel};
+use crate::estimate::start_basin::StartGuess;
 use crate::evaluate::resampling::Bootstrap;
 use crate::evaluate::{cutoff_label, AxisStats, BreStats, TruthComparison};
 use crate::manifest::{Manifest, Regression, SolveVariant};
@@ -223,6 +224,9 @@ pub struct Summary {
     pub validation: Option<ValidationSummary>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub truth: Option<TruthSummaryJson>,
+    /// Wire phantoms: the start guess's offset and basin of convergence.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub start_guess: Option<StartGuess>,
 }
 
 /// What the report says an estimator did.
@@ -346,6 +350,7 @@ impl Summary {
                     truth: m.truth.map(TruthError::from),
                 })
                 .collect(),
+            start_guess: run.start_guess.clone(),
             validation: run.validation.as_ref().map(|v| ValidationSummary {
                 protocol: "frames of the calibration cut-off; PRE by leave-one-out; CR over random half-splits; bootstrap percentile intervals (2.5 %, 97.5 %)".into(),
                 pre_loo_mm: v.leave_one_out.summary,

@@ -1,0 +1,57 @@
+#!/usr/bin/env python3
+"""Rewrites every tagged number in README.md from the committed output it names.
+
+A tagged number is written `0.521<!-- plus_fcal2_nwire/fcal2_3nwires/summary.json#validation.pre3d_mm.mean -->`
+(the key syntax: fields, `[3]` indices, `[field=value]` selectors, a trailing
+`*1000` scale). The number keeps its decimals. `tests/readme_claims.rs` fails when
+a tagged number differs from reports/; run this after regenerating reports/.
+"""
+import json
+import pathlib
+import re
+import sys
+
+ROOT = pathlib.Path(__file__).resolve().parent.parent
+TAG = re.compile(r"(-?[0-9]+(?:\.[0-9]+)?)<!-- ([^#> ]+\.json)#([^ ]+) -->")
+
+
+def lookup(data, key):
+    scale = 1.0
+    if "*" in key:
+        key, s = key.split("*", 1)
+        scale = float(s)
+    value = data
+    for segment in key.split("."):
+        name, _, selector = segment.partition("[")
+        if name:
+            value = value[name]
+        if selector:
+            selector = selector.rstrip("]")
+            if "=" in selector:
+                field, want = selector.split("=", 1)
+                value = next(e for e in value if e.get(field) == want)
+            else:
+                value = value[int(selector)]
+    return float(value) * scale
+
+
+def main():
+    readme = ROOT / "README.md"
+    text = readme.read_text()
+    cache = {}
+
+    def fill(m):
+        written, file, key = m.group(1), m.group(2), m.group(3)
+        if file not in cache:
+            cache[file] = json.loads((ROOT / "reports" / file).read_text())
+        decimals = len(written.split(".")[1]) if "." in written else 0
+        value = lookup(cache[file], key)
+        return f"{value:.{decimals}f}<!-- {file}#{key} -->"
+
+    new, count = TAG.subn(fill, text)
+    readme.write_text(new)
+    print(f"{count} tagged numbers rewritten from reports/", file=sys.stderr)
+
+
+if __name__ == "__main__":
+    main()
