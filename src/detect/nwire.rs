@@ -14,15 +14,25 @@ use serde::{Deserialize, Serialize};
 #[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct Segmentation {
-    /// Pixels brighter than this grey level belong to a dot.
-    pub threshold_grey: u8,
+    /// Pixels brighter than this grey level belong to a dot; absent: each
+    /// frame's own, `threshold_percent` % of its brightest pixel after the opening
+    /// (inside the clip rectangle).
+    pub threshold_grey: Option<u8>,
+    /// The frame's threshold as a share of its brightest opened pixel, % (PLUS's
+    /// `ThresholdImagePercent`).
+    pub threshold_percent: f64,
     /// Fewest pixels of a dot.
     pub min_dot_px: usize,
     /// A dot's centre is weighted by the grey levels above this fraction of its peak
     /// (0: every pixel above the threshold), so a comet tail does not pull it.
     pub core_fraction: f64,
-    /// Radius of the disk of the morphological opening applied first (0: none).
-    pub opening_radius_px: u32,
+    /// Radius of the disk of the morphological opening applied first (0: none);
+    /// absent: `opening_radius_mm` over the approximate pixel size.
+    pub opening_radius_px: Option<u32>,
+    /// The opening's radius in the image, mm (PLUS's
+    /// `MorphologicalOpeningCircleRadiusMm`): thinner than a wire's echo, thicker
+    /// than speckle.
+    pub opening_radius_mm: f64,
     /// How many of the brightest spots are considered.
     pub max_candidates: usize,
     /// Largest distance of the middle dot from the line through the outer two.
@@ -56,14 +66,16 @@ pub enum Side {
 
 impl Default for Segmentation {
     fn default() -> Self {
-        // Set on the fCal 2.0 recordings: the dimmest true dots peak near 50 grey
-        // levels on a black background; comet tails below a dot are dimmer and off
-        // the row's line.
+        // The threshold and the opening follow each image and its pixel size, with
+        // PLUS's defaults (10 % of the brightest opened pixel; a 0.27 mm disk);
+        // comet tails below a dot are dimmer and off the row's line.
         Segmentation {
-            threshold_grey: 25,
+            threshold_grey: None,
+            threshold_percent: 10.0,
             min_dot_px: 4,
             core_fraction: 0.5,
-            opening_radius_px: 3,
+            opening_radius_px: None,
+            opening_radius_mm: 0.27,
             max_candidates: 20,
             collinear_tolerance_mm: 0.6,
             max_row_angle_deg: 40.0,
@@ -72,6 +84,31 @@ impl Default for Segmentation {
             first_pattern_row: RowOrder::Top,
             first_wire_side: Side::Right,
         }
+    }
+}
+
+impl Segmentation {
+    /// The opening's radius for images of about `spacing_mm_per_px`.
+    pub fn opening_radius_for(&self, spacing_mm_per_px: f64) -> u32 {
+        self.opening_radius_px
+            .unwrap_or_else(|| (self.opening_radius_mm / spacing_mm_per_px).round().clamp(0.0, 50.0) as u32)
+    }
+
+    /// One frame's grey threshold: the manifest's, or `threshold_percent` % of the
+    /// brightest pixel of `centre_pixels` (the opened image) in `clip`, at least 1.
+    pub fn threshold_for(&self, centre_pixels: &[u8], width: usize, height: usize, clip: [usize; 4]) -> u8 {
+        if let Some(t) = self.threshold_grey {
+            return t;
+        }
+        let [u0, v0, w, h] = clip;
+        let (u1, v1) = ((u0 + w).min(width), (v0 + h).min(height));
+        let brightest = (v0..v1)
+            .flat_map(|v| centre_pixels[v * width + u0.min(u1)..v * width + u1].iter().copied())
+            .max()
+            .unwrap_or(0);
+        (self.threshold_percent / 100.0 * brightest as f64)
+            .round()
+            .clamp(1.0, 254.0) as u8
     }
 }
 
@@ -128,7 +165,7 @@ pub fn find_spots(
 ) -> Vec<DotCandidate> {
     let [u0, v0, w, h] = clip;
     let (u1, v1) = ((u0 + w).min(width), (v0 + h).min(height));
-    let t = settings.threshold_grey;
+    let t = settings.threshold_for(centre_pixels, width, height, clip);
     let mut seen = vec![false; width * height];
     let mut spots = Vec::new();
     let mut stack = Vec::new();
@@ -211,10 +248,9 @@ struct Row {
 /// Why a B-scan's dots do not make the phantom's N-wire patterns.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum NWireRejection {
-    #[error("{spots} bright spots above grey level {threshold_grey}, {needed} needed for {patterns} N-wires")]
+    #[error("{spots} bright spots above the grey threshold, {needed} needed for {patterns} N-wires")]
     TooFewSpots {
         spots: usize,
-        threshold_grey: u8,
         needed: usize,
         patterns: usize,
     },
@@ -239,7 +275,6 @@ pub fn segment(
     if spots.len() < 3 * patterns {
         return Err(NWireRejection::TooFewSpots {
             spots: spots.len(),
-            threshold_grey: settings.threshold_grey,
             needed: 3 * patterns,
             patterns,
         });
@@ -373,5 +408,30 @@ mod tests {
         // First pattern on the top row, wire 1 on the right.
         assert!((dots.patterns[0][0][0] - 151.0).abs() < 1e-9 && (dots.patterns[0][0][1] - 23.0).abs() < 1e-9);
         assert!((dots.patterns[2][1][0] - 101.0).abs() < 1e-9);
+    }
+
+    /// The threshold follows each image's own brightness unless the manifest
+    /// fixes it; the opening follows the pixel size.
+    #[test]
+    fn threshold_and_opening_follow_the_image_and_its_pixel_size() {
+        let (width, height) = (40, 30);
+        let mut image = vec![3u8; width * height];
+        image[15 * width + 20] = 200;
+        // Bright text outside the clip rectangle does not count.
+        image[2 * width + 2] = 255;
+        let auto = Segmentation::default();
+        let clip = [5, 5, 30, 20];
+        assert_eq!(auto.threshold_for(&image, width, height, clip), 20);
+        let dim: Vec<u8> = image.iter().map(|p| p / 2).collect();
+        assert_eq!(auto.threshold_for(&dim, width, height, clip), 10);
+        let fixed = Segmentation {
+            threshold_grey: Some(25),
+            ..Segmentation::default()
+        };
+        assert_eq!(fixed.threshold_for(&dim, width, height, clip), 25);
+        // An empty image still thresholds above black.
+        assert_eq!(auto.threshold_for(&vec![0; width * height], width, height, clip), 1);
+        assert_eq!(auto.opening_radius_for(0.078), 3);
+        assert_eq!(auto.opening_radius_for(0.2), 1);
     }
 }

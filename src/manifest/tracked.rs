@@ -420,6 +420,16 @@ impl TrackedManifest {
         let seg = &raw.bscan.segmentation;
         let sf = "bscan.segmentation";
         c.positive(&format!("{sf}.collinear_tolerance_mm"), seg.collinear_tolerance_mm);
+        if !(seg.threshold_percent > 0.0 && seg.threshold_percent < 100.0) {
+            c.fail(
+                &format!("{sf}.threshold_percent"),
+                format!("must be a percentage between 0 and 100, got {}", seg.threshold_percent),
+            );
+        }
+        c.at_least(&format!("{sf}.opening_radius_mm"), seg.opening_radius_mm, 0.0);
+        if seg.opening_radius_px.is_some_and(|r| r > 50) {
+            c.fail(&format!("{sf}.opening_radius_px"), "must be at most 50 px");
+        }
         if !(0.0..1.0).contains(&seg.core_fraction) {
             c.fail(
                 &format!("{sf}.core_fraction"),

@@ -244,13 +244,9 @@ fn process(sequence: &Sequence, role: Role, inputs: &TrackedInputs, clip: [usize
             let opened;
             let pixels = sequence.pixels(index);
             let mut centre_pixels = pixels;
-            if inputs.segmentation.opening_radius_px > 0 {
-                match nwire::open_image(
-                    pixels,
-                    sequence.width,
-                    sequence.height,
-                    inputs.segmentation.opening_radius_px,
-                ) {
+            let radius_px = inputs.segmentation.opening_radius_for(inputs.spacing_guess_mm_per_px);
+            if radius_px > 0 {
+                match nwire::open_image(pixels, sequence.width, sequence.height, radius_px) {
                     Ok(p) => {
                         opened = p;
                         centre_pixels = &opened;
