@@ -107,13 +107,24 @@ enum Command {
         /// A dataset's run folder (`<out>/<experiment>/<dataset>`).
         run: PathBuf,
     },
+    /// Segment the N-wire dots of a PLUS sequence on their own: segmentation.csv,
+    /// summary.json and report.html in --out.
+    Segment {
+        /// A PLUS sequence file (.mha).
+        sequence: PathBuf,
+        /// The PLUS device set with the phantom (and its segmentation settings).
+        #[arg(long)]
+        config: PathBuf,
+        #[arg(long)]
+        out: PathBuf,
+    },
     /// Calibrate a camera from chessboard images; writes OpenCV FileStorage YAML.
     CalibrateCamera {
         /// Image files and/or folders of images.
         #[arg(required = true)]
         images: Vec<PathBuf>,
         /// Inner corners, COLSxROWS (e.g. 9x6).
-        #[arg(long, value_parser = parse_board)]
+        #[arg(long, value_parser = probecal::detect::camera_calibration::parse_board)]
         board: [u32; 2],
         /// Square size in millimetres (or any unit: the translations come out in it).
         #[arg(long)]
@@ -122,22 +133,6 @@ enum Command {
         #[arg(long)]
         out: PathBuf,
     },
-}
-
-fn parse_board(text: &str) -> Result<[u32; 2], String> {
-    let (c, r) = text
-        .split_once(['x', 'X'])
-        .ok_or_else(|| format!("`{text}` is not COLSxROWS (e.g. 9x6)"))?;
-    let parse = |s: &str| {
-        s.trim()
-            .parse::<u32>()
-            .map_err(|_| format!("`{text}` is not COLSxROWS (e.g. 9x6)"))
-    };
-    let (c, r) = (parse(c)?, parse(r)?);
-    if c < 2 || r < 2 {
-        return Err(format!("a board needs at least 2x2 inner corners, got {c}x{r}"));
-    }
-    Ok([c, r])
 }
 
 /// Every manifest, or `None` after printing all their errors.
@@ -227,6 +222,7 @@ fn main() -> ExitCode {
             allow_drop,
         } => probecal::report::check::run(&runs, &baselines, update, allow_drop),
         Command::Validate { manifests } => validate(&manifests),
+        Command::Segment { sequence, config, out } => probecal::report::segment::command(&sequence, &config, &out),
         Command::Study {
             manifest,
             seeds,

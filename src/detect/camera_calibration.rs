@@ -392,6 +392,23 @@ pub fn calibrate_folder(
     calibrate_from(&[folder.to_path_buf()], inner_corners, square_mm)
 }
 
+/// A board's inner corners from `COLSxROWS` (the command line's `--board`).
+pub fn parse_board(text: &str) -> Result<[u32; 2], String> {
+    let (c, r) = text
+        .split_once(['x', 'X'])
+        .ok_or_else(|| format!("`{text}` is not COLSxROWS (e.g. 9x6)"))?;
+    let parse = |s: &str| {
+        s.trim()
+            .parse::<u32>()
+            .map_err(|_| format!("`{text}` is not COLSxROWS (e.g. 9x6)"))
+    };
+    let (c, r) = (parse(c)?, parse(r)?);
+    if c < 2 || r < 2 {
+        return Err(format!("a board needs at least 2x2 inner corners, got {c}x{r}"));
+    }
+    Ok([c, r])
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -10,6 +10,8 @@
 
 use serde::{Deserialize, Serialize};
 
+use crate::spec::nwire::NWire;
+
 /// Settings of the dot segmentation.
 #[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields, default)]
@@ -41,6 +43,13 @@ pub struct Segmentation {
     pub max_row_angle_deg: f64,
     /// Largest angle between the rows of one frame.
     pub max_row_angle_difference_deg: f64,
+    /// Largest difference between two neighbouring rows' distance and the
+    /// phantom's distance between their patterns, % (PLUS's
+    /// `MaxLinePairDistanceErrorPercent`).
+    pub row_gap_tolerance_percent: f64,
+    /// Largest shift of neighbouring rows' centres along the rows, mm (PLUS's
+    /// `MaxLineShiftMm`): the patterns lie one behind the other.
+    pub max_row_shift_mm: f64,
     /// Region searched `[u, v, width, height]` px; absent: the configuration's clip
     /// rectangle, or the whole image.
     pub clip_rectangle_px: Option<[usize; 4]>,
@@ -80,6 +89,8 @@ impl Default for Segmentation {
             collinear_tolerance_mm: 0.6,
             max_row_angle_deg: 40.0,
             max_row_angle_difference_deg: 10.0,
+            row_gap_tolerance_percent: 10.0,
+            max_row_shift_mm: 10.0,
             clip_rectangle_px: None,
             first_pattern_row: RowOrder::Top,
             first_wire_side: Side::Right,
@@ -241,7 +252,10 @@ pub fn find_spots(
 struct Row {
     spots: [usize; 3],
     angle_rad: f64,
+    /// Outer dots' distance over the pattern width's scale (px).
+    length_px: f64,
     weight: f64,
+    mean_u: f64,
     mean_v: f64,
 }
 
@@ -256,22 +270,42 @@ pub enum NWireRejection {
     },
     #[error("{rows} rows of 3 collinear dots among {spots} spots, {patterns} needed")]
     TooFewRows { rows: usize, spots: usize, patterns: usize },
-    #[error("no {patterns} disjoint, parallel rows of 3 collinear dots (of {rows} candidate rows)")]
+    #[error(
+        "no {patterns} disjoint, parallel rows of 3 collinear dots spaced as the phantom's patterns (of {rows} candidate rows)"
+    )]
     NoParallelRows { patterns: usize, rows: usize },
+}
+
+/// What the image of the phantom's patterns should look like.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PatternGeometry {
+    pub patterns: usize,
+    /// Shortest and longest distance between a pattern's outer dots (side-wire
+    /// distance over the approximate pixel size), px.
+    pub widths_px: (f64, f64),
+    /// Distance between each pattern's plane and the next one's, over the
+    /// approximate pixel size (px), in the phantom definition's order.
+    pub row_gaps_px: Vec<f64>,
+    pub spacing_mm_per_px: f64,
+    /// The patterns themselves (empty: their middle dots are not checked).
+    pub nwires: Vec<NWire>,
 }
 
 /// Finds one row of three collinear dots per pattern and assigns them to the wires.
 ///
-/// `widths_px` is the expected distance between the outer dots of each pattern
-/// (side-wire distance over the approximate pixel size); a row may be up to 1.6x
-/// longer (a plane crossing the wires obliquely) and 0.85x shorter.
+/// A row may be up to 1.6x longer than its pattern's width (a plane crossing the
+/// wires obliquely) and 0.85x shorter; neighbouring rows must lie as far apart
+/// as their patterns, within `row_gap_tolerance_percent`, taken along the rows'
+/// normal (a plane tilted about the rows only lengthens that distance by a few
+/// percent at the tilts a sweep uses).
 pub fn segment(
     spots: &[DotCandidate],
-    patterns: usize,
-    widths_px: (f64, f64),
-    spacing_mm_per_px: f64,
+    geometry: &PatternGeometry,
     settings: &Segmentation,
 ) -> Result<NWireDots, NWireRejection> {
+    let patterns = geometry.patterns;
+    let widths_px = geometry.widths_px;
+    let spacing_mm_per_px = geometry.spacing_mm_per_px;
     if spots.len() < 3 * patterns {
         return Err(NWireRejection::TooFewSpots {
             spots: spots.len(),
@@ -305,7 +339,9 @@ pub fn segment(
                 rows.push(Row {
                     spots: idx,
                     angle_rad: angle,
+                    length_px: length,
                     weight: idx.iter().map(|&i| spots[i].weight).sum(),
+                    mean_u: (p[0] + q[0] + r[0]) / 3.0,
                     mean_v: (p[1] + q[1] + r[1]) / 3.0,
                 });
             }
@@ -324,17 +360,52 @@ pub fn segment(
     let max_diff = settings.max_row_angle_difference_deg.to_radians();
     let mut best: Option<(f64, Vec<usize>)> = None;
     let mut chosen = Vec::new();
-    search(&rows, patterns, max_diff, 0, &mut chosen, &mut best);
+    let mut gaps = geometry.row_gaps_px.clone();
+    // Rows of patterns whose side wires all run alike are stretched alike.
+    let parallel = geometry.nwires.windows(2).all(|p| {
+        let (a, b) = (
+            p[0].wires[0].direction().normalize(),
+            p[1].wires[0].direction().normalize(),
+        );
+        a.cross(&b).norm() < 1e-6
+    });
+    let mut widths: Vec<f64> = if parallel {
+        geometry.nwires.iter().map(|n| n.width_mm()).collect()
+    } else {
+        Vec::new()
+    };
+    if settings.first_pattern_row == RowOrder::Bottom {
+        gaps.reverse();
+        widths.reverse();
+    }
+    let limits = SearchLimits {
+        wanted: patterns,
+        max_diff,
+        gaps_px: &gaps,
+        gap_tolerance: settings.row_gap_tolerance_percent / 100.0,
+        widths_mm: &widths,
+        max_shift_px: settings.max_row_shift_mm / spacing_mm_per_px,
+        phantom: (!geometry.nwires.is_empty()).then_some((spots, &geometry.nwires[..], spacing_mm_per_px, settings)),
+    };
+    search(&rows, &limits, 0, &mut chosen, &mut best);
     let (_, picked) = best.ok_or(NWireRejection::NoParallelRows {
         patterns,
         rows: rows.len(),
     })?;
-    let mut picked: Vec<Row> = picked.into_iter().map(|i| rows[i]).collect();
+    Ok(NWireDots {
+        patterns: assign(&rows, &picked, spots, settings),
+    })
+}
+
+/// The chosen rows' dots as the phantom's patterns: `[wire 1, wire 2, wire 3]`
+/// each, in the phantom definition's order.
+fn assign(rows: &[Row], chosen: &[usize], spots: &[DotCandidate], settings: &Segmentation) -> Vec<[[f64; 2]; 3]> {
+    let mut picked: Vec<&Row> = chosen.iter().map(|&i| &rows[i]).collect();
     picked.sort_by(|a, b| a.mean_v.total_cmp(&b.mean_v));
     if settings.first_pattern_row == RowOrder::Bottom {
         picked.reverse();
     }
-    let patterns = picked
+    picked
         .iter()
         .map(|row| {
             let mut dots = row.spots.map(|i| spots[i].centre_px);
@@ -343,19 +414,84 @@ pub fn segment(
             }
             dots
         })
+        .collect()
+}
+
+/// Whether the middle dots lie as far apart in the image as the points of the
+/// phantom their ratios put them at (both in mm, the image's at the approximate
+/// pixel size): a wrong dot moves its pattern's point along the diagonal wire.
+fn middles_consistent(patterns: &[[[f64; 2]; 3]], nwires: &[NWire], spacing_mm_per_px: f64, tolerance: f64) -> bool {
+    let points: Vec<_> = patterns
+        .iter()
+        .zip(nwires)
+        .map(|(dots, n)| (dots[1], n.middle_in_phantom_mm(dots)))
         .collect();
-    Ok(NWireDots { patterns })
+    points.windows(2).all(|pair| {
+        let ((a, pa), (b, pb)) = (pair[0], pair[1]);
+        let in_image = ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2)).sqrt() * spacing_mm_per_px;
+        let in_phantom = (pa - pb).norm();
+        (in_image - in_phantom).abs() <= tolerance * in_phantom
+    })
+}
+
+/// What a set of rows must satisfy.
+struct SearchLimits<'a> {
+    wanted: usize,
+    max_diff: f64,
+    /// Expected distances between neighbouring rows, top to bottom, px.
+    gaps_px: &'a [f64],
+    gap_tolerance: f64,
+    /// The patterns' widths, top to bottom (empty: not checked), mm.
+    widths_mm: &'a [f64],
+    max_shift_px: f64,
+    /// The phantom, when known: the middle dots must agree with it.
+    phantom: Option<(&'a [DotCandidate], &'a [NWire], f64, &'a Segmentation)>,
+}
+
+/// Whether the rows, top to bottom, are spaced as the patterns.
+fn spaced_as_patterns(rows: &[Row], chosen: &[usize], limits: &SearchLimits<'_>) -> bool {
+    let mut sorted: Vec<&Row> = chosen.iter().map(|&i| &rows[i]).collect();
+    sorted.sort_by(|a, b| a.mean_v.total_cmp(&b.mean_v));
+    let stretch: Vec<Option<f64>> = (0..sorted.len())
+        .map(|k| limits.widths_mm.get(k).map(|w| sorted[k].length_px / w))
+        .collect();
+    sorted
+        .windows(2)
+        .zip(limits.gaps_px)
+        .enumerate()
+        .all(|(k, (pair, want))| {
+            // The second row's centre from the first row's line, along its normal.
+            let angle = (pair[0].angle_rad + pair[1].angle_rad) / 2.0;
+            let (du, dv) = (pair[1].mean_u - pair[0].mean_u, pair[1].mean_v - pair[0].mean_v);
+            let gap = dv * angle.cos() - du * angle.sin();
+            let shift = du * angle.cos() + dv * angle.sin();
+            // One plane cutting parallel side wires stretches every pattern's width alike.
+            let alike = match (stretch[k], stretch[k + 1]) {
+                (Some(a), Some(b)) => (a - b).abs() <= limits.gap_tolerance * a.max(b),
+                _ => true,
+            };
+            (gap - want).abs() <= limits.gap_tolerance * want && shift.abs() <= limits.max_shift_px && alike
+        })
 }
 
 fn search(
     rows: &[Row],
-    wanted: usize,
-    max_diff: f64,
+    limits: &SearchLimits<'_>,
     start: usize,
     chosen: &mut Vec<usize>,
     best: &mut Option<(f64, Vec<usize>)>,
 ) {
+    let (wanted, max_diff) = (limits.wanted, limits.max_diff);
     if chosen.len() == wanted {
+        if !spaced_as_patterns(rows, chosen, limits) {
+            return;
+        }
+        if let Some((spots, nwires, spacing, settings)) = limits.phantom {
+            let patterns = assign(rows, chosen, spots, settings);
+            if !middles_consistent(&patterns, nwires, spacing, limits.gap_tolerance) {
+                return;
+            }
+        }
         let weight: f64 = chosen.iter().map(|&i| rows[i].weight).sum();
         if best.as_ref().is_none_or(|(w, _)| weight > *w) {
             *best = Some((weight, chosen.clone()));
@@ -370,7 +506,7 @@ fn search(
         });
         if fits {
             chosen.push(i);
-            search(rows, wanted, max_diff, i + 1, chosen, best);
+            search(rows, limits, i + 1, chosen, best);
             chosen.pop();
         }
     }
@@ -403,11 +539,35 @@ mod tests {
         };
         let spots = find_spots(&img, &img, w, h, [0, 0, w, h], &settings);
         assert_eq!(spots.len(), 10);
-        let dots = segment(&spots, 3, (110.0, 130.0), 0.1, &settings).unwrap();
+        let geometry = PatternGeometry {
+            patterns: 3,
+            widths_px: (110.0, 130.0),
+            row_gaps_px: vec![35.0, 35.0],
+            spacing_mm_per_px: 0.1,
+            nwires: Vec::new(),
+        };
+        let dots = segment(&spots, &geometry, &settings).unwrap();
         assert_eq!(dots.patterns.len(), 3);
         // First pattern on the top row, wire 1 on the right.
         assert!((dots.patterns[0][0][0] - 151.0).abs() < 1e-9 && (dots.patterns[0][0][1] - 23.0).abs() < 1e-9);
         assert!((dots.patterns[2][1][0] - 101.0).abs() < 1e-9);
+        // Rows spaced unlike the phantom's patterns are not a pattern set.
+        let far_apart = PatternGeometry {
+            row_gaps_px: vec![60.0, 60.0],
+            ..geometry.clone()
+        };
+        assert!(matches!(
+            segment(&spots, &far_apart, &settings),
+            Err(NWireRejection::NoParallelRows { .. })
+        ));
+        // Two patterns 70 px apart: the top and bottom rows, not neighbours.
+        let two = PatternGeometry {
+            patterns: 2,
+            row_gaps_px: vec![70.0],
+            ..geometry
+        };
+        let dots = segment(&spots, &two, &settings).unwrap();
+        assert!((dots.patterns[0][0][1] - 23.0).abs() < 1e-9 && (dots.patterns[1][0][1] - 93.0).abs() < 1e-9);
     }
 
     /// The threshold follows each image's own brightness unless the manifest

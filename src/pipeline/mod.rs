@@ -7,6 +7,7 @@ pub mod methods;
 pub mod record;
 pub mod resolve;
 pub mod run;
+pub mod segment;
 pub mod settings;
 pub mod solve;
 pub mod study;

@@ -14,7 +14,7 @@ use serde::Serialize;
 
 use crate::core::geometry::Calibration;
 use crate::core::stats::best_95;
-use crate::detect::nwire::{self, NWireRejection, Segmentation};
+use crate::detect::nwire::{self, NWireRejection, PatternGeometry, Segmentation};
 use crate::estimate::image_to_probe::{self, Constraint, ConstraintModel, FitError, PixelModel, Target};
 use crate::estimate::model_selection::{self, Candidate, FitSettings, FrameConstraints, Selection};
 use crate::io::plus::config::ConfigError;
@@ -211,17 +211,37 @@ impl TrackedRun {
     }
 }
 
-/// `marker_T_phantom` of each frame (or why not) and the segmented dots (or why not).
-fn process(sequence: &Sequence, role: Role, inputs: &TrackedInputs, clip: [usize; 4]) -> Vec<TrackedFrame> {
+/// What the dot segmentation of a sequence needs.
+#[derive(Debug, Clone, Copy)]
+pub struct SegmentationInputs<'a> {
+    pub nwires: &'a [NWire],
+    pub spacing_guess_mm_per_px: f64,
+    pub segmentation: &'a Segmentation,
+    pub clip: [usize; 4],
+}
+
+/// Each frame's segmented dots (or why not); poses are attached later.
+pub fn segment_frames(sequence: &Sequence, role: Role, inputs: &SegmentationInputs<'_>) -> Vec<TrackedFrame> {
+    let clip = inputs.clip;
     let widths: Vec<f64> = inputs
         .nwires
         .iter()
         .map(|n| n.width_mm() / inputs.spacing_guess_mm_per_px)
         .collect();
-    let widths_px = (
-        widths.iter().copied().fold(f64::INFINITY, f64::min),
-        widths.iter().copied().fold(0.0, f64::max),
-    );
+    let geometry = PatternGeometry {
+        patterns: inputs.nwires.len(),
+        widths_px: (
+            widths.iter().copied().fold(f64::INFINITY, f64::min),
+            widths.iter().copied().fold(0.0, f64::max),
+        ),
+        row_gaps_px: inputs
+            .nwires
+            .windows(2)
+            .map(|pair| pair[0].distance_to(&pair[1]) / inputs.spacing_guess_mm_per_px)
+            .collect(),
+        spacing_mm_per_px: inputs.spacing_guess_mm_per_px,
+        nwires: inputs.nwires.to_vec(),
+    };
     (0..sequence.frames.len())
         .into_par_iter()
         .map(|index| {
@@ -263,15 +283,9 @@ fn process(sequence: &Sequence, role: Role, inputs: &TrackedInputs, clip: [usize
                 sequence.width,
                 sequence.height,
                 clip,
-                &inputs.segmentation,
+                inputs.segmentation,
             );
-            match nwire::segment(
-                &spots,
-                inputs.nwires.len(),
-                widths_px,
-                inputs.spacing_guess_mm_per_px,
-                &inputs.segmentation,
-            ) {
+            match nwire::segment(&spots, &geometry, inputs.segmentation) {
                 Ok(dots) => frame.dots_px = dots.patterns,
                 Err(e) => frame.rejected = Some(TrackedRejection::Segmentation(e)),
             }
@@ -445,6 +459,15 @@ fn calibration_constraints(frames: &[TrackedFrame], nwires: &[NWire]) -> Vec<Fra
         .collect()
 }
 
+fn segmentation_inputs(inputs: &TrackedInputs, clip: [usize; 4]) -> SegmentationInputs<'_> {
+    SegmentationInputs {
+        nwires: &inputs.nwires,
+        spacing_guess_mm_per_px: inputs.spacing_guess_mm_per_px,
+        segmentation: &inputs.segmentation,
+        clip,
+    }
+}
+
 fn fit_settings(inputs: &TrackedInputs) -> FitSettings {
     FitSettings {
         reject_sd: inputs.reject_sd,
@@ -459,7 +482,7 @@ pub fn run(inputs: &TrackedInputs, min_frames: usize) -> Result<TrackedRun, Trac
         .clip_rectangle_px
         .unwrap_or([0, 0, calibration.width, calibration.height]);
     let image_size_px = [calibration.width, calibration.height];
-    let mut frames = process(&calibration, Role::Calibration, inputs, clip);
+    let mut frames = segment_frames(&calibration, Role::Calibration, &segmentation_inputs(inputs, clip));
     // The tracker's lag, from the calibration frames alone.
     let mut offset_scan = Vec::new();
     let time_offset_s = match inputs.time_offset {
@@ -502,7 +525,7 @@ pub fn run(inputs: &TrackedInputs, min_frames: usize) -> Result<TrackedRun, Trac
                 want_height: image_size_px[1],
             });
         }
-        let mut more = process(&validation, Role::Validation, inputs, clip);
+        let mut more = segment_frames(&validation, Role::Validation, &segmentation_inputs(inputs, clip));
         attach_poses(&validation, &mut more, inputs, time_offset_s);
         frames.extend(more);
     }

@@ -13,6 +13,7 @@ pub mod index;
 pub mod provenance;
 pub mod render;
 pub mod resolve;
+pub mod segment;
 pub mod study;
 pub mod summary;
 pub mod thesis;

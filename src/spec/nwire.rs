@@ -88,6 +88,19 @@ impl NWire {
     }
 
     /// Distance between the side wires, mm.
+    /// The pattern's plane: a point of it and its unit normal (phantom frame).
+    pub fn plane(&self) -> (Point3<f64>, Vector3<f64>) {
+        let d = self.wires[0].direction();
+        let across = self.wires[2].front_in_phantom_mm - self.wires[0].front_in_phantom_mm;
+        (self.wires[0].front_in_phantom_mm, d.cross(&across).normalize())
+    }
+
+    /// Distance of `next`'s plane from this pattern's, mm.
+    pub fn distance_to(&self, next: &NWire) -> f64 {
+        let (p, n) = self.plane();
+        (next.wires[0].front_in_phantom_mm - p).dot(&n).abs()
+    }
+
     pub fn width_mm(&self) -> f64 {
         let d = self.wires[0].direction().normalize();
         let w = self.wires[2].front_in_phantom_mm - self.wires[0].front_in_phantom_mm;

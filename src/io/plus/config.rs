@@ -36,6 +36,27 @@ pub struct PlusConfig {
     pub approximate_spacing_mm_per_px: Option<f64>,
     /// `Segmentation/@ClipRectangleOrigin` and `@ClipRectangleSize` (px).
     pub clip_rectangle_px: Option<([usize; 2], [usize; 2])>,
+    /// Each wire's `Id` (its `Name` when it has none), patterns in file order.
+    pub wire_ids: Vec<String>,
+    /// The device's own segmentation settings, where the file gives them.
+    pub segmentation: PlusSegmentation,
+}
+
+/// `Segmentation` attributes of a device set that size the dot segmentation.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct PlusSegmentation {
+    /// `MorphologicalOpeningCircleRadiusMm`.
+    pub opening_radius_mm: Option<f64>,
+    /// `ThresholdImagePercent`.
+    pub threshold_percent: Option<f64>,
+    /// `CollinearPointsMaxDistanceFromLineMm`.
+    pub collinear_tolerance_mm: Option<f64>,
+    /// `NumberOfMaximumFiducialPointCandidates`.
+    pub max_candidates: Option<usize>,
+    /// `MaxLinePairDistanceErrorPercent`.
+    pub row_gap_tolerance_percent: Option<f64>,
+    /// `MaxLineShiftMm`.
+    pub max_row_shift_mm: Option<f64>,
 }
 
 impl PlusConfig {
@@ -66,6 +87,7 @@ impl PlusConfig {
         }
 
         let mut nwires = Vec::new();
+        let mut wire_ids = Vec::new();
         for pattern in doc.descendants().filter(|n| n.has_tag_name("Pattern")) {
             let kind = x.attr(pattern, "Type")?;
             if kind != "NWire" {
@@ -78,6 +100,7 @@ impl PlusConfig {
                 .children()
                 .filter(|n| n.has_tag_name("Wire"))
                 .map(|w| {
+                    wire_ids.push(w.attribute("Id").or(w.attribute("Name")).unwrap_or("").to_string());
                     let front = x.numbers(w, "EndPointFront", 3)?;
                     let back = x.numbers(w, "EndPointBack", 3)?;
                     Ok(WireSegment {
@@ -96,6 +119,7 @@ impl PlusConfig {
 
         let mut approximate_spacing_mm_per_px = None;
         let mut clip_rectangle_px = None;
+        let mut segmentation = PlusSegmentation::default();
         if let Some(seg) = doc
             .descendants()
             .find(|n| n.has_tag_name("Segmentation") && n.attribute("ApproximateSpacingMmPerPixel").is_some())
@@ -113,6 +137,24 @@ impl PlusConfig {
                 }
                 clip_rectangle_px = Some(([o[0] as usize, o[1] as usize], [z[0] as usize, z[1] as usize]));
             }
+            let positive = |name: &str| -> Result<Option<f64>, ConfigError> {
+                if seg.attribute(name).is_none() {
+                    return Ok(None);
+                }
+                let v = x.numbers(seg, name, 1)?[0];
+                if !(v.is_finite() && v > 0.0) {
+                    return Err(x.fail(seg, format!("`{name}` must be a positive number, got {v}")));
+                }
+                Ok(Some(v))
+            };
+            segmentation = PlusSegmentation {
+                opening_radius_mm: positive("MorphologicalOpeningCircleRadiusMm")?,
+                threshold_percent: positive("ThresholdImagePercent")?.filter(|p| *p < 100.0),
+                collinear_tolerance_mm: positive("CollinearPointsMaxDistanceFromLineMm")?,
+                max_candidates: positive("NumberOfMaximumFiducialPointCandidates")?.map(|n| n.round() as usize),
+                row_gap_tolerance_percent: positive("MaxLinePairDistanceErrorPercent")?,
+                max_row_shift_mm: positive("MaxLineShiftMm")?,
+            };
         }
         Ok(PlusConfig {
             path: path.to_path_buf(),
@@ -120,6 +162,8 @@ impl PlusConfig {
             nwires,
             approximate_spacing_mm_per_px,
             clip_rectangle_px,
+            wire_ids,
+            segmentation,
         })
     }
 

@@ -1,0 +1,97 @@
+//! `probecal segment`: the N-wire dot segmentation of a PLUS sequence on its own,
+//! for any scanner and phantom the device set describes. The settings come from
+//! the device set's `Segmentation` element where it gives them (opening radius,
+//! threshold percentage, collinearity, candidates), PLUS's defaults otherwise;
+//! each frame's threshold follows its own brightness; images are flipped to MF
+//! as the file's `UltrasoundImageOrientation` says.
+
+use std::path::{Path, PathBuf};
+
+use crate::detect::nwire::Segmentation;
+use crate::io::plus::config::PlusConfig;
+use crate::io::plus::sequence::{Orientation, Sequence};
+use crate::pipeline::tracked::{segment_frames, Role, SegmentationInputs, TrackedError, TrackedFrame};
+
+/// Most dot candidates a frame's pattern search considers.
+const MAX_CANDIDATES: usize = 50;
+
+/// A segmented sequence.
+#[derive(Debug, Clone)]
+pub struct SegmentRun {
+    pub sequence: PathBuf,
+    pub config: PathBuf,
+    pub frames: Vec<TrackedFrame>,
+    /// The wires' ids, three per pattern in the device set's order.
+    pub wire_ids: Vec<String>,
+    pub clip_rectangle_px: [usize; 4],
+    pub image_size_px: [usize; 2],
+    pub orientation: Orientation,
+    pub segmentation: Segmentation,
+    pub spacing_guess_mm_per_px: f64,
+}
+
+/// The segmentation settings a device set gives, over the defaults.
+pub fn settings_of(config: &PlusConfig) -> Segmentation {
+    let s = &config.segmentation;
+    let defaults = Segmentation::default();
+    Segmentation {
+        opening_radius_mm: s.opening_radius_mm.unwrap_or(defaults.opening_radius_mm),
+        threshold_percent: s.threshold_percent.unwrap_or(defaults.threshold_percent),
+        collinear_tolerance_mm: s.collinear_tolerance_mm.unwrap_or(defaults.collinear_tolerance_mm),
+        row_gap_tolerance_percent: s
+            .row_gap_tolerance_percent
+            .unwrap_or(defaults.row_gap_tolerance_percent),
+        max_row_shift_mm: s.max_row_shift_mm.unwrap_or(defaults.max_row_shift_mm),
+        max_candidates: s
+            .max_candidates
+            .map(|n| n.clamp(defaults.max_candidates, MAX_CANDIDATES))
+            .unwrap_or(defaults.max_candidates),
+        ..defaults
+    }
+}
+
+/// Segments every frame of `sequence` with the phantom and settings of `config`.
+pub fn run(sequence: &Path, config: &Path) -> Result<SegmentRun, TrackedError> {
+    let config_file = PlusConfig::read(config)?;
+    let spacing = config_file
+        .approximate_spacing_mm_per_px
+        .ok_or_else(|| TrackedError::Config(missing(config, "Segmentation/@ApproximateSpacingMmPerPixel")))?;
+    if config_file.nwires.is_empty() {
+        return Err(TrackedError::Config(missing(
+            config,
+            "PhantomDefinition's NWire patterns",
+        )));
+    }
+    let file = Sequence::read(sequence)?;
+    let clip = config_file
+        .clip_rectangle_px
+        .map(|(o, s)| [o[0], o[1], s[0], s[1]])
+        .unwrap_or([0, 0, file.width, file.height]);
+    let segmentation = settings_of(&config_file);
+    let inputs = SegmentationInputs {
+        nwires: &config_file.nwires,
+        spacing_guess_mm_per_px: spacing,
+        segmentation: &segmentation,
+        clip,
+    };
+    let frames = segment_frames(&file, Role::Calibration, &inputs);
+    Ok(SegmentRun {
+        sequence: sequence.to_path_buf(),
+        config: config.to_path_buf(),
+        frames,
+        wire_ids: config_file.wire_ids.clone(),
+        clip_rectangle_px: clip,
+        image_size_px: [file.width, file.height],
+        orientation: file.orientation,
+        segmentation,
+        spacing_guess_mm_per_px: spacing,
+    })
+}
+
+fn missing(config: &Path, what: &str) -> crate::io::plus::config::ConfigError {
+    crate::io::plus::config::ConfigError {
+        path: config.to_path_buf(),
+        line: None,
+        message: format!("the device set has no {what}, which the segmentation needs"),
+    }
+}

@@ -1,0 +1,139 @@
+//! `probecal segment` on another scanner and phantom than fCal 2.0 (PLUS's VLC
+//! segmentation test: a screen-grabbed Carolina Medical scanner over the iCal
+//! phantom, two N's), with PLUS's settings from its device set and nothing tuned
+//! here, against PLUS's own segmentation of every frame.
+
+mod common;
+
+use std::collections::BTreeMap;
+
+use common::{probecal, scratch, shared_data};
+
+const SET: &str = "plus-segmentation-vlcus";
+
+/// PLUS's baseline: frame → (segmented, points in wire order).
+fn plus_baseline() -> BTreeMap<usize, (bool, Vec<[f64; 2]>)> {
+    let text = std::fs::read_to_string(shared_data(
+        SET,
+        "SegmentationTest_VLCUS_RandomStepperMotionData2_Segmentation_baseline.xml",
+    ))
+    .unwrap();
+    let doc = roxmltree::Document::parse(&text).unwrap();
+    let mut out = BTreeMap::new();
+    for case in doc.descendants().filter(|n| n.has_tag_name("TestCase")) {
+        let input = case.children().find(|n| n.has_tag_name("Input")).unwrap();
+        let output = case.children().find(|n| n.has_tag_name("Output")).unwrap();
+        let frame: usize = input.attribute("ImageSeqFrameIndex").unwrap().parse().unwrap();
+        let found = output.attribute("SegmentationSuccess") == Some("1");
+        let numbers: Vec<f64> = output
+            .attribute("SegmentationPoints")
+            .unwrap_or("")
+            .split_whitespace()
+            .map(|v| v.parse().unwrap())
+            .collect();
+        out.insert(frame, (found, numbers.chunks(2).map(|p| [p[0], p[1]]).collect()));
+    }
+    out
+}
+
+/// Our `segmentation.csv`: frame → wire id → point.
+fn ours(csv: &str) -> BTreeMap<usize, BTreeMap<String, [f64; 2]>> {
+    let mut out: BTreeMap<usize, BTreeMap<String, [f64; 2]>> = BTreeMap::new();
+    let mut lines = csv.lines();
+    assert_eq!(lines.next(), Some("frame,found,wire,x_px,y_px"));
+    for line in lines {
+        let f: Vec<&str> = line.split(',').collect();
+        let entry = out.entry(f[0].parse().unwrap()).or_default();
+        if f[1] == "1" {
+            entry.insert(f[2].to_string(), [f[3].parse().unwrap(), f[4].parse().unwrap()]);
+        }
+    }
+    out
+}
+
+#[test]
+#[ignore = "needs ../shared/data (full tier: scripts/test.sh)"]
+fn segments_another_scanner_and_phantom_as_plus_does() {
+    let out = scratch("plus_segment", "vlc");
+    let r = probecal()
+        .arg("segment")
+        .arg(shared_data(
+            SET,
+            "SegmentationTest_VLCUS_RandomStepperMotionData2.igs.mha",
+        ))
+        .arg("--config")
+        .arg(shared_data(
+            SET,
+            "PlusDeviceSet_iCal_CalibrationOnly_VLCUS_FrameGrabber.xml",
+        ))
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let ours = ours(&std::fs::read_to_string(out.join("segmentation.csv")).unwrap());
+    assert_eq!(ours.len(), 201, "every frame has a row");
+    let plus = plus_baseline();
+    let plus_found: Vec<usize> = plus.iter().filter(|(_, (ok, _))| *ok).map(|(f, _)| *f).collect();
+    assert_eq!(plus_found.len(), 196);
+    let mut distances = Vec::new();
+    let mut found = 0;
+    for f in &plus_found {
+        let points = &ours[f];
+        if points.is_empty() {
+            continue;
+        }
+        found += 1;
+        for (k, p) in plus[f].1.iter().enumerate() {
+            let q = points[&(k + 1).to_string()];
+            distances.push(((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2)).sqrt());
+        }
+    }
+    let mean = distances.iter().sum::<f64>() / distances.len() as f64;
+    println!("{found} of 196 frames PLUS segmented are found; mean distance {mean:.3} px");
+    assert!(found as f64 >= 0.98 * 196.0, "{found} of 196");
+    assert!(mean <= 1.5, "mean distance to PLUS's points {mean} px");
+    // A frame not segmented says why, in words, on the report page and in the summary.
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    assert_eq!(summary["frames"], 201);
+    for miss in summary["not_found"].as_array().unwrap() {
+        assert!(miss["reason"].as_str().unwrap().starts_with("segmentation: "), "{miss}");
+    }
+    let page = std::fs::read_to_string(out.join("report.html")).unwrap();
+    assert!(page.contains("id=\"not-found\""));
+}
+
+#[test]
+#[ignore = "needs ../shared/data (full tier: scripts/test.sh)"]
+fn a_device_set_without_a_pixel_size_is_a_clear_error() {
+    let dir = scratch("plus_segment", "no_spacing");
+    std::fs::create_dir_all(&dir).unwrap();
+    let config = dir.join("no_spacing.xml");
+    let text = std::fs::read_to_string(shared_data(
+        SET,
+        "PlusDeviceSet_iCal_CalibrationOnly_VLCUS_FrameGrabber.xml",
+    ))
+    .unwrap()
+    .replace("ApproximateSpacingMmPerPixel=\"0.21\"", "");
+    std::fs::write(&config, text).unwrap();
+    let r = probecal()
+        .arg("segment")
+        .arg(shared_data(
+            SET,
+            "SegmentationTest_VLCUS_RandomStepperMotionData2.igs.mha",
+        ))
+        .arg("--config")
+        .arg(&config)
+        .arg("--out")
+        .arg(dir.join("out"))
+        .output()
+        .unwrap();
+    assert_eq!(r.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert!(
+        err.contains("no_spacing.xml") && err.contains("ApproximateSpacingMmPerPixel"),
+        "{err}"
+    );
+    assert!(!dir.join("out").exists(), "nothing written on an error");
+}
