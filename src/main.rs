@@ -1,7 +1,7 @@
 //! The `probecal` command line: arguments and dispatch. The work is done by
 //! [`probecal::pipeline`] (running) and [`probecal::report`] (writing, checking).
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
@@ -118,6 +118,16 @@ enum Command {
         #[arg(long)]
         out: PathBuf,
     },
+    /// The tracker's lag behind the video from a probe moved over a flat reflector
+    /// (PLUS's temporal calibration): summary.json, lines.csv, report.html in --out.
+    Temporal {
+        #[arg(long)]
+        tracker: PathBuf,
+        #[arg(long)]
+        video: PathBuf,
+        #[arg(long)]
+        out: PathBuf,
+    },
     /// Calibrate a camera from chessboard images; writes OpenCV FileStorage YAML.
     CalibrateCamera {
         /// Image files and/or folders of images.
@@ -173,35 +183,6 @@ fn run(args: RunArgs, side_by_side: bool) -> u8 {
     code
 }
 
-fn validate(manifests: &[PathBuf]) -> u8 {
-    let Some(experiments) = loaded(manifests) else { return 2 };
-    for m in experiments {
-        match m {
-            Experiment::Camera(m) => println!("{}: ok ({} dataset(s))", m.path.display(), m.datasets.len()),
-            Experiment::Tracked(m) => println!(
-                "{}: ok (tracked sequence, {} N-wires)",
-                m.path.display(),
-                m.nwires.len()
-            ),
-        }
-    }
-    0
-}
-
-fn synth(manifests: &[PathBuf], datasets: &Path) -> u8 {
-    let Some(manifests) = loaded(manifests) else { return 2 };
-    for m in manifests.iter().filter_map(|m| match m {
-        Experiment::Camera(m) => Some(m),
-        Experiment::Tracked(_) => None,
-    }) {
-        if let Err(e) = probecal::pipeline::run::synth_only(m, datasets, &mut |l| eprintln!("{l}")) {
-            eprintln!("error: {}: {e}", m.path.display());
-            return 1;
-        }
-    }
-    0
-}
-
 fn main() -> ExitCode {
     let cli = Cli::parse();
     if let Command::Run { args, .. } | Command::Compare { args } = &cli.command {
@@ -221,7 +202,8 @@ fn main() -> ExitCode {
             update,
             allow_drop,
         } => probecal::report::check::run(&runs, &baselines, update, allow_drop),
-        Command::Validate { manifests } => validate(&manifests),
+        Command::Validate { manifests } => probecal::report::console::validate(&manifests),
+        Command::Temporal { tracker, video, out } => probecal::report::temporal::command(&video, &tracker, &out),
         Command::Segment { sequence, config, out } => probecal::report::segment::command(&sequence, &config, &out),
         Command::Study {
             manifest,
@@ -231,7 +213,7 @@ fn main() -> ExitCode {
             datasets,
             keep_datasets,
         } => probecal::report::study::command(&manifest, seeds, first_seed, &out, &datasets, keep_datasets),
-        Command::Synth { manifests, datasets } => synth(&manifests, &datasets),
+        Command::Synth { manifests, datasets } => probecal::report::console::synth(&manifests, &datasets),
         Command::Resolve { run } => probecal::report::resolve::command(&run),
         Command::CalibrateCamera {
             images,

@@ -1,5 +1,6 @@
 //! Features from pixels: board corners and poses in the photos, the camera's
-//! calibration, the hemisphere's arc, compact echoes and N-wire dots in the B-scans.
+//! calibration, the hemisphere's arc, compact echoes, N-wire dots and a flat
+//! reflector's line in the B-scans.
 pub mod arc;
 pub mod aruco;
 pub mod aruco_pose;
@@ -8,5 +9,6 @@ pub mod board_pose;
 pub mod camera_calibration;
 pub mod corners;
 pub mod fan;
+pub mod line;
 pub mod nwire;
 pub mod spot;

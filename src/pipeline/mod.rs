@@ -11,5 +11,6 @@ pub mod segment;
 pub mod settings;
 pub mod solve;
 pub mod study;
+pub mod temporal;
 pub mod tracked;
 pub mod truth;

@@ -5,6 +5,7 @@ use std::path::{Path, PathBuf};
 
 use crate::detect::camera_calibration::CameraCalibration;
 use crate::evaluate::{cutoff_label, BreStats, STAT_ROWS};
+use crate::manifest::Experiment;
 use crate::pipeline::record::DatasetRun;
 use crate::pipeline::tracked::TrackedRun;
 use crate::report::summary::{Summary, TrackedSummary};
@@ -160,4 +161,46 @@ pub fn calibrate_camera(images: &[PathBuf], board: [u32; 2], square_mm: f64, out
             1
         }
     }
+}
+
+/// Every manifest, or `None` after printing all their errors.
+fn loaded(paths: &[PathBuf]) -> Option<Vec<Experiment>> {
+    crate::pipeline::experiment::load_all(paths)
+        .map_err(|e| eprintln!("error: {e}"))
+        .ok()
+}
+
+/// `probecal validate`: every manifest checked, nothing run.
+pub fn validate(manifests: &[PathBuf]) -> u8 {
+    let Some(experiments) = loaded(manifests) else {
+        return 2;
+    };
+    for m in experiments {
+        match m {
+            Experiment::Camera(m) => println!("{}: ok ({} dataset(s))", m.path.display(), m.datasets.len()),
+            Experiment::Tracked(m) => println!(
+                "{}: ok (tracked sequence, {} N-wires)",
+                m.path.display(),
+                m.nwires.len()
+            ),
+        }
+    }
+    0
+}
+
+/// `probecal synth`: the camera experiments' datasets rendered, nothing run.
+pub fn synth(manifests: &[PathBuf], datasets: &Path) -> u8 {
+    let Some(manifests) = loaded(manifests) else {
+        return 2;
+    };
+    for m in manifests.iter().filter_map(|m| match m {
+        Experiment::Camera(m) => Some(m),
+        Experiment::Tracked(_) => None,
+    }) {
+        if let Err(e) = crate::pipeline::run::synth_only(m, datasets, &mut |l| eprintln!("{l}")) {
+            eprintln!("error: {}: {e}", m.path.display());
+            return 1;
+        }
+    }
+    0
 }

@@ -16,6 +16,7 @@ pub mod resolve;
 pub mod segment;
 pub mod study;
 pub mod summary;
+pub mod temporal;
 pub mod thesis;
 pub mod tracked;
 pub mod write;

@@ -1,5 +1,6 @@
 //! Files of the PLUS toolkit: tracked sequence files and device-set configurations.
 
 pub mod config;
+pub mod orientation;
 pub mod result;
 pub mod sequence;

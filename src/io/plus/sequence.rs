@@ -14,6 +14,7 @@ use std::collections::BTreeMap;
 use std::io::Read;
 use std::path::{Path, PathBuf};
 
+pub use super::orientation::Orientation;
 use crate::core::geometry::{rigid_from_rows, Rigid};
 
 /// Why a sequence file could not be read.
@@ -60,60 +61,10 @@ pub struct SequenceFrame {
     pub fields: BTreeMap<String, Field>,
 }
 
-/// PLUS's `UltrasoundImageOrientation`: which way the image's columns run
-/// (M: the probe's marked side at column 0; U: unmarked) and its rows (F: far
-/// from the transducer at the last row, so depth grows downwards; N: near).
-/// A third letter (the volume's slice axis) does not change a 2D frame.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
-pub enum Orientation {
-    #[default]
-    Mf,
-    Mn,
-    Uf,
-    Un,
-}
-
-impl Orientation {
-    pub fn parse(text: &str) -> Option<Orientation> {
-        let t = text.trim().to_ascii_uppercase();
-        if !(t.len() == 2 || t.len() == 3) || !t.is_ascii() {
-            return None;
-        }
-        match &t[..2] {
-            "MF" => Some(Orientation::Mf),
-            "MN" => Some(Orientation::Mn),
-            "UF" => Some(Orientation::Uf),
-            "UN" => Some(Orientation::Un),
-            _ => None,
-        }
-    }
-
-    /// Flips every `width` x `height` frame of `pixels` in place so that it reads MF.
-    pub fn flip_to_mf(self, pixels: &mut [u8], width: usize, height: usize) {
-        let (columns, rows) = match self {
-            Orientation::Mf => (false, false),
-            Orientation::Mn => (false, true),
-            Orientation::Uf => (true, false),
-            Orientation::Un => (true, true),
-        };
-        let size = width * height;
-        if size == 0 {
-            return;
-        }
-        for frame in pixels.chunks_exact_mut(size) {
-            if columns {
-                for row in frame.chunks_exact_mut(width) {
-                    row.reverse();
-                }
-            }
-            if rows {
-                for v in 0..height / 2 {
-                    let (top, bottom) = frame.split_at_mut((height - 1 - v) * width);
-                    top[v * width..(v + 1) * width].swap_with_slice(&mut bottom[..width]);
-                }
-            }
-        }
-    }
+/// A frame's transform as asked: checked rigid, or the plain matrix.
+enum Transform {
+    Rigid(Rigid),
+    Matrix(nalgebra::Matrix4<f64>),
 }
 
 /// A whole sequence file in memory.
@@ -246,7 +197,8 @@ impl Sequence {
                 ))
             }
         };
-        if width == 0 || height == 0 {
+        // `0 0 N`: a tracker-only sequence (poses, no images), as PLUS writes one.
+        if (width == 0) != (height == 0) {
             return Err(fail(Some(dims.line), "`DimSize`: an image of zero size".into()));
         }
         let expected = width
@@ -347,6 +299,9 @@ impl Sequence {
                 ),
             ));
         }
+        // A tracker-only sequence may carry bytes after its header that no image
+        // owns (PLUS writes some); there are no pixels to read.
+        let pixels = if expected == 0 { Vec::new() } else { pixels };
         if pixels.len() > expected {
             return Err(fail(
                 Some(dims.line),
@@ -391,6 +346,23 @@ impl Sequence {
     /// Frame `index`'s transform `<name>Transform` (e.g. `ProbeToTracker`), checked:
     /// its status must be OK and its matrix rigid.
     pub fn transform(&self, index: usize, name: &str) -> Result<Rigid, FrameFault> {
+        match self.transform_as(index, name, true)? {
+            Transform::Rigid(t) => Ok(t),
+            Transform::Matrix(_) => unreachable!("a rigid transform was asked for"),
+        }
+    }
+
+    /// Frame `index`'s transform `<name>Transform` as its 4x4 matrix: status OK and
+    /// 16 finite numbers, not checked for rigidity (where only a position is used,
+    /// e.g. a tracker whose rotations are orthonormal to 3 digits only).
+    pub fn matrix(&self, index: usize, name: &str) -> Result<nalgebra::Matrix4<f64>, FrameFault> {
+        match self.transform_as(index, name, false)? {
+            Transform::Rigid(t) => Ok(t.to_homogeneous()),
+            Transform::Matrix(m) => Ok(m),
+        }
+    }
+
+    fn transform_as(&self, index: usize, name: &str, rigid: bool) -> Result<Transform, FrameFault> {
         let frame = &self.frames[index];
         let field = format!("{name}Transform");
         let status_field = format!("{field}Status");
@@ -422,7 +394,13 @@ impl Sequence {
         if numbers.len() != 16 {
             return Err(not_rigid(format!("{} numbers, a 4x4 matrix needs 16", numbers.len())));
         }
+        if numbers.iter().any(|v| !v.is_finite()) {
+            return Err(not_rigid("holds a non-finite value".into()));
+        }
         let mut rows: [[f64; 4]; 4] = std::array::from_fn(|r| std::array::from_fn(|c| numbers[r * 4 + c]));
+        if !rigid {
+            return Ok(Transform::Matrix(nalgebra::Matrix4::from_fn(|r, c| rows[r][c])));
+        }
         // Trackers write 6 significant digits: a rotation that is orthonormal to that
         // precision is snapped onto the nearest orthonormal matrix (a mirror stays a
         // mirror and is refused below) before the strict check.
@@ -441,7 +419,9 @@ impl Sequence {
                 }
             }
         }
-        rigid_from_rows(&rows).map_err(|e| not_rigid(e.to_string()))
+        rigid_from_rows(&rows)
+            .map(Transform::Rigid)
+            .map_err(|e| not_rigid(e.to_string()))
     }
 
     /// A per-frame field as text (e.g. `Timestamp`).
@@ -529,29 +509,23 @@ mod tests {
         assert!(e.to_string().starts_with("t.mha"), "{e}");
     }
 
+    /// A tracker-only sequence (`DimSize = 0 0 N`): poses, no images, and bytes
+    /// after the header that no image owns; one zero side alone is refused.
     #[test]
-    fn every_orientation_flips_to_mf_and_others_are_refused() {
-        // Two frames of 3x2: columns 0..3, rows 0..2.
-        let frame = [1u8, 2, 3, 4, 5, 6];
-        let flipped = |o: Orientation| {
-            let mut p = [frame, frame].concat();
-            o.flip_to_mf(&mut p, 3, 2);
-            assert_eq!(p[..6], p[6..], "{o:?}: frames flipped alike");
-            p[..6].to_vec()
-        };
-        assert_eq!(flipped(Orientation::Mf), vec![1, 2, 3, 4, 5, 6]);
-        assert_eq!(flipped(Orientation::Uf), vec![3, 2, 1, 6, 5, 4]);
-        assert_eq!(flipped(Orientation::Mn), vec![4, 5, 6, 1, 2, 3]);
-        assert_eq!(flipped(Orientation::Un), vec![6, 5, 4, 3, 2, 1]);
-        for (text, want) in [
-            ("MFA", Some(Orientation::Mf)),
-            ("un", Some(Orientation::Un)),
-            ("UNA", Some(Orientation::Un)),
-            ("MX", None),
-            ("M", None),
-            ("MFAA", None),
-        ] {
-            assert_eq!(Orientation::parse(text), want, "{text}");
-        }
+    fn a_tracker_only_sequence_has_poses_and_no_pixels() {
+        let text = "ObjectType = Image\nNDims = 3\nCompressedData = False\nDimSize = 0 0 2\nElementType = MET_UCHAR\n\
+                    Seq_Frame0000_ProbeToTrackerTransform = 1 0 0 1 0 1 0 2 0 0 1 3 0 0 0 1\n\
+                    Seq_Frame0000_Timestamp = 1.0\n\
+                    Seq_Frame0001_ProbeToTrackerTransform = 1 0 0 4 0 1 0 5 0 0 1 6 0 0 0 1\n\
+                    Seq_Frame0001_Timestamp = 1.1\n\
+                    ElementDataFile = LOCAL\n";
+        let bytes = [text.as_bytes(), &[7u8, 9]].concat();
+        let seq = Sequence::parse(Path::new("tracker.mha"), &bytes).unwrap();
+        assert_eq!((seq.width, seq.height, seq.frames.len()), (0, 0, 2));
+        assert!(seq.pixels(1).is_empty());
+        assert_eq!(seq.transform(1, "ProbeToTracker").unwrap().translation.vector.x, 4.0);
+        let one_side = text.replace("DimSize = 0 0 2", "DimSize = 0 4 2");
+        let e = Sequence::parse(Path::new("tracker.mha"), one_side.as_bytes()).unwrap_err();
+        assert!(e.to_string().contains("zero size"), "{e}");
     }
 }

@@ -1,0 +1,249 @@
+//! Temporal calibration: the tracker's lag behind the video from a probe moved
+//! over a flat reflector (PLUS's method).
+//!
+//! - Video signal: the reflector's line in each B-scan ([`crate::detect::line`]),
+//!   its signed distance from the image centre (px).
+//! - Tracker signal: `ProbeToReference`'s position projected on its principal
+//!   axis of motion (mm).
+//! - Both are resampled on a 1 ms grid over their common time span and
+//!   normalised (zero mean, unit SD); the normalised cross-correlation of the
+//!   video signal with the tracker signal shifted by each lag within ±0.5 s is
+//!   taken, its peak (of either sign: the line may move either way as the probe
+//!   rises) refined by a parabola through the neighbouring lags.
+//!
+//! `tracker_lag_s` is PLUS's `TrackerLagSec`: how much the tracker lags the
+//! video; the tracker's curve `p(t + lag)` lines up with the video's.
+
+use std::path::{Path, PathBuf};
+
+use nalgebra::{Matrix3, Vector3};
+
+use crate::detect::line::{self, Line, LineRejection};
+use crate::io::plus::sequence::{Sequence, SequenceError};
+
+/// Resampling step, s.
+pub const STEP_S: f64 = 0.001;
+/// Largest lag searched, s.
+pub const MAX_LAG_S: f64 = 0.5;
+/// Fewest frames with a line and tracker samples the estimate needs.
+const MIN_SAMPLES: usize = 10;
+
+#[derive(Debug, thiserror::Error)]
+pub enum TemporalError {
+    #[error("{0}")]
+    Sequence(#[from] SequenceError),
+    #[error("{path}: frame {frame} has no usable `Timestamp`; the lag cannot be estimated without timestamps")]
+    NoTimestamp { path: PathBuf, frame: usize },
+    #[error("{path}: only {usable} frames are usable ({what}), at least {needed} are needed")]
+    TooFew {
+        path: PathBuf,
+        usable: usize,
+        needed: usize,
+        what: &'static str,
+    },
+    #[error("the recordings overlap for {overlap_s:.2} s, too short to search lags of ±{MAX_LAG_S} s")]
+    NoOverlap { overlap_s: f64 },
+}
+
+/// One B-scan's line, or why it has none.
+#[derive(Debug, Clone)]
+pub struct VideoFrame {
+    pub index: usize,
+    pub timestamp_s: f64,
+    pub line: Result<Line, LineRejection>,
+}
+
+#[derive(Debug, Clone)]
+pub struct TemporalRun {
+    pub video: PathBuf,
+    pub tracker: PathBuf,
+    pub frames: Vec<VideoFrame>,
+    pub tracker_samples: usize,
+    pub tracker_lag_s: f64,
+    /// Correlation at the peak (its sign: whether the line moves with the probe).
+    pub peak_correlation: f64,
+    /// (lag, correlation) at every millisecond searched.
+    pub curve: Vec<(f64, f64)>,
+}
+
+fn timestamp(seq: &Sequence, index: usize) -> Result<f64, TemporalError> {
+    seq.frame_field(index, "Timestamp")
+        .and_then(|t| t.parse::<f64>().ok())
+        .filter(|t| t.is_finite())
+        .ok_or_else(|| TemporalError::NoTimestamp {
+            path: seq.path.clone(),
+            frame: index,
+        })
+}
+
+/// Linear interpolation of `(t, value)` samples (sorted by t) at `t`.
+fn interpolate(samples: &[(f64, f64)], t: f64) -> Option<f64> {
+    let k = samples.partition_point(|(s, _)| *s < t);
+    if k == 0 || k == samples.len() {
+        return (k < samples.len() && samples[k].0 == t).then(|| samples[k].1);
+    }
+    let ((t0, v0), (t1, v1)) = (samples[k - 1], samples[k]);
+    Some(if t1 > t0 {
+        v0 + (v1 - v0) * (t - t0) / (t1 - t0)
+    } else {
+        v0
+    })
+}
+
+fn normalised(values: &[f64]) -> Vec<f64> {
+    let n = values.len().max(1) as f64;
+    let mean = values.iter().sum::<f64>() / n;
+    let sd = (values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / n)
+        .sqrt()
+        .max(1e-12);
+    values.iter().map(|v| (v - mean) / sd).collect()
+}
+
+/// The tracker's positions projected on their principal axis, with their times.
+fn tracker_signal(seq: &Sequence, probe: &str, reference: &str) -> Result<Vec<(f64, f64)>, TemporalError> {
+    let mut positions = Vec::new();
+    for i in 0..seq.frames.len() {
+        let t = timestamp(seq, i)?;
+        // Only the position is used: the matrices as written, not checked rigid.
+        let (Ok(p), Ok(r)) = (seq.matrix(i, probe), seq.matrix(i, reference)) else {
+            continue; // a transform missing or not OK: no sample
+        };
+        let Some(probe_to_reference) = r.try_inverse().map(|inv| inv * p) else {
+            continue;
+        };
+        let position = Vector3::new(
+            probe_to_reference[(0, 3)],
+            probe_to_reference[(1, 3)],
+            probe_to_reference[(2, 3)],
+        );
+        if position.iter().all(|v| v.is_finite()) {
+            positions.push((t, position));
+        }
+    }
+    if positions.len() < MIN_SAMPLES {
+        return Err(TemporalError::TooFew {
+            path: seq.path.clone(),
+            usable: positions.len(),
+            needed: MIN_SAMPLES,
+            what: "both transforms OK",
+        });
+    }
+    let n = positions.len() as f64;
+    let mean: Vector3<f64> = positions.iter().map(|(_, p)| *p).sum::<Vector3<f64>>() / n;
+    let mut cov = Matrix3::zeros();
+    for (_, p) in &positions {
+        let d = p - mean;
+        cov += d * d.transpose();
+    }
+    let eigen = cov.symmetric_eigen();
+    let (k, _) = eigen
+        .eigenvalues
+        .iter()
+        .enumerate()
+        .fold((0, f64::MIN), |best, (k, v)| if *v > best.1 { (k, *v) } else { best });
+    let axis = eigen.eigenvectors.column(k).into_owned();
+    let mut out: Vec<(f64, f64)> = positions.iter().map(|(t, p)| (*t, (p - mean).dot(&axis))).collect();
+    out.sort_by(|a, b| a.0.total_cmp(&b.0));
+    Ok(out)
+}
+
+/// Estimates the tracker's lag from a video and a tracker recording.
+pub fn run(video_path: &Path, tracker_path: &Path, probe: &str, reference: &str) -> Result<TemporalRun, TemporalError> {
+    let video = Sequence::read(video_path)?;
+    let frames: Vec<VideoFrame> = (0..video.frames.len())
+        .map(|index| {
+            Ok(VideoFrame {
+                index,
+                timestamp_s: timestamp(&video, index)?,
+                line: line::find_line(video.pixels(index), video.width, video.height),
+            })
+        })
+        .collect::<Result<_, TemporalError>>()?;
+    let centre = [video.width as f64 / 2.0, video.height as f64 / 2.0];
+    let mut video_signal: Vec<(f64, f64)> = frames
+        .iter()
+        .filter_map(|f| {
+            f.line
+                .as_ref()
+                .ok()
+                .map(|l| (f.timestamp_s, line::signed_distance(l, centre)))
+        })
+        .collect();
+    video_signal.sort_by(|a, b| a.0.total_cmp(&b.0));
+    if video_signal.len() < MIN_SAMPLES {
+        return Err(TemporalError::TooFew {
+            path: video_path.to_path_buf(),
+            usable: video_signal.len(),
+            needed: MIN_SAMPLES,
+            what: "a line found",
+        });
+    }
+    let tracker = Sequence::read(tracker_path)?;
+    let tracker_signal = tracker_signal(&tracker, probe, reference)?;
+    // The video's grid, inside the tracker's span with room for every lag.
+    let start = video_signal[0].0.max(tracker_signal[0].0 + MAX_LAG_S);
+    let end = video_signal[video_signal.len() - 1]
+        .0
+        .min(tracker_signal[tracker_signal.len() - 1].0 - MAX_LAG_S);
+    if end - start < 4.0 * MAX_LAG_S {
+        return Err(TemporalError::NoOverlap {
+            overlap_s: (end - start).max(0.0),
+        });
+    }
+    let steps = ((end - start) / STEP_S) as usize;
+    let times: Vec<f64> = (0..=steps).map(|k| start + k as f64 * STEP_S).collect();
+    let v: Vec<f64> = times
+        .iter()
+        .map(|t| interpolate(&video_signal, *t).unwrap_or(0.0))
+        .collect();
+    let v = normalised(&v);
+    let max_k = (MAX_LAG_S / STEP_S).round() as i64;
+    let curve: Vec<(f64, f64)> = (-max_k..=max_k)
+        .map(|k| {
+            let lag = k as f64 * STEP_S;
+            let p: Vec<f64> = times
+                .iter()
+                .map(|t| interpolate(&tracker_signal, t + lag).unwrap_or(0.0))
+                .collect();
+            let p = normalised(&p);
+            let ncc = v.iter().zip(&p).map(|(a, b)| a * b).sum::<f64>() / v.len() as f64;
+            (lag, ncc)
+        })
+        .collect();
+    let peak = (0..curve.len())
+        .max_by(|&a, &b| curve[a].1.abs().total_cmp(&curve[b].1.abs()))
+        .unwrap_or(0);
+    // A parabola through the peak and its neighbours.
+    let mut lag = curve[peak].0;
+    if peak > 0 && peak + 1 < curve.len() {
+        let (a, b, c) = (curve[peak - 1].1.abs(), curve[peak].1.abs(), curve[peak + 1].1.abs());
+        let denominator = a - 2.0 * b + c;
+        if denominator.abs() > 1e-12 {
+            lag += STEP_S * 0.5 * (a - c) / denominator;
+        }
+    }
+    Ok(TemporalRun {
+        video: video_path.to_path_buf(),
+        tracker: tracker_path.to_path_buf(),
+        frames,
+        tracker_samples: tracker_signal.len(),
+        tracker_lag_s: lag,
+        peak_correlation: curve[peak].1,
+        curve,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn interpolation_stays_inside_the_samples() {
+        let s = [(0.0, 0.0), (1.0, 10.0), (3.0, 30.0)];
+        assert_eq!(interpolate(&s, 0.5), Some(5.0));
+        assert_eq!(interpolate(&s, 2.0), Some(20.0));
+        assert_eq!(interpolate(&s, 0.0), Some(0.0));
+        assert_eq!(interpolate(&s, -0.1), None);
+        assert_eq!(interpolate(&s, 3.1), None);
+    }
+}
