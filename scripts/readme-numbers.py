@@ -39,18 +39,25 @@ def main():
     readme = ROOT / "README.md"
     text = readme.read_text()
     cache = {}
+    failed = []
 
     def fill(m):
         written, file, key = m.group(1), m.group(2), m.group(3)
         if file not in cache:
             cache[file] = json.loads((ROOT / "reports" / file).read_text())
         decimals = len(written.split(".")[1]) if "." in written else 0
-        value = lookup(cache[file], key)
+        try:
+            value = lookup(cache[file], key)
+        except (KeyError, IndexError, StopIteration, TypeError, ValueError) as e:
+            failed.append(f"README.md: reports/{file}#{key}: {type(e).__name__} {e}")
+            return m.group(0)
         return f"{value:.{decimals}f}<!-- {file}#{key} -->"
 
     new, count = TAG.subn(fill, text)
     readme.write_text(new)
-    print(f"{count} tagged numbers rewritten from reports/", file=sys.stderr)
+    print(f"{count - len(failed)} of {count} tagged numbers rewritten from reports/", file=sys.stderr)
+    if failed:
+        sys.exit("\n".join(failed))
 
 
 if __name__ == "__main__":
