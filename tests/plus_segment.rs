@@ -102,6 +102,21 @@ fn segments_another_scanner_and_phantom_as_plus_does() {
     }
     let page = std::fs::read_to_string(out.join("report.html")).unwrap();
     assert!(page.contains("id=\"not-found\""));
+    // The gallery: every frame drawn, the failed ones first with their reason.
+    for frame in 0..201 {
+        let picture = out.join(format!("gallery/frame_{frame:04}.jpg"));
+        assert!(
+            std::fs::metadata(&picture).unwrap().len() > 1000,
+            "{}",
+            picture.display()
+        );
+    }
+    let first_figure = page.find("<figure>").unwrap();
+    let first_miss = summary["not_found"][0]["frame"].as_u64().unwrap();
+    assert!(
+        page[first_figure..].starts_with(&format!("<figure><img src=\"gallery/frame_{first_miss:04}.jpg\"")),
+        "a failed frame leads the gallery"
+    );
 }
 
 #[test]

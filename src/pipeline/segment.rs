@@ -28,6 +28,8 @@ pub struct SegmentRun {
     pub orientation: Orientation,
     pub segmentation: Segmentation,
     pub spacing_guess_mm_per_px: f64,
+    /// The sequence read (its images, flipped to MF), for the report's gallery.
+    pub images: Sequence,
 }
 
 /// The segmentation settings a device set gives, over the defaults.
@@ -85,6 +87,7 @@ pub fn run(sequence: &Path, config: &Path) -> Result<SegmentRun, TrackedError> {
         orientation: file.orientation,
         segmentation,
         spacing_guess_mm_per_px: spacing,
+        images: file,
     })
 }
 

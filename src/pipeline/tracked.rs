@@ -123,6 +123,9 @@ pub struct TrackedFrame {
     pub marker_T_phantom: Option<Matrix4<f64>>,
     /// Per pattern: PRE3D of the middle dot under the result, mm.
     pub pre3d_mm: Vec<f64>,
+    /// The bright spots the patterns were searched among, strongest first (px).
+    #[serde(skip)]
+    pub candidates_px: Vec<[f64; 2]>,
 }
 
 /// Why a tracked frame was not used; written as text only in tables and pages.
@@ -254,6 +257,7 @@ pub fn segment_frames(sequence: &Sequence, role: Role, inputs: &SegmentationInpu
                 dots_px: Vec::new(),
                 marker_T_phantom: None,
                 pre3d_mm: Vec::new(),
+                candidates_px: Vec::new(),
             };
             if let Some(status) = sequence.frame_field(index, "ImageStatus") {
                 if status != "OK" {
@@ -285,6 +289,7 @@ pub fn segment_frames(sequence: &Sequence, role: Role, inputs: &SegmentationInpu
                 clip,
                 inputs.segmentation,
             );
+            frame.candidates_px = spots.iter().map(|s| s.centre_px).collect();
             match nwire::segment(&spots, &geometry, inputs.segmentation) {
                 Ok(dots) => frame.dots_px = dots.patterns,
                 Err(e) => frame.rejected = Some(TrackedRejection::Segmentation(e)),

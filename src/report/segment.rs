@@ -1,10 +1,16 @@
 //! Outputs of `probecal segment`: `segmentation.csv` (one row per found wire
 //! point, PLUS's pixel convention after the flip to MF; one row with `found` = 0
-//! for a frame not segmented), `summary.json` and `report.html` (the counts and
-//! every failed frame with its reason in words).
+//! for a frame not segmented), `summary.json`, `report.html` (the counts, every
+//! failed frame with its reason in words, and a gallery) and `gallery/`: each
+//! frame with its candidate spots (yellow), the chosen patterns (green, wire 1
+//! marked) or the reason it failed (red), and the clip rectangle (blue).
 
 use std::fmt::Write as _;
 use std::path::Path;
+
+use opencv::core::{Mat, Point, Rect, Scalar, Vector};
+use opencv::imgproc;
+use opencv::prelude::*;
 
 use crate::io::fs::write_atomic;
 use crate::pipeline::segment::SegmentRun;
@@ -59,6 +65,55 @@ fn escape(text: &str) -> String {
     text.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;")
 }
 
+/// Frame `k` of the run drawn, as JPEG bytes.
+fn picture(run: &SegmentRun, k: usize) -> Result<Vec<u8>, opencv::Error> {
+    let frame = &run.frames[k];
+    let [w, h] = run.image_size_px;
+    let grey = Mat::new_rows_cols_with_data(h as i32, w as i32, run.images.pixels(frame.index))?;
+    let mut bgr = Mat::default();
+    imgproc::cvt_color(&grey, &mut bgr, imgproc::COLOR_GRAY2BGR, 0)?;
+    let (yellow, green, red, blue) = (
+        Scalar::new(0.0, 220.0, 255.0, 0.0),
+        Scalar::new(60.0, 220.0, 60.0, 0.0),
+        Scalar::new(60.0, 60.0, 255.0, 0.0),
+        Scalar::new(255.0, 140.0, 40.0, 0.0),
+    );
+    let at = |p: [f64; 2]| Point::new(p[0].round() as i32, p[1].round() as i32);
+    let [u, v, cw, ch] = run.clip_rectangle_px.map(|x| x as i32);
+    imgproc::rectangle(&mut bgr, Rect::new(u, v, cw, ch), blue, 1, imgproc::LINE_8, 0)?;
+    for c in &frame.candidates_px {
+        imgproc::circle(&mut bgr, at(*c), 7, yellow, 1, imgproc::LINE_AA, 0)?;
+    }
+    for dots in &frame.dots_px {
+        for pair in dots.windows(2) {
+            imgproc::line(&mut bgr, at(pair[0]), at(pair[1]), green, 1, imgproc::LINE_AA, 0)?;
+        }
+        imgproc::circle(&mut bgr, at(dots[0]), 4, green, -1, imgproc::LINE_AA, 0)?;
+    }
+    if let Some(reason) = &frame.rejected {
+        let text: String = reason.to_string().chars().take(90).collect();
+        imgproc::put_text(
+            &mut bgr,
+            &text,
+            Point::new(8, 20),
+            imgproc::FONT_HERSHEY_SIMPLEX,
+            0.45,
+            red,
+            1,
+            imgproc::LINE_AA,
+            false,
+        )?;
+    }
+    let mut jpeg = Vector::<u8>::new();
+    let params = Vector::<i32>::from_slice(&[opencv::imgcodecs::IMWRITE_JPEG_QUALITY, 80]);
+    opencv::imgcodecs::imencode(".jpg", &bgr, &mut jpeg, &params)?;
+    Ok(jpeg.to_vec())
+}
+
+fn gallery_name(frame: usize) -> String {
+    format!("gallery/frame_{frame:04}.jpg")
+}
+
 /// `report.html`.
 pub fn html(run: &SegmentRun) -> String {
     let found = run.frames.iter().filter(|f| f.rejected.is_none()).count();
@@ -73,11 +128,12 @@ pub fn html(run: &SegmentRun) -> String {
     let [u, v, w, h] = run.clip_rectangle_px;
     format!(
         "<!DOCTYPE html>\n<html lang=\"en\">\n<head><meta charset=\"utf-8\"><title>segmentation</title>\n\
-         <style>body{{font-family:sans-serif;max-width:60em;margin:2em auto}}td,th{{padding:.2em .6em;text-align:right}}.key{{text-align:left}}</style></head>\n\
+         <style>body{{font-family:sans-serif;max-width:70em;margin:2em auto}}td,th{{padding:.2em .6em;text-align:right}}.key{{text-align:left}}figure{{display:inline-block;margin:.3em;width:320px;vertical-align:top;font-size:.8em}}</style></head>\n\
          <body>\n<h1>N-wire segmentation</h1>\n<p>{} with {}: {} of {} frames segmented ({} N-wires, {} px images read as MF from {:?}, \
          clip rectangle {u} {v} {w} {h} px, opening {} px, each frame's threshold {} % of its brightest opened pixel).</p>\n\
          <h2>Frames not segmented</h2>\n<table id=\"not-found\"><thead><tr><th>frame</th><th class=\"key\">reason</th></tr></thead><tbody>\n{rows}</tbody></table>\n\
-         <p>Every found point is in <code>segmentation.csv</code> (frame, found, wire id, x, y in pixels).</p>\n</body>\n</html>\n",
+         <p>Every found point is in <code>segmentation.csv</code> (frame, found, wire id, x, y in pixels).</p>\n\
+         <h2>Gallery</h2>\n<p>Candidate spots yellow, the chosen patterns green (the dot is wire 1), the clip rectangle blue, a failed frame's reason red; frames not segmented first.</p>\n{}</body>\n</html>\n",
         escape(&crate::io::fs::display_path(&run.sequence)),
         escape(&crate::io::fs::display_path(&run.config)),
         found,
@@ -87,7 +143,27 @@ pub fn html(run: &SegmentRun) -> String {
         run.orientation,
         run.segmentation.opening_radius_for(run.spacing_guess_mm_per_px),
         run.segmentation.threshold_percent,
+        gallery_html(run),
     )
+}
+
+fn gallery_html(run: &SegmentRun) -> String {
+    let mut order: Vec<&crate::pipeline::tracked::TrackedFrame> = run.frames.iter().collect();
+    order.sort_by_key(|f| (f.rejected.is_none(), f.index));
+    let mut out = String::from("<div class=\"gallery\">\n");
+    for f in order {
+        let caption = match &f.rejected {
+            Some(r) => format!("frame {}: {}", f.index, escape(&r.to_string())),
+            None => format!("frame {}: {} patterns", f.index, f.dots_px.len()),
+        };
+        let _ = writeln!(
+            out,
+            "<figure><img src=\"{}\" width=\"320\" alt=\"frame {}\"><figcaption>{caption}</figcaption></figure>",
+            gallery_name(f.index),
+            f.index
+        );
+    }
+    out + "</div>\n"
 }
 
 /// `probecal segment`: exit code 0 on success, 1 when the inputs cannot be read
@@ -108,6 +184,11 @@ pub fn command(sequence: &Path, config: &Path, out: &Path) -> u8 {
                 .map_err(|e| format!("{}: {e}", out.display()))
         })
         .and_then(|text| {
+            std::fs::create_dir_all(out.join("gallery")).map_err(|e| format!("{}: {e}", out.display()))?;
+            for (k, f) in run.frames.iter().enumerate() {
+                let jpeg = picture(&run, k).map_err(|e| format!("frame {}: drawing: {e}", f.index))?;
+                write_atomic(&out.join(gallery_name(f.index)), &jpeg).map_err(|e| e.to_string())?;
+            }
             for (name, bytes) in [
                 ("segmentation.csv", csv(&run).into_bytes()),
                 ("summary.json", text.into_bytes()),
