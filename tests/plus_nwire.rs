@@ -316,3 +316,77 @@ fn a_rigid_but_absurd_tracker_pose_rejects_only_its_frame() {
     assert!(reason.contains("tracker_T_probe puts its board 1000"), "{reason}");
     assert!(run.frames.iter().filter(|f| f.rejected.is_none()).count() >= 150);
 }
+
+/// A tracked experiment may take its lag from a reflector recording instead of
+/// the grid search: the manifest names the recording, the run uses the lag
+/// `probecal temporal` finds in it; a missing file is a manifest error.
+#[test]
+#[ignore = "needs ../shared/data (full tier: scripts/test.sh)"]
+fn a_tracked_experiment_takes_its_lag_from_a_reflector_recording() {
+    let dir = common::scratch("plus_nwire", "temporal_lag");
+    std::fs::create_dir_all(&dir).unwrap();
+    let data = |set: &str, name: &str| common::shared_data(set, name).canonicalize().unwrap();
+    let text = std::fs::read_to_string(common::root().join("experiments/plus_fcal2_nwire.yaml"))
+        .unwrap()
+        .replace(
+            "../../shared/data",
+            &common::root()
+                .join("../shared/data")
+                .canonicalize()
+                .unwrap()
+                .display()
+                .to_string(),
+        )
+        .replace(
+            "time_offset_s: estimate",
+            &format!(
+                "time_offset_s: {{temporal: {{tracker: {}, video: {}}}}}",
+                data(
+                    "plus-temporal-watertank",
+                    "WaterTankBottomTranslationTrackerBuffer.igs.mha"
+                )
+                .display(),
+                data(
+                    "plus-temporal-watertank",
+                    "WaterTankBottomTranslationVideoBuffer.igs.mha"
+                )
+                .display()
+            ),
+        );
+    assert!(text.contains("temporal:"));
+    let manifest = dir.join("temporal.yaml");
+    std::fs::write(&manifest, &text).unwrap();
+    let out = dir.join("out");
+    let r = common::probecal()
+        .args(["run", "--quiet", "--force", "--out"])
+        .arg(&out)
+        .arg(&manifest)
+        .output()
+        .unwrap();
+    // The gate may fail with another lag (exit 3); the run itself must succeed.
+    assert!(
+        matches!(r.status.code(), Some(0 | 3)),
+        "{}",
+        String::from_utf8_lossy(&r.stderr)
+    );
+    let summary: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(out.join("plus_fcal2_nwire/fcal2_3nwires/summary.json")).unwrap(),
+    )
+    .unwrap();
+    let lag = summary["time_offset_s"].as_f64().unwrap();
+    assert!((lag - -0.0648).abs() < 0.005, "{lag}");
+
+    let missing = dir.join("missing.yaml");
+    std::fs::write(
+        &missing,
+        text.replace("WaterTankBottomTranslationVideoBuffer", "NoSuchVideo"),
+    )
+    .unwrap();
+    let r = common::probecal().arg("validate").arg(&missing).output().unwrap();
+    assert_eq!(r.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert!(
+        err.contains("missing.yaml") && err.contains("time_offset_s.temporal.video"),
+        "{err}"
+    );
+}

@@ -93,6 +93,18 @@ struct PlusSequence {
 enum OffsetSetting {
     Seconds(f64),
     Word(String),
+    /// `{temporal: {tracker: ..., video: ...}}`: a recording of the probe moved
+    /// over a flat reflector (`probecal temporal`'s inputs).
+    Temporal {
+        temporal: TemporalRecording,
+    },
+}
+
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+struct TemporalRecording {
+    tracker: String,
+    video: String,
 }
 
 fn default_probe() -> String {
@@ -235,7 +247,7 @@ impl Default for TrackedRegression {
 }
 
 /// The tracker's time offset: fixed (s), or estimated from the calibration frames.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub enum TimeOffset {
     Fixed(f64),
     /// The offset in `[-range, range]` s (steps of `step`) whose calibration fits
@@ -243,6 +255,13 @@ pub enum TimeOffset {
     Estimate {
         range_s: f64,
         step_s: f64,
+    },
+    /// The lag `probecal temporal` finds in a recording of the probe over a flat
+    /// reflector (PLUS's `TrackerLagSec`: a frame's pose is the tracker's at its
+    /// time plus the lag).
+    Temporal {
+        tracker: PathBuf,
+        video: PathBuf,
     },
 }
 
@@ -303,10 +322,26 @@ impl TrackedManifest {
                 range_s: 0.1,
                 step_s: 0.005,
             },
+            OffsetSetting::Temporal { temporal } => TimeOffset::Temporal {
+                tracker: c.existing(
+                    &format!("{f}.time_offset_s.temporal.tracker"),
+                    &base,
+                    &temporal.tracker,
+                    false,
+                ),
+                video: c.existing(
+                    &format!("{f}.time_offset_s.temporal.video"),
+                    &base,
+                    &temporal.video,
+                    false,
+                ),
+            },
             other => {
                 c.fail(
                     &format!("{f}.time_offset_s"),
-                    format!("must be `estimate` or seconds between -1 and 1, got {other:?}"),
+                    format!(
+                        "must be `estimate`, seconds between -1 and 1, or `{{temporal: {{tracker, video}}}}`, got {other:?}"
+                    ),
                 );
                 TimeOffset::Fixed(0.0)
             }
@@ -534,6 +569,9 @@ impl TrackedManifest {
         files.push(self.calibration_sequence.clone());
         files.extend(self.validation_sequence.clone());
         files.extend(self.plus_result.clone());
+        if let TimeOffset::Temporal { tracker, video } = &self.time_offset {
+            files.extend([tracker.clone(), video.clone()]);
+        }
         files
     }
 }

@@ -68,7 +68,7 @@ impl TrackedInputs {
             pixel_model: m.pixel_model,
             folds: m.folds,
             reject_sd: m.reject_sd,
-            time_offset: m.time_offset,
+            time_offset: m.time_offset.clone(),
             refine_phantom: m.refine_phantom,
         }
     }
@@ -82,6 +82,8 @@ pub enum TrackedError {
     Config(#[from] ConfigError),
     #[error("calibration: {0}")]
     Fit(#[from] FitError),
+    #[error("temporal calibration: {0}")]
+    Temporal(#[from] crate::pipeline::temporal::TemporalError),
     #[error("{sequence}: only {usable} frames could be segmented, at least {needed} are needed")]
     TooFewFrames {
         sequence: PathBuf,
@@ -490,9 +492,13 @@ pub fn run(inputs: &TrackedInputs, min_frames: usize) -> Result<TrackedRun, Trac
     let mut frames = segment_frames(&calibration, Role::Calibration, &segmentation_inputs(inputs, clip));
     // The tracker's lag, from the calibration frames alone.
     let mut offset_scan = Vec::new();
-    let time_offset_s = match inputs.time_offset {
-        TimeOffset::Fixed(s) => s,
-        TimeOffset::Estimate { range_s, step_s } => {
+    let time_offset_s = match &inputs.time_offset {
+        TimeOffset::Fixed(s) => *s,
+        TimeOffset::Temporal { tracker, video } => {
+            crate::pipeline::temporal::run(video, tracker, &inputs.probe_transform, &inputs.reference_transform)?
+                .tracker_lag_s
+        }
+        &TimeOffset::Estimate { range_s, step_s } => {
             let steps = (range_s / step_s).round() as i64;
             let mut best = (f64::INFINITY, 0.0);
             // The lag is found with the family's first constraints and its most
