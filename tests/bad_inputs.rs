@@ -222,7 +222,7 @@ const CASES: &[Case] = &[
         setup: |d| tracked(d, no_edit, 0, ("time_offset_s: 0.0", "time_offset_s: soon")),
         args: validate,
         code: 2,
-        expect: "experiment.yaml:6: field `tracking.plus_sequence.time_offset_s`: must be `estimate` or seconds",
+        expect: "experiment.yaml:6: field `tracking.plus_sequence.time_offset_s`: must be `estimate`, seconds",
         in_output: "stderr",
     },
     Case {

@@ -70,15 +70,34 @@ pub fn tex_escape(text: &str) -> String {
             '≥' => out.push_str("\\ensuremath{\\ge}"),
             '→' => out.push_str("\\ensuremath{\\rightarrow}"),
             '←' => out.push_str("\\ensuremath{\\leftarrow}"),
-            'σ' => out.push_str("\\ensuremath{\\sigma}"),
-            'µ' | 'μ' => out.push_str("\\ensuremath{\\mu}"),
+            'µ' => out.push_str("\\ensuremath{\\mu}"),
             '²' => out.push_str("\\ensuremath{^2}"),
             'ᵀ' => out.push_str("\\ensuremath{^T}"),
             '\'' | '’' => out.push('\''),
+            '“' => out.push_str("``"),
+            '”' => out.push_str("''"),
+            // Greek letters as math; anything else the T1 fonts lack as its code
+            // point, so that no text can stop pdflatex.
+            _ if greek(c).is_some() => {
+                out.push_str("\\ensuremath{\\");
+                out.push_str(greek(c).unwrap_or_default());
+                out.push('}');
+            }
+            _ if (c as u32) > 0xFF => out.push_str(&format!("\\texttt{{U+{:04X}}}", c as u32)),
             _ => out.push(c),
         }
     }
     out
+}
+
+/// A lowercase Greek letter's LaTeX name.
+fn greek(c: char) -> Option<&'static str> {
+    const NAMES: [&str; 25] = [
+        "alpha", "beta", "gamma", "delta", "epsilon", "zeta", "eta", "theta", "iota", "kappa", "lambda", "mu", "nu",
+        "xi", "o", "pi", "rho", "varsigma", "sigma", "tau", "upsilon", "phi", "chi", "psi", "omega",
+    ];
+    let k = (c as u32).checked_sub('α' as u32)? as usize;
+    NAMES.get(k).copied().filter(|n| *n != "o")
 }
 
 fn tex_filter(value: &tera::Value, _: &std::collections::HashMap<String, tera::Value>) -> tera::Result<tera::Value> {
@@ -117,4 +136,24 @@ pub fn render_html(context: &RunContext, gallery_uris: &[String], figure_svgs: &
     tera()
         .and_then(|t| t.render("run.html", &ctx))
         .map_err(|e| error_chain(&e))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Whatever the text, the escaped LaTeX holds no character beyond Latin-1
+    /// (the T1 fonts' range), so no description can stop pdflatex.
+    #[test]
+    fn escaped_text_stays_within_the_fonts() {
+        let text = "χ² 99 % of σ = 0.40 mm; αβγ ω µ ≤ ≥ — “quotes” ✓ é";
+        let out = tex_escape(text);
+        assert!(out.chars().all(|c| (c as u32) <= 0xFF), "{out}");
+        assert!(out.contains(r"\ensuremath{\chi}\ensuremath{^2}"), "{out}");
+        assert!(
+            out.contains(r"\ensuremath{\omega}") && out.contains(r"\texttt{U+2713}"),
+            "{out}"
+        );
+        assert!(out.contains('é'));
+    }
 }

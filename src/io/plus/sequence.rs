@@ -394,11 +394,11 @@ impl Sequence {
         if numbers.len() != 16 {
             return Err(not_rigid(format!("{} numbers, a 4x4 matrix needs 16", numbers.len())));
         }
-        if numbers.iter().any(|v| !v.is_finite()) {
-            return Err(not_rigid("holds a non-finite value".into()));
-        }
         let mut rows: [[f64; 4]; 4] = std::array::from_fn(|r| std::array::from_fn(|c| numbers[r * 4 + c]));
         if !rigid {
+            if numbers.iter().any(|v| !v.is_finite()) {
+                return Err(not_rigid("matrix has a non-finite entry".into()));
+            }
             return Ok(Transform::Matrix(nalgebra::Matrix4::from_fn(|r, c| rows[r][c])));
         }
         // Trackers write 6 significant digits: a rotation that is orthonormal to that
