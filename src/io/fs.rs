@@ -31,6 +31,14 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), WriteError> {
     std::fs::rename(&tmp, path).map_err(err)
 }
 
+/// Writes each `(name, bytes)` under `folder` with [`write_atomic`] (folders made
+/// as needed), stopping at the first failure.
+pub fn write_all_atomic(folder: &Path, files: &[(String, Vec<u8>)]) -> Result<(), WriteError> {
+    files
+        .iter()
+        .try_for_each(|(name, bytes)| write_atomic(&folder.join(name), bytes))
+}
+
 /// A path as written in outputs: forward slashes on every system.
 pub fn display_path(path: &Path) -> String {
     path.to_string_lossy().replace('\\', "/")

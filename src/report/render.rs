@@ -78,13 +78,11 @@ pub fn tex_escape(text: &str) -> String {
             '”' => out.push_str("''"),
             // Greek letters as math; anything else the T1 fonts lack as its code
             // point, so that no text can stop pdflatex.
-            _ if greek(c).is_some() => {
-                out.push_str("\\ensuremath{\\");
-                out.push_str(greek(c).unwrap_or_default());
-                out.push('}');
-            }
-            _ if (c as u32) > 0xFF => out.push_str(&format!("\\texttt{{U+{:04X}}}", c as u32)),
-            _ => out.push(c),
+            _ => match greek(c) {
+                Some(name) => out.push_str(&format!("\\ensuremath{{\\{name}}}")),
+                None if (c as u32) > 0xFF => out.push_str(&format!("\\texttt{{U+{:04X}}}", c as u32)),
+                None => out.push(c),
+            },
         }
     }
     out

@@ -12,7 +12,7 @@ use opencv::core::{Mat, Point, Rect, Scalar, Vector};
 use opencv::imgproc;
 use opencv::prelude::*;
 
-use crate::io::fs::write_atomic;
+use crate::io::fs::write_all_atomic;
 use crate::pipeline::segment::SegmentRun;
 
 /// `segmentation.csv`.
@@ -166,6 +166,20 @@ fn gallery_html(run: &SegmentRun) -> String {
     out + "</div>\n"
 }
 
+/// Every output file: the gallery's pictures, then the tables and the page.
+fn outputs(run: &SegmentRun) -> Result<Vec<(String, Vec<u8>)>, String> {
+    let mut files = Vec::with_capacity(run.frames.len() + 3);
+    for (k, f) in run.frames.iter().enumerate() {
+        let jpeg = picture(run, k).map_err(|e| format!("frame {}: drawing: {e}", f.index))?;
+        files.push((gallery_name(f.index), jpeg));
+    }
+    let text = crate::report::summary::to_text(&summary(run)).map_err(|e| e.to_string())?;
+    files.push(("segmentation.csv".into(), csv(run).into_bytes()));
+    files.push(("summary.json".into(), text.into_bytes()));
+    files.push(("report.html".into(), html(run).into_bytes()));
+    Ok(files)
+}
+
 /// `probecal segment`: exit code 0 on success, 1 when the inputs cannot be read
 /// or the outputs written.
 pub fn command(sequence: &Path, config: &Path, out: &Path) -> u8 {
@@ -176,28 +190,7 @@ pub fn command(sequence: &Path, config: &Path, out: &Path) -> u8 {
             return 1;
         }
     };
-    let written = crate::report::summary::to_text(&summary(&run))
-        .map_err(|e| e.to_string())
-        .and_then(|text| {
-            std::fs::create_dir_all(out)
-                .map(|_| text)
-                .map_err(|e| format!("{}: {e}", out.display()))
-        })
-        .and_then(|text| {
-            std::fs::create_dir_all(out.join("gallery")).map_err(|e| format!("{}: {e}", out.display()))?;
-            for (k, f) in run.frames.iter().enumerate() {
-                let jpeg = picture(&run, k).map_err(|e| format!("frame {}: drawing: {e}", f.index))?;
-                write_atomic(&out.join(gallery_name(f.index)), &jpeg).map_err(|e| e.to_string())?;
-            }
-            for (name, bytes) in [
-                ("segmentation.csv", csv(&run).into_bytes()),
-                ("summary.json", text.into_bytes()),
-                ("report.html", html(&run).into_bytes()),
-            ] {
-                write_atomic(&out.join(name), &bytes).map_err(|e| e.to_string())?;
-            }
-            Ok(())
-        });
+    let written = outputs(&run).and_then(|files| write_all_atomic(out, &files).map_err(|e| e.to_string()));
     match written {
         Ok(()) => {
             let found = run.frames.iter().filter(|f| f.rejected.is_none()).count();

@@ -5,7 +5,7 @@
 use std::fmt::Write as _;
 use std::path::Path;
 
-use crate::io::fs::{display_path, write_atomic};
+use crate::io::fs::{display_path, write_all_atomic};
 use crate::pipeline::temporal::TemporalRun;
 
 /// `lines.csv`: frame, found, origin and direction in pixels, or the reason.
@@ -109,19 +109,12 @@ pub fn command(video: &Path, tracker: &Path, out: &Path) -> u8 {
     let written = crate::report::summary::to_text(&summary(&run))
         .map_err(|e| e.to_string())
         .and_then(|text| {
-            std::fs::create_dir_all(out)
-                .map(|_| text)
-                .map_err(|e| format!("{}: {e}", out.display()))
-        })
-        .and_then(|text| {
-            for (name, bytes) in [
-                ("summary.json", text.into_bytes()),
-                ("lines.csv", lines_csv(&run).into_bytes()),
-                ("report.html", html(&run).into_bytes()),
-            ] {
-                write_atomic(&out.join(name), &bytes).map_err(|e| e.to_string())?;
-            }
-            Ok(())
+            let files = [
+                ("summary.json".to_string(), text.into_bytes()),
+                ("lines.csv".to_string(), lines_csv(&run).into_bytes()),
+                ("report.html".to_string(), html(&run).into_bytes()),
+            ];
+            write_all_atomic(out, &files).map_err(|e| e.to_string())
         });
     match written {
         Ok(()) => {

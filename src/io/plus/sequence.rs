@@ -61,12 +61,6 @@ pub struct SequenceFrame {
     pub fields: BTreeMap<String, Field>,
 }
 
-/// A frame's transform as asked: checked rigid, or the plain matrix.
-enum Transform {
-    Rigid(Rigid),
-    Matrix(nalgebra::Matrix4<f64>),
-}
-
 /// A whole sequence file in memory.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Sequence {
@@ -346,23 +340,53 @@ impl Sequence {
     /// Frame `index`'s transform `<name>Transform` (e.g. `ProbeToTracker`), checked:
     /// its status must be OK and its matrix rigid.
     pub fn transform(&self, index: usize, name: &str) -> Result<Rigid, FrameFault> {
-        match self.transform_as(index, name, true)? {
-            Transform::Rigid(t) => Ok(t),
-            Transform::Matrix(_) => unreachable!("a rigid transform was asked for"),
+        let (mut rows, field, line) = self.rows(index, name)?;
+        let not_rigid = |reason: String| FrameFault::NotRigid {
+            frame: index,
+            field: field.clone(),
+            line,
+            reason,
+        };
+        // Trackers write 6 significant digits: a rotation that is orthonormal to that
+        // precision is snapped onto the nearest orthonormal matrix (a mirror stays a
+        // mirror and is refused below) before the strict check.
+        let rotation = nalgebra::Matrix3::from_fn(|r, c| rows[r][c]);
+        let off = (rotation.transpose() * rotation - nalgebra::Matrix3::identity())
+            .abs()
+            .max();
+        if off.is_finite() && off < 1e-4 {
+            let svd = rotation.svd(true, true);
+            if let (Some(u), Some(v_t)) = (svd.u, svd.v_t) {
+                let fixed = u * v_t;
+                for (r, row) in rows.iter_mut().take(3).enumerate() {
+                    for (c, v) in row.iter_mut().take(3).enumerate() {
+                        *v = fixed[(r, c)];
+                    }
+                }
+            }
         }
+        rigid_from_rows(&rows).map_err(|e| not_rigid(e.to_string()))
     }
 
     /// Frame `index`'s transform `<name>Transform` as its 4x4 matrix: status OK and
     /// 16 finite numbers, not checked for rigidity (where only a position is used,
     /// e.g. a tracker whose rotations are orthonormal to 3 digits only).
     pub fn matrix(&self, index: usize, name: &str) -> Result<nalgebra::Matrix4<f64>, FrameFault> {
-        match self.transform_as(index, name, false)? {
-            Transform::Rigid(t) => Ok(t.to_homogeneous()),
-            Transform::Matrix(m) => Ok(m),
+        let (rows, field, line) = self.rows(index, name)?;
+        if rows.iter().flatten().any(|v| !v.is_finite()) {
+            return Err(FrameFault::NotRigid {
+                frame: index,
+                field,
+                line,
+                reason: "matrix has a non-finite entry".into(),
+            });
         }
+        Ok(nalgebra::Matrix4::from_fn(|r, c| rows[r][c]))
     }
 
-    fn transform_as(&self, index: usize, name: &str, rigid: bool) -> Result<Transform, FrameFault> {
+    /// The 16 numbers of frame `index`'s `<name>Transform` (status OK), with the
+    /// field's name and line.
+    fn rows(&self, index: usize, name: &str) -> Result<([[f64; 4]; 4], String, usize), FrameFault> {
         let frame = &self.frames[index];
         let field = format!("{name}Transform");
         let status_field = format!("{field}Status");
@@ -394,34 +418,8 @@ impl Sequence {
         if numbers.len() != 16 {
             return Err(not_rigid(format!("{} numbers, a 4x4 matrix needs 16", numbers.len())));
         }
-        let mut rows: [[f64; 4]; 4] = std::array::from_fn(|r| std::array::from_fn(|c| numbers[r * 4 + c]));
-        if !rigid {
-            if numbers.iter().any(|v| !v.is_finite()) {
-                return Err(not_rigid("matrix has a non-finite entry".into()));
-            }
-            return Ok(Transform::Matrix(nalgebra::Matrix4::from_fn(|r, c| rows[r][c])));
-        }
-        // Trackers write 6 significant digits: a rotation that is orthonormal to that
-        // precision is snapped onto the nearest orthonormal matrix (a mirror stays a
-        // mirror and is refused below) before the strict check.
-        let rotation = nalgebra::Matrix3::from_fn(|r, c| rows[r][c]);
-        let off = (rotation.transpose() * rotation - nalgebra::Matrix3::identity())
-            .abs()
-            .max();
-        if off.is_finite() && off < 1e-4 {
-            let svd = rotation.svd(true, true);
-            if let (Some(u), Some(v_t)) = (svd.u, svd.v_t) {
-                let fixed = u * v_t;
-                for (r, row) in rows.iter_mut().take(3).enumerate() {
-                    for (c, v) in row.iter_mut().take(3).enumerate() {
-                        *v = fixed[(r, c)];
-                    }
-                }
-            }
-        }
-        rigid_from_rows(&rows)
-            .map(Transform::Rigid)
-            .map_err(|e| not_rigid(e.to_string()))
+        let rows = std::array::from_fn(|r| std::array::from_fn(|c| numbers[r * 4 + c]));
+        Ok((rows, field, value.line))
     }
 
     /// A per-frame field as text (e.g. `Timestamp`).
