@@ -15,8 +15,10 @@ fn fixture_text() -> String {
     std::fs::read_to_string(root().join("tests/fixtures/hemisphere_small.yaml")).unwrap()
 }
 
-fn datasets() -> PathBuf {
-    PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("output_safety_datasets")
+/// The rendered datasets' cache of the test whose output folder is `out`: one per
+/// test, since a run claims its cache and the tests run at the same time.
+fn datasets(out: &Path) -> PathBuf {
+    out.parent().unwrap().join("datasets")
 }
 
 fn run(manifests: &[&Path], out: &Path, force: bool) -> Output {
@@ -26,7 +28,7 @@ fn run(manifests: &[&Path], out: &Path, force: bool) -> Output {
         .arg("--out")
         .arg(out)
         .arg("--datasets")
-        .arg(datasets())
+        .arg(datasets(out))
         .arg("--quiet");
     if force {
         cmd.arg("--force");
@@ -144,20 +146,9 @@ fn a_failed_or_killed_rerun_keeps_the_previous_report_and_one_run_writes_at_a_ti
     );
     assert!(out_dir.join(".hemisphere_small.failed/manifest.yaml").is_file());
 
-    // A run holding the folder keeps a second one out.
-    std::fs::write(out_dir.join(".probecal.lock"), format!("{}\n", std::process::id())).unwrap();
-    let locked = run(&[&good], &out_dir, true);
-    assert_eq!(locked.status.code(), Some(2), "{}", stderr(&locked));
-    assert!(
-        stderr(&locked).contains("another probecal (process"),
-        "{}",
-        stderr(&locked)
-    );
-    std::fs::remove_file(out_dir.join(".probecal.lock")).unwrap();
-
     // Killed mid-run (SIGKILL and SIGINT): the previous report is intact, nothing
     // half-written sits where a reader would take it as complete, and the next
-    // run takes over the dead run's lock.
+    // run is not kept out by the dead run's lock.
     for signal in ["-KILL", "-INT"] {
         let mut child = probecal()
             .arg("run")
@@ -165,7 +156,7 @@ fn a_failed_or_killed_rerun_keeps_the_previous_report_and_one_run_writes_at_a_ti
             .arg("--out")
             .arg(&out_dir)
             .arg("--datasets")
-            .arg(datasets())
+            .arg(datasets(&out_dir))
             .arg("--force")
             .arg("--quiet")
             .spawn()
@@ -205,4 +196,75 @@ fn a_failed_or_killed_rerun_keeps_the_previous_report_and_one_run_writes_at_a_ti
         "the same inputs give the same summary"
     );
     assert!(!out_dir.join(".hemisphere_small.partial").exists());
+}
+
+/// A run of the fixture into `out`, started and caught while it writes.
+fn started_run(manifest: &Path, out: &Path) -> std::process::Child {
+    let child = probecal()
+        .arg("run")
+        .arg(manifest)
+        .arg("--out")
+        .arg(out)
+        .arg("--datasets")
+        .arg(datasets(out))
+        .arg("--quiet")
+        .spawn()
+        .unwrap();
+    let started = Instant::now();
+    while !out.join(".hemisphere_small.partial").exists() && started.elapsed() < Duration::from_secs(120) {
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    child
+}
+
+#[test]
+#[ignore = "runs experiments (full tier: scripts/test.sh)"]
+fn a_second_process_is_kept_out_of_a_busy_output_folder_and_datasets_cache() {
+    let dir = scratch("output_safety", "concurrent");
+    let out_dir = dir.join("out");
+    let good = write(&dir, "good.yaml", &fixture_text());
+    let mut first = started_run(&good, &out_dir);
+    let holder = format!("another probecal (process {})", first.id());
+    // While the first writes: the same output folder, and another output
+    // folder that shares its datasets' cache.
+    let same_out = run(&[&good], &out_dir, true);
+    let mut other = probecal();
+    other
+        .arg("run")
+        .arg(&good)
+        .arg("--out")
+        .arg(dir.join("other"))
+        .arg("--datasets")
+        .arg(datasets(&out_dir))
+        .arg("--quiet");
+    let same_cache = other.output().unwrap();
+    let status = first.wait().unwrap();
+    assert!(status.success(), "the first run failed");
+    for (what, second, lock) in [
+        ("output folder", &same_out, out_dir.join(".probecal.lock")),
+        (
+            "datasets' cache",
+            &same_cache,
+            datasets(&out_dir).join(".probecal.lock"),
+        ),
+    ] {
+        assert_eq!(second.status.code(), Some(2), "{what}: {}", stderr(second));
+        let expected = format!("{}: {holder}", lock.display());
+        assert!(
+            stderr(second).contains(&expected),
+            "{what}: `{expected}` not in {}",
+            stderr(second)
+        );
+    }
+    assert!(!dir.join("other/hemisphere_small").exists(), "the refused run wrote");
+    // The first run's report is whole, and the folder is free again.
+    let check = probecal()
+        .args(["check", "--update", "--baselines"])
+        .arg(dir.join("baselines"))
+        .arg(&out_dir)
+        .output()
+        .unwrap();
+    assert!(check.status.success(), "{}", stderr(&check));
+    let again = run(&[&good], &out_dir, true);
+    assert!(again.status.success(), "{}", stderr(&again));
 }

@@ -2,6 +2,10 @@
 //! checks, frame lists, images before decoding, the command line): past them a
 //! clear error, never an allocation that aborts or a loop that does not end.
 
+/// Frame numbers are 64-bit from the frame list to the tables (`usize` here,
+/// `u64` in `frames.csv`/`.parquet`): a platform with a narrower `usize` does not build.
+const _: () = assert!(usize::BITS >= 64, "probecal carries 64-bit frame numbers in usize");
+
 /// Frames of a dataset (a frame list's rows, a rendered dataset's frames).
 pub const MAX_FRAMES: usize = 100_000;
 /// Camera calibration views.

@@ -69,12 +69,6 @@ pub fn parse_frame_list(folder: &Path, text: &str) -> Result<Vec<FrameFiles>, Da
             )));
         }
         let frame = csv::frame_number(fields[0]).map_err(fail)?;
-        if frame > u32::MAX as usize {
-            return Err(fail(format!(
-                "frame {frame} is above {}, the largest frame number",
-                u32::MAX
-            )));
-        }
         if frames.len() >= MAX_FRAMES {
             return Err(fail(format!("more than {MAX_FRAMES} frames")));
         }

@@ -65,68 +65,54 @@ pub fn hex(bytes: &[u8]) -> String {
     bytes.iter().map(|b| format!("{b:02x}")).collect()
 }
 
-/// An exclusive claim, held while the value lives: a file holding the process
-/// id, created only when absent. A claim left by a process that no longer runs
-/// (killed) is taken over.
+/// An exclusive claim, held while the value lives: an advisory lock
+/// (`flock`) on a file that also names the holder's process id. The system
+/// drops the lock when its process ends, however it ends, so a killed run never
+/// leaves a claim behind; the file itself stays (removing it would let a
+/// waiting process lock a file no longer at the path).
 #[derive(Debug)]
 pub struct Lock {
-    path: PathBuf,
-}
-
-/// Whether process `pid` runs (`None`: this system cannot tell).
-fn process_runs(pid: u32) -> Option<bool> {
-    let proc = Path::new("/proc");
-    proc.join("self").exists().then(|| proc.join(pid.to_string()).exists())
+    _file: std::fs::File,
 }
 
 impl Lock {
-    /// Claims `path`; an error names the process that holds it.
+    /// Claims `path` or fails at once; an error names the process that holds it.
     pub fn acquire(path: &Path) -> Result<Lock, String> {
+        use std::io::{Read, Seek, Write};
         if let Some(parent) = path.parent() {
             std::fs::create_dir_all(parent).map_err(|e| format!("{}: {e}", parent.display()))?;
         }
-        for _ in 0..2 {
-            match std::fs::OpenOptions::new().write(true).create_new(true).open(path) {
-                Ok(mut file) => {
-                    use std::io::Write;
-                    writeln!(file, "{}", std::process::id()).map_err(|e| format!("{}: {e}", path.display()))?;
-                    return Ok(Lock {
-                        path: path.to_path_buf(),
-                    });
-                }
-                Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {
-                    let holder = std::fs::read_to_string(path)
-                        .ok()
-                        .and_then(|t| t.trim().parse::<u32>().ok());
-                    match holder.map(|pid| (pid, process_runs(pid))) {
-                        Some((pid, Some(false))) if pid != std::process::id() => {
-                            // Left by a process that no longer runs.
-                            let _ = std::fs::remove_file(path);
-                        }
-                        Some((pid, _)) => {
-                            return Err(format!(
-                                "{}: another probecal (process {pid}) is writing here; wait for it to finish",
-                                path.display()
-                            ))
-                        }
-                        None => {
-                            return Err(format!(
-                                "{}: held by another probecal; remove the file if none is running",
-                                path.display()
-                            ))
-                        }
-                    }
-                }
-                Err(e) => return Err(format!("{}: {e}", path.display())),
+        let fail = |e: std::io::Error| format!("{}: {e}", path.display());
+        let mut file = std::fs::OpenOptions::new()
+            .read(true)
+            .write(true)
+            .create(true)
+            .truncate(false)
+            .open(path)
+            .map_err(fail)?;
+        match file.try_lock() {
+            Ok(()) => {}
+            Err(std::fs::TryLockError::WouldBlock) => {
+                let mut text = String::new();
+                let _ = file.read_to_string(&mut text);
+                return Err(match text.trim().parse::<u32>() {
+                    Ok(pid) => format!(
+                        "{}: another probecal (process {pid}) is writing here; wait for it to finish",
+                        path.display()
+                    ),
+                    Err(_) => format!(
+                        "{}: another probecal is writing here; wait for it to finish",
+                        path.display()
+                    ),
+                });
             }
+            Err(std::fs::TryLockError::Error(e)) => return Err(fail(e)),
         }
-        Err(format!("{}: could not be claimed", path.display()))
-    }
-}
-
-impl Drop for Lock {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_file(&self.path);
+        file.set_len(0).map_err(fail)?;
+        file.rewind().map_err(fail)?;
+        writeln!(file, "{}", std::process::id()).map_err(fail)?;
+        file.flush().map_err(fail)?;
+        Ok(Lock { _file: file })
     }
 }
 
@@ -245,20 +231,24 @@ mod tests {
     }
 
     #[test]
-    fn a_lock_is_exclusive_and_a_dead_holder_s_is_taken_over() {
+    fn a_lock_is_exclusive_and_released_with_its_holder() {
         let dir = scratch("lock");
         let path = dir.join(".probecal.lock");
         let lock = Lock::acquire(&path).unwrap();
         let again = Lock::acquire(&path).unwrap_err();
-        assert!(again.contains("another probecal (process"), "{again}");
+        assert!(
+            again.contains(&format!("another probecal (process {})", std::process::id())),
+            "{again}"
+        );
         drop(lock);
-        assert!(!path.exists());
-        // A process id that runs no process (above Linux's pid_max).
+        // A file left with a dead process's id holds no claim.
         std::fs::write(&path, "4294967295\n").unwrap();
-        if process_runs(1).is_some() {
-            let taken = Lock::acquire(&path).unwrap();
-            drop(taken);
-        }
+        let taken = Lock::acquire(&path).unwrap();
+        assert_eq!(
+            std::fs::read_to_string(&path).unwrap(),
+            format!("{}\n", std::process::id())
+        );
+        drop(taken);
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }

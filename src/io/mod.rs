@@ -5,6 +5,7 @@ pub mod csv;
 pub mod dataset;
 pub mod fs;
 pub mod image;
+pub mod json;
 pub mod plus;
 pub mod tracker_poses;
 pub mod truth;

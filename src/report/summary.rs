@@ -554,8 +554,4 @@ impl RunSummary {
     }
 }
 
-/// A summary as written: pretty JSON, keys sorted, a final newline.
-pub fn to_text<T: Serialize>(summary: &T) -> Result<String, serde_json::Error> {
-    let value = serde_json::to_value(summary)?;
-    Ok(serde_json::to_string_pretty(&value)? + "\n")
-}
+pub use crate::io::json::to_text;

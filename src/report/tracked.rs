@@ -151,7 +151,7 @@ pub fn frames_table(run: &TrackedRun, patterns: usize) -> PolarsResult<DataFrame
                 })
                 .collect::<Vec<_>>(),
         ),
-        Column::new("frame".into(), f.iter().map(|r| r.index as u32).collect::<Vec<_>>()),
+        Column::new("frame".into(), f.iter().map(|r| r.index as u64).collect::<Vec<_>>()),
         Column::new(
             "timestamp_s".into(),
             f.iter().map(|r| r.timestamp_s).collect::<Vec<_>>(),

@@ -35,7 +35,7 @@ pub fn frames_table(run: &DatasetRun) -> PolarsResult<DataFrame> {
     let columns = vec![
         Column::new(
             "frame".into(),
-            f.iter().map(|r| r.files.frame as u32).collect::<Vec<_>>(),
+            f.iter().map(|r| r.files.frame as u64).collect::<Vec<_>>(),
         ),
         Column::new(
             "camera_image".into(),
