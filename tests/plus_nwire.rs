@@ -390,3 +390,30 @@ fn a_tracked_experiment_takes_its_lag_from_a_reflector_recording() {
         "{err}"
     );
 }
+
+#[test]
+#[ignore = "needs ../shared/data (full tier: scripts/test.sh)"]
+fn without_a_clip_rectangle_the_same_dots_are_found() {
+    // fCal 2.0's images carry no screen overlay: with the device set's clip
+    // rectangle or without one (the whole image, the overlay searched for), the
+    // same frames give the same dots.
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("experiments/plus_fcal2_nwire.yaml");
+    let text = std::fs::read_to_string(&path).unwrap();
+    let manifest = probecal::manifest::tracked::TrackedManifest::from_text(&path, &text).unwrap();
+    let mut inputs = TrackedInputs::from_manifest(&manifest);
+    assert!(
+        inputs.clip_rectangle_px.is_some(),
+        "the device set gives a clip rectangle"
+    );
+    inputs.validation_sequence = None;
+    inputs.time_offset = probecal::manifest::tracked::TimeOffset::Fixed(0.0);
+    let clipped = probecal::pipeline::tracked::run(&inputs, 20).unwrap();
+    inputs.clip_rectangle_px = None;
+    let whole = probecal::pipeline::tracked::run(&inputs, 20).unwrap();
+    assert_eq!(clipped.overlay_px, None);
+    assert_eq!(whole.overlay_px, Some(0), "nothing is bright in every frame");
+    assert_eq!(clipped.frames.len(), whole.frames.len());
+    for (a, b) in clipped.frames.iter().zip(&whole.frames) {
+        assert_eq!(a.dots_px, b.dots_px, "frame {}", a.index);
+    }
+}

@@ -6,6 +6,7 @@
 mod common;
 
 use std::collections::BTreeMap;
+use std::path::Path;
 
 use common::{probecal, scratch, shared_data};
 
@@ -51,10 +52,9 @@ fn ours(csv: &str) -> BTreeMap<usize, BTreeMap<String, [f64; 2]>> {
     out
 }
 
-#[test]
-#[ignore = "needs ../shared/data (full tier: scripts/test.sh)"]
-fn segments_another_scanner_and_phantom_as_plus_does() {
-    let out = scratch("plus_segment", "vlc");
+/// Segments the VLC sequence with `config` into `out` and compares with PLUS's
+/// segmentation of every frame; the summary.
+fn segment_and_compare(config: &Path, out: &Path, name: &str) -> serde_json::Value {
     let r = probecal()
         .arg("segment")
         .arg(shared_data(
@@ -62,17 +62,14 @@ fn segments_another_scanner_and_phantom_as_plus_does() {
             "SegmentationTest_VLCUS_RandomStepperMotionData2.igs.mha",
         ))
         .arg("--config")
-        .arg(shared_data(
-            SET,
-            "PlusDeviceSet_iCal_CalibrationOnly_VLCUS_FrameGrabber.xml",
-        ))
+        .arg(config)
         .arg("--out")
-        .arg(&out)
+        .arg(out)
         .output()
         .unwrap();
-    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    assert!(r.status.success(), "{name}: {}", String::from_utf8_lossy(&r.stderr));
     let ours = ours(&std::fs::read_to_string(out.join("segmentation.csv")).unwrap());
-    assert_eq!(ours.len(), 201, "every frame has a row");
+    assert_eq!(ours.len(), 201, "{name}: every frame has a row");
     let plus = plus_baseline();
     let plus_found: Vec<usize> = plus.iter().filter(|(_, (ok, _))| *ok).map(|(f, _)| *f).collect();
     assert_eq!(plus_found.len(), 196);
@@ -90,16 +87,48 @@ fn segments_another_scanner_and_phantom_as_plus_does() {
         }
     }
     let mean = distances.iter().sum::<f64>() / distances.len() as f64;
-    println!("{found} of 196 frames PLUS segmented are found; mean distance {mean:.3} px");
-    assert!(found as f64 >= 0.98 * 196.0, "{found} of 196");
-    assert!(mean <= 1.5, "mean distance to PLUS's points {mean} px");
-    // A frame not segmented says why, in words, on the report page and in the summary.
+    println!("{name}: {found} of 196 frames PLUS segmented are found; mean distance {mean:.3} px");
+    assert!(found as f64 >= 0.98 * 196.0, "{name}: {found} of 196");
+    assert!(mean <= 1.5, "{name}: mean distance to PLUS's points {mean} px");
     let summary: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
     assert_eq!(summary["frames"], 201);
     for miss in summary["not_found"].as_array().unwrap() {
-        assert!(miss["reason"].as_str().unwrap().starts_with("segmentation: "), "{miss}");
+        assert!(
+            miss["reason"].as_str().unwrap().starts_with("segmentation: "),
+            "{name}: {miss}"
+        );
     }
+    summary
+}
+
+#[test]
+#[ignore = "needs ../shared/data (full tier: scripts/test.sh)"]
+fn segments_another_scanner_and_phantom_as_plus_does() {
+    let config = shared_data(SET, "PlusDeviceSet_iCal_CalibrationOnly_VLCUS_FrameGrabber.xml");
+    // Without the device set's clip rectangle, the screen grab's text, rulers
+    // and depth markers are found from the recording itself.
+    let unclipped = scratch("plus_segment", "vlc_unclipped_config").join("device_set.xml");
+    let text = std::fs::read_to_string(&config).unwrap();
+    let without = text
+        .replace("ClipRectangleOrigin=\"68 145\"", "")
+        .replace("ClipRectangleSize=\"390 300\"", "");
+    assert_eq!(without.matches("ClipRectangle").count(), 0, "the clip was not removed");
+    std::fs::create_dir_all(unclipped.parent().unwrap()).unwrap();
+    std::fs::write(&unclipped, without).unwrap();
+    let unclipped_out = scratch("plus_segment", "vlc_unclipped");
+    let summary = segment_and_compare(&unclipped, &unclipped_out, "without the clip rectangle");
+    assert!(
+        summary["overlay"]["pixels"].as_u64().unwrap() > 0,
+        "{}",
+        summary["overlay"]
+    );
+    let out = scratch("plus_segment", "vlc");
+    let summary = segment_and_compare(&config, &out, "with the device set's clip rectangle");
+    assert!(
+        summary["overlay"].is_null(),
+        "a clip rectangle given, no overlay is searched"
+    );
     let page = std::fs::read_to_string(out.join("report.html")).unwrap();
     assert!(page.contains("id=\"not-found\""));
     // The gallery: every frame drawn, the failed ones first with their reason.

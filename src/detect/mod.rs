@@ -11,4 +11,5 @@ pub mod corners;
 pub mod fan;
 pub mod line;
 pub mod nwire;
+pub mod overlay;
 pub mod spot;

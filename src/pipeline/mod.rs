@@ -8,6 +8,7 @@ pub mod record;
 pub mod resolve;
 pub mod run;
 pub mod segment;
+pub mod sequence_frames;
 pub mod settings;
 pub mod solve;
 pub mod study;

@@ -8,9 +8,11 @@
 use std::path::{Path, PathBuf};
 
 use crate::detect::nwire::Segmentation;
+use crate::detect::overlay::Overlay;
 use crate::io::plus::config::PlusConfig;
 use crate::io::plus::sequence::{Orientation, Sequence};
-use crate::pipeline::tracked::{segment_frames, Role, SegmentationInputs, TrackedError, TrackedFrame};
+use crate::pipeline::sequence_frames::{clip_or_overlay, segment_frames, Role, SegmentationInputs, TrackedFrame};
+use crate::pipeline::tracked::TrackedError;
 
 /// Most dot candidates a frame's pattern search considers.
 const MAX_CANDIDATES: usize = 50;
@@ -24,6 +26,8 @@ pub struct SegmentRun {
     /// The wires' ids, three per pattern in the device set's order.
     pub wire_ids: Vec<String>,
     pub clip_rectangle_px: [usize; 4],
+    /// The screen overlay left out, when the device set gives no clip rectangle.
+    pub overlay: Option<Overlay>,
     pub image_size_px: [usize; 2],
     pub orientation: Orientation,
     pub segmentation: Segmentation,
@@ -65,16 +69,15 @@ pub fn run(sequence: &Path, config: &Path) -> Result<SegmentRun, TrackedError> {
         )));
     }
     let file = Sequence::read(sequence)?;
-    let clip = config_file
-        .clip_rectangle_px
-        .map(|(o, s)| [o[0], o[1], s[0], s[1]])
-        .unwrap_or([0, 0, file.width, file.height]);
     let segmentation = settings_of(&config_file);
+    let given = config_file.clip_rectangle_px.map(|(o, s)| [o[0], o[1], s[0], s[1]]);
+    let (clip, overlay) = clip_or_overlay(&file, given, &segmentation, spacing);
     let inputs = SegmentationInputs {
         nwires: &config_file.nwires,
         spacing_guess_mm_per_px: spacing,
         segmentation: &segmentation,
         clip,
+        overlay: overlay.as_ref(),
     };
     let frames = segment_frames(&file, Role::Calibration, &inputs);
     Ok(SegmentRun {
@@ -83,6 +86,7 @@ pub fn run(sequence: &Path, config: &Path) -> Result<SegmentRun, TrackedError> {
         frames,
         wire_ids: config_file.wire_ids.clone(),
         clip_rectangle_px: clip,
+        overlay,
         image_size_px: [file.width, file.height],
         orientation: file.orientation,
         segmentation,

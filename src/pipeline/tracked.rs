@@ -9,18 +9,21 @@
 use std::path::PathBuf;
 
 use nalgebra::{Matrix4, Point3};
-use rayon::prelude::*;
-use serde::Serialize;
 
 use crate::core::geometry::Calibration;
 use crate::core::stats::best_95;
-use crate::detect::nwire::{self, NWireRejection, PatternGeometry, Segmentation};
-use crate::estimate::image_to_probe::{self, Constraint, ConstraintModel, FitError, PixelModel, Target};
+use crate::detect::nwire::Segmentation;
+use crate::detect::overlay::Overlay;
+use crate::estimate::image_to_probe::{self, ConstraintModel, FitError, PixelModel};
 use crate::estimate::model_selection::{self, Candidate, FitSettings, FrameConstraints, Selection};
 use crate::io::plus::config::ConfigError;
-use crate::io::plus::sequence::{FrameFault, Sequence, SequenceError};
+use crate::io::plus::sequence::{Sequence, SequenceError};
 use crate::manifest::tracked::{TimeOffset, TrackedManifest};
-use crate::pipeline::record::{GateResult, Implausible};
+use crate::pipeline::record::GateResult;
+pub use crate::pipeline::sequence_frames::{
+    clip_or_overlay, constraints, segment_frames, timestamp_s, PoseFault, Role, SegmentationInputs, TrackedFrame,
+    TrackedRejection,
+};
 use crate::spec::nwire::NWire;
 
 /// Everything the tracked pipeline needs, resolved.
@@ -102,74 +105,6 @@ pub enum TrackedError {
     },
 }
 
-/// Which sequence a frame comes from.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
-#[serde(rename_all = "snake_case")]
-pub enum Role {
-    Calibration,
-    Validation,
-}
-
-/// One B-scan of a sequence, and what became of it.
-#[derive(Debug, Clone, Serialize)]
-pub struct TrackedFrame {
-    pub role: Role,
-    pub index: usize,
-    pub timestamp_s: Option<f64>,
-    /// Why the frame was not used (`None`: used).
-    pub rejected: Option<TrackedRejection>,
-    /// Per pattern: wire 1, 2, 3 dots (px).
-    pub dots_px: Vec<[[f64; 2]; 3]>,
-    /// `marker_T_phantom` of the frame (row-major), when the transforms were usable.
-    #[serde(skip)]
-    pub marker_T_phantom: Option<Matrix4<f64>>,
-    /// Per pattern: PRE3D of the middle dot under the result, mm.
-    pub pre3d_mm: Vec<f64>,
-    /// The bright spots the patterns were searched among, strongest first (px).
-    #[serde(skip)]
-    pub candidates_px: Vec<[f64; 2]>,
-}
-
-/// Why a tracked frame was not used; written as text only in tables and pages.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-pub enum TrackedRejection {
-    #[error("image status is {0}")]
-    ImageStatus(String),
-    #[error("segmentation: morphological opening failed: {0}")]
-    Opening(String),
-    #[error("segmentation: {0}")]
-    Segmentation(NWireRejection),
-    /// The tracker's poses cannot be had at the frame's time (re-evaluated for
-    /// every tracker lag tried).
-    #[error("pose: {0}")]
-    Pose(PoseFault),
-}
-
-/// Written as its text.
-impl Serialize for TrackedRejection {
-    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
-        s.serialize_str(&self.to_string())
-    }
-}
-
-/// Why a frame's pose cannot be had at its time plus the tracker's lag.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-pub enum PoseFault {
-    #[error("{0}")]
-    Transform(#[from] FrameFault),
-    #[error("frame {frame}: no neighbouring frame to interpolate `{transform}` {offset_s} s away")]
-    NoNeighbour {
-        frame: usize,
-        transform: String,
-        offset_s: f64,
-    },
-    #[error("frame {frame}: a timestamp is missing, cannot interpolate `{transform}`")]
-    NoTimestamp { frame: usize, transform: String },
-    /// Not finite, or a marker farther from the tracker than any tracker measures.
-    #[error("{0}")]
-    Implausible(Implausible),
-}
-
 /// The tracked run's accuracy gates.
 pub fn gates(run: &TrackedRun, manifest: &TrackedManifest) -> Vec<GateResult> {
     let mut out = Vec::new();
@@ -198,6 +133,9 @@ pub struct TrackedRun {
     pub offset_scan: Vec<(f64, f64)>,
     /// The model family's cross-validation on the calibration frames.
     pub selection: Selection,
+    /// Pixels of the calibration sequence's screen overlay left out, when no
+    /// clip rectangle was given.
+    pub overlay_px: Option<usize>,
 }
 
 impl TrackedRun {
@@ -214,91 +152,6 @@ impl TrackedRun {
         let total = of_role.clone().count();
         (of_role.filter(|f| f.rejected.is_none()).count(), total)
     }
-}
-
-/// What the dot segmentation of a sequence needs.
-#[derive(Debug, Clone, Copy)]
-pub struct SegmentationInputs<'a> {
-    pub nwires: &'a [NWire],
-    pub spacing_guess_mm_per_px: f64,
-    pub segmentation: &'a Segmentation,
-    pub clip: [usize; 4],
-}
-
-/// Each frame's segmented dots (or why not); poses are attached later.
-pub fn segment_frames(sequence: &Sequence, role: Role, inputs: &SegmentationInputs<'_>) -> Vec<TrackedFrame> {
-    let clip = inputs.clip;
-    let widths: Vec<f64> = inputs
-        .nwires
-        .iter()
-        .map(|n| n.width_mm() / inputs.spacing_guess_mm_per_px)
-        .collect();
-    let geometry = PatternGeometry {
-        patterns: inputs.nwires.len(),
-        widths_px: (
-            widths.iter().copied().fold(f64::INFINITY, f64::min),
-            widths.iter().copied().fold(0.0, f64::max),
-        ),
-        row_gaps_px: inputs
-            .nwires
-            .windows(2)
-            .map(|pair| pair[0].distance_to(&pair[1]) / inputs.spacing_guess_mm_per_px)
-            .collect(),
-        spacing_mm_per_px: inputs.spacing_guess_mm_per_px,
-        nwires: inputs.nwires.to_vec(),
-    };
-    (0..sequence.frames.len())
-        .into_par_iter()
-        .map(|index| {
-            let timestamp_s = timestamp_s(sequence, index);
-            let mut frame = TrackedFrame {
-                role,
-                index,
-                timestamp_s,
-                rejected: None,
-                dots_px: Vec::new(),
-                marker_T_phantom: None,
-                pre3d_mm: Vec::new(),
-                candidates_px: Vec::new(),
-            };
-            if let Some(status) = sequence.frame_field(index, "ImageStatus") {
-                if status != "OK" {
-                    frame.rejected = Some(TrackedRejection::ImageStatus(status.to_string()));
-                    return frame;
-                }
-            }
-            let opened;
-            let pixels = sequence.pixels(index);
-            let mut centre_pixels = pixels;
-            let radius_px = inputs.segmentation.opening_radius_for(inputs.spacing_guess_mm_per_px);
-            if radius_px > 0 {
-                match nwire::open_image(pixels, sequence.width, sequence.height, radius_px) {
-                    Ok(p) => {
-                        opened = p;
-                        centre_pixels = &opened;
-                    }
-                    Err(e) => {
-                        frame.rejected = Some(TrackedRejection::Opening(e.to_string()));
-                        return frame;
-                    }
-                }
-            }
-            let spots = nwire::find_spots(
-                pixels,
-                centre_pixels,
-                sequence.width,
-                sequence.height,
-                clip,
-                inputs.segmentation,
-            );
-            frame.candidates_px = spots.iter().map(|s| s.centre_px).collect();
-            match nwire::segment(&spots, &geometry, inputs.segmentation) {
-                Ok(dots) => frame.dots_px = dots.patterns,
-                Err(e) => frame.rejected = Some(TrackedRejection::Segmentation(e)),
-            }
-            frame
-        })
-        .collect()
 }
 
 /// Sets each frame's `marker_T_phantom` for a tracker lag of `offset_s` (frames whose
@@ -320,7 +173,7 @@ fn attach_poses(sequence: &Sequence, frames: &mut [TrackedFrame], inputs: &Track
         });
         // The same plausibility check as the camera pipeline's, at this stage boundary.
         let poses = poses.and_then(|(probe, reference)| {
-            match Implausible::of(
+            match crate::pipeline::record::Implausible::of(
                 Some((probe, reference)),
                 ["tracker_T_probe", "tracker_T_reference"],
                 &[],
@@ -340,15 +193,6 @@ fn attach_poses(sequence: &Sequence, frames: &mut [TrackedFrame], inputs: &Track
             Err(e) => frame.rejected = Some(TrackedRejection::Pose(e)),
         }
     }
-}
-
-/// A frame's timestamp, s; `None` when it is missing or not a finite number
-/// (a `nan` parses as a number but times nothing).
-fn timestamp_s(sequence: &Sequence, index: usize) -> Option<f64> {
-    sequence
-        .frame_field(index, "Timestamp")
-        .and_then(|t| t.parse::<f64>().ok())
-        .filter(|t| t.is_finite())
 }
 
 /// Largest gap between two frames a pose is interpolated across, s.
@@ -397,30 +241,6 @@ fn pose_at(
     Ok(here.lerp_slerp(&there, offset_s / gap))
 }
 
-/// The constraints one frame gives: each N's middle dot on its point, each dot
-/// on its wire.
-pub fn constraints(frame: &TrackedFrame, nwires: &[NWire]) -> FrameConstraints {
-    let mut out = FrameConstraints::default();
-    let Some(marker_T_phantom) = frame.marker_T_phantom else {
-        return out;
-    };
-    for (dots, nwire) in frame.dots_px.iter().zip(nwires) {
-        out.points.push(Constraint {
-            pixel: dots[1],
-            marker_T_phantom,
-            target_in_phantom: Target::Point(nwire.middle_in_phantom_mm(dots)),
-        });
-        for (dot, wire) in dots.iter().zip(&nwire.wires) {
-            out.lines.push(Constraint {
-                pixel: *dot,
-                marker_T_phantom,
-                target_in_phantom: Target::Line(wire.front_in_phantom_mm, wire.direction().normalize()),
-            });
-        }
-    }
-    out
-}
-
 /// PRE3D of each pattern's middle dot in one frame, mm: the middle dot's pixel
 /// mapped into the probe frame by `image_to_probe` against its position from the
 /// phantom geometry (registration corrected by `phantom_correction`).
@@ -466,13 +286,31 @@ fn calibration_constraints(frames: &[TrackedFrame], nwires: &[NWire]) -> Vec<Fra
         .collect()
 }
 
-fn segmentation_inputs(inputs: &TrackedInputs, clip: [usize; 4]) -> SegmentationInputs<'_> {
+fn segmentation_inputs<'a>(
+    inputs: &'a TrackedInputs,
+    clip: [usize; 4],
+    overlay: Option<&'a Overlay>,
+) -> SegmentationInputs<'a> {
     SegmentationInputs {
         nwires: &inputs.nwires,
         spacing_guess_mm_per_px: inputs.spacing_guess_mm_per_px,
         segmentation: &inputs.segmentation,
         clip,
+        overlay,
     }
+}
+
+/// Each frame of `sequence` segmented, inside the clip rectangle or with the
+/// sequence's own overlay left out; the overlay's pixel count.
+fn segment_sequence(sequence: &Sequence, role: Role, inputs: &TrackedInputs) -> (Vec<TrackedFrame>, Option<usize>) {
+    let (clip, overlay) = clip_or_overlay(
+        sequence,
+        inputs.clip_rectangle_px,
+        &inputs.segmentation,
+        inputs.spacing_guess_mm_per_px,
+    );
+    let frames = segment_frames(sequence, role, &segmentation_inputs(inputs, clip, overlay.as_ref()));
+    (frames, overlay.map(|o| o.pixels()))
 }
 
 fn fit_settings(inputs: &TrackedInputs) -> FitSettings {
@@ -485,11 +323,8 @@ fn fit_settings(inputs: &TrackedInputs) -> FitSettings {
 /// Runs the tracked pipeline.
 pub fn run(inputs: &TrackedInputs, min_frames: usize) -> Result<TrackedRun, TrackedError> {
     let calibration = Sequence::read(&inputs.calibration_sequence)?;
-    let clip = inputs
-        .clip_rectangle_px
-        .unwrap_or([0, 0, calibration.width, calibration.height]);
     let image_size_px = [calibration.width, calibration.height];
-    let mut frames = segment_frames(&calibration, Role::Calibration, &segmentation_inputs(inputs, clip));
+    let (mut frames, overlay_px) = segment_sequence(&calibration, Role::Calibration, inputs);
     // The tracker's lag, from the calibration frames alone.
     let mut offset_scan = Vec::new();
     let time_offset_s = match &inputs.time_offset {
@@ -536,7 +371,7 @@ pub fn run(inputs: &TrackedInputs, min_frames: usize) -> Result<TrackedRun, Trac
                 want_height: image_size_px[1],
             });
         }
-        let mut more = segment_frames(&validation, Role::Validation, &segmentation_inputs(inputs, clip));
+        let (mut more, _) = segment_sequence(&validation, Role::Validation, inputs);
         attach_poses(&validation, &mut more, inputs, time_offset_s);
         frames.extend(more);
     }
@@ -588,5 +423,6 @@ pub fn run(inputs: &TrackedInputs, min_frames: usize) -> Result<TrackedRun, Trac
         time_offset_s,
         offset_scan,
         selection,
+        overlay_px,
     })
 }

@@ -49,6 +49,11 @@ pub fn summary(run: &SegmentRun) -> serde_json::Value {
         "image_size_px": run.image_size_px,
         "orientation": format!("{:?}", run.orientation).to_uppercase(),
         "clip_rectangle_px": run.clip_rectangle_px,
+        "overlay": run.overlay.as_ref().map(|o| serde_json::json!({
+            "pixels": o.pixels(),
+            "threshold_grey": o.threshold_grey,
+            "frames": o.frames,
+        })),
         "approximate_spacing_mm_per_px": run.spacing_guess_mm_per_px,
         "opening_radius_px": run.segmentation.opening_radius_for(run.spacing_guess_mm_per_px),
         "threshold_percent": run.segmentation.threshold_percent,
@@ -78,6 +83,13 @@ fn picture(run: &SegmentRun, k: usize) -> Result<Vec<u8>, opencv::Error> {
         Scalar::new(60.0, 60.0, 255.0, 0.0),
         Scalar::new(255.0, 140.0, 40.0, 0.0),
     );
+    if let Some(overlay) = &run.overlay {
+        // The overlay left out, purple.
+        let bytes = bgr.data_bytes_mut()?;
+        for (pixel, _) in bytes.chunks_exact_mut(3).zip(&overlay.mask).filter(|(_, &m)| m) {
+            pixel.copy_from_slice(&[160, 40, 160]);
+        }
+    }
     let at = |p: [f64; 2]| Point::new(p[0].round() as i32, p[1].round() as i32);
     let [u, v, cw, ch] = run.clip_rectangle_px.map(|x| x as i32);
     imgproc::rectangle(&mut bgr, Rect::new(u, v, cw, ch), blue, 1, imgproc::LINE_8, 0)?;
@@ -126,11 +138,20 @@ pub fn html(run: &SegmentRun) -> String {
         );
     }
     let [u, v, w, h] = run.clip_rectangle_px;
+    let region = match &run.overlay {
+        None => format!("clip rectangle {u} {v} {w} {h} px"),
+        Some(o) => format!(
+            "no clip rectangle given: the whole image, with the screen's overlay left out ({} px at grey {} or more in every one of the {} frames, purple in the gallery)",
+            o.pixels(),
+            o.threshold_grey,
+            o.frames
+        ),
+    };
     format!(
         "<!DOCTYPE html>\n<html lang=\"en\">\n<head><meta charset=\"utf-8\"><title>segmentation</title>\n\
          <style>body{{font-family:sans-serif;max-width:70em;margin:2em auto}}td,th{{padding:.2em .6em;text-align:right}}.key{{text-align:left}}figure{{display:inline-block;margin:.3em;width:320px;vertical-align:top;font-size:.8em}}</style></head>\n\
          <body>\n<h1>N-wire segmentation</h1>\n<p>{} with {}: {} of {} frames segmented ({} N-wires, {} px images read as MF from {:?}, \
-         clip rectangle {u} {v} {w} {h} px, opening {} px, each frame's threshold {} % of its brightest opened pixel).</p>\n\
+         {region}, opening {} px, each frame's threshold {} % of its brightest opened pixel).</p>\n\
          <h2>Frames not segmented</h2>\n<table id=\"not-found\"><thead><tr><th>frame</th><th class=\"key\">reason</th></tr></thead><tbody>\n{rows}</tbody></table>\n\
          <p>Every found point is in <code>segmentation.csv</code> (frame, found, wire id, x, y in pixels).</p>\n\
          <h2>Gallery</h2>\n<p>Candidate spots yellow, the chosen patterns green (the dot is wire 1), the clip rectangle blue, a failed frame's reason red; frames not segmented first.</p>\n{}</body>\n</html>\n",

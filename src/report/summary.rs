@@ -435,6 +435,10 @@ pub struct TrackedFrameCounts {
     pub calibration: Segmented,
     pub validation: Segmented,
     pub rejected: usize,
+    /// Pixels of a screen grab's overlay left out (bright in every calibration
+    /// frame), when no clip rectangle was given.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub overlay_px: Option<usize>,
 }
 
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]

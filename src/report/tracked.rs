@@ -95,6 +95,7 @@ pub fn summary(run: &TrackedRun, manifest: &TrackedManifest, plus: Option<&PlusR
                 total: val_total,
             },
             rejected: (cal_total - cal_used) + (val_total - val_used),
+            overlay_px: run.overlay_px,
         },
         constraints: ConstraintCounts {
             model: run.selection.chosen().constraints,

@@ -1,0 +1,235 @@
+//! A sequence's B-scans as the N-wire pipeline sees them: each frame's wire
+//! dots segmented (or why not), its timestamp, and the constraints its dots
+//! give. Shared by `probecal segment` and the tracked pipeline.
+//!
+//! With no clip rectangle given, a screen grab's overlay (text, rulers, depth
+//! markers: what is bright in every frame, [`crate::detect::overlay`]) is blacked
+//! out before the dots are searched.
+
+use nalgebra::Matrix4;
+use rayon::prelude::*;
+use serde::Serialize;
+
+use crate::detect::nwire::{self, NWireRejection, PatternGeometry, Segmentation};
+use crate::detect::overlay::Overlay;
+use crate::estimate::image_to_probe::{Constraint, Target};
+use crate::estimate::model_selection::FrameConstraints;
+use crate::io::plus::sequence::{FrameFault, Sequence};
+use crate::pipeline::record::Implausible;
+use crate::spec::nwire::NWire;
+
+/// Which sequence a frame comes from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Role {
+    Calibration,
+    Validation,
+}
+
+/// One B-scan of a sequence, and what became of it.
+#[derive(Debug, Clone, Serialize)]
+pub struct TrackedFrame {
+    pub role: Role,
+    pub index: usize,
+    pub timestamp_s: Option<f64>,
+    /// Why the frame was not used (`None`: used).
+    pub rejected: Option<TrackedRejection>,
+    /// Per pattern: wire 1, 2, 3 dots (px).
+    pub dots_px: Vec<[[f64; 2]; 3]>,
+    /// `marker_T_phantom` of the frame (row-major), when the transforms were usable.
+    #[serde(skip)]
+    pub marker_T_phantom: Option<Matrix4<f64>>,
+    /// Per pattern: PRE3D of the middle dot under the result, mm.
+    pub pre3d_mm: Vec<f64>,
+    /// The bright spots the patterns were searched among, strongest first (px).
+    #[serde(skip)]
+    pub candidates_px: Vec<[f64; 2]>,
+}
+
+/// Why a tracked frame was not used; written as text only in tables and pages.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum TrackedRejection {
+    #[error("image status is {0}")]
+    ImageStatus(String),
+    #[error("segmentation: morphological opening failed: {0}")]
+    Opening(String),
+    #[error("segmentation: {0}")]
+    Segmentation(NWireRejection),
+    /// The tracker's poses cannot be had at the frame's time (re-evaluated for
+    /// every tracker lag tried).
+    #[error("pose: {0}")]
+    Pose(PoseFault),
+}
+
+/// Written as its text.
+impl Serialize for TrackedRejection {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_str(&self.to_string())
+    }
+}
+
+/// Why a frame's pose cannot be had at its time plus the tracker's lag.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum PoseFault {
+    #[error("{0}")]
+    Transform(#[from] FrameFault),
+    #[error("frame {frame}: no neighbouring frame to interpolate `{transform}` {offset_s} s away")]
+    NoNeighbour {
+        frame: usize,
+        transform: String,
+        offset_s: f64,
+    },
+    #[error("frame {frame}: a timestamp is missing, cannot interpolate `{transform}`")]
+    NoTimestamp { frame: usize, transform: String },
+    /// Not finite, or a marker farther from the tracker than any tracker measures.
+    #[error("{0}")]
+    Implausible(Implausible),
+}
+
+/// What the dot segmentation of a sequence needs.
+#[derive(Debug, Clone, Copy)]
+pub struct SegmentationInputs<'a> {
+    pub nwires: &'a [NWire],
+    pub spacing_guess_mm_per_px: f64,
+    pub segmentation: &'a Segmentation,
+    pub clip: [usize; 4],
+    /// A screen grab's overlay, blacked out before the search.
+    pub overlay: Option<&'a Overlay>,
+}
+
+/// Each frame's segmented dots (or why not); poses are attached later.
+pub fn segment_frames(sequence: &Sequence, role: Role, inputs: &SegmentationInputs<'_>) -> Vec<TrackedFrame> {
+    let clip = inputs.clip;
+    let widths: Vec<f64> = inputs
+        .nwires
+        .iter()
+        .map(|n| n.width_mm() / inputs.spacing_guess_mm_per_px)
+        .collect();
+    let geometry = PatternGeometry {
+        patterns: inputs.nwires.len(),
+        widths_px: (
+            widths.iter().copied().fold(f64::INFINITY, f64::min),
+            widths.iter().copied().fold(0.0, f64::max),
+        ),
+        row_gaps_px: inputs
+            .nwires
+            .windows(2)
+            .map(|pair| pair[0].distance_to(&pair[1]) / inputs.spacing_guess_mm_per_px)
+            .collect(),
+        spacing_mm_per_px: inputs.spacing_guess_mm_per_px,
+        nwires: inputs.nwires.to_vec(),
+    };
+    (0..sequence.frames.len())
+        .into_par_iter()
+        .map(|index| {
+            let timestamp_s = timestamp_s(sequence, index);
+            let mut frame = TrackedFrame {
+                role,
+                index,
+                timestamp_s,
+                rejected: None,
+                dots_px: Vec::new(),
+                marker_T_phantom: None,
+                pre3d_mm: Vec::new(),
+                candidates_px: Vec::new(),
+            };
+            if let Some(status) = sequence.frame_field(index, "ImageStatus") {
+                if status != "OK" {
+                    frame.rejected = Some(TrackedRejection::ImageStatus(status.to_string()));
+                    return frame;
+                }
+            }
+            let opened;
+            let cleaned;
+            let mut pixels = sequence.pixels(index);
+            if let Some(overlay) = inputs.overlay {
+                cleaned = overlay.remove(pixels);
+                pixels = &cleaned;
+            }
+            let mut centre_pixels = pixels;
+            let radius_px = inputs.segmentation.opening_radius_for(inputs.spacing_guess_mm_per_px);
+            if radius_px > 0 {
+                match nwire::open_image(pixels, sequence.width, sequence.height, radius_px) {
+                    Ok(p) => {
+                        opened = p;
+                        centre_pixels = &opened;
+                    }
+                    Err(e) => {
+                        frame.rejected = Some(TrackedRejection::Opening(e.to_string()));
+                        return frame;
+                    }
+                }
+            }
+            let spots = nwire::find_spots(
+                pixels,
+                centre_pixels,
+                sequence.width,
+                sequence.height,
+                clip,
+                inputs.segmentation,
+            );
+            frame.candidates_px = spots.iter().map(|s| s.centre_px).collect();
+            match nwire::segment(&spots, &geometry, inputs.segmentation) {
+                Ok(dots) => frame.dots_px = dots.patterns,
+                Err(e) => frame.rejected = Some(TrackedRejection::Segmentation(e)),
+            }
+            frame
+        })
+        .collect()
+}
+
+/// A frame's timestamp, s; `None` when it is missing or not a finite number
+/// (a `nan` parses as a number but times nothing).
+pub fn timestamp_s(sequence: &Sequence, index: usize) -> Option<f64> {
+    sequence
+        .frame_field(index, "Timestamp")
+        .and_then(|t| t.parse::<f64>().ok())
+        .filter(|t| t.is_finite())
+}
+
+/// The constraints one frame gives: each N's middle dot on its point, each dot
+/// on its wire.
+pub fn constraints(frame: &TrackedFrame, nwires: &[NWire]) -> FrameConstraints {
+    let mut out = FrameConstraints::default();
+    let Some(marker_T_phantom) = frame.marker_T_phantom else {
+        return out;
+    };
+    for (dots, nwire) in frame.dots_px.iter().zip(nwires) {
+        out.points.push(Constraint {
+            pixel: dots[1],
+            marker_T_phantom,
+            target_in_phantom: Target::Point(nwire.middle_in_phantom_mm(dots)),
+        });
+        for (dot, wire) in dots.iter().zip(&nwire.wires) {
+            out.lines.push(Constraint {
+                pixel: *dot,
+                marker_T_phantom,
+                target_in_phantom: Target::Line(wire.front_in_phantom_mm, wire.direction().normalize()),
+            });
+        }
+    }
+    out
+}
+
+/// The clip rectangle given, or the whole image with the overlay of `sequence`
+/// found (when it has enough frames to tell the drawn from the imaged).
+pub fn clip_or_overlay(
+    sequence: &Sequence,
+    clip: Option<[usize; 4]>,
+    segmentation: &Segmentation,
+    spacing_guess_mm_per_px: f64,
+) -> ([usize; 4], Option<Overlay>) {
+    match clip {
+        Some(clip) => (clip, None),
+        None => (
+            [0, 0, sequence.width, sequence.height],
+            Overlay::find(
+                (0..sequence.frames.len()).map(|i| sequence.pixels(i)),
+                [sequence.width, sequence.height],
+                segmentation.threshold_grey,
+                segmentation.threshold_percent,
+                segmentation.opening_radius_for(spacing_guess_mm_per_px).max(1) as usize,
+            ),
+        ),
+    }
+}
