@@ -86,21 +86,7 @@ enum Command {
     },
     /// The thesis's σ-table and a Monte Carlo accuracy study of every estimator
     /// (renders the manifest's first dataset once per seed).
-    Study {
-        manifest: PathBuf,
-        /// Seeds rendered (0: the σ-table only).
-        #[arg(long, default_value_t = 50)]
-        seeds: u64,
-        #[arg(long, default_value_t = 1000)]
-        first_seed: u64,
-        #[arg(long, default_value = "reports/study")]
-        out: PathBuf,
-        #[arg(long, default_value = "datasets")]
-        datasets: PathBuf,
-        /// Keep the rendered datasets (they are removed after each seed's run).
-        #[arg(long)]
-        keep_datasets: bool,
-    },
+    Study(probecal::report::study::StudyArgs),
     /// Solve a run again from its own folder (the frames' poses and feature pixels
     /// in `inputs.csv`, the manifest it ran with) and compare with its summary.
     Resolve {
@@ -205,14 +191,7 @@ fn main() -> ExitCode {
         Command::Validate { manifests } => probecal::report::console::validate(&manifests),
         Command::Temporal { tracker, video, out } => probecal::report::temporal::command(&video, &tracker, &out),
         Command::Segment { sequence, config, out } => probecal::report::segment::command(&sequence, &config, &out),
-        Command::Study {
-            manifest,
-            seeds,
-            first_seed,
-            out,
-            datasets,
-            keep_datasets,
-        } => probecal::report::study::command(&manifest, seeds, first_seed, &out, &datasets, keep_datasets),
+        Command::Study(args) => probecal::report::study::dispatch(args),
         Command::Synth { manifests, datasets } => probecal::report::console::synth(&manifests, &datasets),
         Command::Resolve { run } => probecal::report::resolve::command(&run),
         Command::CalibrateCamera {

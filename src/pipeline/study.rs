@@ -241,6 +241,19 @@ pub fn monte_carlo(
     keep: bool,
     log: &mut dyn FnMut(&str),
 ) -> Result<MonteCarlo, RunError> {
+    let results = seed_results(manifest, seeds, datasets_root, keep, log)?;
+    Ok(summarise(&manifest.experiment, results))
+}
+
+/// Each seed's outcome, in the order of `seeds` (what [`monte_carlo`] summarises;
+/// a slice of the seeds can run on another machine, [`summarise`] joins them).
+pub fn seed_results(
+    manifest: &Manifest,
+    seeds: &[u64],
+    datasets_root: &Path,
+    keep: bool,
+    log: &mut dyn FnMut(&str),
+) -> Result<Vec<SeedResult>, RunError> {
     let Some(DatasetSource::Render(spec)) = manifest.datasets.first().map(|d| &d.source) else {
         return Err(RunError::Unsupported(
             "the Monte Carlo study needs a manifest whose first dataset is rendered".into(),
@@ -299,6 +312,13 @@ pub fn monte_carlo(
             let _ = std::fs::remove_dir_all(&folder);
         }
     }
+    Ok(results)
+}
+
+/// The study of the seeds' outcomes (in seed order): each method's mean, 95th
+/// percentile and RMS error, its seeds better and worse than the reported
+/// method's, and the bound.
+pub fn summarise(experiment: &str, results: Vec<SeedResult>) -> MonteCarlo {
     let names: Vec<String> = results
         .first()
         .map(|r| r.rms_error_mm.iter().map(|(m, _)| m.clone()).collect())
@@ -332,12 +352,12 @@ pub fn monte_carlo(
         })
         .collect();
     let bounds: Vec<f64> = results.iter().filter_map(|r| r.crlb_rms_mm).collect();
-    Ok(MonteCarlo {
-        experiment: manifest.experiment.clone(),
+    MonteCarlo {
+        experiment: experiment.to_string(),
         methods,
         crlb_rms_mm: (bounds.iter().map(|b| b * b).sum::<f64>() / bounds.len().max(1) as f64).sqrt(),
         seeds: results,
-    })
+    }
 }
 
 #[cfg(test)]

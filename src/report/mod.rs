@@ -14,6 +14,7 @@ pub mod provenance;
 pub mod render;
 pub mod resolve;
 pub mod segment;
+pub mod shard;
 pub mod study;
 pub mod summary;
 pub mod temporal;

@@ -1,11 +1,12 @@
 //! A study's pages: `study.json` (typed, [`StudyFile`]), `study.md` and `study.html`.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
 use crate::core::limits::MAX_SEEDS;
 use crate::pipeline::study::{MonteCarlo, SigmaRow};
+use crate::report::shard::{Shard, ShardFile};
 use crate::report::summary::to_text;
 
 /// `study.json`: the σ-table and, when seeds were run, the Monte Carlo study.
@@ -137,10 +138,85 @@ pub fn write(out: &Path, sigma: &[SigmaRow], monte_carlo: Option<&MonteCarlo>) -
     std::fs::write(out.join("study.html"), html(&md))
 }
 
+/// The σ-table as every study writes it: 50 frames, 200 repetitions, seed 1.
+pub fn sigma_table() -> Vec<SigmaRow> {
+    crate::pipeline::study::sigma_table(50, 200, 1)
+}
+
+/// `probecal study`'s arguments.
+#[derive(Debug, Clone, clap::Args)]
+#[command(args_conflicts_with_subcommands = true, subcommand_negates_reqs = true)]
+pub struct StudyArgs {
+    #[command(subcommand)]
+    pub merge: Option<StudyMerge>,
+    #[arg(required = true)]
+    pub manifest: Option<PathBuf>,
+    /// Run every N-th seed from the K-th only (1-based), into
+    /// <out>/shard_K_of_N.yaml; `study merge` joins the slices.
+    #[arg(long, value_name = "K/N")]
+    pub shard: Option<Shard>,
+    /// Seeds rendered (0: the σ-table only).
+    #[arg(long, default_value_t = 50)]
+    pub seeds: u64,
+    #[arg(long, default_value_t = 1000)]
+    pub first_seed: u64,
+    #[arg(long, default_value = "reports/study")]
+    pub out: PathBuf,
+    #[arg(long, default_value = "datasets")]
+    pub datasets: PathBuf,
+    /// Keep the rendered datasets (they are removed after each seed's run).
+    #[arg(long)]
+    pub keep_datasets: bool,
+}
+
+/// `probecal study merge`.
+#[derive(Debug, Clone, clap::Subcommand)]
+pub enum StudyMerge {
+    /// Join the shard files of one study into the study.json and pages one run writes.
+    Merge {
+        #[arg(required = true)]
+        shards: Vec<PathBuf>,
+        #[arg(long, default_value = "reports/study")]
+        out: PathBuf,
+    },
+}
+
+/// `probecal study` or `probecal study merge`; the exit code.
+pub fn dispatch(args: StudyArgs) -> u8 {
+    match (args.merge, args.manifest) {
+        (Some(StudyMerge::Merge { shards, out }), _) => crate::report::shard::merge(&shards, &out),
+        (None, manifest) => command(&StudyRequest {
+            manifest: &manifest.unwrap_or_default(),
+            seeds: args.seeds,
+            first_seed: args.first_seed,
+            out: &args.out,
+            datasets: &args.datasets,
+            keep: args.keep_datasets,
+            shard: args.shard,
+        }),
+    }
+}
+
+/// What `probecal study` runs.
+#[derive(Debug, Clone)]
+pub struct StudyRequest<'a> {
+    pub manifest: &'a Path,
+    pub seeds: u64,
+    pub first_seed: u64,
+    pub out: &'a Path,
+    pub datasets: &'a Path,
+    /// Keep the rendered datasets.
+    pub keep: bool,
+    /// Run this slice of the seeds only, into a shard file.
+    pub shard: Option<Shard>,
+}
+
 /// `probecal study`: the σ-table and, for `seeds` seeds from `first_seed`, the
-/// Monte Carlo study of the manifest, written to `out`; the exit code.
-pub fn command(manifest: &Path, seeds: u64, first_seed: u64, out: &Path, datasets: &Path, keep: bool) -> u8 {
-    let manifest = match crate::manifest::Manifest::load(manifest) {
+/// Monte Carlo study of the manifest, written to `out` (or one slice of the
+/// seeds, written as a shard file); the exit code.
+pub fn command(request: &StudyRequest<'_>) -> u8 {
+    let path = request.manifest;
+    let manifest = match crate::manifest::Manifest::load(path) {
         Ok(m) => m,
         Err(e) => {
             eprintln!("error: {e}");
@@ -148,7 +224,7 @@ pub fn command(manifest: &Path, seeds: u64, first_seed: u64, out: &Path, dataset
         }
     };
     crate::core::progress::set_quiet(true);
-    let sigma = crate::pipeline::study::sigma_table(50, 200, 1);
+    let (seeds, first_seed) = (request.seeds, request.first_seed);
     let last = first_seed.checked_add(seeds).filter(|_| seeds <= MAX_SEEDS);
     let Some(last) = last else {
         eprintln!(
@@ -156,11 +232,55 @@ pub fn command(manifest: &Path, seeds: u64, first_seed: u64, out: &Path, dataset
         );
         return 2;
     };
-    let seeds: Vec<u64> = (first_seed..last).collect();
-    let monte_carlo = if seeds.is_empty() {
+    let all: Vec<u64> = (first_seed..last).collect();
+    let mut log = |l: &str| eprintln!("{l}");
+    if let Some(shard) = request.shard {
+        let manifest_sha256 = match crate::io::fs::file_sha256(path) {
+            Ok((_, sha)) => sha,
+            Err(e) => {
+                eprintln!("error: {}: {e}", path.display());
+                return 2;
+            }
+        };
+        let mine = shard.seeds_of(&all);
+        let results =
+            match crate::pipeline::study::seed_results(&manifest, &mine, request.datasets, request.keep, &mut log) {
+                Ok(r) => r,
+                Err(e) => {
+                    eprintln!("error: {e}");
+                    return 1;
+                }
+            };
+        let file = ShardFile {
+            experiment: manifest.experiment.clone(),
+            manifest_sha256,
+            first_seed,
+            seeds,
+            shard,
+            results,
+        };
+        return match crate::report::shard::write(request.out, &file) {
+            Ok(written) => {
+                eprintln!(
+                    "shard {}/{}: {} seeds; written to {}",
+                    shard.index,
+                    shard.count,
+                    mine.len(),
+                    written.display()
+                );
+                0
+            }
+            Err(e) => {
+                eprintln!("error: {}: {e}", request.out.display());
+                1
+            }
+        };
+    }
+    let sigma = sigma_table();
+    let monte_carlo = if all.is_empty() {
         None
     } else {
-        match crate::pipeline::study::monte_carlo(&manifest, &seeds, datasets, keep, &mut |l| eprintln!("{l}")) {
+        match crate::pipeline::study::monte_carlo(&manifest, &all, request.datasets, request.keep, &mut log) {
             Ok(m) => Some(m),
             Err(e) => {
                 eprintln!("error: {e}");
@@ -168,9 +288,9 @@ pub fn command(manifest: &Path, seeds: u64, first_seed: u64, out: &Path, dataset
             }
         }
     };
-    match write(out, &sigma, monte_carlo.as_ref()) {
+    match write(request.out, &sigma, monte_carlo.as_ref()) {
         Ok(()) => {
-            eprintln!("written to {}", out.display());
+            eprintln!("written to {}", request.out.display());
             0
         }
         Err(e) => {
