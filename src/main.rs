@@ -87,6 +87,17 @@ enum Command {
     /// The thesis's σ-table and a Monte Carlo accuracy study of every estimator
     /// (renders the manifest's first dataset once per seed).
     Study(probecal::report::study::StudyArgs),
+    /// Calibrate while a tracked manifest's calibration sequence is replayed at its
+    /// recorded rate: a line per frame (predicted error, running accuracy, work),
+    /// then the batch calibration of the whole recording; summary.json, live.csv.
+    Live {
+        manifest: PathBuf,
+        #[arg(long)]
+        out: PathBuf,
+        /// Times the recorded rate (0: every frame at once).
+        #[arg(long, default_value_t = 1.0)]
+        speed: f64,
+    },
     /// Solve a run again from its own folder (the frames' poses and feature pixels
     /// in `inputs.csv`, the manifest it ran with) and compare with its summary.
     Resolve {
@@ -191,6 +202,7 @@ fn main() -> ExitCode {
         Command::Validate { manifests } => probecal::report::console::validate(&manifests),
         Command::Temporal { tracker, video, out } => probecal::report::temporal::command(&video, &tracker, &out),
         Command::Segment { sequence, config, out } => probecal::report::segment::command(&sequence, &config, &out),
+        Command::Live { manifest, out, speed } => probecal::report::live::command(&manifest, &out, speed),
         Command::Study(args) => probecal::report::study::dispatch(args),
         Command::Synth { manifests, datasets } => probecal::report::console::synth(&manifests, &datasets),
         Command::Resolve { run } => probecal::report::resolve::command(&run),

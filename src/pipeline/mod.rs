@@ -3,6 +3,7 @@
 pub mod camera;
 pub mod experiment;
 pub mod frames;
+pub mod live;
 pub mod methods;
 pub mod record;
 pub mod resolve;

@@ -99,13 +99,21 @@ pub struct SegmentationInputs<'a> {
 
 /// Each frame's segmented dots (or why not); poses are attached later.
 pub fn segment_frames(sequence: &Sequence, role: Role, inputs: &SegmentationInputs<'_>) -> Vec<TrackedFrame> {
-    let clip = inputs.clip;
+    let geometry = pattern_geometry(inputs);
+    (0..sequence.frames.len())
+        .into_par_iter()
+        .map(|index| segment_frame(sequence, index, role, inputs, &geometry))
+        .collect()
+}
+
+/// What the pattern search expects, in pixels, from the phantom and the pixel size.
+pub fn pattern_geometry(inputs: &SegmentationInputs<'_>) -> PatternGeometry {
     let widths: Vec<f64> = inputs
         .nwires
         .iter()
         .map(|n| n.width_mm() / inputs.spacing_guess_mm_per_px)
         .collect();
-    let geometry = PatternGeometry {
+    PatternGeometry {
         patterns: inputs.nwires.len(),
         widths_px: (
             widths.iter().copied().fold(f64::INFINITY, f64::min),
@@ -118,64 +126,68 @@ pub fn segment_frames(sequence: &Sequence, role: Role, inputs: &SegmentationInpu
             .collect(),
         spacing_mm_per_px: inputs.spacing_guess_mm_per_px,
         nwires: inputs.nwires.to_vec(),
+    }
+}
+
+/// Frame `index` of `sequence` segmented (or why not); its pose is attached later.
+pub fn segment_frame(
+    sequence: &Sequence,
+    index: usize,
+    role: Role,
+    inputs: &SegmentationInputs<'_>,
+    geometry: &PatternGeometry,
+) -> TrackedFrame {
+    let mut frame = TrackedFrame {
+        role,
+        index,
+        timestamp_s: timestamp_s(sequence, index),
+        rejected: None,
+        dots_px: Vec::new(),
+        marker_T_phantom: None,
+        pre3d_mm: Vec::new(),
+        candidates_px: Vec::new(),
     };
-    (0..sequence.frames.len())
-        .into_par_iter()
-        .map(|index| {
-            let timestamp_s = timestamp_s(sequence, index);
-            let mut frame = TrackedFrame {
-                role,
-                index,
-                timestamp_s,
-                rejected: None,
-                dots_px: Vec::new(),
-                marker_T_phantom: None,
-                pre3d_mm: Vec::new(),
-                candidates_px: Vec::new(),
-            };
-            if let Some(status) = sequence.frame_field(index, "ImageStatus") {
-                if status != "OK" {
-                    frame.rejected = Some(TrackedRejection::ImageStatus(status.to_string()));
-                    return frame;
-                }
+    if let Some(status) = sequence.frame_field(index, "ImageStatus") {
+        if status != "OK" {
+            frame.rejected = Some(TrackedRejection::ImageStatus(status.to_string()));
+            return frame;
+        }
+    }
+    let opened;
+    let cleaned;
+    let mut pixels = sequence.pixels(index);
+    if let Some(overlay) = inputs.overlay {
+        cleaned = overlay.remove(pixels);
+        pixels = &cleaned;
+    }
+    let mut centre_pixels = pixels;
+    let radius_px = inputs.segmentation.opening_radius_for(inputs.spacing_guess_mm_per_px);
+    if radius_px > 0 {
+        match nwire::open_image(pixels, sequence.width, sequence.height, radius_px) {
+            Ok(p) => {
+                opened = p;
+                centre_pixels = &opened;
             }
-            let opened;
-            let cleaned;
-            let mut pixels = sequence.pixels(index);
-            if let Some(overlay) = inputs.overlay {
-                cleaned = overlay.remove(pixels);
-                pixels = &cleaned;
+            Err(e) => {
+                frame.rejected = Some(TrackedRejection::Opening(e.to_string()));
+                return frame;
             }
-            let mut centre_pixels = pixels;
-            let radius_px = inputs.segmentation.opening_radius_for(inputs.spacing_guess_mm_per_px);
-            if radius_px > 0 {
-                match nwire::open_image(pixels, sequence.width, sequence.height, radius_px) {
-                    Ok(p) => {
-                        opened = p;
-                        centre_pixels = &opened;
-                    }
-                    Err(e) => {
-                        frame.rejected = Some(TrackedRejection::Opening(e.to_string()));
-                        return frame;
-                    }
-                }
-            }
-            let spots = nwire::find_spots(
-                pixels,
-                centre_pixels,
-                sequence.width,
-                sequence.height,
-                clip,
-                inputs.segmentation,
-            );
-            frame.candidates_px = spots.iter().map(|s| s.centre_px).collect();
-            match nwire::segment(&spots, &geometry, inputs.segmentation) {
-                Ok(dots) => frame.dots_px = dots.patterns,
-                Err(e) => frame.rejected = Some(TrackedRejection::Segmentation(e)),
-            }
-            frame
-        })
-        .collect()
+        }
+    }
+    let spots = nwire::find_spots(
+        pixels,
+        centre_pixels,
+        sequence.width,
+        sequence.height,
+        inputs.clip,
+        inputs.segmentation,
+    );
+    frame.candidates_px = spots.iter().map(|s| s.centre_px).collect();
+    match nwire::segment(&spots, geometry, inputs.segmentation) {
+        Ok(dots) => frame.dots_px = dots.patterns,
+        Err(e) => frame.rejected = Some(TrackedRejection::Segmentation(e)),
+    }
+    frame
 }
 
 /// A frame's timestamp, s; `None` when it is missing or not a finite number

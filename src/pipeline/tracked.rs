@@ -157,7 +157,7 @@ impl TrackedRun {
 /// Sets each frame's `marker_T_phantom` for a tracker lag of `offset_s` (frames whose
 /// transforms are unusable are rejected with the reason; earlier pose rejections
 /// are re-evaluated).
-fn attach_poses(sequence: &Sequence, frames: &mut [TrackedFrame], inputs: &TrackedInputs, offset_s: f64) {
+pub fn attach_poses(sequence: &Sequence, frames: &mut [TrackedFrame], inputs: &TrackedInputs, offset_s: f64) {
     for frame in frames.iter_mut() {
         if matches!(frame.rejected, Some(TrackedRejection::Pose(_))) {
             frame.rejected = None;
@@ -286,7 +286,7 @@ fn calibration_constraints(frames: &[TrackedFrame], nwires: &[NWire]) -> Vec<Fra
         .collect()
 }
 
-fn segmentation_inputs<'a>(
+pub fn segmentation_inputs<'a>(
     inputs: &'a TrackedInputs,
     clip: [usize; 4],
     overlay: Option<&'a Overlay>,
@@ -313,7 +313,7 @@ fn segment_sequence(sequence: &Sequence, role: Role, inputs: &TrackedInputs) -> 
     (frames, overlay.map(|o| o.pixels()))
 }
 
-fn fit_settings(inputs: &TrackedInputs) -> FitSettings {
+pub fn fit_settings(inputs: &TrackedInputs) -> FitSettings {
     FitSettings {
         reject_sd: inputs.reject_sd,
         refine_phantom: inputs.refine_phantom,

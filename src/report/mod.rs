@@ -10,6 +10,7 @@ pub mod context;
 pub mod figures;
 pub mod gallery;
 pub mod index;
+pub mod live;
 pub mod provenance;
 pub mod render;
 pub mod resolve;

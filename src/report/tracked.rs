@@ -36,7 +36,7 @@ pub fn pre3d_of_matrix(
         .collect()
 }
 
-fn rows(m: &Matrix4<f64>) -> Vec<Vec<f64>> {
+pub fn rows(m: &Matrix4<f64>) -> Vec<Vec<f64>> {
     (0..4).map(|r| (0..4).map(|c| m[(r, c)]).collect()).collect()
 }
 

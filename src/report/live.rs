@@ -1,0 +1,192 @@
+//! `probecal live`: the terminal view while frames arrive (a line per frame, or
+//! one updated line on a terminal) and the session's files: `live.csv` (per
+//! frame: arrival, latency, work, rejection, predicted and running PRE3D,
+//! frames used) and `summary.json` (the recorded rate, the latency, whether it
+//! kept up, and the final calibration, the batch run's).
+
+use std::fmt::Write as _;
+use std::io::{IsTerminal, Write as _};
+use std::path::Path;
+
+use serde::Serialize;
+
+use crate::core::stats::{mean_sd, percentile};
+use crate::io::fs::write_all_atomic;
+use crate::manifest::Experiment;
+use crate::pipeline::live::{LiveFrame, LiveRun, Replay};
+use crate::pipeline::tracked::{Role, TrackedInputs};
+
+fn number(v: Option<f64>) -> String {
+    v.map(|v| format!("{v:.4}")).unwrap_or_default()
+}
+
+/// `live.csv`.
+pub fn frames_csv(run: &LiveRun) -> String {
+    let mut out = String::from(
+        "frame,arrival_s,latency_ms,processing_ms,rejected,predicted_pre3d_mm,running_pre3d_mm,frames_used\n",
+    );
+    for f in &run.frames {
+        let reason = f.rejected.as_deref().unwrap_or("").replace(['"', ','], ";");
+        let _ = writeln!(
+            out,
+            "{},{:.4},{:.3},{:.3},{reason},{},{},{}",
+            f.index,
+            f.arrival_s,
+            f.latency_ms,
+            f.processing_ms,
+            number(f.predicted_pre3d_mm),
+            number(f.running_pre3d_mm),
+            f.frames_used
+        );
+    }
+    out
+}
+
+#[derive(Serialize)]
+struct Timing {
+    mean: f64,
+    p95: f64,
+    max: f64,
+}
+
+fn timing(values: &[f64]) -> Timing {
+    Timing {
+        mean: mean_sd(values).mean,
+        p95: if values.is_empty() {
+            0.0
+        } else {
+            percentile(values, 0.95)
+        },
+        max: values.iter().copied().fold(0.0, f64::max),
+    }
+}
+
+#[derive(Serialize)]
+struct LiveSummary {
+    frames: usize,
+    recorded_rate_hz: f64,
+    replay_speed: f64,
+    /// Per frame, ms.
+    latency_ms: Timing,
+    processing_ms: Timing,
+    /// Every frame's work took less than the recording's frame interval at the
+    /// replay speed.
+    kept_up: bool,
+    /// The running accuracy estimate at the last frame, mm.
+    running_pre3d_mm: Option<f64>,
+    /// The live fit at the last frame and the final (batch) calibration.
+    last_live_matrix: Option<Vec<Vec<f64>>>,
+    final_matrix: Vec<Vec<f64>>,
+    final_validation_pre3d_mm: Option<f64>,
+}
+
+/// `summary.json`.
+fn summary(run: &LiveRun, replay: Replay) -> LiveSummary {
+    let latency: Vec<f64> = run.frames.iter().map(|f| f.latency_ms).collect();
+    let processing: Vec<f64> = run.frames.iter().map(|f| f.processing_ms).collect();
+    let speed = if replay.speed > 0.0 { replay.speed } else { 1.0 };
+    let interval_ms = 1e3 / (run.recorded_rate_hz * speed).max(1e-9);
+    let rows = |m: nalgebra::Matrix4<f64>| crate::report::tracked::rows(&m);
+    LiveSummary {
+        frames: run.frames.len(),
+        recorded_rate_hz: run.recorded_rate_hz,
+        replay_speed: replay.speed,
+        kept_up: processing.iter().all(|p| *p < interval_ms),
+        latency_ms: timing(&latency),
+        processing_ms: timing(&processing),
+        running_pre3d_mm: run.frames.last().and_then(|f| f.running_pre3d_mm),
+        last_live_matrix: run.last_live.as_ref().map(|f| rows(f.image_to_probe.matrix())),
+        final_matrix: rows(run.final_run.fit.image_to_probe.matrix()),
+        final_validation_pre3d_mm: crate::core::stats::best_95(&run.final_run.pre3d(Role::Validation)).map(|s| s.mean),
+    }
+}
+
+/// The terminal's line for one frame.
+fn line(f: &LiveFrame) -> String {
+    let mm = |v: Option<f64>| v.map(|v| format!("{v:.3} mm")).unwrap_or_else(|| "—".into());
+    let status = match &f.rejected {
+        Some(r) => format!("rejected: {}", r.chars().take(60).collect::<String>()),
+        None => format!("predicted {}", mm(f.predicted_pre3d_mm)),
+    };
+    format!(
+        "frame {:>4}/{}  t {:>6.2} s  used {:>4}  running PRE3D {}  {:>6.1} ms  {status}",
+        f.index + 1,
+        f.frames_total,
+        f.arrival_s,
+        f.frames_used,
+        mm(f.running_pre3d_mm),
+        f.processing_ms
+    )
+}
+
+/// `probecal live <manifest> --out <dir> --speed S`; the exit code.
+pub fn command(manifest: &Path, out: &Path, speed: f64) -> u8 {
+    if !(speed.is_finite() && speed >= 0.0) {
+        eprintln!("error: --speed {speed}: a replay speed is a number ≥ 0 (0: as fast as the frames are processed)");
+        return 2;
+    }
+    let m = match crate::pipeline::experiment::load_all(&[manifest.to_path_buf()]) {
+        Ok(mut all) => match all.pop() {
+            Some(Experiment::Tracked(m)) => m,
+            _ => {
+                eprintln!(
+                    "error: {}: live calibration replays a tracked sequence (tracking: plus_sequence)",
+                    manifest.display()
+                );
+                return 2;
+            }
+        },
+        Err(e) => {
+            eprintln!("error: {e}");
+            return 2;
+        }
+    };
+    let replay = Replay { speed };
+    let terminal = std::io::stderr().is_terminal();
+    let mut show = |f: &LiveFrame| {
+        let text = line(f);
+        if terminal {
+            eprint!("\r\x1b[2K{text}");
+            let _ = std::io::stderr().flush();
+        } else {
+            eprintln!("{text}");
+        }
+    };
+    let run = match crate::pipeline::live::run(&TrackedInputs::from_manifest(&m), m.min_frames, replay, &mut show) {
+        Ok(r) => r,
+        Err(e) => {
+            eprintln!("\nerror: {e}");
+            return 1;
+        }
+    };
+    if terminal {
+        eprintln!();
+    }
+    let s = summary(&run, replay);
+    let written = crate::report::summary::to_text(&s).and_then(|text| {
+        let files = [
+            ("summary.json".to_string(), text.into_bytes()),
+            ("live.csv".to_string(), frames_csv(&run).into_bytes()),
+        ];
+        write_all_atomic(out, &files).map_err(|e| e.to_string())
+    });
+    match written {
+        Ok(()) => {
+            println!(
+                "{} frames at {:.1} frames/s recorded; work per frame {:.1} ms mean, {:.1} ms max ({}); final validation PRE3D {}; written to {}",
+                s.frames,
+                s.recorded_rate_hz,
+                s.processing_ms.mean,
+                s.processing_ms.max,
+                if s.kept_up { "kept up" } else { "fell behind" },
+                s.final_validation_pre3d_mm.map(|v| format!("{v:.4} mm")).unwrap_or_else(|| "—".into()),
+                out.display()
+            );
+            0
+        }
+        Err(e) => {
+            eprintln!("error: {}: {e}", out.display());
+            1
+        }
+    }
+}
