@@ -74,6 +74,26 @@ pub fn percentile(values: &[f64], q: f64) -> f64 {
 }
 
 /// The `q` quantile of already sorted grey levels, nearest rank; 0 for none.
+/// The median and the `q` quantile of `values` by nearest rank, as
+/// [`percentile_sorted_nearest`] gives them on the sorted values, found by
+/// selection (linear time; `values` is reordered). 0 for no values.
+pub fn median_and_quantile_nearest(values: &mut [f32], q: f64) -> (f32, f32) {
+    if values.is_empty() {
+        return (0.0, 0.0);
+    }
+    let rank = |q: f64| ((values.len() - 1) as f64 * q).round() as usize;
+    let (m, k) = (rank(0.5), rank(q));
+    let (_, median, _) = values.select_nth_unstable_by(m, |a, b| a.total_cmp(b));
+    let median = *median;
+    // The k-th smallest lies on the side of the median it ranks on.
+    let quantile = match k.cmp(&m) {
+        std::cmp::Ordering::Equal => median,
+        std::cmp::Ordering::Greater => *values[m + 1..].select_nth_unstable_by(k - m - 1, |a, b| a.total_cmp(b)).1,
+        std::cmp::Ordering::Less => *values[..m].select_nth_unstable_by(k, |a, b| a.total_cmp(b)).1,
+    };
+    (median, quantile)
+}
+
 pub fn percentile_sorted_nearest(sorted: &[f32], q: f64) -> f32 {
     if sorted.is_empty() {
         return 0.0;
@@ -97,5 +117,23 @@ mod tests {
         assert_eq!(percentile(&[0.0, 10.0, 20.0], 0.25), 5.0);
         assert_eq!(percentile_sorted_nearest(&[1.0, 2.0, 3.0], 0.74), 2.0);
         assert_eq!(mean([1.0, 2.0].into_iter()), Some(1.5));
+    }
+
+    #[test]
+    fn selection_gives_the_sorted_quantiles() {
+        let mut rng = crate::core::rng::Rng::new(5);
+        for n in [1usize, 2, 3, 10, 1001, 40_000] {
+            let values: Vec<f32> = (0..n).map(|_| (rng.uniform(0.0, 50.0) as f32).round()).collect();
+            let mut sorted = values.clone();
+            sorted.sort_by(|a, b| a.total_cmp(b));
+            for q in [0.0, 0.2, 0.5, 0.9, 0.997, 1.0] {
+                let mut scratch = values.clone();
+                assert_eq!(
+                    median_and_quantile_nearest(&mut scratch, q),
+                    (percentile_sorted_nearest(&sorted, 0.5), percentile_sorted_nearest(&sorted, q)),
+                    "n {n}, q {q}"
+                );
+            }
+        }
     }
 }

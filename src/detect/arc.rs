@@ -16,7 +16,7 @@
 //!    too short, has too few points, is not circular, or has an implausible radius.
 
 use super::fan::{FAN_EDGE_MM, NEAR_FIELD_MM};
-use crate::core::stats::percentile_sorted_nearest;
+use crate::core::stats::median_and_quantile_nearest;
 use opencv::core::Mat;
 
 use crate::io::image::{gaussian_blur_f32, mat_to_gray8, ImageError};
@@ -193,9 +193,7 @@ pub fn detect(image: &Mat, settings: &ArcSettings) -> Result<Result<ArcFeature, 
     if values.is_empty() {
         return Ok(Err(ArcRejection::EmptyFan));
     }
-    values.sort_by(|a, b| a.total_cmp(b));
-    let median = percentile_sorted_nearest(&values, 0.5);
-    let high = percentile_sorted_nearest(&values, 0.997);
+    let (median, high) = median_and_quantile_nearest(&mut values, 0.997);
     let threshold = median + 0.45 * (high - median).max(10.0);
 
     // 1. Echo points: column-wise ridge maxima, sub-pixel, with the ridge's normal

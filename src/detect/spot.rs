@@ -15,7 +15,7 @@
 //!    object's centre is one radius further along the beam.
 
 use super::fan::{FAN_EDGE_MM, NEAR_FIELD_MM};
-use crate::core::stats::percentile_sorted_nearest;
+use crate::core::stats::median_and_quantile_nearest;
 use opencv::core::Mat;
 
 use crate::io::image::{gaussian_blur_f32, mat_to_gray8, ImageError};
@@ -209,9 +209,7 @@ pub fn detect(image: &Mat, settings: &SpotSettings) -> Result<Spots, ImageError>
             surfaces: 0,
         });
     }
-    values.sort_by(|a, b| a.total_cmp(b));
-    let median = percentile_sorted_nearest(&values, 0.5);
-    let high = percentile_sorted_nearest(&values, 0.997);
+    let (median, high) = median_and_quantile_nearest(&mut values, 0.997);
     let threshold = median + 0.45 * (high - median).max(10.0);
     let above = |i: usize| smooth[i] >= threshold && usable(i % w, i / w);
 
