@@ -219,44 +219,62 @@ fn started_run(manifest: &Path, out: &Path) -> std::process::Child {
 
 #[test]
 #[ignore = "runs experiments (full tier: scripts/test.sh)"]
-fn a_second_process_is_kept_out_of_a_busy_output_folder_and_datasets_cache() {
+fn a_second_process_is_kept_out_of_a_busy_output_folder_and_waits_for_a_busy_dataset() {
     let dir = scratch("output_safety", "concurrent");
     let out_dir = dir.join("out");
     let good = write(&dir, "good.yaml", &fixture_text());
     let mut first = started_run(&good, &out_dir);
     let holder = format!("another probecal (process {})", first.id());
-    // While the first writes: the same output folder, and another output
-    // folder that shares its datasets' cache.
+    // Until the first run holds its rendered dataset.
+    let dataset_lock = datasets(&out_dir).join(".hemisphere_small__small.lock");
+    let started = Instant::now();
+    loop {
+        if let Ok(file) = std::fs::File::open(&dataset_lock) {
+            match file.try_lock_shared() {
+                Err(std::fs::TryLockError::WouldBlock) => break,
+                _ => drop(file),
+            }
+        }
+        assert!(
+            started.elapsed() < Duration::from_secs(120),
+            "the first run never claimed its dataset"
+        );
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    // While the first writes: the same output folder is refused at once.
     let same_out = run(&[&good], &out_dir, true);
-    let mut other = probecal();
-    other
+    assert_eq!(same_out.status.code(), Some(2), "{}", stderr(&same_out));
+    let expected = format!("{}: {holder}", out_dir.join(".probecal.lock").display());
+    assert!(
+        stderr(&same_out).contains(&expected),
+        "`{expected}` not in {}",
+        stderr(&same_out)
+    );
+    // Another output folder sharing the datasets' cache waits for the dataset
+    // the first run renders and reads, then runs.
+    let same_cache = probecal()
         .arg("run")
         .arg(&good)
         .arg("--out")
         .arg(dir.join("other"))
         .arg("--datasets")
         .arg(datasets(&out_dir))
-        .arg("--quiet");
-    let same_cache = other.output().unwrap();
+        .output()
+        .unwrap();
     let status = first.wait().unwrap();
     assert!(status.success(), "the first run failed");
-    for (what, second, lock) in [
-        ("output folder", &same_out, out_dir.join(".probecal.lock")),
-        (
-            "datasets' cache",
-            &same_cache,
-            datasets(&out_dir).join(".probecal.lock"),
-        ),
-    ] {
-        assert_eq!(second.status.code(), Some(2), "{what}: {}", stderr(second));
-        let expected = format!("{}: {holder}", lock.display());
-        assert!(
-            stderr(second).contains(&expected),
-            "{what}: `{expected}` not in {}",
-            stderr(second)
-        );
-    }
-    assert!(!dir.join("other/hemisphere_small").exists(), "the refused run wrote");
+    assert!(same_cache.status.success(), "{}", stderr(&same_cache));
+    let expected = format!("{}: waiting for {holder}", dataset_lock.display());
+    assert!(
+        String::from_utf8_lossy(&same_cache.stderr).contains(&expected),
+        "`{expected}` not in {}",
+        stderr(&same_cache)
+    );
+    assert_eq!(
+        std::fs::read(dir.join("other/hemisphere_small/small/summary.json")).unwrap(),
+        std::fs::read(out_dir.join("hemisphere_small/small/summary.json")).unwrap(),
+        "the waiting run gives the same summary"
+    );
     // The first run's report is whole, and the folder is free again.
     let check = probecal()
         .args(["check", "--update", "--baselines"])

@@ -88,7 +88,11 @@ pub fn median_and_quantile_nearest(values: &mut [f32], q: f64) -> (f32, f32) {
     // The k-th smallest lies on the side of the median it ranks on.
     let quantile = match k.cmp(&m) {
         std::cmp::Ordering::Equal => median,
-        std::cmp::Ordering::Greater => *values[m + 1..].select_nth_unstable_by(k - m - 1, |a, b| a.total_cmp(b)).1,
+        std::cmp::Ordering::Greater => {
+            *values[m + 1..]
+                .select_nth_unstable_by(k - m - 1, |a, b| a.total_cmp(b))
+                .1
+        }
         std::cmp::Ordering::Less => *values[..m].select_nth_unstable_by(k, |a, b| a.total_cmp(b)).1,
     };
     (median, quantile)
@@ -130,7 +134,10 @@ mod tests {
                 let mut scratch = values.clone();
                 assert_eq!(
                     median_and_quantile_nearest(&mut scratch, q),
-                    (percentile_sorted_nearest(&sorted, 0.5), percentile_sorted_nearest(&sorted, q)),
+                    (
+                        percentile_sorted_nearest(&sorted, 0.5),
+                        percentile_sorted_nearest(&sorted, q)
+                    ),
                     "n {n}, q {q}"
                 );
             }

@@ -78,6 +78,16 @@ pub struct Lock {
 impl Lock {
     /// Claims `path` or fails at once; an error names the process that holds it.
     pub fn acquire(path: &Path) -> Result<Lock, String> {
+        Lock::claim(path, None)
+    }
+
+    /// Claims `path`, waiting while another process holds it (`waiting` is told
+    /// whom it waits for, once).
+    pub fn acquire_waiting(path: &Path, waiting: &mut dyn FnMut(&str)) -> Result<Lock, String> {
+        Lock::claim(path, Some(waiting))
+    }
+
+    fn claim(path: &Path, waiting: Option<&mut dyn FnMut(&str)>) -> Result<Lock, String> {
         use std::io::{Read, Seek, Write};
         if let Some(parent) = path.parent() {
             std::fs::create_dir_all(parent).map_err(|e| format!("{}: {e}", parent.display()))?;
@@ -95,16 +105,22 @@ impl Lock {
             Err(std::fs::TryLockError::WouldBlock) => {
                 let mut text = String::new();
                 let _ = file.read_to_string(&mut text);
-                return Err(match text.trim().parse::<u32>() {
-                    Ok(pid) => format!(
-                        "{}: another probecal (process {pid}) is writing here; wait for it to finish",
-                        path.display()
-                    ),
-                    Err(_) => format!(
-                        "{}: another probecal is writing here; wait for it to finish",
-                        path.display()
-                    ),
-                });
+                let holder = match text.trim().parse::<u32>() {
+                    Ok(pid) => format!("another probecal (process {pid})"),
+                    Err(_) => "another probecal".to_string(),
+                };
+                match waiting {
+                    None => {
+                        return Err(format!(
+                            "{}: {holder} is writing here; wait for it to finish",
+                            path.display()
+                        ))
+                    }
+                    Some(waiting) => {
+                        waiting(&format!("{}: waiting for {holder} to finish with it", path.display()));
+                        file.lock().map_err(fail)?;
+                    }
+                }
             }
             Err(std::fs::TryLockError::Error(e)) => return Err(fail(e)),
         }
@@ -249,6 +265,23 @@ mod tests {
             format!("{}\n", std::process::id())
         );
         drop(taken);
+        // A waiting claim is told whom it waits for and gets the lock once the
+        // holder lets go.
+        let held = Lock::acquire(&path).unwrap();
+        let waiter = {
+            let path = path.clone();
+            std::thread::spawn(move || {
+                let mut told = Vec::new();
+                let lock = Lock::acquire_waiting(&path, &mut |m| told.push(m.to_string()));
+                (lock.is_ok(), told)
+            })
+        };
+        std::thread::sleep(std::time::Duration::from_millis(200));
+        drop(held);
+        let (claimed, told) = waiter.join().unwrap();
+        assert!(claimed);
+        assert_eq!(told.len(), 1, "{told:?}");
+        assert!(told[0].contains("waiting for another probecal (process"), "{told:?}");
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }

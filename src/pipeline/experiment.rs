@@ -180,37 +180,6 @@ fn refusal(experiments: &[Experiment], options: &RunOptions<'_>) -> Option<Strin
 /// The file that claims an output folder for one run at a time.
 pub const OUT_LOCK: &str = ".probecal.lock";
 
-/// Claims `out` for this run, and the datasets' cache when an experiment renders
-/// into it (two runs sharing a cache would render into one folder at once, or
-/// replace a dataset another is reading).
-fn claim(experiments: &[Experiment], options: &RunOptions<'_>) -> Result<Vec<Lock>, String> {
-    let mut locks = vec![Lock::acquire(&options.out.join(OUT_LOCK))?];
-    if experiments.iter().any(renders) {
-        locks.push(claim_cache(options.datasets, options.out)?);
-    }
-    Ok(locks)
-}
-
-/// Claims the datasets' cache, unless it is `out` itself (claimed already).
-fn claim_cache(datasets: &Path, out: &Path) -> Result<Lock, String> {
-    let same = |a: &Path, b: &Path| a.canonicalize().ok().is_some_and(|a| b.canonicalize().ok() == Some(a));
-    if same(datasets, out) {
-        return Err(format!(
-            "{}: the datasets' cache cannot be the output folder; choose another --datasets",
-            datasets.display()
-        ));
-    }
-    Lock::acquire(&datasets.join(OUT_LOCK))
-}
-
-/// Whether an experiment renders a dataset into the cache.
-fn renders(experiment: &Experiment) -> bool {
-    match experiment {
-        Experiment::Camera(m) => m.datasets.iter().any(|d| matches!(d.source, DatasetSource::Render(_))),
-        Experiment::Tracked(_) => false,
-    }
-}
-
 /// Runs every experiment into `options.out`. Each experiment's folder is written
 /// beside the old one and swapped in when all its datasets are written; a failed
 /// experiment leaves the old folder as it was.
@@ -225,7 +194,7 @@ pub fn run_all(
         reporter.error(&reason);
         return Outcome::failed(2);
     }
-    let _locks = match claim(experiments, options) {
+    let _lock = match Lock::acquire(&out.join(OUT_LOCK)) {
         Ok(locks) => locks,
         Err(e) => {
             reporter.error(&e);

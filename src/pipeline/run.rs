@@ -23,6 +23,7 @@ use crate::estimate::horn::HornError;
 use crate::evaluate::resampling::FitInputs;
 use crate::evaluate::ThresholdRow;
 use crate::io::dataset;
+use crate::io::fs::Lock;
 use crate::io::truth::GroundTruth;
 use crate::manifest::{CameraSource, Dataset, DatasetSource, Manifest};
 use crate::synth;
@@ -87,11 +88,12 @@ fn dataset_folder(
     dataset: &Dataset,
     datasets_root: &Path,
     log: &mut dyn FnMut(&str),
-) -> Result<(PathBuf, bool), RunError> {
+) -> Result<(PathBuf, Option<Lock>), RunError> {
     let name = &dataset.name;
     match &dataset.source {
         DatasetSource::Render(spec) => {
             let folder = synth::dataset_folder(datasets_root, &manifest.experiment, name);
+            let claim = claim_rendered(&folder, name, log)?;
             let outcome =
                 synth::ensure_rendered(&settings::lab(manifest), spec, &folder).map_err(|source| RunError::Synth {
                     dataset: name.clone(),
@@ -102,10 +104,35 @@ fn dataset_folder(
                 folder.display(),
                 outcome_words(&outcome)
             ));
-            Ok((folder, true))
+            Ok((folder, Some(claim)))
         }
-        DatasetSource::Folder(folder) => Ok((folder.clone(), false)),
+        DatasetSource::Folder(folder) => Ok((folder.clone(), None)),
     }
+}
+
+/// Claims a rendered dataset's folder while it is rendered and read: another
+/// process rendering or reading the same dataset is waited for (others run on).
+fn claim_rendered(folder: &Path, dataset: &str, log: &mut dyn FnMut(&str)) -> Result<Lock, RunError> {
+    let path = claim_file(folder);
+    Lock::acquire_waiting(&path, &mut |m| log(m)).map_err(|message| RunError::Synth {
+        dataset: dataset.to_string(),
+        source: synth::SynthError::Io {
+            message: message
+                .strip_prefix(&format!("{}: ", path.display()))
+                .unwrap_or(&message)
+                .to_string(),
+            path: path.clone(),
+        },
+    })
+}
+
+/// The lock file beside a rendered dataset's folder (`.<folder>.lock`).
+pub fn claim_file(folder: &Path) -> PathBuf {
+    let name = folder
+        .file_name()
+        .map(|n| n.to_string_lossy().to_string())
+        .unwrap_or_default();
+    folder.parent().unwrap_or(Path::new(".")).join(format!(".{name}.lock"))
 }
 
 /// Runs one dataset of a manifest. `datasets_root` holds rendered datasets.
@@ -118,7 +145,8 @@ pub fn run_dataset(
     let name = dataset.name.clone();
     let mut timings = Vec::new();
     let clock = Instant::now();
-    let (folder, rendered) = dataset_folder(manifest, dataset, datasets_root, log)?;
+    let (folder, claim) = dataset_folder(manifest, dataset, datasets_root, log)?;
+    let rendered = claim.is_some();
     timings.push(("dataset", clock.elapsed().as_secs_f64()));
     let files = dataset::load_frame_list(&folder).map_err(|source| RunError::Dataset {
         dataset: name.clone(),
@@ -320,6 +348,7 @@ pub fn synth_only(manifest: &Manifest, datasets_root: &Path, log: &mut dyn FnMut
     for d in &manifest.datasets {
         if let DatasetSource::Render(spec) = &d.source {
             let folder = synth::dataset_folder(datasets_root, &manifest.experiment, &d.name);
+            let _claim = claim_rendered(&folder, &d.name, log)?;
             let clock = Instant::now();
             let outcome =
                 synth::ensure_rendered(&settings::lab(manifest), spec, &folder).map_err(|source| RunError::Synth {

@@ -309,7 +309,9 @@ pub fn seed_results(
             frames_used: run.used_frames(),
         });
         if !keep {
+            // The seed's folder and its claim are this study's alone.
             let _ = std::fs::remove_dir_all(&folder);
+            let _ = std::fs::remove_file(run::claim_file(&folder));
         }
     }
     Ok(results)

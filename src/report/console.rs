@@ -193,13 +193,6 @@ pub fn synth(manifests: &[PathBuf], datasets: &Path) -> u8 {
     let Some(manifests) = loaded(manifests) else {
         return 2;
     };
-    let _lock = match crate::io::fs::Lock::acquire(&datasets.join(crate::pipeline::experiment::OUT_LOCK)) {
-        Ok(lock) => lock,
-        Err(e) => {
-            eprintln!("error: {e}");
-            return 2;
-        }
-    };
     for m in manifests.iter().filter_map(|m| match m {
         Experiment::Camera(m) => Some(m),
         Experiment::Tracked(_) => None,
