@@ -52,10 +52,11 @@ fn ours(csv: &str) -> BTreeMap<usize, BTreeMap<String, [f64; 2]>> {
     out
 }
 
-/// Segments the VLC sequence with `config` into `out` and compares with PLUS's
-/// segmentation of every frame; the summary.
-fn segment_and_compare(config: &Path, out: &Path, name: &str) -> serde_json::Value {
-    let r = probecal()
+const DEVICE_SET: &str = "PlusDeviceSet_iCal_CalibrationOnly_VLCUS_FrameGrabber.xml";
+
+/// `probecal segment` of the VLC sequence with `config`, into `out`.
+fn segment(config: &Path, out: &Path) -> std::process::Output {
+    probecal()
         .arg("segment")
         .arg(shared_data(
             SET,
@@ -66,7 +67,24 @@ fn segment_and_compare(config: &Path, out: &Path, name: &str) -> serde_json::Val
         .arg("--out")
         .arg(out)
         .output()
-        .unwrap();
+        .unwrap()
+}
+
+/// A copy of the VLC device set, as `path`, with each of `attributes` removed.
+fn device_set_without(path: &Path, attributes: &[&str]) {
+    let mut text = std::fs::read_to_string(shared_data(SET, DEVICE_SET)).unwrap();
+    for attribute in attributes {
+        assert!(text.contains(attribute), "`{attribute}` is not in the device set");
+        text = text.replace(attribute, "");
+    }
+    std::fs::create_dir_all(path.parent().unwrap()).unwrap();
+    std::fs::write(path, text).unwrap();
+}
+
+/// Segments the VLC sequence with `config` into `out` and compares with PLUS's
+/// segmentation of every frame; the summary.
+fn segment_and_compare(config: &Path, out: &Path, name: &str) -> serde_json::Value {
+    let r = segment(config, out);
     assert!(r.status.success(), "{name}: {}", String::from_utf8_lossy(&r.stderr));
     let ours = ours(&std::fs::read_to_string(out.join("segmentation.csv")).unwrap());
     assert_eq!(ours.len(), 201, "{name}: every frame has a row");
@@ -105,17 +123,16 @@ fn segment_and_compare(config: &Path, out: &Path, name: &str) -> serde_json::Val
 #[test]
 #[ignore = "needs ../shared/data (full tier: scripts/test.sh)"]
 fn segments_another_scanner_and_phantom_as_plus_does() {
-    let config = shared_data(SET, "PlusDeviceSet_iCal_CalibrationOnly_VLCUS_FrameGrabber.xml");
+    let config = shared_data(SET, DEVICE_SET);
     // Without the device set's clip rectangle, the screen grab's text, rulers
     // and depth markers are found from the recording itself.
     let unclipped = scratch("plus_segment", "vlc_unclipped_config").join("device_set.xml");
-    let text = std::fs::read_to_string(&config).unwrap();
-    let without = text
-        .replace("ClipRectangleOrigin=\"68 145\"", "")
-        .replace("ClipRectangleSize=\"390 300\"", "");
-    assert_eq!(without.matches("ClipRectangle").count(), 0, "the clip was not removed");
-    std::fs::create_dir_all(unclipped.parent().unwrap()).unwrap();
-    std::fs::write(&unclipped, without).unwrap();
+    device_set_without(
+        &unclipped,
+        &["ClipRectangleOrigin=\"68 145\"", "ClipRectangleSize=\"390 300\""],
+    );
+    let text = std::fs::read_to_string(&unclipped).unwrap();
+    assert_eq!(text.matches("ClipRectangle").count(), 0, "the clip was not removed");
     let unclipped_out = scratch("plus_segment", "vlc_unclipped");
     let summary = segment_and_compare(&unclipped, &unclipped_out, "without the clip rectangle");
     assert!(
@@ -152,27 +169,9 @@ fn segments_another_scanner_and_phantom_as_plus_does() {
 #[ignore = "needs ../shared/data (full tier: scripts/test.sh)"]
 fn a_device_set_without_a_pixel_size_is_a_clear_error() {
     let dir = scratch("plus_segment", "no_spacing");
-    std::fs::create_dir_all(&dir).unwrap();
     let config = dir.join("no_spacing.xml");
-    let text = std::fs::read_to_string(shared_data(
-        SET,
-        "PlusDeviceSet_iCal_CalibrationOnly_VLCUS_FrameGrabber.xml",
-    ))
-    .unwrap()
-    .replace("ApproximateSpacingMmPerPixel=\"0.21\"", "");
-    std::fs::write(&config, text).unwrap();
-    let r = probecal()
-        .arg("segment")
-        .arg(shared_data(
-            SET,
-            "SegmentationTest_VLCUS_RandomStepperMotionData2.igs.mha",
-        ))
-        .arg("--config")
-        .arg(&config)
-        .arg("--out")
-        .arg(dir.join("out"))
-        .output()
-        .unwrap();
+    device_set_without(&config, &["ApproximateSpacingMmPerPixel=\"0.21\""]);
+    let r = segment(&config, &dir.join("out"));
     assert_eq!(r.status.code(), Some(1));
     let err = String::from_utf8_lossy(&r.stderr);
     assert!(

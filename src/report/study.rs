@@ -183,39 +183,17 @@ pub enum StudyMerge {
 
 /// `probecal study` or `probecal study merge`; the exit code.
 pub fn dispatch(args: StudyArgs) -> u8 {
-    match (args.merge, args.manifest) {
-        (Some(StudyMerge::Merge { shards, out }), _) => crate::report::shard::merge(&shards, &out),
-        (None, manifest) => command(&StudyRequest {
-            manifest: &manifest.unwrap_or_default(),
-            seeds: args.seeds,
-            first_seed: args.first_seed,
-            out: &args.out,
-            datasets: &args.datasets,
-            keep: args.keep_datasets,
-            shard: args.shard,
-        }),
+    match &args.merge {
+        Some(StudyMerge::Merge { shards, out }) => crate::report::shard::merge(shards, out),
+        None => command(&args),
     }
-}
-
-/// What `probecal study` runs.
-#[derive(Debug, Clone)]
-pub struct StudyRequest<'a> {
-    pub manifest: &'a Path,
-    pub seeds: u64,
-    pub first_seed: u64,
-    pub out: &'a Path,
-    pub datasets: &'a Path,
-    /// Keep the rendered datasets.
-    pub keep: bool,
-    /// Run this slice of the seeds only, into a shard file.
-    pub shard: Option<Shard>,
 }
 
 /// `probecal study`: the σ-table and, for `seeds` seeds from `first_seed`, the
 /// Monte Carlo study of the manifest, written to `out` (or one slice of the
 /// seeds, written as a shard file); the exit code.
-pub fn command(request: &StudyRequest<'_>) -> u8 {
-    let path = request.manifest;
+pub fn command(request: &StudyArgs) -> u8 {
+    let path = request.manifest.as_deref().unwrap_or(Path::new(""));
     let manifest = match crate::manifest::Manifest::load(path) {
         Ok(m) => m,
         Err(e) => {
@@ -243,14 +221,19 @@ pub fn command(request: &StudyRequest<'_>) -> u8 {
             }
         };
         let mine = shard.seeds_of(&all);
-        let results =
-            match crate::pipeline::study::seed_results(&manifest, &mine, request.datasets, request.keep, &mut log) {
-                Ok(r) => r,
-                Err(e) => {
-                    eprintln!("error: {e}");
-                    return 1;
-                }
-            };
+        let results = match crate::pipeline::study::seed_results(
+            &manifest,
+            &mine,
+            &request.datasets,
+            request.keep_datasets,
+            &mut log,
+        ) {
+            Ok(r) => r,
+            Err(e) => {
+                eprintln!("error: {e}");
+                return 1;
+            }
+        };
         let file = ShardFile {
             experiment: manifest.experiment.clone(),
             manifest_sha256,
@@ -259,7 +242,7 @@ pub fn command(request: &StudyRequest<'_>) -> u8 {
             shard,
             results,
         };
-        return match crate::report::shard::write(request.out, &file) {
+        return match crate::report::shard::write(&request.out, &file) {
             Ok(written) => {
                 eprintln!(
                     "shard {}/{}: {} seeds; written to {}",
@@ -280,7 +263,7 @@ pub fn command(request: &StudyRequest<'_>) -> u8 {
     let monte_carlo = if all.is_empty() {
         None
     } else {
-        match crate::pipeline::study::monte_carlo(&manifest, &all, request.datasets, request.keep, &mut log) {
+        match crate::pipeline::study::monte_carlo(&manifest, &all, &request.datasets, request.keep_datasets, &mut log) {
             Ok(m) => Some(m),
             Err(e) => {
                 eprintln!("error: {e}");
@@ -288,7 +271,7 @@ pub fn command(request: &StudyRequest<'_>) -> u8 {
             }
         }
     };
-    match write(request.out, &sigma, monte_carlo.as_ref()) {
+    match write(&request.out, &sigma, monte_carlo.as_ref()) {
         Ok(()) => {
             eprintln!("written to {}", request.out.display());
             0
