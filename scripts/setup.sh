@@ -1,11 +1,12 @@
 #!/usr/bin/env bash
 # Installs what probecal needs on Debian 12: OpenCV 4.6 with contrib, clang for
 # the opencv crate's bindings, the fonts figures use, and the readers the report
-# tests check the reports in (pdflatex with the LaTeX report's packages, Chromium).
+# tests check the reports in (pdflatex with the LaTeX report's packages, Chromium),
+# and ADMesh, the independent STL reader the printable phantom is checked with.
 # Safe to run again.
 set -euo pipefail
 
-packages=(libopencv-dev libopencv-contrib-dev clang libclang-dev fonts-dejavu-core pkg-config
+packages=(libopencv-dev libopencv-contrib-dev clang libclang-dev fonts-dejavu-core pkg-config admesh
   texlive-latex-recommended texlive-latex-extra texlive-science lmodern chromium)
 missing=()
 for p in "${packages[@]}"; do

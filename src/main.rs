@@ -125,6 +125,13 @@ enum Command {
         #[arg(long)]
         out: PathBuf,
     },
+    /// The printable model of a manifest's dome phantom (base plate, pillars,
+    /// domes) as a binary STL, in millimetres.
+    Phantom {
+        manifest: PathBuf,
+        #[arg(long)]
+        stl: PathBuf,
+    },
     /// Calibrate a camera from chessboard images; writes OpenCV FileStorage YAML.
     CalibrateCamera {
         /// Image files and/or folders of images.
@@ -206,6 +213,7 @@ fn main() -> ExitCode {
         Command::Study(args) => probecal::report::study::dispatch(args),
         Command::Synth { manifests, datasets } => probecal::report::console::synth(&manifests, &datasets),
         Command::Resolve { run } => probecal::report::resolve::command(&run),
+        Command::Phantom { manifest, stl } => probecal::report::phantom::command(&manifest, &stl),
         Command::CalibrateCamera {
             images,
             board,

@@ -163,6 +163,13 @@ impl Calibration {
         self.marker_T_image * self.pixel_in_image_mm(pixel)
     }
 
+    /// A point `elevation_mm` off the image plane at a pixel, in the marker frame, mm.
+    pub fn apply_at(&self, pixel: [f64; 2], elevation_mm: f64) -> Point3<f64> {
+        let mut p = self.pixel_in_image_mm(pixel);
+        p.z = elevation_mm;
+        self.marker_T_image * p
+    }
+
     /// The homogeneous matrix mapping `(u, v, 0, 1)` (PLUS's `Calibration`).
     pub fn matrix(&self) -> Matrix4<f64> {
         let mut scale = Matrix4::from_diagonal(&nalgebra::Vector4::new(

@@ -27,3 +27,5 @@ pub const MAX_YAML_DEPTH: usize = 32;
 pub const MAX_SEEDS: u64 = 10_000;
 /// Folds of a cross-validation.
 pub const MAX_FOLDS: usize = 20;
+/// Spheres of a `spheres` phantom (each B-scan is searched for this many arcs).
+pub const MAX_SPHERES: usize = 8;

@@ -154,6 +154,59 @@ const MIN_LINE_TO_CIRCLE_RMS: f64 = 2.0;
 
 /// Detects the arc. The inner `Err` is the frame's rejection reason.
 pub fn detect(image: &Mat, settings: &ArcSettings) -> Result<Result<ArcFeature, ArcRejection>, ImageError> {
+    Ok(match echo_points(image, settings)? {
+        Ok(points) => arc_from_points(&points, settings)?,
+        Err(reason) => Err(reason),
+    })
+}
+
+/// Detects up to `max_arcs` arcs (domes of several spheres), strongest first:
+/// each found arc's echo points (and those within a band of its circle) are
+/// removed before the next search. The search stops at the first rejection,
+/// which is returned beside the arcs found (`None` when `max_arcs` were found).
+pub fn detect_many(
+    image: &Mat,
+    settings: &ArcSettings,
+    max_arcs: usize,
+) -> Result<(Vec<ArcFeature>, Option<ArcRejection>), ImageError> {
+    let mut points = match echo_points(image, settings)? {
+        Ok(points) => points,
+        Err(reason) => return Ok((Vec::new(), Some(reason))),
+    };
+    let [sx, sy] = settings.spacing_mm_per_px;
+    let mut arcs = Vec::new();
+    while arcs.len() < max_arcs {
+        let arc = match arc_from_points(&points, settings)? {
+            Ok(arc) => arc,
+            Err(reason) => return Ok((arcs, Some(reason))),
+        };
+        let centre = [arc.centre_px[0] * sx, arc.centre_px[1] * sy];
+        let band = (3.0 * arc.rms_px * (sx + sy) / 2.0).max(1.0);
+        let keep: Vec<bool> = points
+            .points_mm
+            .iter()
+            .map(|p| (((p[0] - centre[0]).powi(2) + (p[1] - centre[1]).powi(2)).sqrt() - arc.radius_mm).abs() > band)
+            .collect();
+        let mut k = keep.iter();
+        points.points_mm.retain(|_| *k.next().unwrap_or(&true));
+        let mut k = keep.iter();
+        points.normals.retain(|_| *k.next().unwrap_or(&true));
+        arcs.push(arc);
+    }
+    Ok((arcs, None))
+}
+
+/// A B-scan's echo points (mm) and their ridge normals.
+#[derive(Debug, Clone)]
+pub struct EchoPoints {
+    pub points_mm: Vec<[f64; 2]>,
+    pub normals: Vec<[f64; 2]>,
+    /// The image size, px.
+    pub size_px: [usize; 2],
+}
+
+/// Step 1: the echo points of a B-scan, or why there are too few.
+pub fn echo_points(image: &Mat, settings: &ArcSettings) -> Result<Result<EchoPoints, ArcRejection>, ImageError> {
     let gray = mat_to_gray8(image)?;
     let (w, h) = (gray.width, gray.height);
     let [sx, sy] = settings.spacing_mm_per_px;
@@ -256,6 +309,24 @@ pub fn detect(image: &Mat, settings: &ArcSettings) -> Result<Result<ArcFeature, 
             needed: settings.min_points,
         }));
     }
+    Ok(Ok(EchoPoints {
+        points_mm,
+        normals,
+        size_px: [w, h],
+    }))
+}
+
+/// Steps 2 to 4: the strongest arc among echo points.
+fn arc_from_points(echo: &EchoPoints, settings: &ArcSettings) -> Result<Result<ArcFeature, ArcRejection>, ImageError> {
+    let [sx, sy] = settings.spacing_mm_per_px;
+    let [w, h] = echo.size_px;
+    let (points_mm, normals) = (&echo.points_mm, &echo.normals);
+    if points_mm.len() < settings.min_points {
+        return Ok(Err(ArcRejection::TooFewEchoPoints {
+            found: points_mm.len(),
+            needed: settings.min_points,
+        }));
+    }
 
     // 2. Hough accumulator: each point votes along its normal, towards the centre
     //    below it (the dome faces the probe), at every radius of the range.
@@ -269,7 +340,7 @@ pub fn detect(image: &Mat, settings: &ArcSettings) -> Result<Result<ArcFeature, 
         .map(|i| r_min + i as f64 * CELL_MM)
         .take_while(|r| *r <= r_max)
         .collect();
-    for (p, n) in points_mm.iter().zip(&normals) {
+    for (p, n) in points_mm.iter().zip(normals) {
         if n[1] < (70f64).to_radians().cos() {
             continue; // the centre lies within 70° of straight below an arc point
         }
@@ -317,7 +388,7 @@ pub fn detect(image: &Mat, settings: &ArcSettings) -> Result<Result<ArcFeature, 
     let bin = 0.1;
     let bins = ((r_max - r_min) / bin).ceil() as usize + 1;
     let mut histogram = vec![0f64; bins];
-    for p in &points_mm {
+    for p in points_mm {
         if p[1] >= centre[1] {
             continue;
         }

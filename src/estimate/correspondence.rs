@@ -14,7 +14,19 @@ use crate::estimate::image_to_probe::{self, Constraint, Target};
 #[derive(Debug, Clone, PartialEq)]
 pub struct Observed {
     pub pixel: [f64; 2],
+    /// Where the feature sits off the image plane, along the image's z (mm): 0 for
+    /// a feature in the plane; for a sphere's arc, its centre's elevation.
+    pub elevation_mm: f64,
     pub target_in_phantom: Target,
+}
+
+impl Observed {
+    /// The feature in the image frame, mm.
+    pub fn in_image_mm(&self, spacing: [f64; 2]) -> Point3<f64> {
+        let mut p = pixel_to_image_mm(self.pixel, spacing);
+        p.z = self.elevation_mm;
+        p
+    }
 }
 
 /// One usable frame's measurements.
@@ -40,6 +52,7 @@ impl Correspondence {
             frame,
             features: vec![Observed {
                 pixel,
+                elevation_mm: 0.0,
                 target_in_phantom: Target::Point(feature_in_phantom),
             }],
             camera_T_marker,
@@ -52,6 +65,7 @@ impl Correspondence {
         let marker_T_phantom = self.marker_T_phantom().to_homogeneous();
         self.features.iter().map(move |o| Constraint {
             pixel: o.pixel,
+            elevation_mm: o.elevation_mm,
             marker_T_phantom,
             target_in_phantom: o.target_in_phantom,
         })
@@ -61,9 +75,9 @@ impl Correspondence {
         self.camera_T_marker.inverse() * self.camera_T_phantom
     }
 
-    /// A feature pixel back-projected into the phantom frame through a calibration.
-    pub fn reconstruct_in_phantom(&self, pixel: [f64; 2], calibration: &HornFit, spacing: [f64; 2]) -> Point3<f64> {
-        let in_image = pixel_to_image_mm(pixel, spacing);
+    /// A feature back-projected into the phantom frame through a calibration.
+    pub fn reconstruct_in_phantom(&self, feature: &Observed, calibration: &HornFit, spacing: [f64; 2]) -> Point3<f64> {
+        let in_image = feature.in_image_mm(spacing);
         self.camera_T_phantom.inverse() * (self.camera_T_marker * calibration.apply(&in_image))
     }
 
@@ -73,7 +87,7 @@ impl Correspondence {
         self.features
             .iter()
             .map(|f| {
-                let p = self.reconstruct_in_phantom(f.pixel, calibration, spacing);
+                let p = self.reconstruct_in_phantom(f, calibration, spacing);
                 match f.target_in_phantom {
                     Target::Point(q) => p - q,
                     Target::Line(q, d) => {
@@ -106,7 +120,7 @@ pub fn solve(
             let marker_T_phantom = f.marker_T_phantom();
             for o in &f.features {
                 if let Target::Point(p) = o.target_in_phantom {
-                    points_in_image.push(pixel_to_image_mm(o.pixel, spacing));
+                    points_in_image.push(o.in_image_mm(spacing));
                     points_in_marker.push(marker_T_phantom * p);
                 }
             }

@@ -73,6 +73,8 @@ pub enum Target {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Constraint {
     pub pixel: [f64; 2],
+    /// The feature's distance off the image plane (image z, mm); 0 in the plane.
+    pub elevation_mm: f64,
     pub marker_T_phantom: Matrix4<f64>,
     pub target_in_phantom: Target,
 }
@@ -82,7 +84,7 @@ impl Constraint {
     /// phantom's registration corrected by `phantom_correction` (phantom frame).
     pub fn residual_with(&self, model: &Calibration, phantom_correction: &Rigid) -> Vector3<f64> {
         let marker_T_phantom = self.marker_T_phantom * phantom_correction.to_homogeneous();
-        let mapped = model.apply(self.pixel);
+        let mapped = model.apply_at(self.pixel, self.elevation_mm);
         match self.target_in_phantom {
             Target::Point(p) => mapped - marker_T_phantom.transform_point(&p),
             Target::Line(p, d) => {
@@ -197,6 +199,7 @@ fn start_vector(
 pub fn closed_form(constraints: &[Constraint]) -> Result<Calibration, FitError> {
     let (source, target): (Vec<Point3<f64>>, Vec<Point3<f64>>) = constraints
         .iter()
+        .filter(|c| c.elevation_mm == 0.0)
         .filter_map(|c| match c.target_in_phantom {
             Target::Point(p) => Some((
                 Point3::new(c.pixel[0], c.pixel[1], 0.0),
@@ -347,6 +350,7 @@ mod tests {
                 let noise = Vector3::new(rng.normal(0.0, 0.2), rng.normal(0.0, 0.2), rng.normal(0.0, 0.2));
                 Constraint {
                     pixel,
+                    elevation_mm: 0.0,
                     marker_T_phantom: Matrix4::identity(),
                     target_in_phantom: Target::Point(truth.apply(pixel) + noise),
                 }
@@ -412,6 +416,7 @@ mod tests {
                 let noise = Vector3::new(rng.normal(0.0, 0.1), rng.normal(0.0, 0.1), rng.normal(0.0, 0.1));
                 Constraint {
                     pixel,
+                    elevation_mm: 0.0,
                     marker_T_phantom: Matrix4::identity(),
                     target_in_phantom: Target::Point(truth.apply(pixel) + noise),
                 }

@@ -6,5 +6,6 @@ pub mod image_to_probe;
 pub mod model_selection;
 pub mod robust;
 pub mod sphere_fit;
+pub mod sphere_matching;
 pub mod start_basin;
 pub mod wire_matching;

@@ -227,6 +227,7 @@ mod tests {
                         let noise = Vector3::new(rng.normal(0.0, 0.1), rng.normal(0.0, 0.1), rng.normal(0.0, 0.1));
                         Constraint {
                             pixel,
+                            elevation_mm: 0.0,
                             marker_T_phantom: Matrix4::identity(),
                             target_in_phantom: Target::Point(truth.apply(pixel) + noise),
                         }

@@ -21,10 +21,13 @@ use nalgebra::{DVector, Point3, Vector3};
 use crate::core::geometry::{perturbed, pixel_to_image_mm, Rigid};
 use crate::core::lm::{self, LmError};
 
-/// One frame: its arc edge pixels and poses.
+/// One arc of a frame: its sphere (index into the settings' spheres), its edge
+/// pixels and the frame's poses. A frame that cuts several spheres gives one
+/// `ArcFrame` per arc.
 #[derive(Debug, Clone)]
 pub struct ArcFrame {
     pub frame: usize,
+    pub sphere: usize,
     pub edge_px: Vec<[f64; 2]>,
     pub camera_T_marker: Rigid,
     pub camera_T_phantom: Rigid,
@@ -36,10 +39,16 @@ impl ArcFrame {
     }
 }
 
+/// A sphere the arcs lie on, in the phantom frame (mm).
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct SphereSettings {
+pub struct KnownSphere {
     pub centre_in_phantom_mm: Point3<f64>,
     pub radius_mm: f64,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct SphereSettings {
+    pub spheres: Vec<KnownSphere>,
     pub spacing_mm_per_px: [f64; 2],
     /// Prior spread of the plane's distance from the centre, mm; `None`: no prior.
     pub elevation_prior_sd_mm: Option<f64>,
@@ -56,14 +65,16 @@ pub struct SphereFit {
     pub radius_offset_mm: f64,
     /// RMS point-to-sphere distance, mm.
     pub rms_mm: f64,
-    /// Signed distance of the sphere centre from each frame's plane, mm.
+    /// Signed distance of each arc's sphere centre from its frame's plane, mm.
     pub elevation_mm: Vec<(usize, f64)>,
+    /// RMS point-to-sphere distance of each frame's edge points, mm, by frame.
+    pub frame_rms_mm: Vec<(usize, f64)>,
     pub iterations: usize,
 }
 
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum SphereFitError {
-    #[error("{0} frames with arc points; at least 3 are needed")]
+    #[error("{0} arcs with edge points; at least 3 are needed")]
     TooFewFrames(usize),
     #[error("sphere fit: {0}")]
     Lm(#[from] LmError),
@@ -81,11 +92,14 @@ fn elevation(frame: &ArcFrame, marker_T_image: &Rigid, centre: &Point3<f64>) -> 
 
 /// Refines `start` (e.g. Horn on the arc centres) on the arc edge points.
 pub fn refine(start: &Rigid, frames: &[ArcFrame], settings: &SphereSettings) -> Result<SphereFit, SphereFitError> {
-    let frames: Vec<&ArcFrame> = frames.iter().filter(|f| f.edge_px.len() >= 3).collect();
+    let frames: Vec<&ArcFrame> = frames
+        .iter()
+        .filter(|f| f.edge_px.len() >= 3 && f.sphere < settings.spheres.len())
+        .collect();
     if frames.len() < 3 {
         return Err(SphereFitError::TooFewFrames(frames.len()));
     }
-    let c = settings.centre_in_phantom_mm;
+    let sphere = |f: &ArcFrame| settings.spheres[f.sphere];
     let in_image: Vec<Vec<Point3<f64>>> = frames
         .iter()
         .map(|f| {
@@ -103,8 +117,12 @@ pub fn refine(start: &Rigid, frames: &[ArcFrame], settings: &SphereSettings) -> 
         for (f, points) in frames.iter().zip(&in_image) {
             let phantom_T_image = f.phantom_T_marker() * marker_T_image;
             let w = (settings.points_per_frame / points.len() as f64).sqrt();
+            let KnownSphere {
+                centre_in_phantom_mm: c,
+                radius_mm,
+            } = sphere(f);
             for p in points {
-                r.push(w * ((phantom_T_image * p - c).norm() - settings.radius_mm - offset));
+                r.push(w * ((phantom_T_image * p - c).norm() - radius_mm - offset));
             }
             if let Some(sd) = settings.elevation_prior_sd_mm {
                 r.push(elevation(f, &marker_T_image, &c) / sd);
@@ -121,17 +139,34 @@ pub fn refine(start: &Rigid, frames: &[ArcFrame], settings: &SphereSettings) -> 
     let radius_offset_mm = if settings.fit_radius_offset { out.x[6] } else { 0.0 };
     let mut sum = 0.0;
     let mut count = 0usize;
+    let mut per_frame: Vec<(usize, f64, usize)> = Vec::new();
     for (f, points) in frames.iter().zip(&in_image) {
+        if per_frame.last().is_none_or(|(k, _, _)| *k != f.frame) {
+            per_frame.push((f.frame, 0.0, 0));
+        }
         let phantom_T_image = f.phantom_T_marker() * marker_T_image;
+        let KnownSphere {
+            centre_in_phantom_mm: c,
+            radius_mm,
+        } = sphere(f);
         for p in points {
-            sum += ((phantom_T_image * p - c).norm() - settings.radius_mm - radius_offset_mm).powi(2);
+            let squared = ((phantom_T_image * p - c).norm() - radius_mm - radius_offset_mm).powi(2);
+            sum += squared;
             count += 1;
+            if let Some(last) = per_frame.last_mut() {
+                last.1 += squared;
+                last.2 += 1;
+            }
         }
     }
     Ok(SphereFit {
         elevation_mm: frames
             .iter()
-            .map(|f| (f.frame, elevation(f, &marker_T_image, &c)))
+            .map(|f| (f.frame, elevation(f, &marker_T_image, &sphere(f).centre_in_phantom_mm)))
+            .collect(),
+        frame_rms_mm: per_frame
+            .into_iter()
+            .map(|(k, s, n)| (k, (s / n.max(1) as f64).sqrt()))
             .collect(),
         marker_T_image,
         radius_offset_mm,
@@ -184,6 +219,7 @@ mod tests {
                 .collect();
             arcs.push(ArcFrame {
                 frame: k,
+                sphere: 0,
                 edge_px,
                 camera_T_marker,
                 camera_T_phantom,
@@ -201,8 +237,10 @@ mod tests {
 
     fn settings(prior: Option<f64>) -> SphereSettings {
         SphereSettings {
-            centre_in_phantom_mm: Point3::new(60.0, 45.0, -40.0),
-            radius_mm: 15.0,
+            spheres: vec![KnownSphere {
+                centre_in_phantom_mm: Point3::new(60.0, 45.0, -40.0),
+                radius_mm: 15.0,
+            }],
             spacing_mm_per_px: [0.2, 0.2],
             elevation_prior_sd_mm: prior,
             fit_radius_offset: false,

@@ -181,6 +181,7 @@ pub fn match_and_solve(
                     let w = &wires[j];
                     features.push(Observed {
                         pixel: f.dots_px[i],
+                        elevation_mm: 0.0,
                         target_in_phantom: Target::Line(w.start_in_phantom_mm, w.direction()),
                     });
                     names.push(w.name.clone());

@@ -7,5 +7,6 @@ pub mod fs;
 pub mod image;
 pub mod json;
 pub mod plus;
+pub mod stl;
 pub mod tracker_poses;
 pub mod truth;

@@ -208,6 +208,7 @@ fn phantom_section(c: &mut Checker<'_>, raw: &raw::RawManifest) {
             c.finite("phantom.point.position_in_phantom_mm", position_in_phantom_mm);
             c.positive("phantom.point.head_radius_mm", *head_radius_mm);
         }
+        Phantom::Spheres { spheres } => super::spheres::check(c, raw, spheres),
         Phantom::FourWire {
             wires,
             wire_diameter_mm,

@@ -12,12 +12,14 @@ use crate::detect::board_pose::{self, RigBoards};
 use crate::detect::spot::{self, Spot, SpotSettings};
 use crate::io::dataset::FrameFiles;
 use crate::io::image::{read_gray, read_gray_sized, ImageError};
-use crate::spec::phantom::Wire;
+use crate::spec::phantom::{Sphere, Wire};
 
 /// The B-scan feature detector of a phantom.
 #[derive(Debug, Clone, Copy)]
 pub enum Detector {
     Arc(ArcSettings),
+    /// Up to this many arcs (one per sphere).
+    Arcs(ArcSettings, usize),
     PinHead(SpotSettings),
     WireDots(SpotSettings),
 }
@@ -27,6 +29,7 @@ pub enum Detector {
 pub enum Targets<'a> {
     Point([f64; 3]),
     Wires(&'a [Wire]),
+    Spheres(&'a [Sphere]),
 }
 
 /// Two pin-head candidates closer in strength than this make the pin head ambiguous.
@@ -55,6 +58,7 @@ fn detect_frame(
         poses: None,
         tracked: None,
         arc: None,
+        arcs: Vec::new(),
         spots: Vec::new(),
         features_px: Vec::new(),
         wire_labels: Vec::new(),
@@ -117,6 +121,20 @@ fn detect_frame(
                     record.arc = Some(feature);
                 }
                 Ok(Err(reason)) => record.rejection = Some(Rejection::Arc(reason)),
+                Err(e) => record.rejection = Some(Rejection::BscanImage(e)),
+            }
+            return Ok(record);
+        }
+        Detector::Arcs(arc, count) => {
+            match arc::detect_many(&bscan, arc, *count) {
+                Ok((arcs, reason)) => match (arcs.first(), reason) {
+                    (None, Some(reason)) => record.rejection = Some(Rejection::Arc(reason)),
+                    _ => {
+                        record.features_px = arcs.iter().map(|a| a.centre_px).collect();
+                        record.arc = arcs.first().cloned();
+                        record.arcs = arcs;
+                    }
+                },
                 Err(e) => record.rejection = Some(Rejection::BscanImage(e)),
             }
             return Ok(record);

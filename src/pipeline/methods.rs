@@ -206,6 +206,7 @@ pub fn methods_stage(manifest: &Manifest, inputs: &MethodInputs<'_>, log: &mut d
             let record = records.iter().find(|r| r.files.frame == c.frame)?;
             Some(ArcFrame {
                 frame: c.frame,
+                sphere: 0,
                 edge_px: record.arc.as_ref()?.arc_points_px.clone(),
                 camera_T_marker: c.camera_T_marker,
                 camera_T_phantom: c.camera_T_phantom,
@@ -213,8 +214,10 @@ pub fn methods_stage(manifest: &Manifest, inputs: &MethodInputs<'_>, log: &mut d
         })
         .collect();
     let mut settings = SphereSettings {
-        centre_in_phantom_mm: Point3::from(nalgebra::Vector3::from(inputs.feature_in_phantom_mm)),
-        radius_mm,
+        spheres: vec![sphere_fit::KnownSphere {
+            centre_in_phantom_mm: Point3::from(nalgebra::Vector3::from(inputs.feature_in_phantom_mm)),
+            radius_mm,
+        }],
         spacing_mm_per_px: spacing,
         elevation_prior_sd_mm: manifest.sphere_fit.elevation_prior_sd_mm,
         fit_radius_offset: manifest.sphere_fit.fit_radius_offset,
@@ -246,4 +249,114 @@ pub fn methods_stage(manifest: &Manifest, inputs: &MethodInputs<'_>, log: &mut d
         Err(e) => log(&format!("sphere fit: {e}")),
     }
     out
+}
+
+/// Multi-sphere phantoms: the reported calibration, and the sphere fit of the
+/// arcs of its frames, each arc on its own sphere (paired in stage 4).
+pub fn spheres_methods(
+    inputs: &MethodInputs<'_>,
+    spheres: &[crate::spec::phantom::Sphere],
+    log: &mut dyn FnMut(&str),
+) -> Vec<MethodResult> {
+    let spacing = inputs.fit.spacing;
+    let reported = inputs.reported;
+    let Ok(fit) = &reported.fit else {
+        return Vec::new();
+    };
+    let result = |method: Method, frames_used: usize, m: &Rigid| MethodResult {
+        method,
+        frames_used,
+        frames_left_out: left_out(inputs.frames, |f| reported.frames.contains(&f.frame)),
+        marker_T_image: *m,
+        spacing_mm_per_px: spacing,
+        truth: truth_of(m, spacing, spacing, inputs.truth),
+    };
+    let mut out = vec![result(
+        Method::CutoffWorstFirst {
+            cutoff_mm: reported.cutoff_mm,
+        },
+        reported.frames.len(),
+        &fit.target_T_source,
+    )];
+    let arcs: Vec<ArcFrame> = inputs
+        .frames
+        .iter()
+        .filter(|c| reported.frames.contains(&c.frame))
+        .filter_map(|c| {
+            let record = inputs.records.iter().find(|r| r.files.frame == c.frame)?;
+            Some(
+                record
+                    .wire_labels
+                    .iter()
+                    .zip(&record.arcs)
+                    .filter_map(|(name, arc)| {
+                        Some(ArcFrame {
+                            frame: c.frame,
+                            sphere: spheres.iter().position(|s| &s.name == name)?,
+                            edge_px: arc.arc_points_px.clone(),
+                            camera_T_marker: c.camera_T_marker,
+                            camera_T_phantom: c.camera_T_phantom,
+                        })
+                    })
+                    .collect::<Vec<_>>(),
+            )
+        })
+        .flatten()
+        .collect();
+    let settings = SphereSettings {
+        spheres: spheres
+            .iter()
+            .map(|s| sphere_fit::KnownSphere {
+                centre_in_phantom_mm: Point3::from(s.centre_in_phantom_mm),
+                radius_mm: s.radius_mm,
+            })
+            .collect(),
+        spacing_mm_per_px: spacing,
+        elevation_prior_sd_mm: None,
+        fit_radius_offset: false,
+        points_per_frame: 20.0,
+    };
+    let first = match sphere_fit::refine(&fit.target_T_source, &arcs, &settings) {
+        Ok(first) => first,
+        Err(e) => {
+            log(&format!("sphere fit: {e}"));
+            return out;
+        }
+    };
+    // A frame whose edge points sit far off their spheres (the probe moved between
+    // photo and B-scan, an echo beside the dome) is left out and the fit repeated.
+    let limit = outlier_limit(&first.frame_rms_mm);
+    let kept: Vec<ArcFrame> = arcs
+        .iter()
+        .filter(|a| first.frame_rms_mm.iter().any(|(k, rms)| *k == a.frame && *rms <= limit))
+        .cloned()
+        .collect();
+    let frames_kept = first.frame_rms_mm.iter().filter(|(_, rms)| *rms <= limit).count();
+    match sphere_fit::refine(&first.marker_T_image, &kept, &settings) {
+        Ok(sphere) => out.push(MethodResult {
+            frames_left_out: left_out(inputs.frames, |f| {
+                reported.frames.contains(&f.frame) && kept.iter().any(|a| a.frame == f.frame)
+            }),
+            ..result(
+                Method::SphereFit {
+                    arcs: kept.len(),
+                    rms_mm: sphere.rms_mm,
+                    rms_limit_mm: limit,
+                },
+                frames_kept,
+                &sphere.marker_T_image,
+            )
+        }),
+        Err(e) => log(&format!("sphere fit: {e}")),
+    }
+    out
+}
+
+/// The frame RMS above which a frame is an outlier of the sphere fit: the
+/// median plus three robust standard deviations (1.4826 MAD).
+fn outlier_limit(frame_rms_mm: &[(usize, f64)]) -> f64 {
+    let mut values: Vec<f64> = frame_rms_mm.iter().map(|(_, r)| *r).collect();
+    let median = crate::core::stats::median(&mut values);
+    let mut deviations: Vec<f64> = values.iter().map(|v| (v - median).abs()).collect();
+    median + 3.0 * 1.4826 * crate::core::stats::median(&mut deviations)
 }

@@ -79,6 +79,8 @@ pub enum Rejection {
     #[error("{0}")]
     Wires(WireRejection),
     #[error("{0}")]
+    Spheres(crate::estimate::sphere_matching::SphereRejection),
+    #[error("{0}")]
     Implausible(Implausible),
 }
 
@@ -140,7 +142,7 @@ impl Rejection {
             Rejection::BoardPose(_) => Stage::BoardPose,
             Rejection::TrackerPose(_) => Stage::TrackerPose,
             Rejection::BscanImage(_) => Stage::BscanImage,
-            Rejection::Arc(_) => Stage::Arc,
+            Rejection::Arc(_) | Rejection::Spheres(_) => Stage::Arc,
             Rejection::NoPinHead { .. } | Rejection::AmbiguousPinHead { .. } => Stage::Spot,
             Rejection::TooFewWireDots { .. } | Rejection::Wires(_) => Stage::Wires,
             Rejection::Implausible(_) => Stage::Plausibility,
@@ -158,11 +160,13 @@ pub struct FrameRecord {
     /// Poses from a tracker instead (no camera).
     pub tracked: Option<TrackedFrame>,
     pub arc: Option<ArcFeature>,
+    /// Multi-sphere phantoms: every arc found, strongest first (`arc` is the first).
+    pub arcs: Vec<ArcFeature>,
     /// Compact echoes found (point and wire phantoms), strongest first.
     pub spots: Vec<Spot>,
     /// The feature pixels used: the arc's centre, the pin head, the wire dots.
     pub features_px: Vec<[f64; 2]>,
-    /// Wire phantoms: the wire of each feature.
+    /// Wire and multi-sphere phantoms: the wire or sphere of each feature.
     pub wire_labels: Vec<String>,
     /// All-frames BRE `[x, y, z]` and 3D distance, mm (used frames).
     pub bre_mm: Option<([f64; 3], f64)>,
@@ -258,6 +262,13 @@ pub enum Method {
         /// The echo edge's fitted offset from the sphere's surface.
         edge_offset_mm: f64,
     },
+    /// Multi-sphere phantoms: the reported calibration's frames, every arc's edge
+    /// points on their own sphere.
+    SphereFit {
+        arcs: usize,
+        rms_mm: f64,
+        rms_limit_mm: f64,
+    },
 }
 
 impl Method {
@@ -270,6 +281,7 @@ impl Method {
             Method::Lmeds { .. } => "lmeds",
             Method::RansacLmScales => "ransac_lm_scales",
             Method::RansacSphereFit { .. } => "ransac_sphere_fit",
+            Method::SphereFit { .. } => "sphere_fit",
         }
     }
 }

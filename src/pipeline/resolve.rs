@@ -73,6 +73,9 @@ pub enum TargetInPhantom {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct FeatureInput {
     pub pixel: [f64; 2],
+    /// Image z of the feature, mm (a sphere's centre beside the plane); absent: 0.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub elevation_mm: f64,
     pub target_in_phantom: TargetInPhantom,
 }
 
@@ -137,6 +140,7 @@ impl SolveInputs {
                         .iter()
                         .map(|o| FeatureInput {
                             pixel: o.pixel,
+                            elevation_mm: o.elevation_mm,
                             target_in_phantom: target(&o.target_in_phantom),
                         })
                         .collect(),
@@ -182,6 +186,7 @@ impl SolveInputs {
                 .iter()
                 .map(|o| Observed {
                     pixel: o.pixel,
+                    elevation_mm: o.elevation_mm,
                     target_in_phantom: match o.target_in_phantom {
                         TargetInPhantom::Point(p) => Target::Point(Point3::from(p)),
                         TargetInPhantom::Line { point, direction } => {
@@ -217,4 +222,8 @@ impl SolveInputs {
 pub fn solve_again(inputs: &SolveInputs) -> Result<Calibrations, String> {
     let (pairs, settings) = inputs.pairs_and_settings()?;
     solve::calibrate(&pairs, &settings, None, &inputs.dataset).map_err(|e: RunError| e.to_string())
+}
+
+fn is_zero(v: &f64) -> bool {
+    *v == 0.0
 }

@@ -244,6 +244,19 @@ pub fn run_dataset(
             },
             log,
         ),
+        Targets::Spheres(spheres) => methods::spheres_methods(
+            &MethodInputs {
+                records: &frames,
+                frames: &correspondences,
+                reported: &thresholds[primary],
+                fit: &fit_inputs,
+                feature_in_phantom_mm: crate::spec::phantom::spheres_centre(spheres),
+                sphere_radius_mm: None,
+                truth: truth_transform,
+            },
+            spheres,
+            log,
+        ),
         Targets::Wires(_) => Vec::new(),
     };
     timings.push(("methods and validation metrics", clock.elapsed().as_secs_f64()));
@@ -271,7 +284,7 @@ pub fn run_dataset(
         spacing_mm_per_px: spacing,
         feature_in_phantom_mm: match targets {
             Targets::Point(p) => Some(p),
-            Targets::Wires(_) => None,
+            Targets::Wires(_) | Targets::Spheres(_) => None,
         },
         methods,
         start_guess,

@@ -209,12 +209,14 @@ pub fn constraints(frame: &TrackedFrame, nwires: &[NWire]) -> FrameConstraints {
     for (dots, nwire) in frame.dots_px.iter().zip(nwires) {
         out.points.push(Constraint {
             pixel: dots[1],
+            elevation_mm: 0.0,
             marker_T_phantom,
             target_in_phantom: Target::Point(nwire.middle_in_phantom_mm(dots)),
         });
         for (dot, wire) in dots.iter().zip(&nwire.wires) {
             out.lines.push(Constraint {
                 pixel: *dot,
+                elevation_mm: 0.0,
                 marker_T_phantom,
                 target_in_phantom: Target::Line(wire.front_in_phantom_mm, wire.direction().normalize()),
             });

@@ -55,6 +55,28 @@ pub fn detector(manifest: &Manifest) -> (Detector, Targets<'_>) {
             }),
             Targets::Point(*position_in_phantom_mm),
         ),
+        Phantom::Spheres { spheres } => {
+            let radii = spheres.iter().map(|s| s.radius_mm);
+            let (smallest, largest) = radii.fold((f64::INFINITY, 0.0f64), |(lo, hi), r| (lo.min(r), hi.max(r)));
+            (
+                Detector::Arcs(
+                    ArcSettings {
+                        spacing_mm_per_px: spacing,
+                        radius_mm: [
+                            manifest.arc_detection.radius_fraction[0] * smallest,
+                            manifest.arc_detection.radius_fraction[1] * largest,
+                        ],
+                        min_span_deg: manifest.arc_detection.min_span_deg,
+                        max_rms_px: manifest.arc_detection.max_rms_px,
+                        min_points: manifest.arc_detection.min_points,
+                        // A plane beside a centre cuts a smaller circle: the radius is fitted.
+                        fixed_radius_mm: None,
+                    },
+                    spheres.len(),
+                ),
+                Targets::Spheres(spheres),
+            )
+        }
         Phantom::FourWire {
             wire_diameter_mm,
             wires,

@@ -9,9 +9,12 @@ use super::run::RunError;
 use crate::core::geometry::Rigid;
 use crate::estimate::correspondence::{self, Correspondence};
 use crate::estimate::horn::{HornFit, Variant};
+use crate::estimate::sphere_fit::KnownSphere;
+use crate::estimate::sphere_matching::{self, FrameArcs, NamedSphere, SeenArc};
 use crate::estimate::start_basin::{self, StartGuess};
 use crate::estimate::wire_matching::{self, FrameWireDots, WireAxis};
 use crate::evaluate::{self, CutoffRule, EvaluationInputs, ThresholdRow};
+use crate::spec::phantom::Sphere;
 
 /// The basin's random starts: fixed, so a run is reproducible.
 const BASIN_SEED: u64 = 17;
@@ -58,6 +61,7 @@ pub fn point_pairs(
                 .collect(),
             None,
         )),
+        Targets::Spheres(spheres) => Ok((spheres_pairs(frames, spheres, inputs, log)?, None)),
         Targets::Wires(wires) => {
             let axes: Vec<WireAxis> = wires
                 .iter()
@@ -118,6 +122,85 @@ pub fn point_pairs(
             Ok((matching.correspondences, Some(start_guess)))
         }
     }
+}
+
+/// Multi-sphere phantoms: arcs paired with their spheres (frames left unpaired
+/// are rejected with the reason); each record keeps its paired arcs first, in
+/// the order of its features, and their spheres' names.
+fn spheres_pairs(
+    frames: &mut [FrameRecord],
+    spheres: &[Sphere],
+    inputs: &PairingInputs<'_>,
+    log: &mut dyn FnMut(&str),
+) -> Result<Vec<Correspondence>, RunError> {
+    let named: Vec<NamedSphere> = spheres
+        .iter()
+        .map(|s| NamedSphere {
+            name: s.name.clone(),
+            sphere: KnownSphere {
+                centre_in_phantom_mm: Point3::from(s.centre_in_phantom_mm),
+                radius_mm: s.radius_mm,
+            },
+        })
+        .collect();
+    let seen: Vec<FrameArcs> = frames
+        .iter()
+        .filter(|f| usable(f))
+        .filter_map(|f| {
+            let (camera_T_marker, camera_T_phantom) = f.pose_pair()?;
+            Some(FrameArcs {
+                frame: f.files.frame,
+                arcs: f
+                    .arcs
+                    .iter()
+                    .map(|a| SeenArc {
+                        centre_px: a.centre_px,
+                        radius_mm: a.radius_mm,
+                        edge_px: a.arc_points_px.clone(),
+                    })
+                    .collect(),
+                camera_T_marker,
+                camera_T_phantom,
+            })
+        })
+        .collect();
+    let start = inputs
+        .initial_marker_T_image
+        .ok_or_else(|| RunError::Unsupported("the spheres phantom needs solve.initial_marker_T_image".into()))?;
+    let matching = sphere_matching::match_and_solve(&seen, &named, &start, inputs.spacing_mm_per_px, inputs.min_frames)
+        .map_err(|e| RunError::Solve {
+            dataset: inputs.dataset.to_string(),
+            source: crate::estimate::horn::HornError::Refinement(e.to_string()),
+        })?;
+    let arcs_used: usize = matching.labels.iter().map(|(_, l)| l.len()).sum();
+    log(&format!(
+        "spheres: {} arcs of {} frames paired in {} rounds, {} frames left out; sphere fit RMS {:.3} mm",
+        arcs_used,
+        matching.correspondences.len(),
+        matching.rounds,
+        matching.rejected.len(),
+        matching.fit.rms_mm
+    ));
+    for f in frames.iter_mut() {
+        if let Some((_, reason)) = matching.rejected.iter().find(|(k, _)| *k == f.files.frame) {
+            f.rejection = Some(Rejection::Spheres(reason.clone()));
+        }
+        if let Some((_, labels)) = matching.labels.iter().find(|(k, _)| *k == f.files.frame) {
+            let mut ordered: Vec<_> = labels.iter().map(|(_, j)| f.arcs[*j].clone()).collect();
+            ordered.extend(
+                f.arcs
+                    .iter()
+                    .enumerate()
+                    .filter(|(j, _)| labels.iter().all(|(_, used)| used != j))
+                    .map(|(_, a)| a.clone()),
+            );
+            f.features_px = ordered[..labels.len()].iter().map(|a| a.centre_px).collect();
+            f.arc = ordered.first().cloned();
+            f.arcs = ordered;
+            f.wire_labels = labels.iter().map(|(name, _)| name.clone()).collect();
+        }
+    }
+    Ok(matching.correspondences)
 }
 
 /// Refuses a dataset with fewer usable frames than the manifest asks for,

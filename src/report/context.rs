@@ -130,6 +130,15 @@ fn setup_rows(run: &DatasetRun, manifest: &crate::manifest::Manifest) -> Vec<Key
         } => {
             format!("{} wires of {wire_diameter_mm} mm", wires.len())
         }
+        Phantom::Spheres { spheres } => format!(
+            "{} spheres, R = {} mm",
+            spheres.len(),
+            spheres
+                .iter()
+                .map(|s| s.radius_mm.to_string())
+                .collect::<Vec<_>>()
+                .join(" / ")
+        ),
     };
     let rig = match &manifest.camera {
         CameraSource::TrackerCsv(t) => format!(

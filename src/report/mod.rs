@@ -11,6 +11,7 @@ pub mod figures;
 pub mod gallery;
 pub mod index;
 pub mod live;
+pub mod phantom;
 pub mod provenance;
 pub mod render;
 pub mod resolve;

@@ -266,6 +266,13 @@ pub fn describe(m: &MethodResult) -> String {
                 .map(|s| format!("{s:.2} mm"))
                 .unwrap_or_else(|| "none".into())
         ),
+        Method::SphereFit {
+            arcs,
+            rms_mm,
+            rms_limit_mm,
+        } => format!(
+            "the reported calibration's frames, the edge points of every arc ({arcs}) on their own sphere (LM, no prior: the spheres cut at different offsets observe the planes' elevation), frames whose RMS exceeds {rms_limit_mm:.3} mm (median + 3 robust SD) left out and the fit repeated; RMS {rms_mm:.3} mm"
+        ),
     }
 }
 

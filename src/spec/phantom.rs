@@ -22,6 +22,31 @@ pub enum Phantom {
     /// Two crossing and two parallel wires: each B-scan dot lies on its wire's
     /// axis; where the plane passes a crossing, on the crossing point.
     FourWire { wires: Vec<Wire>, wire_diameter_mm: f64 },
+    /// Several domes (hemispheres on pillars, dome towards the probe), each cut by
+    /// the B-scan plane at its own offset: the arcs' radii observe the plane's
+    /// elevation that one hemisphere cannot.
+    Spheres { spheres: Vec<Sphere> },
+}
+
+/// One dome of a `spheres` phantom.
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct Sphere {
+    pub name: String,
+    pub centre_in_phantom_mm: [f64; 3],
+    pub radius_mm: f64,
+}
+
+/// The point a multi-sphere phantom is laid out around: the mean of its centres.
+pub fn spheres_centre(spheres: &[Sphere]) -> [f64; 3] {
+    let n = spheres.len().max(1) as f64;
+    let mut sum = [0.0; 3];
+    for s in spheres {
+        for (k, v) in s.centre_in_phantom_mm.iter().enumerate() {
+            sum[k] += v / n;
+        }
+    }
+    sum
 }
 
 fn default_head_radius() -> f64 {

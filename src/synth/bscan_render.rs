@@ -48,7 +48,11 @@ pub fn draw_bubbles(
         Shape::Hemisphere { radius_mm } => radius_mm + 1.5,
         Shape::Point { head_radius_mm } => head_radius_mm + 4.0,
         Shape::Wires { .. } => 4.0,
+        Shape::Spheres { .. } => 0.0,
     };
+    // Bubbles float clear of every dome.
+    let domes = scene.shape.domes(&scene.feature_centre_world);
+    let clear_of_domes = |p: &Point3<f64>| domes.iter().all(|(centre, r)| (p - centre).norm() > r + 1.5);
     let normal = world_T_image.rotation * Vector3::z();
     if rng.chance(model.bubble_rate) {
         for _ in 0..1 + rng.below(4) {
@@ -57,7 +61,7 @@ pub fn draw_bubbles(
             let v = rng.uniform(8.0, geometry.depth_mm * 0.8);
             let e = rng.uniform(-0.5, 0.5) * model.slice_thickness_mm;
             let p = world_T_image * Point3::new(u, v, e);
-            if (p.coords - c).norm() > keep_off && p.z > scene.tank.floor_z_mm + 2.0 {
+            if (p.coords - c).norm() > keep_off && clear_of_domes(&p) && p.z > scene.tank.floor_z_mm + 2.0 {
                 bubbles.push(Bubble {
                     centre_world_mm: p.coords.into(),
                     radius_mm: rng.uniform(0.3, 0.9),
@@ -67,18 +71,17 @@ pub fn draw_bubbles(
     }
     if kind == FrameKind::DomeBubbles {
         match &scene.shape {
-            Shape::Hemisphere { radius_mm } => {
-                // Stuck on the dome near where the plane cuts it.
-                for _ in 0..3 + rng.below(4) {
-                    let around = rng.uniform(-60f64, 60.0).to_radians();
-                    let in_plane = world_T_image.rotation * Vector3::new(around.sin(), -around.cos(), 0.0);
-                    let dir = (in_plane + normal * rng.uniform(-0.08, 0.08)).normalize();
-                    let r = rng.uniform(0.6, 1.4);
-                    let p = c + dir * (radius_mm + r);
-                    bubbles.push(Bubble {
-                        centre_world_mm: p.into(),
-                        radius_mm: r,
-                    });
+            Shape::Hemisphere { radius_mm } => bubbles_on_dome(rng, world_T_image, &c, *radius_mm, &mut bubbles),
+            Shape::Spheres { domes_world } => {
+                // On one of the domes the plane cuts.
+                let image_T_world = world_T_image.inverse();
+                let cut: Vec<&(Point3<f64>, f64)> = domes_world
+                    .iter()
+                    .filter(|(centre, r)| (image_T_world * centre).z.abs() < *r)
+                    .collect();
+                if !cut.is_empty() {
+                    let (centre, r) = cut[rng.below(cut.len())];
+                    bubbles_on_dome(rng, world_T_image, &centre.coords, *r, &mut bubbles);
                 }
             }
             Shape::Point { head_radius_mm } => {
@@ -114,6 +117,22 @@ pub fn draw_bubbles(
         }
     }
     bubbles
+}
+
+/// Bubbles stuck on a dome near where the plane cuts it.
+fn bubbles_on_dome(rng: &mut Rng, world_T_image: &Rigid, c: &Vector3<f64>, radius_mm: f64, bubbles: &mut Vec<Bubble>) {
+    let normal = world_T_image.rotation * Vector3::z();
+    for _ in 0..3 + rng.below(4) {
+        let around = rng.uniform(-60f64, 60.0).to_radians();
+        let in_plane = world_T_image.rotation * Vector3::new(around.sin(), -around.cos(), 0.0);
+        let dir = (in_plane + normal * rng.uniform(-0.08, 0.08)).normalize();
+        let r = rng.uniform(0.6, 1.4);
+        let p = c + dir * (radius_mm + r);
+        bubbles.push(Bubble {
+            centre_world_mm: p.into(),
+            radius_mm: r,
+        });
+    }
 }
 
 /// First intersection distance of a ray with a sphere, if any.
@@ -188,7 +207,7 @@ fn phantom_echo(scene: &Scene, origin: &Vector3<f64>, dir: &Vector3<f64>, r: f64
     let mut echo = 0.0;
     let mut blocked_at = f64::INFINITY;
     match &scene.shape {
-        Shape::Hemisphere { .. } => {}
+        Shape::Hemisphere { .. } | Shape::Spheres { .. } => {}
         Shape::Point { head_radius_mm } => {
             if let Some(lambda) = ray_sphere(origin, dir, &c, *head_radius_mm).filter(|l| *l > near_mm) {
                 let n = (origin + dir * lambda - c) / *head_radius_mm;
@@ -274,11 +293,12 @@ pub fn render_bscan(
     let g = &scene.bscan;
     let (w, h) = (g.width_px, g.height_px);
     let [sx, sy] = g.spacing_mm_per_px;
-    let c = scene.feature_centre_world.coords;
-    let hemisphere_radius = match scene.shape {
-        Shape::Hemisphere { radius_mm } => Some(radius_mm),
-        _ => None,
-    };
+    let domes: Vec<(Vector3<f64>, f64)> = scene
+        .shape
+        .domes(&scene.feature_centre_world)
+        .into_iter()
+        .map(|(centre, r)| (centre.coords, r))
+        .collect();
     let tank = scene.tank;
     let rotation = world_T_image.rotation;
     let normal = rotation * Vector3::z();
@@ -321,19 +341,26 @@ pub fn render_bscan(
             for &(e, weight) in &offsets {
                 let origin = apex_world.coords + normal * e;
                 let mut blocked_at = f64::INFINITY;
-                if let Some((radius, lambda)) =
-                    hemisphere_radius.and_then(|radius| Some((radius, ray_sphere(&origin, &dir, &c, radius)?)))
-                {
-                    let hit = origin + dir * lambda;
-                    if lambda > g.convex_radius_mm && hit.z >= c.z - 0.5 {
-                        let n = (hit - c) / radius;
+                // The nearest dome the beam meets on its upper half.
+                let dome_hit = domes
+                    .iter()
+                    .filter_map(|(centre, radius)| {
+                        let lambda = ray_sphere(&origin, &dir, centre, *radius)?;
+                        let hit = origin + dir * lambda;
+                        (lambda > g.convex_radius_mm && hit.z >= centre.z - 0.5)
+                            .then_some((centre, *radius, lambda, hit))
+                    })
+                    .min_by(|a, b| a.2.total_cmp(&b.2));
+                if let Some((centre, radius, lambda, hit)) = dome_hit {
+                    {
+                        let n = (hit - centre) / radius;
                         let incidence = dir.dot(&n).abs();
                         let strength = 0.15 + 0.85 * incidence.powi(4);
                         e_sum += weight * 1.6 * strength * (-((r - lambda) / AXIAL_SIGMA_MM).powi(2) / 2.0).exp();
                         blocked_at = lambda + 2.0 * AXIAL_SIGMA_MM;
                     }
                 }
-                if hemisphere_radius.is_none() {
+                if domes.is_empty() {
                     let (echo, blocked) = phantom_echo(scene, &origin, &dir, r, g.convex_radius_mm);
                     e_sum += weight * echo;
                     blocked_at = blocked;

@@ -8,6 +8,7 @@
 
 pub mod bscan_render;
 pub mod camera_render;
+pub mod printable;
 pub mod scene;
 pub mod shape;
 
@@ -322,6 +323,19 @@ fn render_into(lab: &Lab<'_>, spec: &RenderSpec, folder: &Path) -> Result<(), Sy
                     let [sx, sy] = scene.bscan.spacing_mm_per_px;
                     Some(crate::io::truth::WireDot {
                         wire: w.name.clone(),
+                        pixel: [p.x / sx, p.y / sy],
+                    })
+                })
+                .collect(),
+            // Each dome the plane cuts: its centre's projection (the arc's centre).
+            (Phantom::Spheres { spheres }, shape::Shape::Spheres { domes_world }) => spheres
+                .iter()
+                .zip(domes_world)
+                .filter_map(|(s, (centre, r))| {
+                    let p = world_T_image.inverse() * centre;
+                    let [sx, sy] = scene.bscan.spacing_mm_per_px;
+                    (p.z.abs() < *r).then(|| crate::io::truth::WireDot {
+                        wire: s.name.clone(),
                         pixel: [p.x / sx, p.y / sy],
                     })
                 })

@@ -290,6 +290,23 @@ pub fn lab_layout(board_distance_mm: [f64; 2], phantom_board: &PrintedBoard) -> 
     (world_T_camera, world_T_phantom)
 }
 
+/// Every dome the plane cuts has its whole arc inside the fan, away from its edges.
+fn domes_inside_fan(bscan: &BscanGeometry, world_T_image: &Rigid, domes_world: &[(Point3<f64>, f64)]) -> bool {
+    let image_T_world = world_T_image.inverse();
+    domes_world.iter().all(|(centre, radius)| {
+        let p = image_T_world * centre;
+        if p.z.abs() >= *radius {
+            return true;
+        }
+        let arc = (radius * radius - p.z * p.z).sqrt();
+        let (r, angle) = bscan.polar(p.x, p.y);
+        let half_width = (arc / r.max(1.0)).min(1.0).asin();
+        angle.abs() + half_width < bscan.half_fan_rad - 4f64.to_radians()
+            && r - arc > bscan.convex_radius_mm + 8.0
+            && r < bscan.convex_radius_mm + bscan.depth_mm - 8.0
+    })
+}
+
 pub fn build(inputs: &SceneInputs<'_>) -> Result<Scene, SceneError> {
     let spec = inputs.spec;
     let cam = &spec.camera;
@@ -326,6 +343,7 @@ pub fn build(inputs: &SceneInputs<'_>) -> Result<Scene, SceneError> {
                 Shape::Hemisphere { .. } => "sphere centre",
                 Shape::Point { .. } => "pin head",
                 Shape::Wires { .. } => "centre of the wires (mean of their midpoints)",
+                Shape::Spheres { .. } => "centre of the spheres (mean of their centres)",
             },
             off_mm: feature_centre_world.coords.norm(),
             expected: [expected.x, expected.y, expected.z].map(|v| (v * 10.0).round() / 10.0),
@@ -338,6 +356,7 @@ pub fn build(inputs: &SceneInputs<'_>) -> Result<Scene, SceneError> {
         Shape::Hemisphere { radius_mm } => *radius_mm,
         Shape::Point { head_radius_mm } => head_radius_mm + 6.0,
         Shape::Wires { .. } => 0.0,
+        Shape::Spheres { domes_world } => domes_world.iter().map(|(_, r)| *r).fold(0.0, f64::max),
     };
     let tank = Tank {
         floor_z_mm: -30.0,
@@ -380,7 +399,7 @@ pub fn build(inputs: &SceneInputs<'_>) -> Result<Scene, SceneError> {
         let mut placed = None;
         let (mut out_of_view, mut phantom_out, mut overlapping, mut too_far, mut fan) = (0, 0, 0, 0, 0);
         for _ in 0..tries {
-            let lateral_mm = if matches!(shape, Shape::Wires { .. }) {
+            let lateral_mm = if matches!(shape, Shape::Wires { .. } | Shape::Spheres { .. }) {
                 10.0
             } else {
                 30.0
@@ -410,6 +429,14 @@ pub fn build(inputs: &SceneInputs<'_>) -> Result<Scene, SceneError> {
                 // Along the wires: anywhere over the middle of the phantom, or past their ends.
                 (Shape::Wires { .. }, FrameKind::Missing) => sign * rng.uniform(45.0, 60.0),
                 (Shape::Wires { .. }, _) => rng.uniform(-sweep.wire_travel_mm, sweep.wire_travel_mm),
+                // Past every dome.
+                (Shape::Spheres { domes_world }, FrameKind::Missing) => {
+                    let reach = domes_world
+                        .iter()
+                        .map(|(centre, r)| centre.y.abs() + r)
+                        .fold(0.0, f64::max);
+                    sign * rng.uniform(reach + 1.5, reach + 6.0)
+                }
                 _ => rng.normal(0.0, sweep.elevation_offset_sd_mm),
             };
             let rotation = r_nominal
@@ -441,6 +468,12 @@ pub fn build(inputs: &SceneInputs<'_>) -> Result<Scene, SceneError> {
                     })
                 });
                 if !all_inside {
+                    fan += 1;
+                    continue;
+                }
+            }
+            if let (Shape::Spheres { domes_world }, false) = (&shape, kind == FrameKind::Missing) {
+                if !domes_inside_fan(&bscan, &world_T_image, domes_world) {
                     fan += 1;
                     continue;
                 }

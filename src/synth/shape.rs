@@ -11,6 +11,8 @@ pub enum Shape {
     Hemisphere { radius_mm: f64 },
     /// A pin head (a small sphere) on a pin in a silicone block; the head's centre is the feature.
     Point { head_radius_mm: f64 },
+    /// Domes (hemispheres on pillars, dome up): centres in the world frame and radii.
+    Spheres { domes_world: Vec<(Point3<f64>, f64)> },
     /// Straight wires of one diameter, end points in the world frame.
     Wires {
         wires_world: Vec<(Point3<f64>, Point3<f64>)>,
@@ -19,6 +21,15 @@ pub enum Shape {
 }
 
 impl Shape {
+    /// The domes that echo like the hemisphere: centre (world) and radius.
+    pub fn domes(&self, feature_centre_world: &Point3<f64>) -> Vec<(Point3<f64>, f64)> {
+        match self {
+            Shape::Hemisphere { radius_mm } => vec![(*feature_centre_world, *radius_mm)],
+            Shape::Spheres { domes_world } => domes_world.clone(),
+            Shape::Point { .. } | Shape::Wires { .. } => Vec::new(),
+        }
+    }
+
     /// From the manifest's phantom: the shape in the world frame and the feature
     /// the lab is laid out around (phantom frame).
     pub fn from_phantom(phantom: &crate::spec::phantom::Phantom, world_T_phantom: &Rigid) -> (Shape, [f64; 3]) {
@@ -36,6 +47,15 @@ impl Shape {
                     head_radius_mm: *head_radius_mm,
                 },
                 *position_in_phantom_mm,
+            ),
+            Phantom::Spheres { spheres } => (
+                Shape::Spheres {
+                    domes_world: spheres
+                        .iter()
+                        .map(|s| (world_T_phantom * Point3::from(s.centre_in_phantom_mm), s.radius_mm))
+                        .collect(),
+                },
+                crate::spec::phantom::spheres_centre(spheres),
             ),
             Phantom::FourWire {
                 wires,

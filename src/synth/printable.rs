@@ -1,0 +1,198 @@
+//! The printable model of a dome phantom: a base plate and, for each sphere, a
+//! pillar of the sphere's radius capped by its dome, in the lab's upright frame
+//! (z up, millimetres; x and y as the lab's world axes), the plate's underside
+//! at z = 0. The plate's top is the tank floor the renderer puts the domes over;
+//! the pillars reach 1 mm into the plate so that a slicer joins the shells.
+//! Each shell is closed, with outward normals.
+
+use nalgebra::{Point3, Vector3};
+
+use super::scene::lab_layout;
+use crate::io::stl::Triangle;
+use crate::spec::phantom::Phantom;
+use crate::spec::render::RenderSpec;
+
+/// The plate's thickness and its margin around the domes, mm.
+pub const PLATE_MM: f64 = 5.0;
+pub const MARGIN_MM: f64 = 10.0;
+/// The tank floor below the domes' mean centre (the renderer's), mm.
+pub const FLOOR_BELOW_CENTRE_MM: f64 = 30.0;
+/// Facets around a dome, and rings from its equator to its top.
+const AROUND: usize = 96;
+const RINGS: usize = 24;
+
+/// A dome of the model: its centre in the upright frame and its radius.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PrintedDome {
+    pub centre_mm: Point3<f64>,
+    pub radius_mm: f64,
+}
+
+/// The model: the plate's corners (min, max) and the domes.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PrintableModel {
+    pub plate_min_mm: Point3<f64>,
+    pub plate_max_mm: Point3<f64>,
+    pub domes: Vec<PrintedDome>,
+}
+
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum PrintableError {
+    #[error("phantom: only dome phantoms (hemisphere, spheres) are printable models here")]
+    NotDomes,
+    #[error("phantom.spheres.spheres[{index}] (`{name}`): its dome's top half sits {below_mm:.1} mm below the plate (centre at most {FLOOR_BELOW_CENTRE_MM} mm under the mean centre)")]
+    BelowPlate { index: usize, name: String, below_mm: f64 },
+}
+
+/// The model of the manifest's phantom in its lab (`render` gives the camera
+/// distance the lab is laid out for; the phantom board fixes its frame).
+pub fn model(
+    phantom: &Phantom,
+    phantom_board: &crate::detect::board::PrintedBoard,
+    render: &RenderSpec,
+) -> Result<PrintableModel, PrintableError> {
+    let (_, world_T_phantom) = lab_layout(render.board_distance_mm, phantom_board);
+    let spheres: Vec<(String, Point3<f64>, f64)> = match phantom {
+        Phantom::Spheres { spheres } => spheres
+            .iter()
+            .map(|s| {
+                (
+                    s.name.clone(),
+                    world_T_phantom * Point3::from(s.centre_in_phantom_mm),
+                    s.radius_mm,
+                )
+            })
+            .collect(),
+        Phantom::Hemisphere {
+            centre_in_phantom_mm,
+            radius_mm,
+        } => vec![(
+            "hemisphere".into(),
+            world_T_phantom * Point3::from(*centre_in_phantom_mm),
+            *radius_mm,
+        )],
+        Phantom::Point { .. } | Phantom::FourWire { .. } => return Err(PrintableError::NotDomes),
+    };
+    let n = spheres.len() as f64;
+    let mean = spheres.iter().fold(Vector3::zeros(), |acc, (_, c, _)| acc + c.coords) / n;
+    // Upright frame: the plate's underside at z = 0, the plate's top at the floor.
+    let floor_z = mean.z - FLOOR_BELOW_CENTRE_MM;
+    let offset = Vector3::new(-mean.x, -mean.y, PLATE_MM - floor_z);
+    let mut domes = Vec::new();
+    for (index, (name, centre, radius_mm)) in spheres.iter().enumerate() {
+        let centre_mm = centre + offset;
+        if centre_mm.z < PLATE_MM {
+            return Err(PrintableError::BelowPlate {
+                index,
+                name: name.clone(),
+                below_mm: PLATE_MM - centre_mm.z,
+            });
+        }
+        domes.push(PrintedDome {
+            centre_mm,
+            radius_mm: *radius_mm,
+        });
+    }
+    let lo = |k: usize| {
+        domes
+            .iter()
+            .map(|d| d.centre_mm[k] - d.radius_mm)
+            .fold(f64::INFINITY, f64::min)
+    };
+    let hi = |k: usize| {
+        domes
+            .iter()
+            .map(|d| d.centre_mm[k] + d.radius_mm)
+            .fold(f64::NEG_INFINITY, f64::max)
+    };
+    Ok(PrintableModel {
+        plate_min_mm: Point3::new(lo(0) - MARGIN_MM, lo(1) - MARGIN_MM, 0.0),
+        plate_max_mm: Point3::new(hi(0) + MARGIN_MM, hi(1) + MARGIN_MM, PLATE_MM),
+        domes,
+    })
+}
+
+impl PrintableModel {
+    /// The closed shells' triangles: the plate, then each pillar with its dome.
+    pub fn triangles(&self) -> Vec<Triangle> {
+        let mut out = box_triangles(self.plate_min_mm, self.plate_max_mm);
+        for d in &self.domes {
+            out.extend(dome_triangles(d, PLATE_MM - 1.0));
+        }
+        out
+    }
+
+    /// The enclosed volume of the shells, mm³ (of the smooth shapes, each shell on its own).
+    pub fn volume_mm3(&self) -> f64 {
+        let e = self.plate_max_mm - self.plate_min_mm;
+        let plate = e.x * e.y * e.z;
+        plate
+            + self
+                .domes
+                .iter()
+                .map(|d| {
+                    let pillar = d.centre_mm.z - (PLATE_MM - 1.0);
+                    std::f64::consts::PI * d.radius_mm.powi(2) * pillar
+                        + 2.0 / 3.0 * std::f64::consts::PI * d.radius_mm.powi(3)
+                })
+                .sum::<f64>()
+    }
+}
+
+/// A box's 12 triangles, outward.
+fn box_triangles(lo: Point3<f64>, hi: Point3<f64>) -> Vec<Triangle> {
+    let v = |i: usize| {
+        Point3::new(
+            if i & 1 == 0 { lo.x } else { hi.x },
+            if i & 2 == 0 { lo.y } else { hi.y },
+            if i & 4 == 0 { lo.z } else { hi.z },
+        )
+    };
+    // Each face as a quad, counter-clockwise seen from outside.
+    let quads = [
+        [0, 2, 3, 1], // bottom (z = lo)
+        [4, 5, 7, 6], // top
+        [0, 1, 5, 4], // y = lo
+        [2, 6, 7, 3], // y = hi
+        [0, 4, 6, 2], // x = lo
+        [1, 3, 7, 5], // x = hi
+    ];
+    quads
+        .iter()
+        .flat_map(|q| [[v(q[0]), v(q[1]), v(q[2])], [v(q[0]), v(q[2]), v(q[3])]])
+        .collect()
+}
+
+/// A pillar from `bottom_z` up to the dome's centre, capped by the dome.
+fn dome_triangles(d: &PrintedDome, bottom_z: f64) -> Vec<Triangle> {
+    let c = d.centre_mm;
+    let r = d.radius_mm;
+    let ring = |k: usize| {
+        // Ring k: 0 at the equator, RINGS at the top (a single point).
+        let polar = std::f64::consts::FRAC_PI_2 * k as f64 / RINGS as f64;
+        (r * polar.cos(), c.z + r * polar.sin())
+    };
+    let at = |radius: f64, z: f64, j: usize| {
+        let a = std::f64::consts::TAU * (j % AROUND) as f64 / AROUND as f64;
+        Point3::new(c.x + radius * a.cos(), c.y + radius * a.sin(), z)
+    };
+    let bottom_centre = Point3::new(c.x, c.y, bottom_z);
+    let top = Point3::new(c.x, c.y, c.z + r);
+    let mut out = Vec::new();
+    for j in 0..AROUND {
+        // Bottom disc (facing down), pillar wall.
+        out.push([bottom_centre, at(r, bottom_z, j + 1), at(r, bottom_z, j)]);
+        out.push([at(r, bottom_z, j), at(r, bottom_z, j + 1), at(r, c.z, j + 1)]);
+        out.push([at(r, bottom_z, j), at(r, c.z, j + 1), at(r, c.z, j)]);
+        // Dome rings.
+        for k in 0..RINGS - 1 {
+            let (r0, z0) = ring(k);
+            let (r1, z1) = ring(k + 1);
+            out.push([at(r0, z0, j), at(r0, z0, j + 1), at(r1, z1, j + 1)]);
+            out.push([at(r0, z0, j), at(r1, z1, j + 1), at(r1, z1, j)]);
+        }
+        let (r0, z0) = ring(RINGS - 1);
+        out.push([at(r0, z0, j), at(r0, z0, j + 1), top]);
+    }
+    out
+}
