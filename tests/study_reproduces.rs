@@ -8,7 +8,7 @@ mod common;
 use common::{probecal, root, scratch};
 
 /// (manifest, committed study folder under `reports/`).
-const STUDIES: [(&str, &str); 5] = [
+const STUDIES: [(&str, &str); 6] = [
     ("experiments/hemisphere_checkerboard.yaml", "study"),
     ("experiments/studies/hemisphere_true_camera.yaml", "study/true_camera"),
     (
@@ -23,6 +23,7 @@ const STUDIES: [(&str, &str); 5] = [
         "experiments/studies/hemisphere_more_outliers.yaml",
         "study/more_outliers",
     ),
+    ("experiments/spheres_checkerboard.yaml", "study/spheres"),
 ];
 
 fn first_seed(study: &serde_json::Value) -> &serde_json::Value {
