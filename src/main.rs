@@ -125,6 +125,13 @@ enum Command {
         #[arg(long)]
         out: PathBuf,
     },
+    /// Dome-phantom layouts for the manifest's lab and sweep, ranked by the
+    /// Cramér–Rao bound of their calibration: design.json and design.md in --out.
+    Design {
+        manifest: PathBuf,
+        #[arg(long)]
+        out: PathBuf,
+    },
     /// The printable model of a manifest's dome phantom (base plate, pillars,
     /// domes) as a binary STL, in millimetres.
     Phantom {
@@ -213,6 +220,7 @@ fn main() -> ExitCode {
         Command::Study(args) => probecal::report::study::dispatch(args),
         Command::Synth { manifests, datasets } => probecal::report::console::synth(&manifests, &datasets),
         Command::Resolve { run } => probecal::report::resolve::command(&run),
+        Command::Design { manifest, out } => probecal::report::design::command(&manifest, &out),
         Command::Phantom { manifest, stl } => probecal::report::phantom::command(&manifest, &stl),
         Command::CalibrateCamera {
             images,

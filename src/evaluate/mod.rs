@@ -9,6 +9,7 @@
 //!   mapped by the estimated and the true `marker_T_image`; their distances.
 
 pub mod resampling;
+pub mod sphere_bound;
 
 use polars::prelude::*;
 use serde::{Deserialize, Serialize};

@@ -1,6 +1,7 @@
 //! The stages chained: a manifest's datasets run end to end. Only this layer
 //! reads manifests; it turns them into each stage's settings ([`settings`]).
 pub mod camera;
+pub mod design;
 pub mod experiment;
 pub mod frames;
 pub mod live;

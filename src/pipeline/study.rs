@@ -265,7 +265,7 @@ pub fn seed_results(
         spec.seed = seed;
         let dataset = Dataset {
             name: format!("mc{seed}"),
-            source: DatasetSource::Render(spec),
+            source: DatasetSource::Render(spec.clone()),
         };
         let run = run::run_dataset(manifest, &dataset, datasets_root, &mut |_| {})?;
         let folder = run.dataset_folder.clone();
@@ -292,7 +292,16 @@ pub fn seed_results(
                 )
             })
             .collect();
-        let crlb = seed_bound(&run, &truth.marker_T_image, size);
+        // Dome phantoms fitted on their arcs' edges: the bound of that model over
+        // this seed's sweep; point pairs: the bound from their residuals.
+        let crlb = match &manifest.phantom {
+            crate::spec::phantom::Phantom::Spheres { .. } => {
+                super::design::bound_of(manifest, &manifest.phantom, &spec, &super::design::NOISE)
+                    .ok()
+                    .map(|b| b.rms_mm)
+            }
+            _ => seed_bound(&run, &truth.marker_T_image, size),
+        };
         log(&format!(
             "seed {seed}: {} | bound {}",
             rms_error_mm

@@ -7,6 +7,7 @@ pub mod check;
 pub mod compare;
 pub mod console;
 pub mod context;
+pub mod design;
 pub mod figures;
 pub mod gallery;
 pub mod index;

@@ -247,17 +247,23 @@ struct GroundTruthFile {
     camera_calibration_views: Vec<[[f64; 4]; 4]>,
 }
 
-fn render_into(lab: &Lab<'_>, spec: &RenderSpec, folder: &Path) -> Result<(), SynthError> {
+/// The lab's scene for a render spec: where everything is in every frame
+/// (the geometry only; nothing is drawn).
+pub fn scene_of(lab: &Lab<'_>, spec: &RenderSpec) -> Result<scene::Scene, SynthError> {
     let Boards { rig, calibration } = boards(lab)?;
-    let calibration_board = crate::detect::board::PrintedBoard::Checkerboard(calibration);
-    let scene = scene::build(&SceneInputs {
+    Ok(scene::build(&SceneInputs {
         spec,
         probe_board: rig.probe,
         phantom_board: rig.phantom,
         calibration_board: calibration,
         phantom: lab.phantom,
         spacing_mm_per_px: lab.spacing_mm_per_px,
-    })?;
+    })?)
+}
+
+fn render_into(lab: &Lab<'_>, spec: &RenderSpec, folder: &Path) -> Result<(), SynthError> {
+    let scene = scene_of(lab, spec)?;
+    let calibration_board = crate::detect::board::PrintedBoard::Checkerboard(scene.calibration_board);
     let frames_dir = folder.join("frames");
     let calib_dir = folder.join("camera_calibration");
     std::fs::create_dir_all(&frames_dir).map_err(io_err(&frames_dir))?;

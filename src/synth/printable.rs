@@ -18,8 +18,8 @@ pub const MARGIN_MM: f64 = 10.0;
 /// The tank floor below the domes' mean centre (the renderer's), mm.
 pub const FLOOR_BELOW_CENTRE_MM: f64 = 30.0;
 /// Facets around a dome, and rings from its equator to its top.
-const AROUND: usize = 96;
-const RINGS: usize = 24;
+const AROUND: usize = 64;
+const RINGS: usize = 16;
 
 /// A dome of the model: its centre in the upright frame and its radius.
 #[derive(Debug, Clone, Copy, PartialEq)]

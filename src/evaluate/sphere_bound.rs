@@ -1,0 +1,199 @@
+//! The Cramér–Rao bound of a dome phantom's calibration (the sphere fit's
+//! model): what no unbiased estimator can beat for a given layout, sweep and noise.
+//!
+//! Each arc edge point `x` (image frame, mm) of sphere `k` in a frame measures
+//! `|P · M · x − c_k| − R_k = 0` with Gaussian noise `σ_edge` along the normal.
+//! `M` is `marker_T_image` (six unknowns); `P` is the frame's `phantom_T_marker`,
+//! known only up to the board poses' error: six nuisance unknowns per frame with
+//! a Gaussian prior (`σ_t` per axis, `σ_r` per rotation axis), marginalised
+//! frame by frame (Schur complement). The edge noise is correlated along an arc
+//! (speckle, blur), so each arc counts as `points_per_arc` independent points,
+//! as the sphere fit weighs it. The bound on the calibration maps to an RMS
+//! error over the image's corners and centre (the study's measure).
+
+use nalgebra::{DMatrix, Matrix6, Point3, Vector3, Vector6};
+
+use crate::core::geometry::{perturbed, Rigid};
+use crate::estimate::sphere_fit::KnownSphere;
+
+/// One frame of the bound: the true `phantom_T_marker` and each arc's sphere
+/// (index) with its edge points in the image frame (mm).
+#[derive(Debug, Clone)]
+pub struct BoundFrame {
+    pub phantom_T_marker: Rigid,
+    pub arcs: Vec<(usize, Vec<Point3<f64>>)>,
+}
+
+/// The noise model (each value's source is stated where it is set).
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct BoundNoise {
+    /// SD of an edge point's distance from its sphere, mm.
+    pub edge_sd_mm: f64,
+    /// Independent points an arc is worth.
+    pub points_per_arc: f64,
+    /// SD of each frame's board-pose error, per axis: mm and degrees.
+    pub pose_translation_sd_mm: f64,
+    pub pose_rotation_sd_deg: f64,
+}
+
+const STEP: f64 = 1e-6;
+
+fn at(base: &Rigid, delta: &Vector6<f64>) -> Rigid {
+    perturbed(
+        base,
+        Vector3::new(delta[0], delta[1], delta[2]),
+        Vector3::new(delta[3], delta[4], delta[5]),
+    )
+}
+
+fn unit(k: usize) -> Vector6<f64> {
+    let mut v = Vector6::zeros();
+    v[k] = STEP;
+    v
+}
+
+/// The bound's RMS error over `probes` (image frame, mm), or `None` when the
+/// layout leaves the calibration unobserved.
+pub fn corner_rms_bound(
+    marker_T_image: &Rigid,
+    frames: &[BoundFrame],
+    spheres: &[KnownSphere],
+    noise: &BoundNoise,
+    probes: &[Point3<f64>],
+) -> Option<f64> {
+    let mut info = Matrix6::<f64>::zeros();
+    let pose_prior = Matrix6::from_diagonal(&Vector6::new(
+        (noise.pose_rotation_sd_deg.to_radians()).powi(-2),
+        (noise.pose_rotation_sd_deg.to_radians()).powi(-2),
+        (noise.pose_rotation_sd_deg.to_radians()).powi(-2),
+        noise.pose_translation_sd_mm.powi(-2),
+        noise.pose_translation_sd_mm.powi(-2),
+        noise.pose_translation_sd_mm.powi(-2),
+    ));
+    for frame in frames {
+        let rows: usize = frame.arcs.iter().map(|(_, p)| p.len()).sum();
+        if rows == 0 {
+            continue;
+        }
+        let mut j_cal = DMatrix::<f64>::zeros(rows, 6);
+        let mut j_pose = DMatrix::<f64>::zeros(rows, 6);
+        let mut weights = Vec::with_capacity(rows);
+        let mut row = 0;
+        for (k, points) in &frame.arcs {
+            let sphere = spheres.get(*k)?;
+            let w = noise.points_per_arc / points.len() as f64 / noise.edge_sd_mm.powi(2);
+            let residual = |p: &Rigid, m: &Rigid, x: &Point3<f64>| {
+                (p * (m * x) - sphere.centre_in_phantom_mm).norm() - sphere.radius_mm
+            };
+            for x in points {
+                let r0 = residual(&frame.phantom_T_marker, marker_T_image, x);
+                for c in 0..6 {
+                    j_cal[(row, c)] = (residual(&frame.phantom_T_marker, &at(marker_T_image, &unit(c)), x) - r0) / STEP;
+                    j_pose[(row, c)] =
+                        (residual(&at(&frame.phantom_T_marker, &unit(c)), marker_T_image, x) - r0) / STEP;
+                }
+                weights.push(w);
+                row += 1;
+            }
+        }
+        let w = DMatrix::from_diagonal(&nalgebra::DVector::from_vec(weights));
+        let a = j_cal.transpose() * &w * &j_cal;
+        let b = j_cal.transpose() * &w * &j_pose;
+        let c = j_pose.transpose() * &w * &j_pose + DMatrix::from_iterator(6, 6, pose_prior.iter().copied());
+        let c_inv = c.try_inverse()?;
+        let schur = a - &b * c_inv * b.transpose();
+        info += Matrix6::from_iterator(schur.iter().copied());
+    }
+    let cov = info.try_inverse()?;
+    let mut sum = 0.0;
+    for q in probes {
+        let q0 = marker_T_image * q;
+        let mut j = nalgebra::Matrix3x6::<f64>::zeros();
+        for c in 0..6 {
+            let d = (at(marker_T_image, &unit(c)) * q - q0) / STEP;
+            j.set_column(c, &d);
+        }
+        sum += (j * cov * j.transpose()).trace();
+    }
+    let rms = (sum / probes.len().max(1) as f64).sqrt();
+    rms.is_finite().then_some(rms)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::core::geometry::rigid_from_axis_angle;
+
+    fn frames(elevations: &[f64], spheres: &[KnownSphere]) -> Vec<BoundFrame> {
+        // Planes through the phantom's x–z plane, shifted along y by `d`, tilted a little.
+        let mut out = Vec::new();
+        for (i, d) in elevations.iter().enumerate() {
+            let tilt = Vector3::new(0.05 * ((i % 3) as f64 - 1.0), 0.0, 0.04 * ((i % 5) as f64 - 2.0));
+            let phantom_T_image = rigid_from_axis_angle(
+                Vector3::new(-std::f64::consts::FRAC_PI_2, 0.0, 0.0) + tilt,
+                Vector3::new(-40.0, *d, 50.0),
+            );
+            let marker_T_image = rigid_from_axis_angle(Vector3::zeros(), Vector3::new(-20.0, 160.0, 25.0));
+            let phantom_T_marker = phantom_T_image * marker_T_image.inverse();
+            let image_T_phantom = phantom_T_image.inverse();
+            let arcs = spheres
+                .iter()
+                .enumerate()
+                .filter_map(|(k, s)| {
+                    let p = image_T_phantom * s.centre_in_phantom_mm;
+                    let r2 = s.radius_mm.powi(2) - p.z * p.z;
+                    (r2 > 0.0).then(|| {
+                        let r = r2.sqrt();
+                        let points = (0..40)
+                            .map(|j| {
+                                let a = (-55.0 + 110.0 * j as f64 / 39.0f64).to_radians();
+                                Point3::new(p.x + r * a.sin(), p.y - r * a.cos(), 0.0)
+                            })
+                            .collect();
+                        (k, points)
+                    })
+                })
+                .collect();
+            out.push(BoundFrame { phantom_T_marker, arcs });
+        }
+        out
+    }
+
+    #[test]
+    fn domes_at_different_offsets_bound_the_calibration_below_one_dome() {
+        let truth = rigid_from_axis_angle(Vector3::zeros(), Vector3::new(-20.0, 160.0, 25.0));
+        let noise = BoundNoise {
+            edge_sd_mm: 0.1,
+            points_per_arc: 20.0,
+            pose_translation_sd_mm: 0.2,
+            pose_rotation_sd_deg: 0.02,
+        };
+        let probes = [
+            Point3::new(0.0, 0.0, 0.0),
+            Point3::new(80.0, 0.0, 0.0),
+            Point3::new(40.0, 60.0, 0.0),
+        ];
+        let d: Vec<f64> = (0..40).map(|i| 0.5 * ((i % 7) as f64 - 3.0) / 3.0).collect();
+        let one = [KnownSphere {
+            centre_in_phantom_mm: Point3::new(0.0, 0.0, 0.0),
+            radius_mm: 15.0,
+        }];
+        let three: Vec<KnownSphere> = [(-22.0, -5.0), (0.0, 0.0), (22.0, 5.0)]
+            .iter()
+            .map(|(x, y)| KnownSphere {
+                centre_in_phantom_mm: Point3::new(*x, *y, 0.0),
+                radius_mm: 10.0,
+            })
+            .collect();
+        let b1 = corner_rms_bound(&truth, &frames(&d, &one), &one, &noise, &probes).unwrap();
+        let b3 = corner_rms_bound(&truth, &frames(&d, &three), &three, &noise, &probes).unwrap();
+        assert!(b3 < 0.5 * b1, "three domes {b3} mm vs one {b1} mm");
+        // More noise, a larger bound.
+        let noisy = BoundNoise {
+            edge_sd_mm: 0.2,
+            ..noise
+        };
+        let b3n = corner_rms_bound(&truth, &frames(&d, &three), &three, &noisy, &probes).unwrap();
+        assert!(b3n > b3, "{b3n} vs {b3}");
+    }
+}

@@ -1,0 +1,271 @@
+//! Designing a dome phantom by the bound: candidate layouts (number of domes,
+//! radius, spacing, offsets along the plane's normal, heights) in the manifest's
+//! lab, each scored by the Cramér–Rao bound of its calibration over the
+//! manifest's own sweep (`evaluate::sphere_bound`), and ranked.
+//!
+//! A layout is laid out around the lab's feature point (the world origin, the
+//! renderer's), with the domes in a row across the sweep (the image's lateral
+//! axis), staggered along the plane's normal (world y) from `-stagger` to
+//! `+stagger` and in height by `±height_step / 2`. It is printable when its domes
+//! stand at least `MIN_GAP_MM` apart and the sweep can be laid out with every cut
+//! dome's arc inside the fan (the renderer's own placement decides).
+
+use nalgebra::{Point3, Vector3};
+use serde::Serialize;
+
+use crate::core::geometry::{image_probe_points, Rigid};
+use crate::detect::board_pose::RigBoards;
+use crate::estimate::sphere_fit::KnownSphere;
+use crate::evaluate::sphere_bound::{self, BoundFrame, BoundNoise};
+use crate::manifest::Manifest;
+use crate::spec::phantom::{Phantom, Sphere};
+use crate::spec::render::RenderSpec;
+use crate::synth::scene::{lab_layout, FrameKind};
+
+/// The noise the bound is computed under, measured on the default hemisphere
+/// run (`reports/hemisphere_checkerboard/dataset3`):
+/// - the edge points' SD about their circle: the median arc-fit RMS there,
+///   0.62 px of 0.2 mm (`frames.csv`, `arc_rms_px`);
+/// - an arc counts as 20 independent points (its noise is correlated along it;
+///   the sphere fit weighs an arc so);
+/// - each frame's board-pose error, per axis: the probe board's mean pose error
+///   against the truth there, 0.432 mm and 0.0277° (`summary.json`,
+///   `truth.probe_pose_error_*`), over 1.596 (the mean length of a 3D
+///   isotropic Gaussian in units of its per-axis SD).
+pub const NOISE: BoundNoise = BoundNoise {
+    edge_sd_mm: 0.124,
+    points_per_arc: 20.0,
+    pose_translation_sd_mm: 0.271,
+    pose_rotation_sd_deg: 0.0174,
+};
+
+/// Domes closer than this (mm, surface to surface) are not printable apart.
+pub const MIN_GAP_MM: f64 = 2.0;
+/// Echo points are taken this far either side of an arc's top (the dome's
+/// echo fades with the beam's incidence).
+const ARC_HALF_SPAN_DEG: f64 = 55.0;
+
+/// A candidate layout's parameters.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Layout {
+    pub domes: usize,
+    pub radius_mm: f64,
+    /// Surface-to-surface gap between neighbours across the sweep.
+    pub gap_mm: f64,
+    /// The outer domes' offset along the plane's normal (the row runs from
+    /// `-stagger` to `+stagger`).
+    pub stagger_mm: f64,
+    /// Neighbouring domes' difference in height.
+    pub height_step_mm: f64,
+}
+
+impl Layout {
+    /// The domes in the world frame (the lab's feature point at the origin).
+    pub fn centres_world(&self) -> Vec<Point3<f64>> {
+        let n = self.domes;
+        let pitch = 2.0 * self.radius_mm + self.gap_mm;
+        (0..n)
+            .map(|k| {
+                let t = if n > 1 { k as f64 / (n - 1) as f64 } else { 0.5 };
+                let x = pitch * (k as f64 - (n as f64 - 1.0) / 2.0);
+                let y = self.stagger_mm * (2.0 * t - 1.0);
+                let z = if k % 2 == 0 { -0.5 } else { 0.5 } * self.height_step_mm;
+                Point3::new(x, y, z)
+            })
+            .collect()
+    }
+
+    /// The phantom in the phantom frame of a lab (`world_T_phantom`).
+    pub fn phantom(&self, world_T_phantom: &Rigid) -> Phantom {
+        let phantom_T_world = world_T_phantom.inverse();
+        let centres = self.centres_world();
+        // Centred on the feature point exactly (the height steps may not cancel).
+        let mean = centres.iter().fold(Vector3::zeros(), |acc, c| acc + c.coords) / centres.len() as f64;
+        Phantom::Spheres {
+            spheres: centres
+                .iter()
+                .enumerate()
+                .map(|(k, c)| {
+                    let p = phantom_T_world * Point3::from(c.coords - mean);
+                    Sphere {
+                        name: format!("dome{}", k + 1),
+                        centre_in_phantom_mm: [p.x, p.y, p.z].map(|v| (v * 10.0).round() / 10.0),
+                        radius_mm: self.radius_mm,
+                    }
+                })
+                .collect(),
+        }
+    }
+}
+
+/// The candidates: 2 to 4 domes of 8 to 12.5 mm, two gaps, four staggers, two heights.
+pub fn candidates() -> Vec<Layout> {
+    let mut out = Vec::new();
+    for domes in [2, 3, 4] {
+        for radius_mm in [8.0, 10.0, 12.5] {
+            for gap_mm in [MIN_GAP_MM, 6.0] {
+                for stagger_mm in [0.0, 3.0, 5.0, 7.0] {
+                    for height_step_mm in [0.0, 4.0] {
+                        out.push(Layout {
+                            domes,
+                            radius_mm,
+                            gap_mm,
+                            stagger_mm,
+                            height_step_mm,
+                        });
+                    }
+                }
+            }
+        }
+    }
+    out
+}
+
+/// A phantom's bound over the manifest's sweep.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Bound {
+    /// RMS error over the image corners and centre, mm.
+    pub rms_mm: f64,
+    pub frames: usize,
+    pub arcs: usize,
+}
+
+/// The bound of `phantom` in the manifest's lab for a render spec: the
+/// scene's frames (all but those where the probe moved between photo and
+/// B-scan, or the plane misses), each cut dome's arc sampled one point per
+/// pixel column within ±55° of its top.
+pub fn bound_of(
+    manifest: &Manifest,
+    phantom: &Phantom,
+    spec: &RenderSpec,
+    noise: &BoundNoise,
+) -> Result<Bound, String> {
+    let mut lab = super::settings::lab(manifest);
+    lab.phantom = phantom;
+    let scene = crate::synth::scene_of(&lab, spec).map_err(|e| e.to_string())?;
+    let spheres: Vec<KnownSphere> = match phantom {
+        Phantom::Spheres { spheres } => spheres
+            .iter()
+            .map(|s| KnownSphere {
+                centre_in_phantom_mm: Point3::from(s.centre_in_phantom_mm),
+                radius_mm: s.radius_mm,
+            })
+            .collect(),
+        Phantom::Hemisphere {
+            centre_in_phantom_mm,
+            radius_mm,
+        } => vec![KnownSphere {
+            centre_in_phantom_mm: Point3::from(*centre_in_phantom_mm),
+            radius_mm: *radius_mm,
+        }],
+        Phantom::Point { .. } | Phantom::FourWire { .. } => {
+            return Err("the bound is of dome phantoms (hemisphere, spheres)".into())
+        }
+    };
+    let [sx, _] = manifest.bscan_spacing_mm_per_px;
+    // The detector finds arcs down to this fraction of the radius.
+    let min_fraction = manifest.arc_detection.radius_fraction[0];
+    let half_span = ARC_HALF_SPAN_DEG.to_radians().sin();
+    let phantom_T_world = scene.world_T_phantom.inverse();
+    let mut frames = Vec::new();
+    let mut arcs = 0;
+    for plan in scene
+        .frames
+        .iter()
+        .filter(|p| !matches!(p.kind, FrameKind::Jerk | FrameKind::Missing))
+    {
+        let phantom_T_marker = phantom_T_world * plan.world_T_marker_bscan;
+        let image_T_phantom = (phantom_T_marker * scene.marker_T_image).inverse();
+        let mut frame_arcs = Vec::new();
+        for (k, s) in spheres.iter().enumerate() {
+            let p = image_T_phantom * s.centre_in_phantom_mm;
+            let r2 = s.radius_mm.powi(2) - p.z * p.z;
+            if r2 <= (min_fraction * s.radius_mm).powi(2) {
+                continue;
+            }
+            let r = r2.sqrt();
+            let columns = (2.0 * r * half_span / sx).floor() as i64;
+            let points: Vec<Point3<f64>> = (0..=columns)
+                .map(|i| {
+                    let dx = -r * half_span + i as f64 * sx;
+                    Point3::new(p.x + dx, p.y - (r * r - dx * dx).max(0.0).sqrt(), 0.0)
+                })
+                .collect();
+            frame_arcs.push((k, points));
+        }
+        if !frame_arcs.is_empty() {
+            arcs += frame_arcs.len();
+            frames.push(BoundFrame {
+                phantom_T_marker,
+                arcs: frame_arcs,
+            });
+        }
+    }
+    let probes = image_probe_points(
+        [scene.bscan.width_px, scene.bscan.height_px],
+        manifest.bscan_spacing_mm_per_px,
+    );
+    let rms_mm = sphere_bound::corner_rms_bound(&scene.marker_T_image, &frames, &spheres, noise, &probes)
+        .ok_or("the layout leaves the calibration unobserved")?;
+    Ok(Bound {
+        rms_mm,
+        frames: frames.len(),
+        arcs,
+    })
+}
+
+/// One row of the design table.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct DesignRow {
+    pub layout: Layout,
+    pub phantom: Phantom,
+    /// The bound, or why the layout is not usable (does not fit the sweep).
+    pub bound: Result<Bound, String>,
+}
+
+/// Sweeps a layout is designed over: the render spec with these seeds (not
+/// the seeds of the experiment's dataset or of its study).
+pub const DESIGN_SEEDS: std::ops::Range<u64> = 2000..2010;
+
+/// A phantom's bound over several sweeps: the RMS of the sweeps' bounds (mean
+/// frames and arcs); a sweep the layout does not fit makes it unusable.
+pub fn bound_over_sweeps(
+    manifest: &Manifest,
+    phantom: &Phantom,
+    spec: &RenderSpec,
+    seeds: std::ops::Range<u64>,
+) -> Result<Bound, String> {
+    let mut bounds = Vec::new();
+    for seed in seeds {
+        let mut spec = spec.clone();
+        spec.seed = seed;
+        bounds.push(bound_of(manifest, phantom, &spec, &NOISE).map_err(|e| format!("seed {seed}: {e}"))?);
+    }
+    let n = bounds.len().max(1) as f64;
+    Ok(Bound {
+        rms_mm: (bounds.iter().map(|b| b.rms_mm.powi(2)).sum::<f64>() / n).sqrt(),
+        frames: (bounds.iter().map(|b| b.frames).sum::<usize>() as f64 / n).round() as usize,
+        arcs: (bounds.iter().map(|b| b.arcs).sum::<usize>() as f64 / n).round() as usize,
+    })
+}
+
+/// Every candidate's bound in the manifest's lab, over the sweeps of
+/// [`DESIGN_SEEDS`] (the first rendered dataset's sweep settings), best first;
+/// layouts that do not fit come last.
+pub fn design(manifest: &Manifest, spec: &RenderSpec) -> Result<Vec<DesignRow>, String> {
+    let rig = RigBoards::from_rig(&manifest.rig).map_err(|e| e.to_string())?;
+    let (_, world_T_phantom) = lab_layout(spec.board_distance_mm, &rig.phantom);
+    let mut rows: Vec<DesignRow> = crate::core::parallel::parallel_map(candidates().len(), |i| {
+        let layout = candidates()[i];
+        let phantom = layout.phantom(&world_T_phantom);
+        let bound = bound_over_sweeps(manifest, &phantom, spec, DESIGN_SEEDS);
+        DesignRow { layout, phantom, bound }
+    });
+    rows.sort_by(|a, b| match (&a.bound, &b.bound) {
+        (Ok(x), Ok(y)) => x.rms_mm.total_cmp(&y.rms_mm),
+        (Ok(_), Err(_)) => std::cmp::Ordering::Less,
+        (Err(_), Ok(_)) => std::cmp::Ordering::Greater,
+        (Err(_), Err(_)) => std::cmp::Ordering::Equal,
+    });
+    Ok(rows)
+}

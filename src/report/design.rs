@@ -1,0 +1,173 @@
+//! `probecal design`: the dome-phantom layouts of the manifest's lab ranked by
+//! the Cramér–Rao bound of their calibration (`design.json`, `design.md`).
+
+use std::fmt::Write as _;
+use std::path::Path;
+
+use serde::Serialize;
+
+use crate::evaluate::sphere_bound::BoundNoise;
+use crate::manifest::{DatasetSource, Experiment};
+use crate::pipeline::design::{self, Bound, DesignRow, DESIGN_SEEDS, NOISE};
+use crate::spec::phantom::Phantom;
+
+#[derive(Serialize)]
+struct DesignFile<'a> {
+    experiment: &'a str,
+    seeds: [u64; 2],
+    frames: usize,
+    noise: BoundNoise,
+    /// The manifest's own phantom.
+    manifest_phantom: Result<Bound, String>,
+    /// The thesis's hemisphere (R = 15 mm) at the lab's feature point.
+    hemisphere: Result<Bound, String>,
+    layouts: &'a [DesignRow],
+}
+
+fn bound_cell(b: &Result<Bound, String>) -> String {
+    match b {
+        Ok(b) => format!("{:.3}", b.rms_mm),
+        Err(e) => format!("— ({e})"),
+    }
+}
+
+fn markdown(file: &DesignFile<'_>) -> String {
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "# Dome layouts ranked by the Cramér–Rao bound ({}, the sweeps of seeds {} to {}, {} frames each)\n",
+        file.experiment, file.seeds[0], file.seeds[1], file.frames
+    );
+    let n = &file.noise;
+    let _ = writeln!(
+        s,
+        "Bound: RMS error over the image's corners and centre (mm) of any unbiased estimate from the arcs' edges \
+         (RMS over the sweeps), \
+         with edge noise {} mm (an arc worth {} points) and each frame's board pose off by {} mm and {}° per axis.\n",
+        n.edge_sd_mm, n.points_per_arc, n.pose_translation_sd_mm, n.pose_rotation_sd_deg
+    );
+    let _ = writeln!(
+        s,
+        "The manifest's phantom: {} mm. The thesis's hemisphere (R = 15 mm) at the same place: {} mm.\n",
+        bound_cell(&file.manifest_phantom),
+        bound_cell(&file.hemisphere)
+    );
+    let _ = writeln!(
+        s,
+        "| rank | domes | R (mm) | gap (mm) | stagger (mm) | height step (mm) | bound (mm) | frames | arcs |"
+    );
+    let _ = writeln!(s, "|---|---|---|---|---|---|---|---|---|");
+    for (i, row) in file.layouts.iter().enumerate() {
+        let l = &row.layout;
+        let (frames, arcs) = match &row.bound {
+            Ok(b) => (b.frames.to_string(), b.arcs.to_string()),
+            Err(_) => ("—".into(), "—".into()),
+        };
+        let _ = writeln!(
+            s,
+            "| {} | {} | {} | {} | {} | {} | {} | {frames} | {arcs} |",
+            i + 1,
+            l.domes,
+            l.radius_mm,
+            l.gap_mm,
+            l.stagger_mm,
+            l.height_step_mm,
+            bound_cell(&row.bound)
+        );
+    }
+    if let Some(best) = file.layouts.first() {
+        let _ = writeln!(s, "\nThe best layout's domes (phantom frame, mm):\n");
+        if let Phantom::Spheres { spheres } = &best.phantom {
+            for sphere in spheres {
+                let c = sphere.centre_in_phantom_mm;
+                let _ = writeln!(
+                    s,
+                    "- {{name: {}, centre_in_phantom_mm: [{}, {}, {}], radius_mm: {}}}",
+                    sphere.name, c[0], c[1], c[2], sphere.radius_mm
+                );
+            }
+        }
+    }
+    s
+}
+
+/// Ranks the layouts; exit code 0 written, 2 bad input, 1 failed.
+pub fn command(manifest: &Path, out: &Path) -> u8 {
+    let manifest = match Experiment::load(manifest) {
+        Ok(Experiment::Camera(m)) => m,
+        Ok(Experiment::Tracked(_)) => {
+            eprintln!(
+                "error: {}: a tracked experiment has no rendered sweep to design for",
+                manifest.display()
+            );
+            return 2;
+        }
+        Err(e) => {
+            eprintln!("error: {e}");
+            return 2;
+        }
+    };
+    let Some(spec) = manifest.datasets.iter().find_map(|d| match &d.source {
+        DatasetSource::Render(spec) => Some(spec.as_ref().clone()),
+        DatasetSource::Folder(_) => None,
+    }) else {
+        eprintln!(
+            "error: {}: field `datasets`: no rendered dataset gives the sweep to design for",
+            manifest.path.display()
+        );
+        return 2;
+    };
+    let rows = match design::design(&manifest, &spec) {
+        Ok(rows) => rows,
+        Err(e) => {
+            eprintln!("error: {}: {e}", manifest.path.display());
+            return 2;
+        }
+    };
+    let hemisphere = match crate::detect::board_pose::RigBoards::from_rig(&manifest.rig) {
+        Ok(rig) => {
+            let (_, world_T_phantom) = crate::synth::scene::lab_layout(spec.board_distance_mm, &rig.phantom);
+            let c = world_T_phantom.inverse() * nalgebra::Point3::origin();
+            design::bound_over_sweeps(
+                &manifest,
+                &Phantom::Hemisphere {
+                    centre_in_phantom_mm: [c.x, c.y, c.z],
+                    radius_mm: 15.0,
+                },
+                &spec,
+                DESIGN_SEEDS,
+            )
+        }
+        Err(e) => Err(e.to_string()),
+    };
+    let file = DesignFile {
+        experiment: &manifest.experiment,
+        seeds: [DESIGN_SEEDS.start, DESIGN_SEEDS.end - 1],
+        frames: spec.frames,
+        noise: NOISE,
+        manifest_phantom: design::bound_over_sweeps(&manifest, &manifest.phantom, &spec, DESIGN_SEEDS),
+        hemisphere,
+        layouts: &rows,
+    };
+    let json = match crate::io::json::to_text(&file) {
+        Ok(j) => j,
+        Err(e) => {
+            eprintln!("error: design.json: {e}");
+            return 1;
+        }
+    };
+    let md = markdown(&file);
+    if let Err(e) = crate::io::fs::write_all_atomic(
+        out,
+        &[
+            ("design.json".into(), json.into_bytes()),
+            ("design.md".into(), md.clone().into_bytes()),
+        ],
+    ) {
+        eprintln!("error: {e}");
+        return 1;
+    }
+    print!("{}", md.lines().take(12).collect::<Vec<_>>().join("\n"));
+    println!("\nwritten to {} (design.json, design.md)", out.display());
+    0
+}

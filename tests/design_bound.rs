@@ -1,0 +1,75 @@
+//! The multi-sphere phantom's layout is the one `probecal design` ranks first,
+//! and the committed design table and printable model are what the code writes
+//! now (a change of the bound, the candidates or the manifest fails here until
+//! `probecal design` and `probecal phantom` are run again and committed).
+
+mod common;
+
+use common::{probecal, root, scratch};
+use probecal::manifest::{DatasetSource, Experiment};
+use probecal::pipeline::design::{self, DESIGN_SEEDS};
+
+fn bound_mm(v: &serde_json::Value) -> f64 {
+    v["Ok"]["rms_mm"].as_f64().unwrap_or(f64::INFINITY)
+}
+
+#[test]
+fn the_experiment_uses_the_best_layout_and_the_committed_table_is_current() {
+    let path = root().join("experiments/spheres_checkerboard.yaml");
+    let Experiment::Camera(manifest) = Experiment::load(&path).unwrap() else {
+        panic!("a camera experiment");
+    };
+    let spec = manifest
+        .datasets
+        .iter()
+        .find_map(|d| match &d.source {
+            DatasetSource::Render(s) => Some(s.as_ref().clone()),
+            DatasetSource::Folder(_) => None,
+        })
+        .unwrap();
+    let committed: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(root().join("reports/design/design.json")).unwrap()).unwrap();
+    let layouts = committed["layouts"].as_array().unwrap();
+    // Ranked: the bounds ascend.
+    let bounds: Vec<f64> = layouts.iter().map(|r| bound_mm(&r["bound"])).collect();
+    assert!(bounds.windows(2).all(|w| w[0] <= w[1]), "{bounds:?}");
+    // The experiment's phantom is the top-ranked layout's.
+    assert_eq!(
+        layouts[0]["phantom"],
+        serde_json::to_value(&manifest.phantom).unwrap(),
+        "the experiment's domes are not the best layout of reports/design/design.json"
+    );
+    // Its bound, recomputed now, is the committed one.
+    let fresh = design::bound_over_sweeps(&manifest, &manifest.phantom, &spec, DESIGN_SEEDS).unwrap();
+    let stored = bound_mm(&committed["manifest_phantom"]);
+    assert!(
+        (fresh.rms_mm - stored).abs() < 1e-9,
+        "bound {} now, {stored} committed",
+        fresh.rms_mm
+    );
+    assert!((fresh.rms_mm - bounds[0]).abs() < 1e-9);
+    // The hemisphere cannot observe the planes' elevation: its bound is far higher.
+    assert!(bound_mm(&committed["hemisphere"]) > 5.0 * fresh.rms_mm, "{committed:#}");
+}
+
+#[test]
+fn the_committed_printable_model_is_what_probecal_phantom_writes() {
+    let dir = scratch("design_bound", "stl");
+    std::fs::create_dir_all(&dir).unwrap();
+    let stl = dir.join("spheres.stl");
+    let out = probecal()
+        .args([
+            "phantom",
+            root().join("experiments/spheres_checkerboard.yaml").to_str().unwrap(),
+            "--stl",
+            stl.to_str().unwrap(),
+        ])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let committed = std::fs::read(root().join("reports/design/spheres_checkerboard.stl")).unwrap();
+    assert!(
+        std::fs::read(&stl).unwrap() == committed,
+        "reports/design/spheres_checkerboard.stl is not what `probecal phantom` writes now"
+    );
+}
