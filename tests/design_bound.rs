@@ -6,7 +6,6 @@
 mod common;
 
 use common::{probecal, root, scratch};
-use probecal::manifest::{DatasetSource, Experiment};
 use probecal::pipeline::design::{self, DESIGN_SEEDS};
 
 fn bound_mm(v: &serde_json::Value) -> f64 {
@@ -16,17 +15,7 @@ fn bound_mm(v: &serde_json::Value) -> f64 {
 #[test]
 fn the_experiment_uses_the_best_layout_and_the_committed_table_is_current() {
     let path = root().join("experiments/spheres_checkerboard.yaml");
-    let Experiment::Camera(manifest) = Experiment::load(&path).unwrap() else {
-        panic!("a camera experiment");
-    };
-    let spec = manifest
-        .datasets
-        .iter()
-        .find_map(|d| match &d.source {
-            DatasetSource::Render(s) => Some(s.as_ref().clone()),
-            DatasetSource::Folder(_) => None,
-        })
-        .unwrap();
+    let (manifest, spec) = probecal::report::phantom::rendered_lab(&path).unwrap();
     let committed: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(root().join("reports/design/design.json")).unwrap()).unwrap();
     let layouts = committed["layouts"].as_array().unwrap();

@@ -38,17 +38,7 @@ fn the_spheres_phantom_is_a_closed_printable_mesh_of_its_manifests_size() {
     let report = String::from_utf8_lossy(&admesh.stdout).to_string();
 
     // The model as the library builds it from the manifest.
-    let probecal::manifest::Experiment::Camera(m) = probecal::manifest::Experiment::load(&manifest).unwrap() else {
-        panic!("a camera experiment");
-    };
-    let render = m
-        .datasets
-        .iter()
-        .find_map(|d| match &d.source {
-            probecal::manifest::DatasetSource::Render(r) => Some(r.clone()),
-            _ => None,
-        })
-        .unwrap();
+    let (m, render) = probecal::report::phantom::rendered_lab(&manifest).unwrap();
     let rig = probecal::detect::board_pose::RigBoards::from_rig(&m.rig).unwrap();
     let model = probecal::synth::printable::model(&m.phantom, &rig.phantom, &render).unwrap();
     let probecal::spec::phantom::Phantom::Spheres { spheres } = &m.phantom else {

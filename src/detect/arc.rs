@@ -182,15 +182,15 @@ pub fn detect_many(
         };
         let centre = [arc.centre_px[0] * sx, arc.centre_px[1] * sy];
         let band = (3.0 * arc.rms_px * (sx + sy) / 2.0).max(1.0);
-        let keep: Vec<bool> = points
+        (points.points_mm, points.normals) = points
             .points_mm
             .iter()
-            .map(|p| (((p[0] - centre[0]).powi(2) + (p[1] - centre[1]).powi(2)).sqrt() - arc.radius_mm).abs() > band)
-            .collect();
-        let mut k = keep.iter();
-        points.points_mm.retain(|_| *k.next().unwrap_or(&true));
-        let mut k = keep.iter();
-        points.normals.retain(|_| *k.next().unwrap_or(&true));
+            .zip(&points.normals)
+            .filter(|(p, _)| {
+                (((p[0] - centre[0]).powi(2) + (p[1] - centre[1]).powi(2)).sqrt() - arc.radius_mm).abs() > band
+            })
+            .map(|(p, n)| (*p, *n))
+            .unzip();
         arcs.push(arc);
     }
     Ok((arcs, None))

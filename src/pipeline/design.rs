@@ -255,8 +255,9 @@ pub fn bound_over_sweeps(
 pub fn design(manifest: &Manifest, spec: &RenderSpec) -> Result<Vec<DesignRow>, String> {
     let rig = RigBoards::from_rig(&manifest.rig).map_err(|e| e.to_string())?;
     let (_, world_T_phantom) = lab_layout(spec.board_distance_mm, &rig.phantom);
-    let mut rows: Vec<DesignRow> = crate::core::parallel::parallel_map(candidates().len(), |i| {
-        let layout = candidates()[i];
+    let layouts = candidates();
+    let mut rows: Vec<DesignRow> = crate::core::parallel::parallel_map(layouts.len(), |i| {
+        let layout = layouts[i];
         let phantom = layout.phantom(&world_T_phantom);
         let bound = bound_over_sweeps(manifest, &phantom, spec, DESIGN_SEEDS);
         DesignRow { layout, phantom, bound }

@@ -7,7 +7,6 @@ use std::path::Path;
 use serde::Serialize;
 
 use crate::evaluate::sphere_bound::BoundNoise;
-use crate::manifest::{DatasetSource, Experiment};
 use crate::pipeline::design::{self, Bound, DesignRow, DESIGN_SEEDS, NOISE};
 use crate::spec::phantom::Phantom;
 
@@ -93,29 +92,12 @@ fn markdown(file: &DesignFile<'_>) -> String {
 
 /// Ranks the layouts; exit code 0 written, 2 bad input, 1 failed.
 pub fn command(manifest: &Path, out: &Path) -> u8 {
-    let manifest = match Experiment::load(manifest) {
-        Ok(Experiment::Camera(m)) => m,
-        Ok(Experiment::Tracked(_)) => {
-            eprintln!(
-                "error: {}: a tracked experiment has no rendered sweep to design for",
-                manifest.display()
-            );
-            return 2;
-        }
+    let (manifest, spec) = match super::phantom::rendered_lab(manifest) {
+        Ok(found) => found,
         Err(e) => {
             eprintln!("error: {e}");
             return 2;
         }
-    };
-    let Some(spec) = manifest.datasets.iter().find_map(|d| match &d.source {
-        DatasetSource::Render(spec) => Some(spec.as_ref().clone()),
-        DatasetSource::Folder(_) => None,
-    }) else {
-        eprintln!(
-            "error: {}: field `datasets`: no rendered dataset gives the sweep to design for",
-            manifest.path.display()
-        );
-        return 2;
     };
     let rows = match design::design(&manifest, &spec) {
         Ok(rows) => rows,
