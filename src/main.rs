@@ -125,6 +125,10 @@ enum Command {
         #[arg(long)]
         out: PathBuf,
     },
+    /// Error budget of a rendered rig: its dataset rendered with its error sources
+    /// (render.realism) all on, all off, each left out and each alone;
+    /// ablation.json, ablation.md and ablation.html in --out.
+    Ablate(probecal::report::ablation::AblateArgs),
     /// Dome-phantom layouts for the manifest's lab and sweep, ranked by the
     /// Cramér–Rao bound of their calibration: design.json and design.md in --out.
     Design {
@@ -220,6 +224,7 @@ fn main() -> ExitCode {
         Command::Study(args) => probecal::report::study::dispatch(args),
         Command::Synth { manifests, datasets } => probecal::report::console::synth(&manifests, &datasets),
         Command::Resolve { run } => probecal::report::resolve::command(&run),
+        Command::Ablate(args) => probecal::report::ablation::command(&args),
         Command::Design { manifest, out } => probecal::report::design::command(&manifest, &out),
         Command::Phantom { manifest, stl } => probecal::report::phantom::command(&manifest, &stl),
         Command::CalibrateCamera {

@@ -130,30 +130,86 @@ pub fn compare_with_truth(
     image_size_px: [usize; 2],
     spacing: [f64; 2],
 ) -> TruthComparison {
-    compare_mapped(estimate, spacing, truth, spacing, image_size_px)
+    compare_mapped(
+        estimate,
+        spacing,
+        &TrueCalibration::rigid(*truth, image_size_px),
+        spacing,
+    )
+}
+
+/// The true calibration of a rendered dataset (evaluation only): the marker's
+/// pose of the image plane, the B-scan's size, and where the scanner displays
+/// echoes when its speed of sound is not the medium's.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TrueCalibration {
+    pub marker_T_image: Rigid,
+    pub image_size_px: [usize; 2],
+    /// True range per displayed range from the transducer face (1: exact).
+    pub range_scale: f64,
+    /// The fan's virtual apex in the image frame (mm); its distance to the
+    /// transducer face is the convex radius.
+    pub apex_mm: [f64; 2],
+}
+
+impl TrueCalibration {
+    /// A truth where every pixel is where the pixel size puts it.
+    pub fn rigid(marker_T_image: Rigid, image_size_px: [usize; 2]) -> TrueCalibration {
+        TrueCalibration {
+            marker_T_image,
+            image_size_px,
+            range_scale: 1.0,
+            apex_mm: [0.0, 0.0],
+        }
+    }
+
+    /// Where the echoes displayed at the image's corners and centre truly come
+    /// from, in the image frame (mm), for a raster of pixel size `spacing`.
+    pub fn points_in_image_mm(&self, spacing: [f64; 2]) -> [nalgebra::Point3<f64>; 5] {
+        let shown = image_probe_points(self.image_size_px, spacing);
+        if self.range_scale == 1.0 {
+            return shown;
+        }
+        shown.map(|p| {
+            let [u, v] = self.true_point_of_displayed([p.x, p.y]);
+            nalgebra::Point3::new(u, v, 0.0)
+        })
+    }
+
+    /// Where an echo displayed at `shown_mm` (image frame) truly is: its range
+    /// from the transducer face scaled by `range_scale` along its beam.
+    pub fn true_point_of_displayed(&self, shown_mm: [f64; 2]) -> [f64; 2] {
+        let [ax, ay] = self.apex_mm;
+        let face = -ay;
+        let (dx, dy) = (shown_mm[0] - ax, shown_mm[1] - ay);
+        let r = (dx * dx + dy * dy).sqrt();
+        let true_r = face + (r - face) * self.range_scale;
+        let k = if r > 0.0 { true_r / r } else { 1.0 };
+        [ax + dx * k, ay + dy * k]
+    }
 }
 
 /// The same, for an estimate that maps pixels with its own pixel size
-/// (`spacing`, e.g. estimated) while the truth maps them with `truth_spacing`.
+/// (`spacing`, e.g. estimated) while the truth's raster has `truth_spacing`.
 pub fn compare_mapped(
     estimate: &HornFit,
     spacing: [f64; 2],
-    truth: &Rigid,
+    truth: &TrueCalibration,
     truth_spacing: [f64; 2],
-    image_size_px: [usize; 2],
 ) -> TruthComparison {
-    let estimated = image_probe_points(image_size_px, spacing);
-    let true_points = image_probe_points(image_size_px, truth_spacing);
+    let estimated = image_probe_points(truth.image_size_px, spacing);
+    let true_points = truth.points_in_image_mm(truth_spacing);
+    let marker_T_image = &truth.marker_T_image;
     let distances: Vec<f64> = estimated
         .iter()
         .zip(&true_points)
-        .map(|(e, t)| (estimate.apply(e) - truth * t).norm())
+        .map(|(e, t)| (estimate.apply(e) - marker_T_image * t).norm())
         .collect();
     TruthComparison {
         corner_error_mean_mm: distances.iter().sum::<f64>() / distances.len() as f64,
         corner_error_max_mm: distances.iter().cloned().fold(0.0, f64::max),
-        rotation_error_deg: rotation_angle_between_deg(&estimate.target_T_source, truth),
-        translation_error_mm: (estimate.target_T_source.translation.vector - truth.translation.vector).norm(),
+        rotation_error_deg: rotation_angle_between_deg(&estimate.target_T_source, marker_T_image),
+        translation_error_mm: (estimate.target_T_source.translation.vector - marker_T_image.translation.vector).norm(),
     }
 }
 
@@ -180,7 +236,7 @@ pub struct EvaluationInputs<'a> {
     pub rule: CutoffRule,
     pub min_frames: usize,
     pub variant: Variant,
-    pub truth: Option<(Rigid, [usize; 2])>,
+    pub truth: Option<TrueCalibration>,
 }
 
 impl CutoffRule {
@@ -255,7 +311,7 @@ pub fn threshold_table(frames: &[Correspondence], inputs: &EvaluationInputs<'_>)
                     .collect();
                 let truth = inputs
                     .truth
-                    .map(|(t, size)| compare_with_truth(fit, &t, size, inputs.spacing));
+                    .map(|t| compare_mapped(fit, inputs.spacing, &t, inputs.spacing));
                 (Some(bre_stats(&values)?), truth)
             }
             Err(_) => (None, None),

@@ -66,14 +66,26 @@ impl Gray8 {
 
     /// Writes a PNG atomically (temporary file, then rename).
     pub fn write_png(&self, path: &Path) -> Result<(), ImageError> {
+        self.write_encoded(path, ".png", &Vector::new())
+    }
+
+    /// Writes a JPEG of the given quality (1..=100) atomically.
+    pub fn write_jpeg(&self, path: &Path, quality: u8) -> Result<(), ImageError> {
+        let params = Vector::<i32>::from_slice(&[imgcodecs::IMWRITE_JPEG_QUALITY, quality.clamp(1, 100) as i32]);
+        self.write_encoded(path, ".jpg", &params)
+    }
+
+    fn write_encoded(&self, path: &Path, extension: &str, params: &Vector<i32>) -> Result<(), ImageError> {
         let mat = self.to_mat()?;
-        let tmp = path.with_extension("png.tmp");
+        let mut tmp = path.as_os_str().to_owned();
+        tmp.push(".tmp");
+        let tmp = std::path::PathBuf::from(tmp);
         let write_err = |message: String| ImageError::Write {
             path: path.to_path_buf(),
             message,
         };
         let mut buffer = Vector::<u8>::new();
-        imgcodecs::imencode(".png", &mat, &mut buffer, &Vector::new())?;
+        imgcodecs::imencode(extension, &mat, &mut buffer, params)?;
         std::fs::write(&tmp, buffer.as_slice()).map_err(|e| write_err(e.to_string()))?;
         std::fs::rename(&tmp, path).map_err(|e| write_err(e.to_string()))?;
         Ok(())
@@ -223,5 +235,35 @@ mod header_tests {
             None,
             "a cut-off header is left to the decoder"
         );
+    }
+
+    #[test]
+    fn jpeg_photos_are_written_at_their_quality_and_read_back() {
+        let dir = std::env::temp_dir().join(format!("probecal-jpeg-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let levels: Vec<f32> = (0..64 * 48).map(|i| ((i % 64) * 4) as f32).collect();
+        let image = Gray8::from_levels(64, 48, &levels);
+        let sizes: Vec<u64> = [95u8, 30]
+            .iter()
+            .map(|&q| {
+                let path = dir.join(format!("q{q}.jpg"));
+                image.write_jpeg(&path, q).unwrap();
+                let bytes = std::fs::read(&path).unwrap();
+                assert_eq!(&bytes[..2], &[0xFF, 0xD8], "a JPEG");
+                let back = mat_to_gray8(&read_gray(&path).unwrap()).unwrap();
+                let worst = back
+                    .data
+                    .iter()
+                    .zip(&image.data)
+                    .map(|(a, b)| a.abs_diff(*b))
+                    .max()
+                    .unwrap();
+                assert!(worst < 40, "quality {q}: off by {worst} grey levels");
+                bytes.len() as u64
+            })
+            .collect();
+        assert!(sizes[0] > sizes[1], "a lower quality compresses more: {sizes:?}");
+        assert!(!dir.join("q95.jpg.tmp").exists());
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 }

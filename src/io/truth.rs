@@ -34,8 +34,16 @@ struct RawTruth {
     marker_T_image: [[f64; 4]; 4],
     camera_T_phantom: [[f64; 4]; 4],
     bscan_size_px: [usize; 2],
+    #[serde(default)]
+    bscan_apex_mm: [f64; 2],
+    #[serde(default = "one")]
+    range_scale: f64,
     camera: TruthCamera,
     frames: Vec<TruthFrame>,
+}
+
+fn one() -> f64 {
+    1.0
 }
 
 #[derive(Debug, Clone, Deserialize)]
@@ -50,6 +58,11 @@ pub struct GroundTruth {
     pub marker_T_image: Rigid,
     pub camera_T_phantom: Rigid,
     pub bscan_size_px: [usize; 2],
+    /// The fan's virtual apex in the image frame, mm.
+    pub bscan_apex_mm: [f64; 2],
+    /// True range per displayed range (the medium's speed of sound over the
+    /// scanner's; 1 when they agree).
+    pub range_scale: f64,
     pub camera: TruthCamera,
     pub frames: Vec<TruthFrame>,
 }
@@ -78,6 +91,8 @@ impl GroundTruth {
             camera_T_phantom: rigid_from_rows(&raw.camera_T_phantom)
                 .map_err(|e| bad(format!("camera_T_phantom: {e}")))?,
             bscan_size_px: raw.bscan_size_px,
+            bscan_apex_mm: raw.bscan_apex_mm,
+            range_scale: raw.range_scale,
             camera: raw.camera,
             frames: raw.frames,
         }))

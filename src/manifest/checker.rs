@@ -15,7 +15,7 @@ pub(crate) struct Checker<'a> {
 }
 
 /// Folder names a run writes beside the experiments' folders in `--out`.
-pub const RESERVED_NAMES: [&str; 2] = ["study", "runs"];
+pub const RESERVED_NAMES: [&str; 4] = ["study", "runs", "ablation", "design"];
 
 /// Longest experiment or dataset name.
 pub const MAX_NAME_LEN: usize = 100;

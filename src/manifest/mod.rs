@@ -9,6 +9,7 @@
 mod checker;
 pub mod locate;
 pub mod raw;
+mod realism;
 mod spheres;
 pub mod tracked;
 mod validate;

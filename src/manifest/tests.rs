@@ -270,6 +270,46 @@ const BAD: &[BadCase] = &[
         Some(24),
         "fraction between 0 and 1",
     ),
+    (
+        "JPEG quality of 0",
+        "      frames: 20\n",
+        "      frames: 20\n      realism:\n        jpeg: {quality: 0}\n",
+        "datasets[0].render.realism.jpeg.quality",
+        Some(25),
+        "between 1 and 100",
+    ),
+    (
+        "a speed of sound no medium has",
+        "      frames: 20\n",
+        "      frames: 20\n      realism:\n        speed_of_sound: {scanner_m_per_s: 1540, medium_m_per_s: 15}\n",
+        "datasets[0].render.realism.speed_of_sound.medium_m_per_s",
+        Some(25),
+        "between 300 and 5000 m/s",
+    ),
+    (
+        "an error source that does not exist",
+        "      frames: 20\n",
+        "      frames: 20\n      realism:\n        fog: {density: 1}\n",
+        "datasets[0].render.realism.fog",
+        Some(25),
+        "unknown field `fog`",
+    ),
+    (
+        "a shutter's asynchrony without the hand's speed",
+        "      frames: 20\n",
+        "      frames: 20\n      realism:\n        shutter: {asynchrony_sd_s: 0.1}\n",
+        "datasets[0].render.realism.hand",
+        Some(24),
+        "need the hand's speed",
+    ),
+    (
+        "a negative bow",
+        "      frames: 20\n",
+        "      frames: 20\n      realism:\n        board_warp: {bow_sd_mm: -1}\n",
+        "datasets[0].render.realism.board_warp.bow_sd_mm",
+        Some(25),
+        "",
+    ),
 ];
 
 #[test]

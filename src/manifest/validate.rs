@@ -189,6 +189,9 @@ fn validate_render(c: &mut Checker<'_>, field: &str, spec: &RenderSpec) {
         c.finite(&format!("{field}.marker_T_image.rotation_deg"), &t.rotation_deg);
         c.finite(&format!("{field}.marker_T_image.translation_mm"), &t.translation_mm);
     }
+    if let Some(r) = &spec.realism {
+        super::realism::check(c, &format!("{field}.realism"), r);
+    }
 }
 
 /// The phantom section: finite positions, positive sizes, wires that are lines.

@@ -40,15 +40,15 @@ fn truth_of(
     marker_T_image: &Rigid,
     spacing: [f64; 2],
     truth_spacing: [f64; 2],
-    truth: Option<(Rigid, [usize; 2])>,
+    truth: Option<evaluate::TrueCalibration>,
 ) -> Option<TruthComparison> {
-    let (t, size) = truth?;
+    let t = truth?;
     let estimate = HornFit {
         target_T_source: *marker_T_image,
         scale: 1.0,
         rms_residual_mm: 0.0,
     };
-    Some(evaluate::compare_mapped(&estimate, spacing, &t, truth_spacing, size))
+    Some(evaluate::compare_mapped(&estimate, spacing, &t, truth_spacing))
 }
 
 /// The frames (their numbers) an estimator did not keep.
@@ -76,7 +76,7 @@ pub struct MethodInputs<'a> {
     pub feature_in_phantom_mm: [f64; 3],
     pub sphere_radius_mm: Option<f64>,
     /// `marker_T_image` and the B-scan size of the truth (evaluation only).
-    pub truth: Option<(Rigid, [usize; 2])>,
+    pub truth: Option<evaluate::TrueCalibration>,
 }
 
 /// Every estimator on the same frames, the reported one first.

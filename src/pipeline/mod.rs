@@ -1,5 +1,6 @@
 //! The stages chained: a manifest's datasets run end to end. Only this layer
 //! reads manifests; it turns them into each stage's settings ([`settings`]).
+pub mod ablation;
 pub mod camera;
 pub mod design;
 pub mod experiment;

@@ -135,6 +135,16 @@ pub fn claim_file(folder: &Path) -> PathBuf {
     folder.parent().unwrap_or(Path::new(".")).join(format!(".{name}.lock"))
 }
 
+/// The evaluation's view of a rendered dataset's truth.
+pub fn true_calibration(t: &GroundTruth) -> crate::evaluate::TrueCalibration {
+    crate::evaluate::TrueCalibration {
+        marker_T_image: t.marker_T_image,
+        image_size_px: t.bscan_size_px,
+        range_scale: t.range_scale,
+        apex_mm: t.bscan_apex_mm,
+    }
+}
+
 /// Runs one dataset of a manifest. `datasets_root` holds rendered datasets.
 pub fn run_dataset(
     manifest: &Manifest,
@@ -189,7 +199,7 @@ pub fn run_dataset(
         dataset: name.clone(),
         source,
     })?;
-    let truth_transform = truth.as_ref().map(|t| (t.marker_T_image, t.bscan_size_px));
+    let truth_transform = truth.as_ref().map(true_calibration);
     let solve_settings = settings::solve(manifest);
     let solved = solve::calibrate(&correspondences, &solve_settings, truth_transform, &name)?;
     solve::record_bre(&mut frames, &correspondences, &solved.all_frames_fit, spacing);
@@ -209,7 +219,7 @@ pub fn run_dataset(
 
     let clock = Instant::now();
     let image_size_px = truth_transform
-        .map(|(_, size)| size)
+        .map(|t| t.image_size_px)
         .or_else(|| frames.iter().find_map(|f| f.bscan_size_px))
         .unwrap_or([0, 0]);
     let fit_inputs = FitInputs {

@@ -274,7 +274,7 @@ impl Calibrations {
 pub fn calibrate(
     pairs: &[Correspondence],
     settings: &SolveSettings,
-    truth: Option<(Rigid, [usize; 2])>,
+    truth: Option<crate::evaluate::TrueCalibration>,
     dataset: &str,
 ) -> Result<Calibrations, RunError> {
     let spacing = settings.spacing_mm_per_px;

@@ -181,13 +181,18 @@ pub fn crlb_rms(
 }
 
 /// RMS distance over `probes` between two calibrations, mm.
-fn rms_error(estimate: &Rigid, spacing: [f64; 2], truth: &Rigid, true_spacing: [f64; 2], size: [usize; 2]) -> f64 {
-    let est = image_probe_points(size, spacing);
-    let tru = image_probe_points(size, true_spacing);
+fn rms_error(
+    estimate: &Rigid,
+    spacing: [f64; 2],
+    truth: &crate::evaluate::TrueCalibration,
+    true_spacing: [f64; 2],
+) -> f64 {
+    let est = image_probe_points(truth.image_size_px, spacing);
+    let tru = truth.points_in_image_mm(true_spacing);
     let sum: f64 = est
         .iter()
         .zip(&tru)
-        .map(|(e, t)| (estimate * e - truth * t).norm_squared())
+        .map(|(e, t)| (estimate * e - truth.marker_T_image * t).norm_squared())
         .sum();
     (sum / 5.0).sqrt()
 }
@@ -285,9 +290,8 @@ pub fn seed_results(
                     rms_error(
                         &m.marker_T_image,
                         m.spacing_mm_per_px,
-                        &truth.marker_T_image,
+                        &run::true_calibration(&truth),
                         run.spacing_mm_per_px,
-                        size,
                     ),
                 )
             })

@@ -82,21 +82,35 @@ pub fn pages_beside(out: &Path) -> (Vec<(String, String)>, Vec<String>) {
     }
     // Further studies (`probecal study <manifest> --out <out>/study/<name>`), e.g. the
     // error budget of `experiments/studies/`.
-    let mut more: Vec<String> = std::fs::read_dir(out.join("study"))
-        .into_iter()
-        .flatten()
-        .flatten()
-        .filter(|e| e.path().join("study.html").is_file())
-        .filter_map(|e| e.file_name().to_str().map(str::to_string))
-        .collect();
-    more.sort();
+    let more = subfolders_with(&out.join("study"), "study.html");
     for name in more {
         studies.push((
             format!("study/{name}/study.html"),
             study_label(&out.join("study").join(&name).join("study.json"), &name),
         ));
     }
+    // Error budgets (`probecal ablate <manifest> --out <out>/ablation/<experiment>`).
+    let budgets = subfolders_with(&out.join("ablation"), "ablation.html");
+    for name in budgets {
+        studies.push((
+            format!("ablation/{name}/ablation.html"),
+            format!("Error budget of {name}: each error source of the rig left out and alone"),
+        ));
+    }
     (studies, errors)
+}
+
+/// The folders of `dir` that hold `file`, by name, sorted.
+fn subfolders_with(dir: &Path, file: &str) -> Vec<String> {
+    let mut names: Vec<String> = std::fs::read_dir(dir)
+        .into_iter()
+        .flatten()
+        .flatten()
+        .filter(|e| e.path().join(file).is_file())
+        .filter_map(|e| e.file_name().to_str().map(str::to_string))
+        .collect();
+    names.sort();
+    names
 }
 
 /// Writes `out/index.html` for `entries` and the pages beside them; the errors met.

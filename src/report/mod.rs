@@ -3,6 +3,7 @@
 //! the B-scan gallery, the per-frame tables ([`write`]), the comparison, the
 //! thesis chapter, the index, the regression gate ([`check`]) and provenance.
 
+pub mod ablation;
 pub mod check;
 pub mod compare;
 pub mod console;

@@ -80,7 +80,7 @@ fn escape_html(text: &str) -> String {
 }
 
 /// A self-contained HTML page from the Markdown tables.
-fn html(md: &str) -> String {
+pub(super) fn html(md: &str) -> String {
     let mut body = String::new();
     let mut in_table = false;
     for line in md.lines() {

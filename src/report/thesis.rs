@@ -20,55 +20,104 @@ struct AxisTable {
     /// Rows Std., Mean, Min, Max; columns x, y, z.
     thesis: [[f64; 3]; 4],
     note: &'static str,
+    /// Also say how many frames each cut-off kept (and the thesis's Dataset 3).
+    show_kept: bool,
 }
 
 const ROWS: [&str; 4] = ["Std.", "Mean", "Min", "Max"];
 
-const AXIS_TABLES: [AxisTable; 3] = [
+const AXIS_TABLES: [AxisTable; 7] = [
     AxisTable {
         title: "BRE along axes for Dataset 1",
         experiment: "hemisphere_checkerboard_dataset1",
         dataset: "dataset1",
-        thesis: [
-            [16.7091, 3.5429, 12.2821],
-            [17.9636, 5.1218, 20.3735],
-            [0.0592, 0.2596, 0.6292],
-            [54.8793, 11.7972, 46.9600],
-        ],
+        thesis: AXIS_TABLES_THESIS[0],
         note: "Two boards of different sizes; all frames.",
+        show_kept: false,
     },
     AxisTable {
         title: "BRE along axes for Dataset 2",
         experiment: "hemisphere_checkerboard_dataset2",
         dataset: "dataset2",
-        thesis: [
-            [1.1225, 0.8118, 0.6235],
-            [1.754, 0.926, 1.127],
-            [0.276, 0.074, 0.011],
-            [4.252, 2.311, 2.638],
-        ],
+        thesis: AXIS_TABLES_THESIS[1],
         note: "8x8 squares of 16 mm, 20 frames; all frames.",
+        show_kept: false,
     },
     AxisTable {
         title: "BRE along axes for Dataset ArUco",
         experiment: "hemisphere_aruco",
         dataset: "dataset3",
-        thesis: [
-            [4.0703, 13.3303, 7.0075],
-            [4.4380, 20.7976, 9.1536],
-            [0.0908, 0.4992, 0.7023],
-            [22.4928, 47.8121, 28.1625],
-        ],
+        thesis: AXIS_TABLES_THESIS[2],
         note: "ArUco boards; all frames.",
+        show_kept: false,
     },
+    AxisTable {
+        title: "Twin of the thesis's rig: BRE along axes for Dataset 1",
+        experiment: "thesis_twin_dataset1",
+        dataset: "dataset1",
+        thesis: AXIS_TABLES_THESIS[0],
+        note: "The rendered lab with the real rig's error sources at physical values; all frames.",
+        show_kept: false,
+    },
+    AxisTable {
+        title: "Twin of the thesis's rig: BRE along axes for Dataset 2",
+        experiment: "thesis_twin_dataset2",
+        dataset: "dataset2",
+        thesis: AXIS_TABLES_THESIS[1],
+        note: "The rendered lab with the real rig's error sources at physical values; all frames.",
+        show_kept: false,
+    },
+    AxisTable {
+        title: "Twin of the thesis's rig: BRE along axes for Dataset 3 (all frames)",
+        experiment: "thesis_twin_dataset3",
+        dataset: "dataset3",
+        thesis: [
+            [0.959, 1.758, 0.444],
+            [1.024, 1.704, 0.542],
+            [0.005, 0.034, 0.016],
+            [4.443, 6.743, 1.635],
+        ],
+        note: "The rendered lab with the real rig's error sources at physical values; all frames.",
+        show_kept: true,
+    },
+    AxisTable {
+        title: "Twin of the thesis's rig: BRE along axes for Dataset ArUco",
+        experiment: "thesis_twin_aruco",
+        dataset: "dataset3",
+        thesis: AXIS_TABLES_THESIS[2],
+        note: "The rendered lab with the real rig's error sources at physical values; all frames.",
+        show_kept: false,
+    },
+];
+
+/// The thesis's Dataset 1, Dataset 2 and ArUco tables (rows Std., Mean, Min, Max).
+const AXIS_TABLES_THESIS: [[[f64; 3]; 4]; 3] = [
+    [
+        [16.7091, 3.5429, 12.2821],
+        [17.9636, 5.1218, 20.3735],
+        [0.0592, 0.2596, 0.6292],
+        [54.8793, 11.7972, 46.9600],
+    ],
+    [
+        [1.1225, 0.8118, 0.6235],
+        [1.754, 0.926, 1.127],
+        [0.276, 0.074, 0.011],
+        [4.252, 2.311, 2.638],
+    ],
+    [
+        [4.0703, 13.3303, 7.0075],
+        [4.4380, 20.7976, 9.1536],
+        [0.0908, 0.4992, 0.7023],
+        [22.4928, 47.8121, 28.1625],
+    ],
 ];
 
 /// Dataset 3's threshold table: cut-offs (∞, 2, 1.5, 1 mm), frames kept, and per
 /// axis Std./Mean/Min/Max.
 const DATASET3_EXPERIMENT: (&str, &str) = ("hemisphere_checkerboard", "dataset3");
-const DATASET3_THESIS_FRAMES: [usize; 4] = [50, 32, 25, 14];
+pub const DATASET3_THESIS_FRAMES: [usize; 4] = [50, 32, 25, 14];
 /// `[axis][row][cut-off]`.
-const DATASET3_THESIS: [[[f64; 4]; 4]; 3] = [
+pub const DATASET3_THESIS: [[[f64; 4]; 4]; 3] = [
     [
         [0.959, 0.342, 0.310, 0.242],
         [1.024, 0.449, 0.418, 0.298],
@@ -135,6 +184,21 @@ fn fmt(v: Option<f64>) -> String {
     }
 }
 
+/// The frames each cut-off kept, beside the thesis's Dataset 3.
+fn kept_note(s: &Summary) -> String {
+    let ours: Vec<String> = s
+        .thresholds
+        .iter()
+        .map(|r| format!("{} {}", crate::evaluate::cutoff_label(r.cutoff_mm.0), r.frames))
+        .collect();
+    let thesis: Vec<String> = DATASET3_THESIS_FRAMES.iter().map(|f| f.to_string()).collect();
+    format!(
+        " Frames kept at the cut-offs: {} (thesis: {}).",
+        ours.join(", "),
+        thesis.join(" / ")
+    )
+}
+
 /// A camera run's summary under `root`, if it is there and reads.
 fn summary(root: &Path, experiment: &str, dataset: &str) -> Option<Summary> {
     match RunSummary::read(&root.join(experiment).join(dataset).join("summary.json")).ok()? {
@@ -188,10 +252,11 @@ pub fn chapter(root: &Path) -> Chapter {
                 id: t.experiment.to_string(),
                 title: t.title.to_string(),
                 note: format!(
-                    "{} probecal: {} ({frames} frames with a usable feature, all kept).{}",
+                    "{} probecal: {} ({frames} frames with a usable feature, all kept).{}{}",
                     t.note,
                     t.experiment,
-                    truth_note(&s)
+                    truth_note(&s),
+                    if t.show_kept { kept_note(&s) } else { String::new() }
                 ),
                 groups: vec!["x".into(), "y".into(), "z".into()],
                 sub: vec!["probecal".into(), "thesis".into()],

@@ -3,5 +3,6 @@
 //! (which checks it) and by every stage that needs it.
 pub mod nwire;
 pub mod phantom;
+pub mod realism;
 pub mod render;
 pub mod rig;

@@ -31,6 +31,9 @@ pub struct RenderSpec {
     /// The simulated tracker whose poses are written to `tracker_poses.csv`.
     #[serde(default)]
     pub tracker: TrackerNoise,
+    /// Error sources of a real rig (absent: the ideal lab).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub realism: Option<super::realism::Realism>,
 }
 
 /// Noise of the simulated optical tracker, per marker pose and frame (Gaussian).

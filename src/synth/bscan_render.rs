@@ -28,6 +28,9 @@ pub struct Bubble {
 pub struct EchoModel {
     pub slice_thickness_mm: f64,
     pub bubble_rate: f64,
+    /// True range per displayed range from the transducer face (the medium's
+    /// speed of sound over the scanner's; 1: they agree).
+    pub range_scale: f64,
 }
 
 const AXIAL_SIGMA_MM: f64 = 0.30;
@@ -335,6 +338,12 @@ pub fn render_bscan(
             let i = y * w + x;
             inside[i] = true;
             let (r, angle) = g.polar(u_mm, v_mm);
+            // The echo displayed at this range comes from the true range.
+            let r = if model.range_scale == 1.0 {
+                r
+            } else {
+                g.convex_radius_mm + (r - g.convex_radius_mm) * model.range_scale
+            };
             let dir = rotation * Vector3::new(angle.sin(), angle.cos(), 0.0);
             let mut e_sum = 0.0;
             let mut shadow = 0.0;
@@ -416,6 +425,11 @@ pub fn render_bscan(
             continue;
         }
         let (rb, ab) = g.polar(centre.x, centre.y);
+        let rb = if model.range_scale == 1.0 {
+            rb
+        } else {
+            g.convex_radius_mm + (rb - g.convex_radius_mm) / model.range_scale
+        };
         let size = bubble.radius_mm.max(0.35);
         let x0 = ((centre.x - 4.0) / sx).floor().max(0.0) as usize;
         let x1 = (((centre.x + 4.0) / sx).ceil() as usize).min(w);

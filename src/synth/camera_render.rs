@@ -64,7 +64,27 @@ pub struct PlacedBoard<'a> {
     pub layout: &'a PrintedBoard,
     /// Something dark lying across the board.
     pub occluder: Option<Occluder>,
+    /// The printed board's true size per nominal size (1: printed exactly).
+    pub print_scale: f64,
+    /// The board's bow along its x axis: the sagitta (mm, along the board's z)
+    /// of a parabola over the paper's width (0: flat).
+    pub bow_mm: f64,
+    /// The board's motion during the exposure: its pose at time `t` (s, from the
+    /// middle of the exposure) is `camera_T_board * exp(t * twist)`.
+    pub motion: Option<BoardMotion>,
 }
+
+/// A board's velocity in its own frame, and the exposure time.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BoardMotion {
+    pub rotation_rad_per_s: Vector3<f64>,
+    pub translation_mm_per_s: Vector3<f64>,
+    pub exposure_s: f64,
+}
+
+/// The order in which the 3x3 sub-samples of a pixel take the exposure's 9
+/// moments (so time does not run along the pixel's rows).
+const TIME_OF_SUBSAMPLE: [usize; 9] = [4, 0, 7, 2, 8, 5, 1, 6, 3];
 
 const BLACK_REFLECTANCE: f32 = 0.07;
 const WHITE_REFLECTANCE: f32 = 0.88;
@@ -86,20 +106,51 @@ pub fn render_photo(
         board_T_camera: Rigid,
         layout: &'a PrintedBoard,
         occluder: Option<(Occluder, [f64; 2])>,
+        scale: f64,
+        /// Sagitta, middle and half-width of the bow along x (board mm).
+        bow: Option<(f64, f64, f64)>,
     }
-    let planes: Vec<Plane<'_>> = boards
+    let planes_at = |time_s: f64| -> Vec<Plane<'_>> {
+        boards
+            .iter()
+            .map(|b| {
+                let pose = match b.motion {
+                    Some(m) if time_s != 0.0 => {
+                        b.camera_T_board * Rigid::new(m.translation_mm_per_s * time_s, m.rotation_rad_per_s * time_s)
+                    }
+                    _ => b.camera_T_board,
+                };
+                Plane {
+                    origin: pose.translation.vector.cast::<f32>(),
+                    normal: (pose.rotation * Vector3::z()).cast::<f32>(),
+                    board_T_camera: pose.inverse(),
+                    layout: b.layout,
+                    occluder: b.occluder.map(|o| {
+                        let c = b.layout.centre_mm();
+                        (o, [c.x, c.y])
+                    }),
+                    scale: b.print_scale,
+                    bow: (b.bow_mm != 0.0).then(|| {
+                        let [x0, _, x1, _] = b.layout.paper_bounds_mm();
+                        let [x0, x1] = [x0 * b.print_scale, x1 * b.print_scale];
+                        (b.bow_mm, (x0 + x1) / 2.0, (x1 - x0) / 2.0)
+                    }),
+                }
+            })
+            .collect()
+    };
+    // One set of planes when nothing moves; else one per moment of the exposure.
+    let exposure_s = boards
         .iter()
-        .map(|b| Plane {
-            origin: b.camera_T_board.translation.vector.cast::<f32>(),
-            normal: (b.camera_T_board.rotation * Vector3::z()).cast::<f32>(),
-            board_T_camera: b.camera_T_board.inverse(),
-            layout: b.layout,
-            occluder: b.occluder.map(|o| {
-                let c = b.layout.centre_mm();
-                (o, [c.x, c.y])
-            }),
-        })
-        .collect();
+        .filter_map(|b| b.motion.map(|m| m.exposure_s))
+        .fold(0.0, f64::max);
+    let planes_per_time: Vec<Vec<Plane<'_>>> = if exposure_s > 0.0 {
+        (0..9)
+            .map(|t| planes_at(((t as f64 + 0.5) / 9.0 - 0.5) * exposure_s))
+            .collect()
+    } else {
+        vec![planes_at(0.0)]
+    };
 
     // Lighting: a linear gradient in a random direction, a soft spot, and vignetting.
     let angle = rng.uniform(0.0, std::f64::consts::TAU);
@@ -123,28 +174,42 @@ pub fn render_photo(
     for y in 0..h {
         for x in 0..w {
             let mut reflectance = 0f32;
-            for &sy in &SUB {
-                for &sx in &SUB {
+            for (iy, &sy) in SUB.iter().enumerate() {
+                for (ix, &sx) in SUB.iter().enumerate() {
+                    let planes = &planes_per_time[TIME_OF_SUBSAMPLE[iy * 3 + ix] % planes_per_time.len()];
                     let [nx, ny] = rays.ray(x, y, sx, sy);
                     let dir = Vector3::new(nx, ny, 1.0);
                     let mut best: Option<(f32, f32)> = None;
-                    for plane in &planes {
+                    for plane in planes {
                         let denom = plane.normal.dot(&dir);
                         if denom.abs() < 1e-6 {
                             continue;
                         }
-                        let t = plane.normal.dot(&plane.origin) / denom;
+                        let mut t = plane.normal.dot(&plane.origin) / denom;
+                        let mut local = {
+                            let hit = dir * t;
+                            plane.board_T_camera * Point3::new(hit.x as f64, hit.y as f64, hit.z as f64)
+                        };
+                        if let Some((sagitta, middle, half)) = plane.bow {
+                            // The bowed surface is `z = h(x)` in the board's frame: two
+                            // fixed-point steps of the ray's meeting with it.
+                            for _ in 0..2 {
+                                let u = ((local.x - middle) / half).clamp(-1.0, 1.0);
+                                let height = sagitta * (1.0 - u * u);
+                                t = (plane.normal.dot(&plane.origin) + height as f32) / denom;
+                                let hit = dir * t;
+                                local = plane.board_T_camera * Point3::new(hit.x as f64, hit.y as f64, hit.z as f64);
+                            }
+                        }
                         if t <= 0.0 || best.is_some_and(|(bt, _)| bt <= t) {
                             continue;
                         }
-                        let hit = dir * t;
-                        let local = plane.board_T_camera * Point3::new(hit.x as f64, hit.y as f64, hit.z as f64);
                         let covered = plane
                             .occluder
                             .is_some_and(|(o, c)| o.covers(local.x - c[0], local.y - c[1]));
                         if covered {
                             best = Some((t, OCCLUDER_REFLECTANCE));
-                        } else if let Some(ink) = plane.layout.ink_at(local.x, local.y) {
+                        } else if let Some(ink) = plane.layout.ink_at(local.x / plane.scale, local.y / plane.scale) {
                             let r = if ink == Ink::Black {
                                 BLACK_REFLECTANCE
                             } else {

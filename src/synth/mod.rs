@@ -6,9 +6,11 @@
 //! the dataset is rendered again only when they change. Rendering happens in a
 //! temporary folder that is renamed into place when complete.
 
+pub mod bscan_geometry;
 pub mod bscan_render;
 pub mod camera_render;
 pub mod printable;
+pub mod realism;
 pub mod scene;
 pub mod shape;
 
@@ -243,6 +245,9 @@ struct GroundTruthFile {
     phantom: Phantom,
     bscan_size_px: [usize; 2],
     bscan_apex_mm: [f64; 2],
+    /// True range per displayed range (written when it is not 1).
+    #[serde(skip_serializing_if = "is_one")]
+    range_scale: f64,
     frames: Vec<GroundTruthFrame>,
     camera_calibration_views: Vec<[[f64; 4]; 4]>,
 }
@@ -250,19 +255,49 @@ struct GroundTruthFile {
 /// The lab's scene for a render spec: where everything is in every frame
 /// (the geometry only; nothing is drawn).
 pub fn scene_of(lab: &Lab<'_>, spec: &RenderSpec) -> Result<scene::Scene, SynthError> {
+    Ok(realised(lab, spec)?.scene)
+}
+
+/// The scene with the rig's error sources applied, and what the renderer needs of them.
+struct Realised {
+    scene: scene::Scene,
+    /// The spec as rendered (the lens applied).
+    spec: RenderSpec,
+    systematic: realism::Systematic,
+    motions: Vec<Option<camera_render::BoardMotion>>,
+}
+
+fn realised(lab: &Lab<'_>, spec: &RenderSpec) -> Result<Realised, SynthError> {
+    let spec = realism::effective_spec(spec);
+    let systematic = realism::systematic(&spec, lab.phantom);
     let Boards { rig, calibration } = boards(lab)?;
-    Ok(scene::build(&SceneInputs {
-        spec,
+    let mut scene = scene::build(&SceneInputs {
+        spec: &spec,
         probe_board: rig.probe,
         phantom_board: rig.phantom,
         calibration_board: calibration,
-        phantom: lab.phantom,
+        phantom: &systematic.phantom,
         spacing_mm_per_px: lab.spacing_mm_per_px,
-    })?)
+    })?;
+    let motions = realism::apply_to_frames(&spec, &mut scene);
+    Ok(Realised {
+        scene,
+        spec,
+        systematic,
+        motions,
+    })
 }
 
 fn render_into(lab: &Lab<'_>, spec: &RenderSpec, folder: &Path) -> Result<(), SynthError> {
-    let scene = scene_of(lab, spec)?;
+    let Realised {
+        scene,
+        spec,
+        systematic,
+        motions,
+    } = realised(lab, spec)?;
+    let spec = &spec;
+    let range_scale = realism::range_scale(spec);
+    let jpeg = realism::of(spec).jpeg.map(|j| j.quality);
     let calibration_board = crate::detect::board::PrintedBoard::Checkerboard(scene.calibration_board);
     let frames_dir = folder.join("frames");
     let calib_dir = folder.join("camera_calibration");
@@ -277,6 +312,7 @@ fn render_into(lab: &Lab<'_>, spec: &RenderSpec, folder: &Path) -> Result<(), Sy
     let echo = EchoModel {
         slice_thickness_mm: spec.bscan.slice_thickness_mm,
         bubble_rate: spec.bscan.bubble_rate,
+        range_scale,
     };
 
     let progress =
@@ -289,6 +325,9 @@ fn render_into(lab: &Lab<'_>, spec: &RenderSpec, folder: &Path) -> Result<(), Sy
                 camera_T_board: scene.camera_T_calibration_board[view],
                 layout: &calibration_board,
                 occluder: None,
+                print_scale: 1.0,
+                bow_mm: 0.0,
+                motion: None,
             };
             let image = camera_render::render_photo(&scene.camera, &rays, &[board], photometry, &mut rng)?;
             image.write_png(&calib_dir.join(format!("view_{view:03}.png")))?;
@@ -308,15 +347,24 @@ fn render_into(lab: &Lab<'_>, spec: &RenderSpec, folder: &Path) -> Result<(), Sy
                 camera_T_board: camera_T_marker_photo,
                 layout: &scene.probe_board,
                 occluder: plan.occluder,
+                print_scale: systematic.print_scale[0],
+                bow_mm: systematic.bow_mm[0],
+                motion: motions[k],
             },
             PlacedBoard {
                 camera_T_board: camera_T_phantom,
                 layout: &scene.phantom_board,
                 occluder: None,
+                print_scale: systematic.print_scale[1],
+                bow_mm: systematic.bow_mm[1],
+                motion: None,
             },
         ];
         let photo = camera_render::render_photo(&scene.camera, &rays, &boards, photometry, &mut rng)?;
-        photo.write_png(&frames_dir.join(format!("camera_{k:03}.png")))?;
+        match jpeg {
+            Some(quality) => photo.write_jpeg(&frames_dir.join(photo_name(k, jpeg)), quality)?,
+            None => photo.write_png(&frames_dir.join(photo_name(k, jpeg)))?,
+        }
         let world_T_image: Rigid = plan.world_T_marker_bscan * scene.marker_T_image;
         let bubbles = bscan_render::draw_bubbles(&scene, &world_T_image, plan.kind, echo, &mut rng);
         let bscan = bscan_render::render_bscan(&scene, &world_T_image, &bubbles, echo, &mut rng)?;
@@ -327,9 +375,10 @@ fn render_into(lab: &Lab<'_>, spec: &RenderSpec, folder: &Path) -> Result<(), Sy
                 .filter_map(|(w, (a, b))| {
                     let p = shape::segment_in_plane(&world_T_image, a, b)?;
                     let [sx, sy] = scene.bscan.spacing_mm_per_px;
+                    let (u, v) = scene.bscan.displayed(p.x, p.y, range_scale);
                     Some(crate::io::truth::WireDot {
                         wire: w.name.clone(),
-                        pixel: [p.x / sx, p.y / sy],
+                        pixel: [u / sx, v / sy],
                     })
                 })
                 .collect(),
@@ -340,9 +389,10 @@ fn render_into(lab: &Lab<'_>, spec: &RenderSpec, folder: &Path) -> Result<(), Sy
                 .filter_map(|(s, (centre, r))| {
                     let p = world_T_image.inverse() * centre;
                     let [sx, sy] = scene.bscan.spacing_mm_per_px;
+                    let (u, v) = scene.bscan.displayed(p.x, p.y, range_scale);
                     (p.z.abs() < *r).then(|| crate::io::truth::WireDot {
                         wire: s.name.clone(),
-                        pixel: [p.x / sx, p.y / sy],
+                        pixel: [u / sx, v / sy],
                     })
                 })
                 .collect(),
@@ -367,7 +417,7 @@ fn render_into(lab: &Lab<'_>, spec: &RenderSpec, folder: &Path) -> Result<(), Sy
 
     let mut list = String::from("frame,camera_image,bscan_image\n");
     for k in 0..scene.frames.len() {
-        list.push_str(&format!("{k},frames/camera_{k:03}.png,frames/bscan_{k:03}.png\n"));
+        list.push_str(&format!("{k},frames/{},frames/bscan_{k:03}.png\n", photo_name(k, jpeg)));
     }
     let list_path = folder.join(FRAME_LIST);
     std::fs::write(&list_path, list).map_err(io_err(&list_path))?;
@@ -379,9 +429,10 @@ fn render_into(lab: &Lab<'_>, spec: &RenderSpec, folder: &Path) -> Result<(), Sy
         camera: scene.camera.clone(),
         marker_T_image: to_rows(&scene.marker_T_image),
         camera_T_phantom: to_rows(&camera_T_phantom),
-        phantom: lab.phantom.clone(),
+        phantom: systematic.phantom.clone(),
         bscan_size_px: [scene.bscan.width_px, scene.bscan.height_px],
         bscan_apex_mm: scene.bscan.apex_mm,
+        range_scale,
         frames: truth_frames,
         camera_calibration_views: scene.camera_T_calibration_board.iter().map(to_rows).collect(),
     };
@@ -392,6 +443,18 @@ fn render_into(lab: &Lab<'_>, spec: &RenderSpec, folder: &Path) -> Result<(), Sy
     })?;
     std::fs::write(&truth_path, text).map_err(io_err(&truth_path))?;
     Ok(())
+}
+
+fn is_one(v: &f64) -> bool {
+    *v == 1.0
+}
+
+/// A frame's photo: PNG, or JPEG when the rig's camera saves JPEG.
+fn photo_name(k: usize, jpeg: Option<u8>) -> String {
+    match jpeg {
+        Some(_) => format!("camera_{k:03}.jpg"),
+        None => format!("camera_{k:03}.png"),
+    }
 }
 
 /// The simulated optical tracker: its frame is the camera's, its poses are the
