@@ -12,7 +12,7 @@ import re
 import sys
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
-TAG = re.compile(r"(-?[0-9]+(?:\.[0-9]+)?)<!-- ([^#> ]+\.json)#([^ ]+) -->")
+TAG = re.compile(r"(-?[0-9]+(?:\.[0-9]+)?)<!-- ([^#> ]+\.json)#(.+?) -->")
 
 
 def lookup(data, key):

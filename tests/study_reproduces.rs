@@ -8,7 +8,7 @@ mod common;
 use common::{probecal, root, scratch};
 
 /// (manifest, committed study folder under `reports/`).
-const STUDIES: [(&str, &str); 6] = [
+const STUDIES: [(&str, &str); 8] = [
     ("experiments/hemisphere_checkerboard.yaml", "study"),
     ("experiments/studies/hemisphere_true_camera.yaml", "study/true_camera"),
     (
@@ -24,6 +24,8 @@ const STUDIES: [(&str, &str); 6] = [
         "study/more_outliers",
     ),
     ("experiments/spheres_checkerboard.yaml", "study/spheres"),
+    ("experiments/thesis_twin_dataset3.yaml", "study/thesis_twin_dataset3"),
+    ("experiments/thesis_twin_aruco.yaml", "study/thesis_twin_aruco"),
 ];
 
 fn first_seed(study: &serde_json::Value) -> &serde_json::Value {
