@@ -361,9 +361,10 @@ fn render_into(lab: &Lab<'_>, spec: &RenderSpec, folder: &Path) -> Result<(), Sy
             },
         ];
         let photo = camera_render::render_photo(&scene.camera, &rays, &boards, photometry, &mut rng)?;
+        let photo_path = frames_dir.join(photo_name(k, jpeg));
         match jpeg {
-            Some(quality) => photo.write_jpeg(&frames_dir.join(photo_name(k, jpeg)), quality)?,
-            None => photo.write_png(&frames_dir.join(photo_name(k, jpeg)))?,
+            Some(quality) => photo.write_jpeg(&photo_path, quality)?,
+            None => photo.write_png(&photo_path)?,
         }
         let world_T_image: Rigid = plan.world_T_marker_bscan * scene.marker_T_image;
         let bubbles = bscan_render::draw_bubbles(&scene, &world_T_image, plan.kind, echo, &mut rng);
