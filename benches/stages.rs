@@ -76,6 +76,8 @@ fn main() {
     });
     println!("B-scan arc detection per image: {:.1} ms", arc * 1e3);
 
+    all_frames(&folder, &camera, &rig, &settings);
+
     let truth =
         probecal::core::geometry::rigid_from_axis_angle(Vector3::new(0.1, -0.2, 0.3), Vector3::new(10.0, 150.0, 25.0));
     for n in [10usize, 100, 10_000] {
@@ -113,5 +115,51 @@ fn main() {
     );
     if let Some(mb) = probecal::report::provenance::peak_memory_mb() {
         println!("peak memory of this process: {mb:.0} MB");
+    }
+}
+
+/// Each stage over every frame of the dataset, one thread, once: the real run's
+/// frames, not a favourable one. Prints the total, the median and the slowest frame.
+fn all_frames(
+    folder: &Path,
+    camera: &probecal::io::camera_model::CameraIntrinsics,
+    rig: &RigBoards,
+    settings: &probecal::detect::arc::ArcSettings,
+) {
+    let list = probecal::io::dataset::load_frame_list(folder).unwrap();
+    let mut stages: [(&str, Vec<f64>); 4] = [
+        ("decode photo", vec![]),
+        ("both boards", vec![]),
+        ("decode B-scan", vec![]),
+        ("arc", vec![]),
+    ];
+    for frame in &list {
+        let t = Instant::now();
+        let photo = probecal::io::image::read_gray(&folder.join(frame.camera_image.as_ref().unwrap())).unwrap();
+        stages[0].1.push(t.elapsed().as_secs_f64());
+        let t = Instant::now();
+        black_box(
+            probecal::detect::board_pose::estimate(&photo, camera, rig)
+                .unwrap()
+                .ok(),
+        );
+        stages[1].1.push(t.elapsed().as_secs_f64());
+        let t = Instant::now();
+        let bscan = probecal::io::image::read_gray(&folder.join(&frame.bscan_image)).unwrap();
+        stages[2].1.push(t.elapsed().as_secs_f64());
+        let t = Instant::now();
+        black_box(probecal::detect::arc::detect(&bscan, settings).unwrap().ok());
+        stages[3].1.push(t.elapsed().as_secs_f64());
+    }
+    for (name, mut times) in stages {
+        let total: f64 = times.iter().sum();
+        times.sort_by(f64::total_cmp);
+        println!(
+            "all {} frames, {name}: {:.0} ms in all, median {:.1} ms, slowest {:.1} ms",
+            times.len(),
+            total * 1e3,
+            times[times.len() / 2] * 1e3,
+            times[times.len() - 1] * 1e3
+        );
     }
 }

@@ -212,7 +212,7 @@ pub fn echo_points(image: &Mat, settings: &ArcSettings) -> Result<Result<EchoPoi
     let [sx, sy] = settings.spacing_mm_per_px;
     // Fan mask, its first row per column, and an eroded interior.
     let inside = |x: usize, y: usize| gray.data[y * w + x] > 0;
-    let top: Vec<Option<usize>> = (0..w).map(|x| (0..h).find(|&y| inside(x, y))).collect();
+    let top = super::fan::first_rows(w, h, |i| gray.data[i] > 0);
     let edge_x = (FAN_EDGE_MM / sx).ceil() as usize;
     let edge_y = (FAN_EDGE_MM / sy).ceil() as usize;
     let interior = |x: usize, y: usize| {
@@ -234,11 +234,11 @@ pub fn echo_points(image: &Mat, settings: &ArcSettings) -> Result<Result<EchoPoi
     gaussian_blur_f32(w, h, &mut iso, 0.4 / sx, 0.4 / sy)?;
 
     let near_rows = (NEAR_FIELD_MM / sy).ceil() as usize;
+    // Rows in memory order (the quantiles do not depend on the order).
     let mut values: Vec<f32> = Vec::new();
-    for x in 0..w {
-        let Some(t) = top[x] else { continue };
-        for y in (t + near_rows).min(h)..h {
-            if interior(x, y) {
+    for y in 0..h {
+        for (x, t) in top.iter().enumerate() {
+            if t.is_some_and(|t| y >= (t + near_rows).min(h)) && interior(x, y) {
                 values.push(smooth[y * w + x]);
             }
         }
@@ -252,13 +252,15 @@ pub fn echo_points(image: &Mat, settings: &ArcSettings) -> Result<Result<EchoPoi
     // 1. Echo points: column-wise ridge maxima, sub-pixel, with the ridge's normal
     //    (Hessian eigenvector of the most negative curvature), kept only where the
     //    structure is line-like rather than a speckle blob.
-    let mut points_mm: Vec<[f64; 2]> = Vec::new();
-    let mut normals: Vec<[f64; 2]> = Vec::new();
+    //    The image is read row by row, in memory order; the points are then put
+    //    in column order (top to bottom within a column).
+    let mut found: Vec<(usize, [f64; 2], [f64; 2])> = Vec::new();
     let at = |x: usize, y: usize| iso[y * w + x] as f64;
-    for x in 2..w.saturating_sub(2) {
-        let Some(t) = top[x] else { continue };
-        let y_start = (t + near_rows).max(2);
-        for y in y_start..h.saturating_sub(2) {
+    for y in 2..h.saturating_sub(2) {
+        for x in 2..w.saturating_sub(2) {
+            if top[x].is_none_or(|t| y < (t + near_rows).max(2)) {
+                continue;
+            }
             let v = smooth[y * w + x];
             if v < threshold || !interior(x, y) {
                 continue;
@@ -299,10 +301,11 @@ pub fn echo_points(image: &Mat, settings: &ArcSettings) -> Result<Result<EchoPoi
             } else {
                 0.0
             };
-            points_mm.push([x as f64 * sx, (y as f64 + offset as f64) * sy]);
-            normals.push([nx, ny]);
+            found.push((x, [x as f64 * sx, (y as f64 + offset as f64) * sy], [nx, ny]));
         }
     }
+    found.sort_by_key(|(x, _, _)| *x);
+    let (points_mm, normals): (Vec<[f64; 2]>, Vec<[f64; 2]>) = found.into_iter().map(|(_, p, n)| (p, n)).unzip();
     if points_mm.len() < settings.min_points {
         return Ok(Err(ArcRejection::TooFewEchoPoints {
             found: points_mm.len(),

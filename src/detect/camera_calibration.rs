@@ -134,9 +134,19 @@ pub fn calibrate(
     let mut size: Option<(PathBuf, Size)> = None;
     let mut used_index: Vec<usize> = Vec::new();
     let mut used_corners: Vec<Vec<[f64; 2]>> = Vec::new();
-    for path in images {
-        let image = match read_gray(path) {
-            Ok(m) => m,
+    // The views are decoded and searched on every core; what follows reads them in order.
+    let searched = crate::core::parallel::parallel_map(images.len(), |i| {
+        read_gray(&images[i]).map(|image| {
+            let size = Size::new(image.cols(), image.rows());
+            (
+                size,
+                detect_chessboard_reduced(&image, inner_corners, subpix, SEARCH_MAX_SIDE_PX),
+            )
+        })
+    });
+    for (path, searched) in images.iter().zip(searched) {
+        let (this, found) = match searched {
+            Ok(s) => s,
             Err(e) => {
                 views.push(CalibrationView {
                     image: path.clone(),
@@ -147,7 +157,6 @@ pub fn calibrate(
                 continue;
             }
         };
-        let this = Size::new(image.cols(), image.rows());
         match &size {
             None => size = Some((path.clone(), this)),
             Some((first, s)) if *s != this => {
@@ -162,7 +171,7 @@ pub fn calibrate(
             }
             _ => {}
         }
-        match detect_chessboard_reduced(&image, inner_corners, subpix, SEARCH_MAX_SIDE_PX)? {
+        match found? {
             Some(corners) => match duplicate_of(&corners, &used_corners) {
                 Some(same) => {
                     let shift_px = max_shift_px(&corners, &used_corners[same]);

@@ -183,7 +183,7 @@ pub fn detect(image: &Mat, settings: &SpotSettings) -> Result<Spots, ImageError>
     let edge_x = (FAN_EDGE_MM / sx).ceil() as usize;
     let edge_y = (FAN_EDGE_MM / sy).ceil() as usize;
     let near_rows = (NEAR_FIELD_MM / sy).ceil() as usize;
-    let top: Vec<Option<usize>> = (0..w).map(|x| (0..h).find(|&y| mask[y * w + x])).collect();
+    let top = super::fan::first_rows(w, h, |i| mask[i]);
     let usable = |x: usize, y: usize| {
         x >= edge_x
             && x + edge_x < w

@@ -149,6 +149,9 @@ pub fn read_gray(path: &Path) -> Result<Mat, ImageError> {
             });
         }
     }
+    if let Some(mat) = decode_gray8_png(&bytes) {
+        return Ok(mat);
+    }
     let buffer = Vector::<u8>::from_slice(&bytes);
     let mat = imgcodecs::imdecode(&buffer, imgcodecs::IMREAD_GRAYSCALE).map_err(|_| ImageError::Undecodable {
         path: path.to_path_buf(),
@@ -159,6 +162,32 @@ pub fn read_gray(path: &Path) -> Result<Mat, ImageError> {
         });
     }
     Ok(mat)
+}
+
+/// An 8-bit grey, non-interlaced PNG decoded straight into a `Mat` by the `png`
+/// crate (three to four times faster than OpenCV's libpng here; the same
+/// pixels). Any other PNG, a JPEG, or a file this decoder refuses gives `None`,
+/// and OpenCV decodes it (or says it cannot).
+fn decode_gray8_png(bytes: &[u8]) -> Option<Mat> {
+    if !bytes.starts_with(b"\x89PNG\r\n\x1a\n") {
+        return None;
+    }
+    let mut decoder = png::Decoder::new(std::io::Cursor::new(bytes));
+    decoder.set_transformations(png::Transformations::IDENTITY);
+    let mut reader = decoder.read_info().ok()?;
+    let info = reader.info();
+    let plain = info.color_type == png::ColorType::Grayscale
+        && info.bit_depth == png::BitDepth::Eight
+        && !info.interlaced
+        && info.trns.is_none();
+    let (width, height) = (i32::try_from(info.width).ok()?, i32::try_from(info.height).ok()?);
+    if !plain || reader.output_buffer_size()? != info.width as usize * info.height as usize {
+        return None;
+    }
+    let mut mat = Mat::new_rows_cols_with_default(height, width, CV_8UC1, opencv::core::Scalar::all(0.0)).ok()?;
+    let data = mat.data_bytes_mut().ok()?;
+    reader.next_frame(data).ok()?;
+    Some(mat)
 }
 
 /// Reads a grey image and checks its size.
@@ -265,5 +294,40 @@ mod header_tests {
         assert!(sizes[0] > sizes[1], "a lower quality compresses more: {sizes:?}");
         assert!(!dir.join("q95.jpg.tmp").exists());
         std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn grey_pngs_decode_to_opencvs_pixels_and_others_are_left_to_opencv() {
+        // A grey ramp with noise, encoded by OpenCV at two compression levels.
+        let mut rng = crate::core::rng::Rng::new(7);
+        let levels: Vec<f32> = (0..97 * 61)
+            .map(|i| ((i % 97) as f32 * 2.5 + rng.uniform(0.0, 30.0) as f32).min(255.0))
+            .collect();
+        let mat = Gray8::from_levels(97, 61, &levels).to_mat().unwrap();
+        for level in [1, 9] {
+            let mut bytes = Vector::<u8>::new();
+            let params = Vector::from_slice(&[imgcodecs::IMWRITE_PNG_COMPRESSION, level]);
+            imgcodecs::imencode(".png", &mat, &mut bytes, &params).unwrap();
+            let fast = decode_gray8_png(bytes.as_slice()).expect("a plain grey PNG takes the fast path");
+            let opencv = imgcodecs::imdecode(&bytes, imgcodecs::IMREAD_GRAYSCALE).unwrap();
+            assert_eq!(
+                mat_to_gray8(&fast).unwrap(),
+                mat_to_gray8(&opencv).unwrap(),
+                "level {level}"
+            );
+        }
+        // Colour and 16-bit PNGs, a JPEG and a cut-off PNG go to OpenCV.
+        let mut colour = Mat::default();
+        opencv::imgproc::cvt_color_def(&mat, &mut colour, opencv::imgproc::COLOR_GRAY2BGR).unwrap();
+        let mut wide = Mat::default();
+        mat.convert_to_def(&mut wide, opencv::core::CV_16U).unwrap();
+        for (ext, image) in [(".png", &colour), (".png", &wide), (".jpg", &mat)] {
+            let mut bytes = Vector::<u8>::new();
+            imgcodecs::imencode(ext, image, &mut bytes, &Vector::new()).unwrap();
+            assert!(decode_gray8_png(bytes.as_slice()).is_none(), "{ext} {}", image.typ());
+        }
+        let mut bytes = Vector::<u8>::new();
+        imgcodecs::imencode(".png", &mat, &mut bytes, &Vector::new()).unwrap();
+        assert!(decode_gray8_png(&bytes.as_slice()[..bytes.len() / 2]).is_none());
     }
 }

@@ -86,17 +86,15 @@ pub fn hash_inputs(paths: &[PathBuf]) -> (String, Vec<InputFile>) {
     let mut sorted: Vec<&PathBuf> = paths.iter().collect();
     sorted.sort();
     sorted.dedup();
-    let inputs: Vec<InputFile> = sorted
-        .into_iter()
-        .map(|p| {
-            let (bytes, sha256) = file_sha256(p).unwrap_or((0, String::new()));
-            InputFile {
-                path: p.to_string_lossy().replace('\\', "/"),
-                bytes,
-                sha256,
-            }
-        })
-        .collect();
+    let inputs: Vec<InputFile> = crate::core::parallel::parallel_map(sorted.len(), |i| {
+        let p = sorted[i];
+        let (bytes, sha256) = file_sha256(p).unwrap_or((0, String::new()));
+        InputFile {
+            path: p.to_string_lossy().replace('\\', "/"),
+            bytes,
+            sha256,
+        }
+    });
     let mut all = Sha256::new();
     for i in &inputs {
         all.update(i.sha256.as_bytes());

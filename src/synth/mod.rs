@@ -169,19 +169,27 @@ fn damage(folder: &Path) -> Option<String> {
     let Ok(listed) = std::fs::read_to_string(folder.join(RENDERED_FILES)) else {
         return Some(format!("{RENDERED_FILES} is missing"));
     };
+    let mut entries = Vec::new();
     for line in listed.lines() {
         let mut parts = line.splitn(3, ' ');
         let (Some(sha), Some(size), Some(rel)) = (parts.next(), parts.next(), parts.next()) else {
             return Some(format!("{RENDERED_FILES} has a malformed line"));
         };
-        match crate::io::fs::file_sha256(&folder.join(rel)) {
-            Err(_) => return Some(format!("{rel} is missing")),
-            Ok((n, _)) if n.to_string() != size => return Some(format!("{rel} has {n} bytes, {size} were rendered")),
-            Ok((_, h)) if h != sha => return Some(format!("{rel} differs from what was rendered")),
-            Ok(_) => {}
-        }
+        entries.push((sha, size, rel));
     }
-    None
+    // The files are hashed on every core; the first damaged one in listing order is reported.
+    parallel_map(entries.len(), |i| {
+        let (sha, size, rel) = entries[i];
+        match crate::io::fs::file_sha256(&folder.join(rel)) {
+            Err(_) => Some(format!("{rel} is missing")),
+            Ok((n, _)) if n.to_string() != size => Some(format!("{rel} has {n} bytes, {size} were rendered")),
+            Ok((_, h)) if h != sha => Some(format!("{rel} differs from what was rendered")),
+            Ok(_) => None,
+        }
+    })
+    .into_iter()
+    .flatten()
+    .next()
 }
 
 /// Renders `spec` into `folder` unless the folder already holds exactly this render.
