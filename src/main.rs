@@ -8,6 +8,7 @@ use clap::{Parser, Subcommand};
 
 use probecal::manifest::Experiment;
 use probecal::pipeline::experiment::{load_all, next_run_folder, run_all, Outcome, RunOptions};
+use probecal::report::live::LiveSource;
 use probecal::report::writer::ReportWriter;
 
 #[derive(Parser)]
@@ -97,6 +98,12 @@ enum Command {
         /// Times the recorded rate (0: every frame at once).
         #[arg(long, default_value_t = 1.0)]
         speed: f64,
+        /// A camera manifest: take its frames from this folder as they are written.
+        #[arg(long)]
+        watch: Option<PathBuf>,
+        /// With --watch: no new frame for this long ends the acquisition, s.
+        #[arg(long, default_value_t = 10.0)]
+        idle_s: f64,
     },
     /// Solve a run again from its own folder (the frames' poses and feature pixels
     /// in `inputs.csv`, the manifest it ran with) and compare with its summary.
@@ -220,7 +227,13 @@ fn main() -> ExitCode {
         Command::Validate { manifests } => probecal::report::console::validate(&manifests),
         Command::Temporal { tracker, video, out } => probecal::report::temporal::command(&video, &tracker, &out),
         Command::Segment { sequence, config, out } => probecal::report::segment::command(&sequence, &config, &out),
-        Command::Live { manifest, out, speed } => probecal::report::live::command(&manifest, &out, speed),
+        Command::Live {
+            manifest,
+            out,
+            speed,
+            watch,
+            idle_s,
+        } => probecal::report::live::command(&manifest, &out, &LiveSource { speed, watch, idle_s }),
         Command::Study(args) => probecal::report::study::dispatch(args),
         Command::Synth { manifests, datasets } => probecal::report::console::synth(&manifests, &datasets),
         Command::Resolve { run } => probecal::report::resolve::command(&run),

@@ -126,6 +126,24 @@ pub fn header_size(bytes: &[u8]) -> Option<(u64, u64)> {
     None
 }
 
+/// Whether a PNG or JPEG file has been written to its end: PNG's `IEND` chunk,
+/// JPEG's end-of-image marker. Other files, and files that cannot be read, are
+/// not complete.
+pub fn file_complete(path: &Path) -> bool {
+    use std::io::{Read, Seek, SeekFrom};
+    const PNG_END: [u8; 12] = [0, 0, 0, 0, b'I', b'E', b'N', b'D', 0xAE, 0x42, 0x60, 0x82];
+    let Ok(mut file) = std::fs::File::open(path) else {
+        return false;
+    };
+    let mut head = [0u8; 8];
+    let mut tail = [0u8; 12];
+    let read = file.read_exact(&mut head).is_ok()
+        && file.seek(SeekFrom::End(-12)).is_ok()
+        && file.read_exact(&mut tail).is_ok();
+    read && ((head == *b"\x89PNG\r\n\x1a\n" && tail == PNG_END)
+        || (head[..2] == [0xFF, 0xD8] && tail[10..] == [0xFF, 0xD9]))
+}
+
 /// Reads an image file as 8-bit grey, saying exactly what is wrong with a bad one.
 pub fn read_gray(path: &Path) -> Result<Mat, ImageError> {
     let meta = std::fs::metadata(path).map_err(|_| ImageError::Missing {
@@ -329,5 +347,25 @@ mod header_tests {
         let mut bytes = Vector::<u8>::new();
         imgcodecs::imencode(".png", &mat, &mut bytes, &Vector::new()).unwrap();
         assert!(decode_gray8_png(&bytes.as_slice()[..bytes.len() / 2]).is_none());
+    }
+
+    #[test]
+    fn a_file_is_complete_once_its_end_marker_is_written() {
+        let dir = std::env::temp_dir().join(format!("probecal-complete-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let mat = Mat::new_rows_cols_with_default(20, 30, CV_8UC1, opencv::core::Scalar::all(90.0)).unwrap();
+        for ext in [".png", ".jpg"] {
+            let mut bytes = Vector::<u8>::new();
+            imgcodecs::imencode(ext, &mat, &mut bytes, &Vector::new()).unwrap();
+            let path = dir.join(format!("frame{ext}"));
+            std::fs::write(&path, &bytes.as_slice()[..bytes.len() - 20]).unwrap();
+            assert!(!file_complete(&path), "{ext}: cut short");
+            std::fs::write(&path, bytes.as_slice()).unwrap();
+            assert!(file_complete(&path), "{ext}: whole");
+        }
+        std::fs::write(dir.join("empty.png"), b"").unwrap();
+        assert!(!file_complete(&dir.join("empty.png")));
+        assert!(!file_complete(&dir.join("absent.png")));
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 }

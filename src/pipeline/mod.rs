@@ -6,6 +6,7 @@ pub mod design;
 pub mod experiment;
 pub mod frames;
 pub mod live;
+pub mod live_folder;
 pub mod methods;
 pub mod record;
 pub mod resolve;

@@ -119,18 +119,42 @@ fn line(f: &LiveFrame) -> String {
     )
 }
 
-/// `probecal live <manifest> --out <dir> --speed S`; the exit code.
-pub fn command(manifest: &Path, out: &Path, speed: f64) -> u8 {
+/// How `probecal live` gets its frames: a tracked manifest's sequence replayed,
+/// or a camera manifest's frames from a folder being written.
+pub struct LiveSource {
+    pub speed: f64,
+    pub watch: Option<std::path::PathBuf>,
+    pub idle_s: f64,
+}
+
+/// `probecal live <manifest> --out <dir> [--speed S | --watch DIR]`; the exit code.
+pub fn command(manifest: &Path, out: &Path, source: &LiveSource) -> u8 {
+    let speed = source.speed;
     if !(speed.is_finite() && speed >= 0.0) {
         eprintln!("error: --speed {speed}: a replay speed is a number ≥ 0 (0: as fast as the frames are processed)");
         return 2;
     }
     let m = match crate::pipeline::experiment::load_all(&[manifest.to_path_buf()]) {
-        Ok(mut all) => match all.pop() {
-            Some(Experiment::Tracked(m)) => m,
+        Ok(mut all) => match (all.pop(), &source.watch) {
+            (Some(Experiment::Tracked(m)), None) => m,
+            (Some(Experiment::Camera(m)), Some(folder)) => {
+                let watch = crate::pipeline::live_folder::Watch {
+                    folder: folder.clone(),
+                    idle_s: source.idle_s,
+                    poll_ms: 20,
+                };
+                return crate::report::live_folder::command(&m, &watch, out);
+            }
+            (Some(Experiment::Tracked(_)), Some(_)) => {
+                eprintln!(
+                    "error: {}: --watch takes a camera manifest's frames from a folder; a tracked manifest replays its sequence (leave out --watch)",
+                    manifest.display()
+                );
+                return 2;
+            }
             _ => {
                 eprintln!(
-                    "error: {}: live calibration replays a tracked sequence (tracking: plus_sequence)",
+                    "error: {}: live calibration replays a tracked sequence (tracking: plus_sequence), or with --watch DIR takes a camera manifest's frames from a folder being written",
                     manifest.display()
                 );
                 return 2;

@@ -13,6 +13,7 @@ pub mod figures;
 pub mod gallery;
 pub mod index;
 pub mod live;
+pub mod live_folder;
 pub mod phantom;
 pub mod provenance;
 pub mod render;
