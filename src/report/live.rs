@@ -16,7 +16,7 @@ use crate::manifest::Experiment;
 use crate::pipeline::live::{LiveFrame, LiveRun, Replay};
 use crate::pipeline::tracked::{Role, TrackedInputs};
 
-fn number(v: Option<f64>) -> String {
+pub(crate) fn number(v: Option<f64>) -> String {
     v.map(|v| format!("{v:.4}")).unwrap_or_default()
 }
 
@@ -42,14 +42,15 @@ pub fn frames_csv(run: &LiveRun) -> String {
     out
 }
 
+/// Mean, 95th percentile and largest of per-frame times, ms.
 #[derive(Serialize)]
-struct Timing {
-    mean: f64,
-    p95: f64,
-    max: f64,
+pub(crate) struct Timing {
+    pub(crate) mean: f64,
+    pub(crate) p95: f64,
+    pub(crate) max: f64,
 }
 
-fn timing(values: &[f64]) -> Timing {
+pub(crate) fn timing(values: &[f64]) -> Timing {
     Timing {
         mean: mean_sd(values).mean,
         p95: if values.is_empty() {

@@ -11,15 +11,11 @@ use std::path::Path;
 
 use serde::Serialize;
 
-use crate::core::stats::{mean_sd, percentile};
 use crate::estimate::horn::HornFit;
 use crate::io::fs::write_all_atomic;
 use crate::manifest::Manifest;
 use crate::pipeline::live_folder::{self, Ending, FolderFrame, FolderRun, Watch};
-
-fn number(v: Option<f64>) -> String {
-    v.map(|v| format!("{v:.4}")).unwrap_or_default()
-}
+use crate::report::live::{number, timing, Timing};
 
 /// `live.csv`.
 pub fn frames_csv(run: &FolderRun) -> String {
@@ -45,25 +41,6 @@ pub fn frames_csv(run: &FolderRun) -> String {
         );
     }
     out
-}
-
-#[derive(Serialize)]
-struct Timing {
-    mean: f64,
-    p95: f64,
-    max: f64,
-}
-
-fn timing(values: &[f64]) -> Timing {
-    Timing {
-        mean: mean_sd(values).mean,
-        p95: if values.is_empty() {
-            0.0
-        } else {
-            percentile(values, 0.95)
-        },
-        max: values.iter().copied().fold(0.0, f64::max),
-    }
 }
 
 #[derive(Serialize)]
