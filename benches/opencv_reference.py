@@ -5,7 +5,8 @@ dataset probecal reads and does what a straightforward script would:
 
 - camera calibration from the 16 views (findChessboardCorners on a half-size
   copy, cornerSubPix at full size, calibrateCamera);
-- per photo, both 10x10 boards: findChessboardCorners on a half-size copy,
+- per photo, both 10x10 boards: findChessboardCorners on a half-size copy
+  (adaptive threshold, without histogram equalisation, as probecal searches),
   cornerSubPix, the identification dots (one dot: probe board, two: phantom
   board, the dot beside the origin corner fixes the order), solvePnP;
 - per B-scan, HoughCircles for the hemisphere's arc and a least-squares circle
@@ -41,9 +42,7 @@ CRITERIA = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 30, 0.01)
 
 def find_corners(grey, pattern):
     half = cv2.resize(grey, None, fx=0.5, fy=0.5, interpolation=cv2.INTER_AREA)
-    found, corners = cv2.findChessboardCorners(
-        half, pattern, flags=cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE
-    )
+    found, corners = cv2.findChessboardCorners(half, pattern, flags=cv2.CALIB_CB_ADAPTIVE_THRESH)
     if not found:
         return None
     corners = corners * 2.0
