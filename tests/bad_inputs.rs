@@ -748,6 +748,24 @@ const CASES: &[Case] = &[
         in_output: "stderr",
     },
     Case {
+        name: "intrinsics without the image size",
+        setup: |d| {
+            with_manifest(d, "../camera.yml", "sizeless.yml");
+            std::fs::write(
+                d.join("sizeless.yml"),
+                "%YAML:1.0\n---\ncamera_matrix: !!opencv-matrix\n   rows: 3\n   cols: 3\n   dt: d\n   \
+                 data: [ 1400., 0., 966., 0., 1400., 535.5, 0., 0., 1. ]\n\
+                 distortion_coefficients: !!opencv-matrix\n   rows: 1\n   cols: 5\n   dt: d\n   \
+                 data: [ -0.12, 0.05, 0., 0., 0. ]\n",
+            )
+            .unwrap()
+        },
+        args: run,
+        code: 1,
+        expect: "field `image_width` is missing",
+        in_output: "stderr",
+    },
+    Case {
         name: "existing output without --force",
         setup: |d| {
             standard(d);

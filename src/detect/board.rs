@@ -219,6 +219,15 @@ impl PrintedBoard {
         }
     }
 
+    /// The points a pose is measured from, in the board frame (mm): the inner
+    /// corners of a checkerboard, every marker's four corners of an ArUco board.
+    pub fn feature_points_mm(&self) -> Vec<Point2<f64>> {
+        match self {
+            PrintedBoard::Checkerboard(b) => b.corners_in_board_mm(),
+            PrintedBoard::Aruco(b) => b.ids().filter_map(|id| b.marker_corners_mm(id)).flatten().collect(),
+        }
+    }
+
     /// Centre of the pattern in the board frame: where the board is mounted by.
     pub fn centre_mm(&self) -> Point2<f64> {
         match self {

@@ -4,36 +4,43 @@
 //! Each arc edge point `x` (image frame, mm) of sphere `k` in a frame measures
 //! `|P · M · x − c_k| − R_k = 0` with Gaussian noise `σ_edge` along the normal.
 //! `M` is `marker_T_image` (six unknowns); `P` is the frame's `phantom_T_marker`,
-//! known only up to the board poses' error: six nuisance unknowns per frame with
-//! a Gaussian prior (`σ_t` per axis, `σ_r` per rotation axis), marginalised
-//! frame by frame (Schur complement). The edge noise is correlated along an arc
+//! measured from the photo's two board poses, so known only up to their error
+//! (`evaluate::pose_noise`): each frame's own part (its corners' noise, the
+//! hand's motion between photo and B-scan) is six nuisance unknowns per frame
+//! with that Gaussian prior, marginalised frame by frame (Schur complement); the
+//! part the camera's intrinsics error puts into every frame alike is nine
+//! unknowns shared by all frames, with the camera calibration's own
+//! information as their prior, marginalised last. The edge noise is correlated along an arc
 //! (speckle, blur), so each arc counts as `points_per_arc` independent points,
 //! as the sphere fit weighs it. The bound on the calibration maps to an RMS
 //! error over the image's corners and centre (the study's measure).
 
-use nalgebra::{DMatrix, Matrix6, Point3, Vector3, Vector6};
+use nalgebra::{DMatrix, Matrix6, Point3, SMatrix, Vector3, Vector6};
 
+use super::pose_noise::{IntrinsicsInformation, PoseFromIntrinsics, INTRINSICS};
 use crate::core::geometry::{perturbed, Rigid};
 use crate::estimate::sphere_fit::KnownSphere;
 
-/// One frame of the bound: the true `phantom_T_marker` and each arc's sphere
-/// (index) with its edge points in the image frame (mm).
+/// One frame of the bound: the true `phantom_T_marker`, each arc's sphere
+/// (index) with its edge points in the image frame (mm), and the error of its
+/// `phantom_T_marker` (in [`perturbed`]'s coordinates: rotation rad, translation mm).
 #[derive(Debug, Clone)]
 pub struct BoundFrame {
     pub phantom_T_marker: Rigid,
     pub arcs: Vec<(usize, Vec<Point3<f64>>)>,
+    /// Covariance of the frame's own pose error (independent between frames).
+    pub pose_cov: Matrix6<f64>,
+    /// The pose's shift per unit error of the camera's intrinsics.
+    pub pose_from_intrinsics: PoseFromIntrinsics,
 }
 
-/// The noise model (each value's source is stated where it is set).
+/// The arcs' noise (each value's source is stated where it is set).
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
-pub struct BoundNoise {
+pub struct EdgeNoise {
     /// SD of an edge point's distance from its sphere, mm.
     pub edge_sd_mm: f64,
     /// Independent points an arc is worth.
     pub points_per_arc: f64,
-    /// SD of each frame's board-pose error, per axis: mm and degrees.
-    pub pose_translation_sd_mm: f64,
-    pub pose_rotation_sd_deg: f64,
 }
 
 const STEP: f64 = 1e-6;
@@ -54,22 +61,19 @@ fn unit(k: usize) -> Vector6<f64> {
 
 /// The bound's RMS error over `probes` (image frame, mm), or `None` when the
 /// layout leaves the calibration unobserved.
+/// `intrinsics_information` is what the camera calibration knows of the
+/// intrinsics (the inverse of their covariance).
 pub fn corner_rms_bound(
     marker_T_image: &Rigid,
     frames: &[BoundFrame],
     spheres: &[KnownSphere],
-    noise: &BoundNoise,
+    noise: &EdgeNoise,
+    intrinsics_information: &IntrinsicsInformation,
     probes: &[Point3<f64>],
 ) -> Option<f64> {
-    let mut info = Matrix6::<f64>::zeros();
-    let pose_prior = Matrix6::from_diagonal(&Vector6::new(
-        (noise.pose_rotation_sd_deg.to_radians()).powi(-2),
-        (noise.pose_rotation_sd_deg.to_radians()).powi(-2),
-        (noise.pose_rotation_sd_deg.to_radians()).powi(-2),
-        noise.pose_translation_sd_mm.powi(-2),
-        noise.pose_translation_sd_mm.powi(-2),
-        noise.pose_translation_sd_mm.powi(-2),
-    ));
+    const N: usize = 6 + INTRINSICS;
+    // Information on (calibration, intrinsics), each frame's own pose error marginalised.
+    let mut info = SMatrix::<f64, N, N>::zeros();
     for frame in frames {
         let rows: usize = frame.arcs.iter().map(|(_, p)| p.len()).sum();
         if rows == 0 {
@@ -97,13 +101,31 @@ pub fn corner_rms_bound(
             }
         }
         let w = DMatrix::from_diagonal(&nalgebra::DVector::from_vec(weights));
-        let a = j_cal.transpose() * &w * &j_cal;
-        let b = j_cal.transpose() * &w * &j_pose;
+        let from_intrinsics = DMatrix::from_iterator(6, INTRINSICS, frame.pose_from_intrinsics.iter().copied());
+        let mut g = DMatrix::<f64>::zeros(rows, N);
+        g.columns_mut(0, 6).copy_from(&j_cal);
+        g.columns_mut(6, INTRINSICS).copy_from(&(&j_pose * from_intrinsics));
+        let pose_prior = frame.pose_cov.try_inverse()?;
+        let a = g.transpose() * &w * &g;
+        let b = g.transpose() * &w * &j_pose;
         let c = j_pose.transpose() * &w * &j_pose + DMatrix::from_iterator(6, 6, pose_prior.iter().copied());
         let c_inv = c.try_inverse()?;
         let schur = a - &b * c_inv * b.transpose();
-        info += Matrix6::from_iterator(schur.iter().copied());
+        info += SMatrix::<f64, N, N>::from_iterator(schur.iter().copied());
     }
+    // The calibration's knowledge of the intrinsics, then the intrinsics marginalised.
+    let own = info.fixed_view::<6, 6>(0, 0).into_owned();
+    let shared = info.fixed_view::<6, INTRINSICS>(0, 6).into_owned();
+    let info = if shared.iter().all(|v| *v == 0.0) {
+        own // no frame depends on the intrinsics
+    } else {
+        let mut kk = info.fixed_view::<INTRINSICS, INTRINSICS>(6, 6).into_owned() + intrinsics_information;
+        // Scaled so that focal lengths (px) and distortion (unitless) invert alike.
+        let scale = IntrinsicsInformation::from_diagonal(&kk.diagonal().map(|d| 1.0 / d.max(f64::MIN_POSITIVE).sqrt()));
+        kk = scale * kk * scale;
+        let ck = shared * scale;
+        own - ck * kk.try_inverse()? * ck.transpose()
+    };
     let cov = info.try_inverse()?;
     let mut sum = 0.0;
     for q in probes {
@@ -124,7 +146,13 @@ mod tests {
     use super::*;
     use crate::core::geometry::rigid_from_axis_angle;
 
-    fn frames(elevations: &[f64], spheres: &[KnownSphere]) -> Vec<BoundFrame> {
+    /// Each frame's own pose error: 0.02° and 0.2 mm per axis.
+    fn own_pose_cov() -> Matrix6<f64> {
+        let r = 0.02f64.to_radians().powi(2);
+        Matrix6::from_diagonal(&Vector6::new(r, r, r, 0.04, 0.04, 0.04))
+    }
+
+    fn frames(elevations: &[f64], spheres: &[KnownSphere], shift: &PoseFromIntrinsics) -> Vec<BoundFrame> {
         // Planes through the phantom's x–z plane, shifted along y by `d`, tilted a little.
         let mut out = Vec::new();
         for (i, d) in elevations.iter().enumerate() {
@@ -154,46 +182,105 @@ mod tests {
                     })
                 })
                 .collect();
-            out.push(BoundFrame { phantom_T_marker, arcs });
+            out.push(BoundFrame {
+                phantom_T_marker,
+                arcs,
+                pose_cov: own_pose_cov(),
+                pose_from_intrinsics: *shift,
+            });
         }
         out
     }
 
-    #[test]
-    fn domes_at_different_offsets_bound_the_calibration_below_one_dome() {
-        let truth = rigid_from_axis_angle(Vector3::zeros(), Vector3::new(-20.0, 160.0, 25.0));
-        let noise = BoundNoise {
-            edge_sd_mm: 0.1,
-            points_per_arc: 20.0,
-            pose_translation_sd_mm: 0.2,
-            pose_rotation_sd_deg: 0.02,
-        };
-        let probes = [
+    fn probes() -> [Point3<f64>; 3] {
+        [
             Point3::new(0.0, 0.0, 0.0),
             Point3::new(80.0, 0.0, 0.0),
             Point3::new(40.0, 60.0, 0.0),
-        ];
-        let d: Vec<f64> = (0..40).map(|i| 0.5 * ((i % 7) as f64 - 3.0) / 3.0).collect();
-        let one = [KnownSphere {
-            centre_in_phantom_mm: Point3::new(0.0, 0.0, 0.0),
-            radius_mm: 15.0,
-        }];
-        let three: Vec<KnownSphere> = [(-22.0, -5.0), (0.0, 0.0), (22.0, 5.0)]
+        ]
+    }
+
+    fn three_domes() -> Vec<KnownSphere> {
+        [(-22.0, -5.0), (0.0, 0.0), (22.0, 5.0)]
             .iter()
             .map(|(x, y)| KnownSphere {
                 centre_in_phantom_mm: Point3::new(*x, *y, 0.0),
                 radius_mm: 10.0,
             })
-            .collect();
-        let b1 = corner_rms_bound(&truth, &frames(&d, &one), &one, &noise, &probes).unwrap();
-        let b3 = corner_rms_bound(&truth, &frames(&d, &three), &three, &noise, &probes).unwrap();
+            .collect()
+    }
+
+    fn elevations() -> Vec<f64> {
+        (0..40).map(|i| 0.5 * ((i % 7) as f64 - 3.0) / 3.0).collect()
+    }
+
+    #[test]
+    fn domes_at_different_offsets_bound_the_calibration_below_one_dome() {
+        let truth = rigid_from_axis_angle(Vector3::zeros(), Vector3::new(-20.0, 160.0, 25.0));
+        let noise = EdgeNoise {
+            edge_sd_mm: 0.1,
+            points_per_arc: 20.0,
+        };
+        let none = PoseFromIntrinsics::zeros();
+        let known = IntrinsicsInformation::zeros();
+        let d = elevations();
+        let one = [KnownSphere {
+            centre_in_phantom_mm: Point3::new(0.0, 0.0, 0.0),
+            radius_mm: 15.0,
+        }];
+        let three = three_domes();
+        let b1 = corner_rms_bound(&truth, &frames(&d, &one, &none), &one, &noise, &known, &probes()).unwrap();
+        let b3 = corner_rms_bound(&truth, &frames(&d, &three, &none), &three, &noise, &known, &probes()).unwrap();
         assert!(b3 < 0.5 * b1, "three domes {b3} mm vs one {b1} mm");
         // More noise, a larger bound.
-        let noisy = BoundNoise {
+        let noisy = EdgeNoise {
             edge_sd_mm: 0.2,
             ..noise
         };
-        let b3n = corner_rms_bound(&truth, &frames(&d, &three), &three, &noisy, &probes).unwrap();
+        let b3n = corner_rms_bound(&truth, &frames(&d, &three, &none), &three, &noisy, &known, &probes()).unwrap();
         assert!(b3n > b3, "{b3n} vs {b3}");
+    }
+
+    #[test]
+    fn an_error_every_frame_shares_does_not_average_out() {
+        // The first intrinsic shifts every frame's pose by 1 mm along x per unit.
+        let truth = rigid_from_axis_angle(Vector3::zeros(), Vector3::new(-20.0, 160.0, 25.0));
+        let noise = EdgeNoise {
+            edge_sd_mm: 0.1,
+            points_per_arc: 20.0,
+        };
+        let three = three_domes();
+        let d = elevations();
+        let mut shift = PoseFromIntrinsics::zeros();
+        shift[(3, 0)] = 1.0;
+        let independent = corner_rms_bound(
+            &truth,
+            &frames(&d, &three, &PoseFromIntrinsics::zeros()),
+            &three,
+            &noise,
+            &IntrinsicsInformation::zeros(),
+            &probes(),
+        )
+        .unwrap();
+        let bound_with_sd = |sd: f64| {
+            // Intrinsics other than the first are known exactly (large information).
+            let mut info = IntrinsicsInformation::identity() * 1e12;
+            info[(0, 0)] = sd.powi(-2);
+            corner_rms_bound(&truth, &frames(&d, &three, &shift), &three, &noise, &info, &probes()).unwrap()
+        };
+        let exact = bound_with_sd(1e-9);
+        assert!(
+            (exact - independent).abs() < 1e-6 * independent,
+            "{exact} vs {independent}"
+        );
+        // A shared 0.3 mm error along x cannot be averaged over the frames: most
+        // of it is added (in quadrature) to the bound.
+        let shared = bound_with_sd(0.3);
+        let added = (shared.powi(2) - independent.powi(2)).sqrt();
+        assert!(
+            added > 0.2 && added < 0.35,
+            "{shared} vs {independent}: {added} mm added"
+        );
+        assert!(shared > bound_with_sd(0.1), "less calibration noise, a smaller bound");
     }
 }

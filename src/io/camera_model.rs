@@ -178,8 +178,17 @@ impl CameraIntrinsics {
                 .filter(|n| !n.empty().unwrap_or(true))
                 .and_then(|n| n.to_i32().ok())
         };
-        let width = read_int("image_width").unwrap_or(0).max(0) as u32;
-        let height = read_int("image_height").unwrap_or(0).max(0) as u32;
+        // The frames are checked against this size: without it every frame would be refused.
+        let size = |field: &'static str| match read_int(field) {
+            Some(v) if v > 0 => Ok(v as u32),
+            Some(v) => Err(field_err(
+                field,
+                &format!("must be a positive number of pixels, is {v}"),
+            )),
+            None => Err(field_err(field, "is missing")),
+        };
+        let width = size("image_width")?;
+        let height = size("image_height")?;
         let rms_px = fs
             .get("avg_reprojection_error")
             .ok()

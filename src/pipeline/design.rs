@@ -16,28 +16,52 @@ use serde::Serialize;
 use crate::core::geometry::{image_probe_points, Rigid};
 use crate::detect::board_pose::RigBoards;
 use crate::estimate::sphere_fit::KnownSphere;
-use crate::evaluate::sphere_bound::{self, BoundFrame, BoundNoise};
+use crate::evaluate::pose_noise::{self, PhotoNoise, SweepPhoto};
+use crate::evaluate::sphere_bound::{self, BoundFrame, EdgeNoise};
 use crate::manifest::Manifest;
 use crate::spec::phantom::{Phantom, Sphere};
 use crate::spec::render::RenderSpec;
 use crate::synth::scene::{lab_layout, FrameKind};
 
-/// The noise the bound is computed under, measured on the default hemisphere
-/// run (`reports/hemisphere_checkerboard/dataset3`):
+/// The noise the bound is computed under. Every value was measured on the
+/// default hemisphere run (`reports/hemisphere_checkerboard/dataset3`), the
+/// same camera, boards and sweep; residual RMS values are scaled by
+/// `√(n / (n − p))` for the `p` unknowns fitted to their `n` residuals:
 /// - the edge points' SD about their circle: the median arc-fit RMS there,
 ///   0.62 px of 0.2 mm (`frames.csv`, `arc_rms_px`);
 /// - an arc counts as 20 independent points (its noise is correlated along it;
 ///   the sphere fit weighs an arc so);
-/// - each frame's board-pose error, per axis: the probe board's mean pose error
-///   against the truth there, 0.432 mm and 0.0277° (`summary.json`,
-///   `truth.probe_pose_error_*`), over 1.596 (the mean length of a 3D
-///   isotropic Gaussian in units of its per-axis SD).
+/// - a probe-board corner's SD per image axis: the median reprojection RMS of
+///   the probe board's pose there, 0.0811 px (`probe_board_rms_px`, 100
+///   corners, 6 unknowns);
+/// - a phantom-board corner's: 0.0547 px likewise (`phantom_board_rms_px`);
+/// - a camera-calibration corner's: the calibration's RMS there, 0.0767 px
+///   (`summary.json`, `camera.rms_px`; 16 views of 54 corners, 9 intrinsics
+///   and 16 poses).
+///
+/// The hand's motion between photo and B-scan is the sweep's stated tremor
+/// (`render.sweep.tremor_mm`, `tremor_deg`).
 pub const NOISE: BoundNoise = BoundNoise {
     edge_sd_mm: 0.124,
     points_per_arc: 20.0,
-    pose_translation_sd_mm: 0.271,
-    pose_rotation_sd_deg: 0.0174,
+    probe_corner_sd_px: 0.0823,
+    phantom_corner_sd_px: 0.0556,
+    calibration_corner_sd_px: 0.0792,
 };
+
+/// The noise of the arcs and of the camera's measurements.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct BoundNoise {
+    /// SD of an edge point's distance from its sphere, mm.
+    pub edge_sd_mm: f64,
+    /// Independent points an arc is worth.
+    pub points_per_arc: f64,
+    /// SD of a board corner's position per image axis in a sweep photo, px.
+    pub probe_corner_sd_px: f64,
+    pub phantom_corner_sd_px: f64,
+    /// SD of a corner's position per image axis in a camera-calibration view, px.
+    pub calibration_corner_sd_px: f64,
+}
 
 /// Domes closer than this (mm, surface to surface) are not printable apart.
 pub const MIN_GAP_MM: f64 = 2.0;
@@ -133,7 +157,8 @@ pub struct Bound {
 /// The bound of `phantom` in the manifest's lab for a render spec: the
 /// scene's frames (all but those where the probe moved between photo and
 /// B-scan, or the plane misses), each cut dome's arc sampled one point per
-/// pixel column within ±55° of its top.
+/// pixel column within ±55° of its top; the boards' poses from their corners
+/// in the scene's photos, with the intrinsics from the scene's calibration views.
 pub fn bound_of(
     manifest: &Manifest,
     phantom: &Phantom,
@@ -143,6 +168,25 @@ pub fn bound_of(
     let mut lab = super::settings::lab(manifest);
     lab.phantom = phantom;
     let scene = crate::synth::scene_of(&lab, spec).map_err(|e| e.to_string())?;
+    if lab.calibration_board.is_none() {
+        return Err("the bound models a camera calibrated from board views (`camera.calibrate`)".into());
+    }
+    let photo_noise = PhotoNoise {
+        probe_corner_sd_px: noise.probe_corner_sd_px,
+        phantom_corner_sd_px: noise.phantom_corner_sd_px,
+        tremor_sd_mm: spec.sweep.tremor_mm,
+        tremor_sd_deg: spec.sweep.tremor_deg,
+    };
+    let probe_corners = scene.probe_board.feature_points_mm();
+    let phantom_corners = scene.phantom_board.feature_points_mm();
+    let camera_T_phantom = scene.camera_T_world * scene.world_T_phantom;
+    let intrinsics_information = pose_noise::calibration_information(
+        &scene.camera,
+        &scene.camera_T_calibration_board,
+        &scene.calibration_board.corners_in_board_mm(),
+        noise.calibration_corner_sd_px,
+    )
+    .ok_or("a camera-calibration view is behind the camera")?;
     let spheres: Vec<KnownSphere> = match phantom {
         Phantom::Spheres { spheres } => spheres
             .iter()
@@ -194,10 +238,20 @@ pub fn bound_of(
             frame_arcs.push((k, points));
         }
         if !frame_arcs.is_empty() {
+            let photo = SweepPhoto {
+                camera_T_marker: scene.camera_T_world * plan.world_T_marker_photo,
+                camera_T_phantom,
+                marker_corners_mm: &probe_corners,
+                phantom_corners_mm: &phantom_corners,
+            };
+            let pose = pose_noise::frame_pose_noise(&scene.camera, &photo, &photo_noise)
+                .ok_or("a board's pose is not determined by its corners")?;
             arcs += frame_arcs.len();
             frames.push(BoundFrame {
                 phantom_T_marker,
                 arcs: frame_arcs,
+                pose_cov: pose.cov,
+                pose_from_intrinsics: pose.from_intrinsics,
             });
         }
     }
@@ -205,8 +259,19 @@ pub fn bound_of(
         [scene.bscan.width_px, scene.bscan.height_px],
         manifest.bscan_spacing_mm_per_px,
     );
-    let rms_mm = sphere_bound::corner_rms_bound(&scene.marker_T_image, &frames, &spheres, noise, &probes)
-        .ok_or("the layout leaves the calibration unobserved")?;
+    let edge = EdgeNoise {
+        edge_sd_mm: noise.edge_sd_mm,
+        points_per_arc: noise.points_per_arc,
+    };
+    let rms_mm = sphere_bound::corner_rms_bound(
+        &scene.marker_T_image,
+        &frames,
+        &spheres,
+        &edge,
+        &intrinsics_information,
+        &probes,
+    )
+    .ok_or("the layout leaves the calibration unobserved")?;
     Ok(Bound {
         rms_mm,
         frames: frames.len(),

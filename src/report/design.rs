@@ -6,8 +6,7 @@ use std::path::Path;
 
 use serde::Serialize;
 
-use crate::evaluate::sphere_bound::BoundNoise;
-use crate::pipeline::design::{self, Bound, DesignRow, DESIGN_SEEDS, NOISE};
+use crate::pipeline::design::{self, Bound, BoundNoise, DesignRow, DESIGN_SEEDS, NOISE};
 use crate::spec::phantom::Phantom;
 
 #[derive(Serialize)]
@@ -42,8 +41,11 @@ fn markdown(file: &DesignFile<'_>) -> String {
         s,
         "Bound: RMS error over the image's corners and centre (mm) of any unbiased estimate from the arcs' edges \
          (RMS over the sweeps), \
-         with edge noise {} mm (an arc worth {} points) and each frame's board pose off by {} mm and {}° per axis.\n",
-        n.edge_sd_mm, n.points_per_arc, n.pose_translation_sd_mm, n.pose_rotation_sd_deg
+         with edge noise {} mm (an arc worth {} points); each frame's `phantom_T_marker` from the photo's \
+         board poses, with corner noise {} px (probe board) and {} px (phantom board) and the sweep's tremor \
+         between photo and B-scan, and the camera's intrinsics known only as well as its calibration views \
+         (corner noise {} px) pin them down, one error shared by every frame.\n",
+        n.edge_sd_mm, n.points_per_arc, n.probe_corner_sd_px, n.phantom_corner_sd_px, n.calibration_corner_sd_px
     );
     let _ = writeln!(
         s,
