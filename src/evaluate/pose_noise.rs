@@ -38,12 +38,20 @@ fn with_intrinsics(camera: &CameraIntrinsics, v: &IntrinsicsVector) -> CameraInt
 const INTRINSICS_STEP: [f64; INTRINSICS] = [1e-4, 1e-4, 1e-4, 1e-4, 1e-7, 1e-7, 1e-7, 1e-7, 1e-7];
 const POSE_STEP: f64 = 1e-7;
 
-fn pose_at(base: &Rigid, delta: &Vector6<f64>) -> Rigid {
+/// `base` moved by `delta` in [`perturbed`]'s coordinates (rotation vector rad, translation mm).
+pub(crate) fn pose_at(base: &Rigid, delta: &Vector6<f64>) -> Rigid {
     perturbed(
         base,
         Vector3::new(delta[0], delta[1], delta[2]),
         Vector3::new(delta[3], delta[4], delta[5]),
     )
+}
+
+/// The pose coordinate `c` moved by one finite-difference step.
+fn step(c: usize) -> Vector6<f64> {
+    let mut d = Vector6::zeros();
+    d[c] = POSE_STEP;
+    d
 }
 
 /// The coordinates `delta` with `pose_at(base, delta) = moved`.
@@ -74,9 +82,7 @@ fn board_jacobians(
     let rows = base.len();
     let mut by_pose = nalgebra::DMatrix::zeros(rows, 6);
     for c in 0..6 {
-        let mut d = Vector6::zeros();
-        d[c] = POSE_STEP;
-        let moved = projections(camera, &pose_at(camera_T_board, &d), points_in_board)?;
+        let moved = projections(camera, &pose_at(camera_T_board, &step(c)), points_in_board)?;
         for r in 0..rows {
             by_pose[(r, c)] = (moved[r] - base[r]) / POSE_STEP;
         }
@@ -151,12 +157,10 @@ fn relative_from_board(photo: &SweepPhoto, marker: bool) -> Matrix6<f64> {
     let base = relative(&photo.camera_T_marker, &photo.camera_T_phantom);
     let mut out = Matrix6::zeros();
     for c in 0..6 {
-        let mut d = Vector6::zeros();
-        d[c] = POSE_STEP;
         let moved = if marker {
-            relative(&pose_at(&photo.camera_T_marker, &d), &photo.camera_T_phantom)
+            relative(&pose_at(&photo.camera_T_marker, &step(c)), &photo.camera_T_phantom)
         } else {
-            relative(&photo.camera_T_marker, &pose_at(&photo.camera_T_phantom, &d))
+            relative(&photo.camera_T_marker, &pose_at(&photo.camera_T_phantom, &step(c)))
         };
         out.set_column(c, &(pose_delta(&base, &moved) / POSE_STEP));
     }

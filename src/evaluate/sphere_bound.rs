@@ -15,15 +15,15 @@
 //! as the sphere fit weighs it. The bound on the calibration maps to an RMS
 //! error over the image's corners and centre (the study's measure).
 
-use nalgebra::{DMatrix, Matrix6, Point3, SMatrix, Vector3, Vector6};
+use nalgebra::{DMatrix, Matrix6, Point3, SMatrix, Vector6};
 
-use super::pose_noise::{IntrinsicsInformation, PoseFromIntrinsics, INTRINSICS};
-use crate::core::geometry::{perturbed, Rigid};
+use super::pose_noise::{pose_at as at, IntrinsicsInformation, PoseFromIntrinsics, INTRINSICS};
+use crate::core::geometry::Rigid;
 use crate::estimate::sphere_fit::KnownSphere;
 
 /// One frame of the bound: the true `phantom_T_marker`, each arc's sphere
 /// (index) with its edge points in the image frame (mm), and the error of its
-/// `phantom_T_marker` (in [`perturbed`]'s coordinates: rotation rad, translation mm).
+/// `phantom_T_marker` (in [`perturbed`](crate::core::geometry::perturbed)'s coordinates: rotation rad, translation mm).
 #[derive(Debug, Clone)]
 pub struct BoundFrame {
     pub phantom_T_marker: Rigid,
@@ -44,14 +44,6 @@ pub struct EdgeNoise {
 }
 
 const STEP: f64 = 1e-6;
-
-fn at(base: &Rigid, delta: &Vector6<f64>) -> Rigid {
-    perturbed(
-        base,
-        Vector3::new(delta[0], delta[1], delta[2]),
-        Vector3::new(delta[3], delta[4], delta[5]),
-    )
-}
 
 fn unit(k: usize) -> Vector6<f64> {
     let mut v = Vector6::zeros();
@@ -145,6 +137,7 @@ pub fn corner_rms_bound(
 mod tests {
     use super::*;
     use crate::core::geometry::rigid_from_axis_angle;
+    use nalgebra::Vector3;
 
     /// Each frame's own pose error: 0.02° and 0.2 mm per axis.
     fn own_pose_cov() -> Matrix6<f64> {
