@@ -567,6 +567,42 @@ const CASES: &[Case] = &[
         in_output: "stderr",
     },
     Case {
+        name: "frames' boards refine the camera on an ArUco rig",
+        setup: |d| {
+            standard(d);
+            let text = MANIFEST
+                .replacen("  checkerboard:\n    probe_board: {inner_corners: [10, 10], square_mm: 13.0, id_dots: 1}\n    phantom_board: {inner_corners: [10, 10], square_mm: 13.0, id_dots: 2}\n", "  aruco:\n    dictionary: DICT_4X4_50\n    probe_board: {markers: [4, 4], marker_mm: 30, separation_mm: 8, first_id: 0}\n    phantom_board: {markers: [4, 4], marker_mm: 30, separation_mm: 8, first_id: 16}\n", 1)
+                .replacen("  intrinsics_file: ../camera.yml\n", "  calibrate: {inner_corners: [9, 6], square_mm: 30.0, refine_with_frames: true}\n", 1);
+            std::fs::write(d.join("experiment.yaml"), text).unwrap();
+        },
+        args: validate,
+        code: 2,
+        expect: "field `camera.calibrate.refine_with_frames`: the frames' boards refine the intrinsics on a checkerboard rig only",
+        in_output: "stderr",
+    },
+    Case {
+        name: "gates name an estimator that does not exist",
+        setup: |d| with_manifest(d, "thresholds:\n", "thresholds:\n  gates: {method: sphere_fit_magic, truth_corner_error_mm: 1.0}\n"),
+        args: validate,
+        code: 2,
+        expect: "field `thresholds.gates.method`: `sphere_fit_magic` is not an estimator",
+        in_output: "stderr",
+    },
+    Case {
+        name: "pose prior on a hemisphere",
+        setup: |d| {
+            with_manifest(
+                d,
+                "bscan:\n",
+                "solve:\n  sphere_fit:\n    pose_prior: {hand: {speed_mm_per_s: 3.0, rotation_deg_per_s: 1.0}, asynchrony_sd_s: 0.05}\nbscan:\n",
+            )
+        },
+        args: validate,
+        code: 2,
+        expect: "field `solve.sphere_fit.pose_prior`: the pose prior belongs to the multi-sphere fit",
+        in_output: "stderr",
+    },
+    Case {
         name: "ArUco ids overlap",
         setup: |d| {
             with_manifest(d, "  checkerboard:\n    probe_board: {inner_corners: [10, 10], square_mm: 13.0, id_dots: 1}\n    phantom_board: {inner_corners: [10, 10], square_mm: 13.0, id_dots: 2}\n", "  aruco:\n    dictionary: DICT_4X4_50\n    probe_board: {markers: [4, 4], marker_mm: 30, separation_mm: 8, first_id: 0}\n    phantom_board: {markers: [4, 4], marker_mm: 30, separation_mm: 8, first_id: 8}\n")

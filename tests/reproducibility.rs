@@ -211,5 +211,5 @@ fn study_manifests_load() {
             loaded += 1;
         }
     }
-    assert_eq!(loaded, 4, "experiments/studies/ should hold the four study manifests");
+    assert_eq!(loaded, 5, "experiments/studies/ should hold the five study manifests");
 }

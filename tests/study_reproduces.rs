@@ -8,7 +8,7 @@ mod common;
 use common::{probecal, root, scratch};
 
 /// (manifest, committed study folder under `reports/`).
-const STUDIES: [(&str, &str); 8] = [
+const STUDIES: [(&str, &str); 11] = [
     ("experiments/hemisphere_checkerboard.yaml", "study"),
     ("experiments/studies/hemisphere_true_camera.yaml", "study/true_camera"),
     (
@@ -24,6 +24,15 @@ const STUDIES: [(&str, &str); 8] = [
         "study/more_outliers",
     ),
     ("experiments/spheres_checkerboard.yaml", "study/spheres"),
+    ("experiments/spheres_checkerboard.yaml", "study/spheres_choice/refine"),
+    (
+        "experiments/studies/spheres_views_only.yaml",
+        "study/spheres_choice/views_only",
+    ),
+    (
+        "experiments/studies/spheres_views_only.yaml",
+        "study/spheres_views_only",
+    ),
     ("experiments/thesis_twin_dataset3.yaml", "study/thesis_twin_dataset3"),
     ("experiments/thesis_twin_aruco.yaml", "study/thesis_twin_aruco"),
 ];

@@ -333,7 +333,8 @@ pub(super) fn rigid_from_rvec_tvec(rvec: &Mat, tvec: &Mat) -> opencv::Result<Rig
     Ok(rigid_from_parts(&rot, &t))
 }
 
-fn solve_pose(
+/// A checkerboard's pose from its identified corners (canonical order).
+pub fn solve_pose(
     camera: &CameraIntrinsics,
     layout: &BoardLayout,
     corners_px: &[[f64; 2]],

@@ -35,6 +35,12 @@ pub struct CameraCalibration {
     pub square_mm: f64,
     /// What the views leave poorly constrained (the calibration is kept).
     pub warnings: Vec<String>,
+    /// The corners of the views used, in the order solved, px.
+    #[serde(skip)]
+    pub used_corners_px: Vec<Vec<[f64; 2]>>,
+    /// Set when more board views (the frames' boards) refined these intrinsics.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub refined: Option<super::camera_refinement::Refinement>,
 }
 
 /// A view whose every corner lies within this many pixels of an earlier view's
@@ -70,6 +76,8 @@ pub enum CalibrationError {
         w1: i32,
         h1: i32,
     },
+    #[error("the camera's solve with the frames' boards diverged (a board behind the camera or a singular system)")]
+    Diverged,
     #[error("opencv: {0}")]
     OpenCv(#[from] opencv::Error),
 }
@@ -248,6 +256,7 @@ pub fn calibrate(
         let imagep: Vector<Vector<opencv::core::Point2f>> =
             keep.iter().map(|&i| imagep.get(i)).collect::<opencv::Result<_>>()?;
         used_index = keep.iter().map(|&i| used_index[i]).collect();
+        used_corners = keep.iter().map(|&i| used_corners[i].clone()).collect();
         solved = solve(&object, &imagep, image_size)?;
     }
     for (i, view_index) in used_index.iter().enumerate() {
@@ -280,6 +289,8 @@ pub fn calibrate(
         inner_corners,
         square_mm,
         warnings,
+        used_corners_px: used_corners,
+        refined: None,
     })
 }
 

@@ -5,6 +5,7 @@ pub mod horn;
 pub mod image_to_probe;
 pub mod model_selection;
 pub mod robust;
+pub mod sphere_bundle;
 pub mod sphere_fit;
 pub mod sphere_matching;
 pub mod start_basin;

@@ -62,6 +62,32 @@ pub struct SphereFitOptions {
     pub elevation_prior_from_data: bool,
     /// Estimate a constant offset of the echo edge from the sphere surface.
     pub fit_radius_offset: bool,
+    /// Multi-sphere phantoms: the sphere fit again with every frame's pose free
+    /// under the prior its boards' corners and the hand give (absent: not run).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub pose_prior: Option<PosePrior>,
+}
+
+/// How far the probe moves between a frame's photo and its B-scan: the hand's
+/// speed times the two grabs' asynchrony. Per axis, the SD is the RMS speed over
+/// √3 times the asynchrony's SD.
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct PosePrior {
+    pub hand: crate::spec::realism::Hand,
+    /// SD of the time between the photo and the B-scan, s.
+    pub asynchrony_sd_s: f64,
+}
+
+impl PosePrior {
+    /// SD of the marker's motion per axis: mm and degrees.
+    pub fn tremor_sd(&self) -> (f64, f64) {
+        let per_axis = self.asynchrony_sd_s / 3f64.sqrt();
+        (
+            self.hand.speed_mm_per_s * per_axis,
+            self.hand.rotation_deg_per_s * per_axis,
+        )
+    }
 }
 
 impl Default for SphereFitOptions {
@@ -71,6 +97,7 @@ impl Default for SphereFitOptions {
             elevation_prior_sd_mm: Some(1.0),
             elevation_prior_from_data: false,
             fit_radius_offset: true,
+            pose_prior: None,
         }
     }
 }
@@ -255,6 +282,18 @@ impl Default for RawThresholds {
     }
 }
 
+/// The estimators' names (`pipeline::record::Method::name`), as `gates.method` may name one.
+pub const ESTIMATOR_NAMES: [&str; 8] = [
+    "cutoff_worst_first",
+    "thesis_one_shot",
+    "ransac",
+    "lmeds",
+    "ransac_lm_scales",
+    "ransac_sphere_fit",
+    "sphere_fit",
+    "sphere_fit_pose_prior",
+];
+
 /// Accuracy gates: a run that misses one reports it and exits non-zero.
 #[derive(Debug, Clone, PartialEq, Default, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
@@ -265,6 +304,10 @@ pub struct Gates {
     pub truth_rotation_error_deg: Option<f64>,
     /// Mean BRE along any axis, at the calibration cut-off.
     pub bre_mean_mm: Option<f64>,
+    /// The estimator the truth gates check, by its name in the methods table
+    /// (e.g. `sphere_fit_pose_prior`); absent: the reported calibration.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub method: Option<String>,
 }
 
 #[derive(Debug, Clone, Deserialize)]

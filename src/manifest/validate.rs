@@ -61,7 +61,7 @@ pub(super) fn validate(c: &mut Checker<'_>, base: &Path, raw: raw::RawManifest, 
 }
 
 /// The camera section: an intrinsics file, or a calibration from board views.
-fn camera_source(c: &mut Checker<'_>, base: &Path, camera: &raw::RawCamera) -> CameraSource {
+fn camera_source(c: &mut Checker<'_>, base: &Path, camera: &raw::RawCamera, raw_rig: &Rig) -> CameraSource {
     match (&camera.intrinsics_file, &camera.calibrate) {
         (Some(file), None) => CameraSource::IntrinsicsFile(c.existing("camera.intrinsics_file", base, file, false)),
         (None, Some(cal)) => {
@@ -73,6 +73,12 @@ fn camera_source(c: &mut Checker<'_>, base: &Path, camera: &raw::RawCamera) -> C
                     id_dots: 0,
                 },
             );
+            if cal.refine_with_frames && !matches!(raw_rig, Rig::Checkerboard { .. }) {
+                c.fail(
+                    "camera.calibrate.refine_with_frames",
+                    "the frames' boards refine the intrinsics on a checkerboard rig only",
+                );
+            }
             let images = cal
                 .images
                 .as_ref()
@@ -277,6 +283,29 @@ fn solve_section(c: &mut Checker<'_>, raw: &raw::RawManifest) {
     }
     c.positive("solve.robust.noise_sd_mm", r.noise_sd_mm);
     c.at_least("solve.robust.samples", r.samples as f64, 1.0);
+    if let Some(name) = &raw.thresholds.gates.method {
+        if !raw::ESTIMATOR_NAMES.contains(&name.as_str()) {
+            c.fail(
+                "thresholds.gates.method",
+                format!(
+                    "`{name}` is not an estimator; one of: {}",
+                    raw::ESTIMATOR_NAMES.join(", ")
+                ),
+            );
+        }
+    }
+    if let Some(prior) = &raw.solve.sphere_fit.pose_prior {
+        let f = "solve.sphere_fit.pose_prior";
+        c.positive(&format!("{f}.hand.speed_mm_per_s"), prior.hand.speed_mm_per_s);
+        c.positive(&format!("{f}.hand.rotation_deg_per_s"), prior.hand.rotation_deg_per_s);
+        c.positive(&format!("{f}.asynchrony_sd_s"), prior.asynchrony_sd_s);
+        if !matches!(raw.phantom, Phantom::Spheres { .. }) {
+            c.fail(
+                f,
+                "the pose prior belongs to the multi-sphere fit: `phantom: spheres:` only",
+            );
+        }
+    }
     if let Some(sd) = raw.solve.sphere_fit.elevation_prior_sd_mm {
         c.positive("solve.sphere_fit.elevation_prior_sd_mm", sd);
     }
@@ -390,7 +419,7 @@ fn rig_section(c: &mut Checker<'_>, raw: &raw::RawManifest) {
 /// or a tracker's CSV.
 fn poses_section(c: &mut Checker<'_>, base: &Path, raw: &raw::RawManifest) -> CameraSource {
     match (&raw.camera, &raw.poses) {
-        (Some(camera), None) => camera_source(c, base, camera),
+        (Some(camera), None) => camera_source(c, base, camera, &raw.rig),
         (None, Some(poses)) => {
             let t = &poses.tracker_csv;
             let f = "poses.tracker_csv";

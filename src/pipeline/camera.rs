@@ -3,9 +3,12 @@
 
 use std::path::Path;
 
-use super::record::{CameraStage, TrackerSource};
+use super::record::{CameraStage, FrameRecord, Rejection, TrackerSource};
 use super::run::RunError;
+use crate::detect::board::PrintedBoard;
+use crate::detect::board_pose::{RigBoards, RigLayout};
 use crate::detect::camera_calibration;
+use crate::detect::camera_refinement::{self, BoardView};
 use crate::io::camera_model::CameraIntrinsics;
 use crate::io::tracker_poses::TrackerPoses;
 use crate::manifest::{CameraSource, Manifest};
@@ -60,4 +63,69 @@ pub fn camera_stage(manifest: &Manifest, dataset: &str, folder: &Path) -> Result
             })
         }
     }
+}
+
+/// `camera.calibrate.refine_with_frames`: the intrinsics solved again with
+/// every pair of boards the frames' photos show (frames whose poses passed
+/// their checks), then every frame's boards posed again with them. Returns
+/// whether it ran.
+pub fn refine_with_frames(
+    manifest: &Manifest,
+    camera: &mut CameraStage,
+    frames: &mut [FrameRecord],
+    rig: &RigBoards,
+    dataset: &str,
+) -> Result<bool, RunError> {
+    let CameraSource::Calibrate { board, .. } = &manifest.camera else {
+        return Ok(false);
+    };
+    if !board.refine_with_frames {
+        return Ok(false);
+    }
+    let (PrintedBoard::Checkerboard(probe), PrintedBoard::Checkerboard(phantom)) = (&rig.probe, &rig.phantom) else {
+        return Err(RunError::Unsupported(
+            "camera.calibrate.refine_with_frames takes a checkerboard rig".into(),
+        ));
+    };
+    let Some(calibration) = &camera.calibration else {
+        return Ok(false);
+    };
+    let mut boards = Vec::new();
+    for record in frames.iter() {
+        let Some(poses) = &record.poses else { continue };
+        if matches!(record.rejection, Some(Rejection::Implausible(_))) {
+            continue;
+        }
+        for (name, layout, observation) in [
+            ("probe", probe, &poses.camera_T_marker),
+            ("phantom", phantom, &poses.camera_T_phantom),
+        ] {
+            boards.push(BoardView {
+                label: format!("frame {}, {name} board", record.files.frame),
+                corners_mm: layout.corners_in_board_mm(),
+                corners_px: observation.corners_px.clone(),
+            });
+        }
+    }
+    let refined =
+        camera_refinement::refine_with_boards(calibration, &boards).map_err(|source| RunError::Calibration {
+            dataset: dataset.into(),
+            source,
+        })?;
+    let layout = RigLayout {
+        probe: *probe,
+        phantom: *phantom,
+    };
+    for record in frames.iter_mut() {
+        super::frames::pose_again(record, &refined.intrinsics, &layout)?;
+    }
+    if let Some(r) = &refined.refined {
+        camera.source = format!(
+            "{}, refined with {} boards of the frames' photos",
+            camera.source, r.boards_used
+        );
+    }
+    camera.intrinsics = Some(refined.intrinsics.clone());
+    camera.calibration = Some(refined);
+    Ok(true)
 }

@@ -180,13 +180,31 @@ pub fn bound_of(
     let probe_corners = scene.probe_board.feature_points_mm();
     let phantom_corners = scene.phantom_board.feature_points_mm();
     let camera_T_phantom = scene.camera_T_world * scene.world_T_phantom;
-    let intrinsics_information = pose_noise::calibration_information(
+    let mut intrinsics_information = pose_noise::calibration_information(
         &scene.camera,
         &scene.camera_T_calibration_board,
         &scene.calibration_board.corners_in_board_mm(),
         noise.calibration_corner_sd_px,
     )
     .ok_or("a camera-calibration view is behind the camera")?;
+    if refines_with_frames(manifest) {
+        // Every photo's two boards are more calibration views (each with its own
+        // pose): the information their corners hold on the intrinsics beyond
+        // what they hold on their poses, which the frames' pose noise carries.
+        let marker_views: Vec<_> = scene
+            .frames
+            .iter()
+            .map(|p| scene.camera_T_world * p.world_T_marker_photo)
+            .collect();
+        let phantom_views = vec![camera_T_phantom; scene.frames.len()];
+        for (views, corners, sd) in [
+            (&marker_views, &probe_corners, noise.probe_corner_sd_px),
+            (&phantom_views, &phantom_corners, noise.phantom_corner_sd_px),
+        ] {
+            intrinsics_information += pose_noise::calibration_information(&scene.camera, views, corners, sd)
+                .ok_or("a frame's board is behind the camera")?;
+        }
+    }
     let spheres: Vec<KnownSphere> = match phantom {
         Phantom::Spheres { spheres } => spheres
             .iter()
@@ -277,6 +295,11 @@ pub fn bound_of(
         frames: frames.len(),
         arcs,
     })
+}
+
+/// Whether the manifest solves the camera again with the frames' boards.
+pub fn refines_with_frames(manifest: &Manifest) -> bool {
+    matches!(&manifest.camera, crate::manifest::CameraSource::Calibrate { board, .. } if board.refine_with_frames)
 }
 
 /// One row of the design table.

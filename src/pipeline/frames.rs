@@ -178,6 +178,52 @@ fn detect_frame(
     Ok(record)
 }
 
+/// The names of a record's two poses, for its plausibility check.
+fn pose_names(record: &FrameRecord) -> [&'static str; 2] {
+    match record.tracked {
+        Some(_) => ["tracker_T_marker", "tracker_T_phantom"],
+        None => ["camera_T_marker", "camera_T_phantom"],
+    }
+}
+
+/// Poses a frame's two checkerboards again from their corners with other
+/// intrinsics (the corners do not move). A pose that now fails the
+/// reprojection limit or the plausibility check rejects the frame, unless a
+/// later stage had rejected it already.
+pub fn pose_again(
+    record: &mut FrameRecord,
+    camera: &crate::io::camera_model::CameraIntrinsics,
+    rig: &board_pose::RigLayout,
+) -> Result<(), RunError> {
+    let Some(poses) = &record.poses else { return Ok(()) };
+    let probe = board_pose::solve_pose(camera, &rig.probe, &poses.camera_T_marker.corners_px)?;
+    let phantom = board_pose::solve_pose(camera, &rig.phantom, &poses.camera_T_phantom.corners_px)?;
+    let limit_px = board_pose::MAX_REPROJECTION_RMS_PX;
+    let failed = [
+        ("probe", probe.reprojection_rms_px),
+        ("phantom", phantom.reprojection_rms_px),
+    ]
+    .into_iter()
+    .find(|(_, rms_px)| rms_px.is_nan() || *rms_px > limit_px);
+    record.poses = Some(board_pose::FramePoses {
+        camera_T_marker: probe,
+        camera_T_phantom: phantom,
+    });
+    if record.rejection.is_some() {
+        return Ok(());
+    }
+    if let Some((board, rms_px)) = failed {
+        record.rejection = Some(Rejection::BoardPose(board_pose::BoardRejection::Reprojection {
+            board,
+            rms_px,
+            limit_px,
+        }));
+    } else if let Some(fault) = Implausible::of(record.pose_pair(), pose_names(record), &record.features_px) {
+        record.rejection = Some(Rejection::Implausible(fault));
+    }
+    Ok(())
+}
+
 /// One frame through stages 2 and 3; poses and feature pixels that are not finite
 /// or not physically possible reject the frame at the stage boundary.
 pub fn process_frame(
@@ -188,11 +234,7 @@ pub fn process_frame(
 ) -> Result<FrameRecord, RunError> {
     let mut record = detect_frame(files, camera, rig, detector)?;
     if record.rejection.is_none() {
-        let names = match record.tracked {
-            Some(_) => ["tracker_T_marker", "tracker_T_phantom"],
-            None => ["camera_T_marker", "camera_T_phantom"],
-        };
-        if let Some(fault) = Implausible::of(record.pose_pair(), names, &record.features_px) {
+        if let Some(fault) = Implausible::of(record.pose_pair(), pose_names(&record), &record.features_px) {
             record.rejection = Some(Rejection::Implausible(fault));
         }
     }

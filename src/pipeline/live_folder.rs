@@ -235,6 +235,11 @@ pub fn run(manifest: &Manifest, watch: &Watch, show: &mut dyn FnMut(&FolderFrame
             "live calibration from a folder takes a point-feature phantom (hemisphere or point)".into(),
         ));
     };
+    if matches!(&manifest.camera, crate::manifest::CameraSource::Calibrate { board, .. } if board.refine_with_frames) {
+        return Err(RunError::Unsupported(
+            "camera.calibrate.refine_with_frames solves the camera again once every frame is in; live calibration uses the calibration views' intrinsics: set it to false for `live`".into(),
+        ));
+    }
     let name = manifest.datasets.first().map(|d| d.name.clone()).unwrap_or_default();
     if !watch.folder.is_dir() {
         return Err(RunError::Unsupported(format!(

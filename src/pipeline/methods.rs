@@ -256,6 +256,7 @@ pub fn methods_stage(manifest: &Manifest, inputs: &MethodInputs<'_>, log: &mut d
 pub fn spheres_methods(
     inputs: &MethodInputs<'_>,
     spheres: &[crate::spec::phantom::Sphere],
+    pose: Option<&super::sphere_pose::PoseInputs<'_>>,
     log: &mut dyn FnMut(&str),
 ) -> Vec<MethodResult> {
     let spacing = inputs.fit.spacing;
@@ -332,22 +333,44 @@ pub fn spheres_methods(
         .cloned()
         .collect();
     let frames_kept = first.frame_rms_mm.iter().filter(|(_, rms)| *rms <= limit).count();
-    match sphere_fit::refine(&first.marker_T_image, &kept, &settings) {
-        Ok(sphere) => out.push(MethodResult {
-            frames_left_out: left_out(inputs.frames, |f| {
-                reported.frames.contains(&f.frame) && kept.iter().any(|a| a.frame == f.frame)
+    let kept_left_out = left_out(inputs.frames, |f| {
+        reported.frames.contains(&f.frame) && kept.iter().any(|a| a.frame == f.frame)
+    });
+    let sphere = match sphere_fit::refine(&first.marker_T_image, &kept, &settings) {
+        Ok(sphere) => sphere,
+        Err(e) => {
+            log(&format!("sphere fit: {e}"));
+            return out;
+        }
+    };
+    out.push(MethodResult {
+        frames_left_out: kept_left_out.clone(),
+        ..result(
+            Method::SphereFit {
+                arcs: kept.len(),
+                rms_mm: sphere.rms_mm,
+                rms_limit_mm: limit,
+            },
+            frames_kept,
+            &sphere.marker_T_image,
+        )
+    });
+    if let Some(pose) = pose {
+        match super::sphere_pose::fit(&sphere.marker_T_image, &kept, inputs.records, &settings, pose) {
+            Ok((posed, noise)) => out.push(MethodResult {
+                frames_left_out: kept_left_out,
+                ..result(
+                    Method::SphereFitPosePrior {
+                        arcs: kept.len(),
+                        rms_mm: posed.rms_mm,
+                        noise,
+                    },
+                    frames_kept,
+                    &posed.marker_T_image,
+                )
             }),
-            ..result(
-                Method::SphereFit {
-                    arcs: kept.len(),
-                    rms_mm: sphere.rms_mm,
-                    rms_limit_mm: limit,
-                },
-                frames_kept,
-                &sphere.marker_T_image,
-            )
-        }),
-        Err(e) => log(&format!("sphere fit: {e}")),
+            Err(e) => log(&format!("sphere fit with pose priors: {e}")),
+        }
     }
     out
 }

@@ -15,6 +15,7 @@ pub mod segment;
 pub mod sequence_frames;
 pub mod settings;
 pub mod solve;
+pub mod sphere_pose;
 pub mod study;
 pub mod temporal;
 pub mod tracked;

@@ -269,6 +269,13 @@ pub enum Method {
         rms_mm: f64,
         rms_limit_mm: f64,
     },
+    /// Multi-sphere phantoms: the sphere fit's arcs with every frame's pose free
+    /// under the prior its boards' corners and the hand's motion give.
+    SphereFitPosePrior {
+        arcs: usize,
+        rms_mm: f64,
+        noise: super::sphere_pose::PoseFitNoise,
+    },
 }
 
 impl Method {
@@ -282,8 +289,12 @@ impl Method {
             Method::RansacLmScales => "ransac_lm_scales",
             Method::RansacSphereFit { .. } => "ransac_sphere_fit",
             Method::SphereFit { .. } => "sphere_fit",
+            Method::SphereFitPosePrior { .. } => "sphere_fit_pose_prior",
         }
     }
+
+    /// Every estimator's name, as a manifest may name one.
+    pub const NAMES: [&'static str; 8] = crate::manifest::raw::ESTIMATOR_NAMES;
 }
 
 /// One estimator's calibration beside the thesis's (robust, refined, sphere fit).
@@ -358,6 +369,43 @@ impl DatasetRun {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn every_estimator_name_is_one_a_manifest_may_name() {
+        let noise = super::super::sphere_pose::PoseFitNoise {
+            edge_sd_mm: 0.1,
+            probe_corner_sd_px: 0.1,
+            phantom_corner_sd_px: 0.1,
+            tremor_sd_mm: 0.1,
+            tremor_sd_deg: 0.1,
+        };
+        let all = [
+            Method::CutoffWorstFirst { cutoff_mm: 2.0 },
+            Method::ThesisOneShot { cutoff_mm: 2.0 },
+            Method::Ransac {
+                threshold_mm: 1.0,
+                noise_sd_mm: None,
+            },
+            Method::Lmeds { threshold_mm: 1.0 },
+            Method::RansacLmScales,
+            Method::RansacSphereFit {
+                elevation_prior_sd_mm: None,
+                edge_offset_mm: 0.0,
+            },
+            Method::SphereFit {
+                arcs: 1,
+                rms_mm: 0.1,
+                rms_limit_mm: 0.3,
+            },
+            Method::SphereFitPosePrior {
+                arcs: 1,
+                rms_mm: 0.1,
+                noise,
+            },
+        ];
+        let names: Vec<&str> = all.iter().map(|m| m.name()).collect();
+        assert_eq!(names, Method::NAMES.to_vec());
+    }
     use crate::core::geometry::rigid_from_axis_angle;
     use nalgebra::Vector3;
 

@@ -15,6 +15,8 @@ struct DesignFile<'a> {
     seeds: [u64; 2],
     frames: usize,
     noise: BoundNoise,
+    /// The intrinsics also solved from the boards in the frames' photos.
+    camera_refined_with_frames: bool,
     /// The manifest's own phantom.
     manifest_phantom: Result<Bound, String>,
     /// The thesis's hemisphere (R = 15 mm) at the lab's feature point.
@@ -44,8 +46,17 @@ fn markdown(file: &DesignFile<'_>) -> String {
          with edge noise {} mm (an arc worth {} points); each frame's `phantom_T_marker` from the photo's \
          board poses, with corner noise {} px (probe board) and {} px (phantom board) and the sweep's tremor \
          between photo and B-scan, and the camera's intrinsics known only as well as its calibration views \
-         (corner noise {} px) pin them down, one error shared by every frame.\n",
-        n.edge_sd_mm, n.points_per_arc, n.probe_corner_sd_px, n.phantom_corner_sd_px, n.calibration_corner_sd_px
+         (corner noise {} px){} pin them down, one error shared by every frame.\n",
+        n.edge_sd_mm,
+        n.points_per_arc,
+        n.probe_corner_sd_px,
+        n.phantom_corner_sd_px,
+        n.calibration_corner_sd_px,
+        if file.camera_refined_with_frames {
+            " and every frame's two boards (`camera.calibrate.refine_with_frames`)"
+        } else {
+            ""
+        }
     );
     let _ = writeln!(
         s,
@@ -129,6 +140,7 @@ pub fn command(manifest: &Path, out: &Path) -> u8 {
         seeds: [DESIGN_SEEDS.start, DESIGN_SEEDS.end - 1],
         frames: spec.frames,
         noise: NOISE,
+        camera_refined_with_frames: design::refines_with_frames(&manifest),
         manifest_phantom: design::bound_over_sweeps(&manifest, &manifest.phantom, &spec, DESIGN_SEEDS),
         hemisphere,
         layouts: &rows,

@@ -68,4 +68,10 @@ pub struct CameraCalibrationBoard {
     pub images: Option<String>,
     pub inner_corners: [u32; 2],
     pub square_mm: f64,
+    /// Also calibrate from the checkerboards the frames' photos show (each board
+    /// of each frame one more view, its pose its own unknown), then pose every
+    /// frame's boards again with those intrinsics: the frames' photos see the
+    /// boards through the same lens as the calibration views.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub refine_with_frames: bool,
 }

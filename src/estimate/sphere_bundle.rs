@@ -1,0 +1,365 @@
+//! The sphere fit with each frame's pose uncertain: `marker_T_image` and a
+//! correction to every frame's `phantom_T_marker`, solved together.
+//!
+//! The plain sphere fit ([`super::sphere_fit`]) takes each frame's
+//! `phantom_T_marker` (from the photo's two board poses) as exact. It is not:
+//! the boards' corners are noisy and the hand moves between the photo and the
+//! B-scan. An arc cut far from its dome's centre pins the plane's elevation
+//! hard (`dr/dd = −d/r` is large there), so a frame with such an arc pulls the
+//! calibration towards its own pose error. Here each frame's pose may move by
+//! `δ_f`, with the prior `δ_f ~ N(0, Σ_f)` that the board corners and the hand
+//! give (`Σ_f` from the caller, in [`perturbed`]'s coordinates of
+//! `phantom_T_marker`: rotation vector on the left, then translation, rad and
+//! mm), and the edge points weighted by their own noise `σ_e`: the maximum a
+//! posteriori calibration under the model the design's Cramér–Rao bound
+//! assumes. The poses are eliminated frame by frame (the normal equations'
+//! Schur complement), so the solve stays a 6-unknown one per iteration.
+
+use nalgebra::{DVector, Matrix6, Point3, Vector3, Vector6};
+
+use super::sphere_fit::{ArcFrame, KnownSphere, SphereFit, SphereFitError, SphereSettings};
+use crate::core::geometry::{perturbed, pixel_to_image_mm, Rigid};
+
+/// The most Levenberg–Marquardt iterations.
+pub const MAX_ITERATIONS: usize = 100;
+
+/// Finite-difference steps: rotations (rad), translations (mm).
+const ROTATION_STEP: f64 = 1e-7;
+const TRANSLATION_STEP: f64 = 1e-6;
+
+/// What the fit needs beyond the plain sphere fit's settings.
+#[derive(Debug, Clone)]
+pub struct PosePriors {
+    /// SD of an edge point about its sphere, mm (the arcs' own fit RMS).
+    pub edge_sd_mm: f64,
+    /// Per frame: the covariance of its `phantom_T_marker` error.
+    pub frames: Vec<(usize, Matrix6<f64>)>,
+}
+
+fn at(base: &Rigid, d: &Vector6<f64>) -> Rigid {
+    perturbed(base, Vector3::new(d[0], d[1], d[2]), Vector3::new(d[3], d[4], d[5]))
+}
+
+fn step_of(c: usize) -> f64 {
+    if c < 3 {
+        ROTATION_STEP
+    } else {
+        TRANSLATION_STEP
+    }
+}
+
+/// One frame's arcs: the poses, and each arc's sphere, weight and points (image, mm).
+struct FrameArcs {
+    frame: usize,
+    phantom_T_marker: Rigid,
+    arcs: Vec<(KnownSphere, f64, Vec<Point3<f64>>)>,
+    /// Whitens the pose correction: `L⁻¹` with `Σ = L Lᵀ`.
+    whiten: Matrix6<f64>,
+    information: Matrix6<f64>,
+}
+
+impl FrameArcs {
+    /// Whitened point residuals under the calibration `c` (from `start`) and correction `d`.
+    fn residuals(&self, start: &Rigid, c: &Vector6<f64>, d: &Vector6<f64>, edge_sd_mm: f64) -> DVector<f64> {
+        let phantom_T_image = at(&self.phantom_T_marker, d) * at(start, c);
+        let mut out = Vec::new();
+        for (sphere, weight, points) in &self.arcs {
+            for p in points {
+                let distance = (phantom_T_image * p - sphere.centre_in_phantom_mm).norm() - sphere.radius_mm;
+                out.push(weight * distance / edge_sd_mm);
+            }
+        }
+        DVector::from_vec(out)
+    }
+
+    fn cost(&self, start: &Rigid, c: &Vector6<f64>, d: &Vector6<f64>, edge_sd_mm: f64) -> f64 {
+        self.residuals(start, c, d, edge_sd_mm).norm_squared() + (self.whiten * d).norm_squared()
+    }
+}
+
+/// Refines `start` (the plain sphere fit) with every frame's pose free under its prior.
+pub fn refine(
+    start: &Rigid,
+    arcs: &[ArcFrame],
+    settings: &SphereSettings,
+    priors: &PosePriors,
+) -> Result<SphereFit, SphereFitError> {
+    let mut frames: Vec<FrameArcs> = Vec::new();
+    for a in arcs
+        .iter()
+        .filter(|a| a.edge_px.len() >= 3 && a.sphere < settings.spheres.len())
+    {
+        let Some((_, cov)) = priors.frames.iter().find(|(k, _)| *k == a.frame) else {
+            continue;
+        };
+        let points: Vec<Point3<f64>> = a
+            .edge_px
+            .iter()
+            .map(|p| pixel_to_image_mm(*p, settings.spacing_mm_per_px))
+            .collect();
+        let weight = (settings.points_per_frame / points.len() as f64).sqrt();
+        let arc = (settings.spheres[a.sphere], weight, points);
+        match frames.iter_mut().find(|f| f.frame == a.frame) {
+            Some(f) => f.arcs.push(arc),
+            None => {
+                let Some(l) = cov.cholesky() else { continue };
+                let Some(whiten) = l.l().try_inverse() else { continue };
+                frames.push(FrameArcs {
+                    frame: a.frame,
+                    phantom_T_marker: a.camera_T_phantom.inverse() * a.camera_T_marker,
+                    arcs: vec![arc],
+                    information: whiten.transpose() * whiten,
+                    whiten,
+                });
+            }
+        }
+    }
+    let arc_count: usize = frames.iter().map(|f| f.arcs.len()).sum();
+    if arc_count < 3 {
+        return Err(SphereFitError::TooFewFrames(arc_count));
+    }
+    let sd = priors.edge_sd_mm;
+    let mut c = Vector6::zeros();
+    let mut deltas = vec![Vector6::zeros(); frames.len()];
+    let total = |c: &Vector6<f64>, deltas: &[Vector6<f64>]| -> f64 {
+        frames.iter().zip(deltas).map(|(f, d)| f.cost(start, c, d, sd)).sum()
+    };
+    let mut current = total(&c, &deltas);
+    let mut lambda = 1e-3;
+    let mut iterations = 0;
+    while iterations < MAX_ITERATIONS && current.is_finite() {
+        iterations += 1;
+        let mut u = Matrix6::zeros();
+        let mut gc = Vector6::zeros();
+        let mut blocks = Vec::with_capacity(frames.len());
+        for (f, d) in frames.iter().zip(&deltas) {
+            let r = f.residuals(start, &c, d, sd);
+            let mut jc = nalgebra::DMatrix::zeros(r.len(), 6);
+            let mut jd = nalgebra::DMatrix::zeros(r.len(), 6);
+            for k in 0..6 {
+                let mut e = Vector6::zeros();
+                e[k] = step_of(k);
+                jc.set_column(k, &((f.residuals(start, &(c + e), d, sd) - &r) / e[k]));
+                jd.set_column(k, &((f.residuals(start, &c, &(d + e), sd) - &r) / e[k]));
+            }
+            u += Matrix6::from_iterator((jc.transpose() * &jc).iter().copied());
+            gc += Vector6::from_iterator((jc.transpose() * &r).iter().copied());
+            let v = Matrix6::from_iterator((jd.transpose() * &jd).iter().copied()) + f.information;
+            let w = Matrix6::from_iterator((jc.transpose() * &jd).iter().copied());
+            let gd = Vector6::from_iterator((jd.transpose() * &r).iter().copied()) + f.information * d;
+            blocks.push((v, w, gd));
+        }
+        let accepted = loop {
+            let mut s = u + Matrix6::from_diagonal(&(u.diagonal() * lambda));
+            let mut b = gc;
+            let mut inverses = Vec::with_capacity(blocks.len());
+            let mut singular = false;
+            for (v, w, gd) in &blocks {
+                let Some(vi) = (v + Matrix6::from_diagonal(&(v.diagonal() * lambda))).try_inverse() else {
+                    singular = true;
+                    break;
+                };
+                s -= w * vi * w.transpose();
+                b -= w * vi * gd;
+                inverses.push(vi);
+            }
+            let dc = if singular { None } else { s.lu().solve(&(-b)) };
+            if let Some(dc) = dc {
+                let next_c = c + dc;
+                let next: Vec<Vector6<f64>> = blocks
+                    .iter()
+                    .zip(&inverses)
+                    .zip(&deltas)
+                    .map(|(((_, w, gd), vi), d)| d - vi * (gd + w.transpose() * dc))
+                    .collect();
+                let cost = total(&next_c, &next);
+                if cost.is_finite() && cost <= current {
+                    lambda = (lambda / 10.0).max(1e-12);
+                    break Some((next_c, next, cost));
+                }
+            }
+            if lambda >= 1e12 {
+                break None;
+            }
+            lambda *= 10.0;
+        };
+        let Some((next_c, next, cost)) = accepted else { break };
+        let decrease = current - cost;
+        c = next_c;
+        deltas = next;
+        current = cost;
+        if decrease <= 1e-12 * current.max(f64::MIN_POSITIVE) {
+            break;
+        }
+    }
+    let marker_T_image = at(start, &c);
+    let mut sum = 0.0;
+    let mut count = 0usize;
+    let mut frame_rms_mm = Vec::new();
+    let mut elevation_mm = Vec::new();
+    for (f, d) in frames.iter().zip(&deltas) {
+        let phantom_T_marker = at(&f.phantom_T_marker, d);
+        let phantom_T_image = phantom_T_marker * marker_T_image;
+        let image_T_phantom = phantom_T_image.inverse();
+        let (mut s, mut n) = (0.0, 0usize);
+        for (sphere, _, points) in &f.arcs {
+            for p in points {
+                s += ((phantom_T_image * p - sphere.centre_in_phantom_mm).norm() - sphere.radius_mm).powi(2);
+                n += 1;
+            }
+            elevation_mm.push((f.frame, (image_T_phantom * sphere.centre_in_phantom_mm).z));
+        }
+        sum += s;
+        count += n;
+        frame_rms_mm.push((f.frame, (s / n.max(1) as f64).sqrt()));
+    }
+    Ok(SphereFit {
+        marker_T_image,
+        radius_offset_mm: 0.0,
+        rms_mm: (sum / count.max(1) as f64).sqrt(),
+        elevation_mm,
+        frame_rms_mm,
+        iterations,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::core::geometry::rigid_from_axis_angle;
+    use crate::core::rng::Rng;
+    use crate::estimate::sphere_fit;
+
+    const SPACING: [f64; 2] = [0.2, 0.2];
+
+    fn spheres() -> Vec<KnownSphere> {
+        (0..4)
+            .map(|i| KnownSphere {
+                centre_in_phantom_mm: Point3::new(24.0 * i as f64, 3.0 * (i % 2) as f64, -10.0 - 4.0 * i as f64),
+                radius_mm: 12.5,
+            })
+            .collect()
+    }
+
+    /// Frames of four domes seen by planes at varied tilts; every frame's
+    /// reported marker pose off the true one by the hand's motion (`tremor`:
+    /// mm and degrees per axis, in the marker's frame).
+    fn planted(tremor: (f64, f64), seed: u64) -> (Rigid, Vec<ArcFrame>) {
+        let marker_T_image = rigid_from_axis_angle(Vector3::new(0.02, -0.03, 1.5), Vector3::new(-20.0, 160.0, 25.0));
+        let camera_T_phantom = rigid_from_axis_angle(Vector3::new(2.0, 0.1, 0.2), Vector3::new(-100.0, 80.0, 500.0));
+        let mut rng = Rng::new(seed);
+        let mut arcs = Vec::new();
+        for k in 0..40 {
+            // Image x along the row of domes, image y down into the phantom (-z), image z along y.
+            let base = nalgebra::Matrix3::new(1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, -1.0, 0.0);
+            let tilt = rigid_from_axis_angle(
+                Vector3::new(rng.uniform(-0.2, 0.2), rng.uniform(-0.2, 0.2), rng.uniform(-0.1, 0.1)),
+                Vector3::zeros(),
+            );
+            let rotation = tilt.rotation * nalgebra::UnitQuaternion::from_matrix(&base);
+            let origin = Vector3::new(-30.0 + rng.uniform(-3.0, 3.0), rng.normal(0.0, 2.0), 20.0);
+            let phantom_T_image = Rigid::from_parts(origin.into(), rotation);
+            let image_T_phantom = phantom_T_image.inverse();
+            let camera_T_marker_true = camera_T_phantom * phantom_T_image * marker_T_image.inverse();
+            let jitter = rigid_from_axis_angle(
+                Vector3::new(rng.normal(0.0, 1.0), rng.normal(0.0, 1.0), rng.normal(0.0, 1.0)) * tremor.1.to_radians(),
+                Vector3::new(rng.normal(0.0, 1.0), rng.normal(0.0, 1.0), rng.normal(0.0, 1.0)) * tremor.0,
+            );
+            for (s, sphere) in spheres().iter().enumerate() {
+                let c = image_T_phantom * sphere.centre_in_phantom_mm;
+                if c.z.abs() > 0.8 * sphere.radius_mm {
+                    continue;
+                }
+                let r = (sphere.radius_mm.powi(2) - c.z * c.z).sqrt();
+                let edge_px = (0..40)
+                    .map(|i| {
+                        let a = std::f64::consts::PI * (1.2 + 0.6 * i as f64 / 39.0);
+                        [
+                            (c.x + r * a.cos() + rng.normal(0.0, 0.14)) / SPACING[0],
+                            (c.y + r * a.sin() + rng.normal(0.0, 0.14)) / SPACING[1],
+                        ]
+                    })
+                    .collect();
+                arcs.push(ArcFrame {
+                    frame: k,
+                    sphere: s,
+                    edge_px,
+                    camera_T_marker: camera_T_marker_true * jitter,
+                    camera_T_phantom,
+                });
+            }
+        }
+        (marker_T_image, arcs)
+    }
+
+    fn settings() -> SphereSettings {
+        SphereSettings {
+            spheres: spheres(),
+            spacing_mm_per_px: SPACING,
+            elevation_prior_sd_mm: None,
+            fit_radius_offset: false,
+            points_per_frame: 20.0,
+        }
+    }
+
+    /// The prior of every frame: the hand's motion, isotropic per axis, in
+    /// `phantom_T_marker`'s left coordinates (a rotation and a shift in the
+    /// marker's frame, turned into the phantom's, keep their isotropic spread).
+    fn priors(arcs: &[ArcFrame], tremor: (f64, f64)) -> PosePriors {
+        let (mm, deg) = tremor;
+        let cov = Matrix6::from_diagonal(&Vector6::new(
+            deg.to_radians().powi(2),
+            deg.to_radians().powi(2),
+            deg.to_radians().powi(2),
+            mm * mm,
+            mm * mm,
+            mm * mm,
+        ));
+        let mut frames: Vec<(usize, Matrix6<f64>)> = arcs.iter().map(|a| (a.frame, cov)).collect();
+        frames.dedup_by_key(|f| f.0);
+        PosePriors {
+            edge_sd_mm: 0.14,
+            frames,
+        }
+    }
+
+    fn corner_error(a: &Rigid, b: &Rigid) -> f64 {
+        let corners = [[0.0, 0.0], [160.0, 0.0], [0.0, 120.0], [160.0, 120.0], [80.0, 60.0]];
+        corners
+            .iter()
+            .map(|p| {
+                let q = Point3::new(p[0], p[1], 0.0);
+                (a * q - b * q).norm()
+            })
+            .sum::<f64>()
+            / 5.0
+    }
+
+    #[test]
+    fn pose_priors_take_the_hands_motion_out_of_the_calibration() {
+        let tremor = (0.2, 0.06);
+        let (mut plain_sum, mut posed_sum) = (0.0, 0.0);
+        for seed in 1..=4 {
+            let (truth, arcs) = planted(tremor, seed);
+            let plain = sphere_fit::refine(&truth, &arcs, &settings()).unwrap();
+            let posed = refine(&plain.marker_T_image, &arcs, &settings(), &priors(&arcs, tremor)).unwrap();
+            plain_sum += corner_error(&plain.marker_T_image, &truth);
+            posed_sum += corner_error(&posed.marker_T_image, &truth);
+        }
+        assert!(
+            posed_sum < 0.7 * plain_sum,
+            "mean corner error with pose priors {:.3} mm, without {:.3} mm",
+            posed_sum / 4.0,
+            plain_sum / 4.0
+        );
+    }
+
+    #[test]
+    fn exact_poses_with_a_tight_prior_give_the_plain_fit() {
+        let (truth, arcs) = planted((0.0, 0.0), 9);
+        let plain = sphere_fit::refine(&truth, &arcs, &settings()).unwrap();
+        let posed = refine(&plain.marker_T_image, &arcs, &settings(), &priors(&arcs, (1e-5, 1e-5))).unwrap();
+        let apart = corner_error(&plain.marker_T_image, &posed.marker_T_image);
+        assert!(apart < 1e-3, "{apart} mm apart");
+    }
+}

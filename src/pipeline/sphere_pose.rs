@@ -1,0 +1,128 @@
+//! The multi-sphere fit with each frame's pose uncertain
+//! ([`crate::estimate::sphere_bundle`]): the priors it needs, from the run's
+//! own data and the manifest's stated hand motion.
+//!
+//! - Each frame's `phantom_T_marker` covariance: its two boards' poses from their
+//!   corners, with the corner noise this run's boards show (the median
+//!   reprojection RMS of each board over the frames, scaled for the pose's six
+//!   unknowns), and the hand's motion between photo and B-scan
+//!   (`solve.sphere_fit.pose_prior`), first order ([`crate::evaluate::pose_noise`]).
+//! - The edge points' noise: the median RMS of the arcs about their own circles.
+
+use super::record::FrameRecord;
+use crate::core::geometry::Rigid;
+use crate::core::stats::median;
+use crate::detect::board::PrintedBoard;
+use crate::estimate::sphere_bundle::{self, PosePriors};
+use crate::estimate::sphere_fit::{ArcFrame, SphereFit, SphereFitError, SphereSettings};
+use crate::evaluate::pose_noise::{frame_pose_noise, PhotoNoise, SweepPhoto};
+use crate::io::camera_model::CameraIntrinsics;
+use crate::manifest::raw::PosePrior;
+
+/// What the pose-prior fit needs from the run.
+pub struct PoseInputs<'a> {
+    pub camera: &'a CameraIntrinsics,
+    pub probe_board: &'a PrintedBoard,
+    pub phantom_board: &'a PrintedBoard,
+    pub prior: &'a PosePrior,
+}
+
+/// The noise values the fit used, for its description.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PoseFitNoise {
+    pub edge_sd_mm: f64,
+    pub probe_corner_sd_px: f64,
+    pub phantom_corner_sd_px: f64,
+    pub tremor_sd_mm: f64,
+    pub tremor_sd_deg: f64,
+}
+
+/// A board's corner SD from its reprojection RMS (the pose's 6 unknowns taken out).
+fn corner_sd(rms_px: &mut [f64], corners: usize) -> Option<f64> {
+    if rms_px.is_empty() || corners <= 3 {
+        return None;
+    }
+    let scale = (2.0 * corners as f64 / (2.0 * corners as f64 - 6.0)).sqrt();
+    Some(median(rms_px) * scale)
+}
+
+/// The pose-prior sphere fit of `arcs` from `start` (the plain sphere fit), or
+/// why it could not run.
+pub fn fit(
+    start: &Rigid,
+    arcs: &[ArcFrame],
+    records: &[FrameRecord],
+    settings: &SphereSettings,
+    inputs: &PoseInputs<'_>,
+) -> Result<(SphereFit, PoseFitNoise), String> {
+    let frames: Vec<&FrameRecord> = records
+        .iter()
+        .filter(|r| arcs.iter().any(|a| a.frame == r.files.frame))
+        .collect();
+    let mut probe_rms = Vec::new();
+    let mut phantom_rms = Vec::new();
+    let mut edge_mm = Vec::new();
+    let spacing = (settings.spacing_mm_per_px[0] * settings.spacing_mm_per_px[1]).sqrt();
+    for r in &frames {
+        if let Some(p) = &r.poses {
+            probe_rms.push(p.camera_T_marker.reprojection_rms_px);
+            phantom_rms.push(p.camera_T_phantom.reprojection_rms_px);
+        }
+        edge_mm.extend(r.arcs.iter().map(|a| a.rms_px * spacing));
+    }
+    let probe_corners = inputs.probe_board.feature_points_mm();
+    let phantom_corners = inputs.phantom_board.feature_points_mm();
+    let (tremor_sd_mm, tremor_sd_deg) = inputs.prior.tremor_sd();
+    let noise = PhotoNoise {
+        probe_corner_sd_px: corner_sd(&mut probe_rms, probe_corners.len()).ok_or("no probe-board poses")?,
+        phantom_corner_sd_px: corner_sd(&mut phantom_rms, phantom_corners.len()).ok_or("no phantom-board poses")?,
+        tremor_sd_mm,
+        tremor_sd_deg,
+    };
+    if edge_mm.is_empty() {
+        return Err("no arcs".into());
+    }
+    let edge_sd_mm = median(&mut edge_mm);
+    if !(edge_sd_mm > 0.0 && edge_sd_mm.is_finite()) {
+        return Err(format!("the arcs' edge noise {edge_sd_mm} mm is not positive"));
+    }
+    let mut priors = Vec::new();
+    for r in &frames {
+        let Some(p) = &r.poses else { continue };
+        let photo = SweepPhoto {
+            camera_T_marker: p.camera_T_marker.camera_T_board,
+            camera_T_phantom: p.camera_T_phantom.camera_T_board,
+            marker_corners_mm: &probe_corners,
+            phantom_corners_mm: &phantom_corners,
+        };
+        match frame_pose_noise(inputs.camera, &photo, &noise) {
+            Some(n) => priors.push((r.files.frame, n.cov)),
+            None => {
+                return Err(format!(
+                    "frame {}: a board's pose is not determined by its corners",
+                    r.files.frame
+                ))
+            }
+        }
+    }
+    let fitted = sphere_bundle::refine(
+        start,
+        arcs,
+        settings,
+        &PosePriors {
+            edge_sd_mm,
+            frames: priors,
+        },
+    )
+    .map_err(|e: SphereFitError| e.to_string())?;
+    Ok((
+        fitted,
+        PoseFitNoise {
+            edge_sd_mm,
+            probe_corner_sd_px: noise.probe_corner_sd_px,
+            phantom_corner_sd_px: noise.phantom_corner_sd_px,
+            tremor_sd_mm,
+            tremor_sd_deg,
+        },
+    ))
+}
