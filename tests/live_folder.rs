@@ -125,3 +125,34 @@ fn a_watch_needs_an_existing_folder_and_a_sensible_idle_time() {
         assert!(!out.exists(), "nothing is written on a refusal");
     }
 }
+
+#[test]
+fn a_camera_solved_again_from_the_frames_is_refused_live() {
+    // Live calibration updates after each frame; the frames' boards refine the
+    // camera only once every frame is in, so `live` refuses it rather than
+    // calibrate with other intrinsics than the batch run.
+    let base = scratch("live_folder", "refine_with_frames");
+    std::fs::create_dir_all(&base).unwrap();
+    let text = std::fs::read_to_string(root().join("experiments/hemisphere_checkerboard.yaml"))
+        .unwrap()
+        .replacen(
+            "    square_mm: 30.0\n",
+            "    square_mm: 30.0\n    refine_with_frames: true\n",
+            1,
+        );
+    assert!(text.contains("refine_with_frames"), "the edit did not apply");
+    let manifest = base.join("experiment.yaml");
+    std::fs::write(&manifest, &text).unwrap();
+    let out = base.join("out");
+    let r = probecal()
+        .arg("live")
+        .arg(&manifest)
+        .args(["--watch", "/tmp", "--idle-s", "1", "--out"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&r.stderr);
+    assert_eq!(r.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("refine_with_frames"), "{stderr}");
+    assert!(!out.exists(), "nothing is written on a refusal");
+}

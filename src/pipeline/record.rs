@@ -378,6 +378,7 @@ mod tests {
             phantom_corner_sd_px: 0.1,
             tremor_sd_mm: 0.1,
             tremor_sd_deg: 0.1,
+            intrinsics_fx_sd_px: None,
         };
         let all = [
             Method::CutoffWorstFirst { cutoff_mm: 2.0 },

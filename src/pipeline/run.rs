@@ -259,8 +259,9 @@ pub fn run_dataset(
         }
     };
     let pose_inputs = match (&manifest.sphere_fit.pose_prior, &camera.intrinsics) {
-        (Some(prior), Some(camera)) => Some(super::sphere_pose::PoseInputs {
-            camera,
+        (Some(prior), Some(intrinsics)) => Some(super::sphere_pose::PoseInputs {
+            camera: intrinsics,
+            calibration: camera.calibration.as_ref(),
             probe_board: &rig.probe,
             phantom_board: &rig.phantom,
             prior,

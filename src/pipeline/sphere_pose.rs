@@ -8,12 +8,20 @@
 //!   unknowns), and the hand's motion between photo and B-scan
 //!   (`solve.sphere_fit.pose_prior`), first order ([`crate::evaluate::pose_noise`]).
 //! - The edge points' noise: the median RMS of the arcs about their own circles.
+//! - The camera's intrinsics, one error every frame's pose shares: each frame's
+//!   pose shift per unit intrinsic error ([`crate::evaluate::pose_noise`]), and
+//!   what the camera calibration's views (the frames' boards too, when they
+//!   refined it) know of the intrinsics, with the noise their residuals show
+//!   ([`crate::detect::camera_refinement::calibration_information`]). A camera
+//!   read from a file brings no views: its intrinsics are then taken as exact.
 
 use super::record::FrameRecord;
 use crate::core::geometry::Rigid;
 use crate::core::stats::median;
 use crate::detect::board::PrintedBoard;
-use crate::estimate::sphere_bundle::{self, PosePriors};
+use crate::detect::camera_calibration::CameraCalibration;
+use crate::detect::camera_refinement::{calibration_information, intrinsics_sd};
+use crate::estimate::sphere_bundle::{self, PosePriors, SharedError};
 use crate::estimate::sphere_fit::{ArcFrame, SphereFit, SphereFitError, SphereSettings};
 use crate::evaluate::pose_noise::{frame_pose_noise, PhotoNoise, SweepPhoto};
 use crate::io::camera_model::CameraIntrinsics;
@@ -22,6 +30,8 @@ use crate::manifest::raw::PosePrior;
 /// What the pose-prior fit needs from the run.
 pub struct PoseInputs<'a> {
     pub camera: &'a CameraIntrinsics,
+    /// The calibration the intrinsics come from, if the run calibrated the camera.
+    pub calibration: Option<&'a CameraCalibration>,
     pub probe_board: &'a PrintedBoard,
     pub phantom_board: &'a PrintedBoard,
     pub prior: &'a PosePrior,
@@ -35,6 +45,9 @@ pub struct PoseFitNoise {
     pub phantom_corner_sd_px: f64,
     pub tremor_sd_mm: f64,
     pub tremor_sd_deg: f64,
+    /// With the intrinsics solved too: the focal length's SD the calibration
+    /// gives them, px.
+    pub intrinsics_fx_sd_px: Option<f64>,
 }
 
 /// A board's corner SD from its reprojection RMS (the pose's 6 unknowns taken out).
@@ -86,7 +99,9 @@ pub fn fit(
     if !(edge_sd_mm > 0.0 && edge_sd_mm.is_finite()) {
         return Err(format!("the arcs' edge noise {edge_sd_mm} mm is not positive"));
     }
+    let intrinsics_information = inputs.calibration.and_then(calibration_information);
     let mut priors = Vec::new();
+    let mut shifts = Vec::new();
     for r in &frames {
         let Some(p) = &r.poses else { continue };
         let photo = SweepPhoto {
@@ -96,7 +111,13 @@ pub fn fit(
             phantom_corners_mm: &phantom_corners,
         };
         match frame_pose_noise(inputs.camera, &photo, &noise) {
-            Some(n) => priors.push((r.files.frame, n.cov)),
+            Some(n) => {
+                priors.push((r.files.frame, n.cov));
+                shifts.push((
+                    r.files.frame,
+                    nalgebra::DMatrix::from_iterator(6, n.from_intrinsics.ncols(), n.from_intrinsics.iter().copied()),
+                ));
+            }
             None => {
                 return Err(format!(
                     "frame {}: a board's pose is not determined by its corners",
@@ -112,6 +133,10 @@ pub fn fit(
         &PosePriors {
             edge_sd_mm,
             frames: priors,
+            shared: intrinsics_information.map(|info| SharedError {
+                information: nalgebra::DMatrix::from_iterator(info.nrows(), info.ncols(), info.iter().copied()),
+                frames: shifts,
+            }),
         },
     )
     .map_err(|e: SphereFitError| e.to_string())?;
@@ -123,6 +148,7 @@ pub fn fit(
             phantom_corner_sd_px: noise.phantom_corner_sd_px,
             tremor_sd_mm,
             tremor_sd_deg,
+            intrinsics_fx_sd_px: intrinsics_information.as_ref().and_then(intrinsics_sd).map(|sd| sd[0]),
         },
     ))
 }
