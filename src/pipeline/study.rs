@@ -141,6 +141,35 @@ pub struct MonteCarlo {
     pub methods: Vec<MethodAccuracy>,
     /// RMS over seeds of the per-seed bound, mm.
     pub crlb_rms_mm: f64,
+    /// Which model the bound is of (left out of the file for point pairs).
+    #[serde(default, skip_serializing_if = "BoundModel::is_point_pairs")]
+    pub bound: BoundModel,
+}
+
+/// The model a study's Cramér–Rao bound is that of.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum BoundModel {
+    /// Point pairs with independent Gaussian residuals (see the module's doc).
+    #[default]
+    PointPairs,
+    /// The sphere fit's calibration from every arc's edge points, each frame's
+    /// pose and the camera's intrinsics as nuisances ([`crate::evaluate::sphere_bound`]).
+    SphereFit,
+}
+
+impl BoundModel {
+    pub fn is_point_pairs(&self) -> bool {
+        *self == BoundModel::PointPairs
+    }
+
+    /// The bound a study of `manifest` reports.
+    pub fn of(manifest: &Manifest) -> BoundModel {
+        match manifest.phantom {
+            crate::spec::phantom::Phantom::Spheres { .. } => BoundModel::SphereFit,
+            _ => BoundModel::PointPairs,
+        }
+    }
 }
 
 fn skew(v: &Vector3<f64>) -> Matrix3<f64> {
@@ -247,7 +276,7 @@ pub fn monte_carlo(
     log: &mut dyn FnMut(&str),
 ) -> Result<MonteCarlo, RunError> {
     let results = seed_results(manifest, seeds, datasets_root, keep, log)?;
-    Ok(summarise(&manifest.experiment, results))
+    Ok(summarise(&manifest.experiment, BoundModel::of(manifest), results))
 }
 
 /// Each seed's outcome, in the order of `seeds` (what [`monte_carlo`] summarises;
@@ -298,13 +327,11 @@ pub fn seed_results(
             .collect();
         // Dome phantoms fitted on their arcs' edges: the bound of that model over
         // this seed's sweep; point pairs: the bound from their residuals.
-        let crlb = match &manifest.phantom {
-            crate::spec::phantom::Phantom::Spheres { .. } => {
-                super::design::bound_of(manifest, &manifest.phantom, &spec, &super::design::NOISE)
-                    .ok()
-                    .map(|b| b.rms_mm)
-            }
-            _ => seed_bound(&run, &truth.marker_T_image, size),
+        let crlb = match BoundModel::of(manifest) {
+            BoundModel::SphereFit => super::design::bound_of(manifest, &manifest.phantom, &spec, &super::design::NOISE)
+                .ok()
+                .map(|b| b.rms_mm),
+            BoundModel::PointPairs => seed_bound(&run, &truth.marker_T_image, size),
         };
         log(&format!(
             "seed {seed}: {} | bound {}",
@@ -333,7 +360,7 @@ pub fn seed_results(
 /// The study of the seeds' outcomes (in seed order): each method's mean, 95th
 /// percentile and RMS error, its seeds better and worse than the reported
 /// method's, and the bound.
-pub fn summarise(experiment: &str, results: Vec<SeedResult>) -> MonteCarlo {
+pub fn summarise(experiment: &str, bound: BoundModel, results: Vec<SeedResult>) -> MonteCarlo {
     let names: Vec<String> = results
         .first()
         .map(|r| r.rms_error_mm.iter().map(|(m, _)| m.clone()).collect())
@@ -371,6 +398,7 @@ pub fn summarise(experiment: &str, results: Vec<SeedResult>) -> MonteCarlo {
         experiment: experiment.to_string(),
         methods,
         crlb_rms_mm: (bounds.iter().map(|b| b * b).sum::<f64>() / bounds.len().max(1) as f64).sqrt(),
+        bound,
         seeds: results,
     }
 }

@@ -11,7 +11,7 @@ use std::str::FromStr;
 use serde::{Deserialize, Serialize};
 
 use crate::core::limits::MAX_SEEDS;
-use crate::pipeline::study::SeedResult;
+use crate::pipeline::study::{BoundModel, SeedResult};
 
 /// Slice `index` (1-based) of `count`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -66,6 +66,9 @@ pub struct ShardFile {
     pub first_seed: u64,
     pub seeds: u64,
     pub shard: Shard,
+    /// The model of the seeds' bound (left out for point pairs).
+    #[serde(default, skip_serializing_if = "BoundModel::is_point_pairs")]
+    pub bound: BoundModel,
     pub results: Vec<SeedResult>,
 }
 
@@ -85,7 +88,7 @@ pub fn read(path: &Path) -> Result<ShardFile, String> {
 
 /// The outcomes of every seed, in seed order, from shards that are exactly the
 /// N slices of one study; otherwise what is wrong, naming the file.
-pub fn join(shards: &[(PathBuf, ShardFile)]) -> Result<(String, Vec<SeedResult>), String> {
+pub fn join(shards: &[(PathBuf, ShardFile)]) -> Result<(String, BoundModel, Vec<SeedResult>), String> {
     let Some((first_path, first)) = shards.first() else {
         return Err("no shard files given".into());
     };
@@ -104,6 +107,9 @@ pub fn join(shards: &[(PathBuf, ShardFile)]) -> Result<(String, Vec<SeedResult>)
         }
         if s.experiment != first.experiment {
             return Err(differs("the experiment"));
+        }
+        if s.bound != first.bound {
+            return Err(differs("the bound's model"));
         }
         if (s.first_seed, s.seeds) != (first.first_seed, first.seeds) {
             return Err(differs("the seed range"));
@@ -145,7 +151,7 @@ pub fn join(shards: &[(PathBuf, ShardFile)]) -> Result<(String, Vec<SeedResult>)
     }
     let mut results: Vec<SeedResult> = shards.iter().flat_map(|(_, s)| s.results.iter().cloned()).collect();
     results.sort_by_key(|r| r.seed);
-    Ok((first.experiment.clone(), results))
+    Ok((first.experiment.clone(), first.bound, results))
 }
 
 /// `probecal study merge`: the study from its shard files, written to `out`.
@@ -160,14 +166,14 @@ pub fn merge(files: &[PathBuf], out: &Path) -> u8 {
             }
         }
     }
-    let (experiment, results) = match join(&shards) {
+    let (experiment, bound, results) = match join(&shards) {
         Ok(joined) => joined,
         Err(e) => {
             eprintln!("error: {e}");
             return 2;
         }
     };
-    let monte_carlo = crate::pipeline::study::summarise(&experiment, results);
+    let monte_carlo = crate::pipeline::study::summarise(&experiment, bound, results);
     let sigma = crate::report::study::sigma_table();
     match crate::report::study::write(out, &sigma, Some(&monte_carlo)) {
         Ok(()) => {
@@ -209,6 +215,7 @@ mod tests {
                 first_seed: 1000,
                 seeds,
                 shard,
+                bound: BoundModel::PointPairs,
                 results: shard.seeds_of(&all).into_iter().map(outcome).collect(),
             },
         )
@@ -242,8 +249,9 @@ mod tests {
                 (p, serde_yaml::from_str(&text).unwrap())
             })
             .collect();
-        let (experiment, results) = join(&shards).unwrap();
+        let (experiment, bound, results) = join(&shards).unwrap();
         assert_eq!(experiment, "rig");
+        assert_eq!(bound, BoundModel::PointPairs);
         assert_eq!(results, (1000..1007).map(outcome).collect::<Vec<_>>());
     }
 
@@ -262,5 +270,8 @@ mod tests {
         let mut range = vec![shard(1, 2, 7), shard(2, 2, 8)];
         range[1].1.results = shard(2, 2, 7).1.results;
         assert!(join(&range).unwrap_err().contains("the seed range differs"));
+        let mut model = vec![shard(1, 2, 7), shard(2, 2, 7)];
+        model[1].1.bound = BoundModel::SphereFit;
+        assert!(join(&model).unwrap_err().contains("the bound's model differs"));
     }
 }

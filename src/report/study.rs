@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 use serde::{Deserialize, Serialize};
 
 use crate::core::limits::MAX_SEEDS;
-use crate::pipeline::study::{MonteCarlo, SigmaRow};
+use crate::pipeline::study::{BoundModel, MonteCarlo, SigmaRow};
 use crate::report::shard::{Shard, ShardFile};
 use crate::report::summary::to_text;
 
@@ -47,10 +47,19 @@ pub fn markdown(sigma: &[SigmaRow], monte_carlo: Option<&MonteCarlo>) -> String 
         ));
         md.push_str(
             "Each seed renders the experiment's dataset anew (photos, B-scans, outlier and missing frames) and runs the \
-             whole pipeline; the error is the RMS distance of the image's four corners and centre from the truth. The \
-             Cramér–Rao bound is that of the point-pair model (independent Gaussian pair residuals with the covariance \
-             of the true residuals of the inlier frames, measured per seed).\n\n",
+             whole pipeline; the error is the RMS distance of the image's four corners and centre from the truth. ",
         );
+        md.push_str(match mc.bound {
+            BoundModel::PointPairs => {
+                "The Cramér–Rao bound is that of the point-pair model (independent Gaussian pair residuals with the \
+                 covariance of the true residuals of the inlier frames, measured per seed).\n\n"
+            }
+            BoundModel::SphereFit => {
+                "The Cramér–Rao bound is that of the sphere fit's calibration over each seed's sweep (every arc's edge \
+                 points on its sphere; each frame's pose from its boards' corners and the hand's motion, and the camera's \
+                 intrinsics, as nuisances; `probecal design`'s noise model).\n\n"
+            }
+        });
         let reported = mc.methods.first().map(|m| m.method.as_str()).unwrap_or("—");
         md.push_str(&format!(
             "| method | mean (mm) | 95th percentile (mm) | RMS (mm) | RMS / CRLB | seeds better / worse than {reported} by > 5 % |\n|---|---|---|---|---|---|\n"
@@ -68,7 +77,11 @@ pub fn markdown(sigma: &[SigmaRow], monte_carlo: Option<&MonteCarlo>) -> String 
             ));
         }
         md.push_str(&format!(
-            "| Cramér–Rao bound of the point-pair model (independent frames) | | | {:.3} | 1.00 | |\n",
+            "| Cramér–Rao bound of {} | | | {:.3} | 1.00 | |\n",
+            match mc.bound {
+                BoundModel::PointPairs => "the point-pair model (independent frames)",
+                BoundModel::SphereFit => "the sphere fit (poses and intrinsics as nuisances)",
+            },
             mc.crlb_rms_mm
         ));
     }
@@ -240,6 +253,7 @@ pub fn command(request: &StudyArgs) -> u8 {
             first_seed,
             seeds,
             shard,
+            bound: BoundModel::of(&manifest),
             results,
         };
         return match crate::report::shard::write(&request.out, &file) {
