@@ -211,5 +211,35 @@ fn study_manifests_load() {
             loaded += 1;
         }
     }
-    assert_eq!(loaded, 5, "experiments/studies/ should hold the five study manifests");
+    assert!(loaded > 0, "experiments/studies/ holds no study manifest");
+}
+
+#[test]
+fn every_study_manifest_says_how_it_is_run_and_its_study_is_committed() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    for entry in std::fs::read_dir(root.join("experiments/studies")).unwrap() {
+        let path = entry.unwrap().path();
+        if path.extension().is_none_or(|e| e != "yaml") {
+            continue;
+        }
+        let text = std::fs::read_to_string(&path).unwrap();
+        let name = path.file_name().unwrap().to_string_lossy().into_owned();
+        let command = text
+            .lines()
+            .find_map(|l| l.trim_start_matches('#').trim().strip_prefix("probecal study "))
+            .unwrap_or_else(|| panic!("{name}: no `probecal study` command in its header"));
+        assert!(
+            command.starts_with(&format!("experiments/studies/{name} ")),
+            "{name}: its command runs another manifest: {command}"
+        );
+        let out = command
+            .split_whitespace()
+            .skip_while(|w| *w != "--out")
+            .nth(1)
+            .unwrap_or_else(|| panic!("{name}: its command names no --out"));
+        assert!(
+            root.join(out).join("study.json").is_file(),
+            "{name}: {out}/study.json is not committed"
+        );
+    }
 }

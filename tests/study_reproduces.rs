@@ -8,7 +8,7 @@ mod common;
 use common::{probecal, root, scratch};
 
 /// (manifest, committed study folder under `reports/`).
-const STUDIES: [(&str, &str); 11] = [
+const STUDIES: [(&str, &str); 12] = [
     ("experiments/hemisphere_checkerboard.yaml", "study"),
     ("experiments/studies/hemisphere_true_camera.yaml", "study/true_camera"),
     (
@@ -33,6 +33,7 @@ const STUDIES: [(&str, &str); 11] = [
         "experiments/studies/spheres_views_only.yaml",
         "study/spheres_views_only",
     ),
+    ("experiments/studies/spheres_thin_beam.yaml", "study/spheres_thin_beam"),
     ("experiments/thesis_twin_dataset3.yaml", "study/thesis_twin_dataset3"),
     ("experiments/thesis_twin_aruco.yaml", "study/thesis_twin_aruco"),
 ];
