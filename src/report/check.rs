@@ -202,6 +202,20 @@ pub fn metrics(summary: &RunSummary) -> BTreeMap<String, (f64, f64)> {
                     (t.rotation_error_deg, tol.truth_rotation_error_deg),
                 );
             }
+            // Every estimator the run compares, not only the reported one: a
+            // phantom's own method (a gate's `method`) regresses like the rest.
+            for m in &s.methods {
+                if let Some(t) = &m.truth {
+                    out.insert(
+                        format!("truth_corner_error_mm ({})", m.name),
+                        (t.corner_error_mm.mean, tol.truth_corner_error_mm),
+                    );
+                    out.insert(
+                        format!("truth_rotation_error_deg ({})", m.name),
+                        (t.rotation_error_deg, tol.truth_rotation_error_deg),
+                    );
+                }
+            }
             out.insert(
                 "frames_rejected".into(),
                 (s.frames.rejected as f64, tol.frames_rejected),
@@ -499,7 +513,9 @@ mod tests {
     use super::*;
     use crate::evaluate::AxisStats;
     use crate::pipeline::record::GateResult;
-    use crate::report::summary::{BreSummary, FrameCounts, MeanMax, Summary, TruthSummaryJson};
+    use crate::report::summary::{
+        BreSummary, FrameCounts, MeanMax, MethodSummary, Summary, TruthError, TruthSummaryJson,
+    };
 
     fn summary(corner: f64, rejected: usize) -> RunSummary {
         let axis = |mean| AxisStats {
@@ -531,6 +547,43 @@ mod tests {
             }],
             ..Summary::default()
         }))
+    }
+
+    #[test]
+    fn every_estimator_of_a_run_is_judged_not_only_the_reported_one() {
+        let dir = std::env::temp_dir().join(format!("probecal-check-methods-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        let run = |fit_mm: f64| {
+            let mut summary = summary(0.3, 0);
+            if let RunSummary::Camera(s) = &mut summary {
+                s.methods = vec![MethodSummary {
+                    name: "sphere_fit".into(),
+                    truth: Some(TruthError {
+                        corner_error_mm: MeanMax { mean: fit_mm, max: 0.0 },
+                        rotation_error_deg: 0.05,
+                    }),
+                    ..MethodSummary::default()
+                }];
+            }
+            FoundSummary {
+                path: dir.join("run/e/d/summary.json"),
+                experiment: "e".into(),
+                dataset: "d".into(),
+                summary,
+            }
+        };
+        update(&[run(0.15)], &dir, false).unwrap();
+        let verdict = |fit_mm| {
+            compare(&[run(fit_mm)], &dir)
+                .unwrap()
+                .into_iter()
+                .find(|c| c.metric == "truth_corner_error_mm (sphere_fit)")
+                .map(|c| c.verdict)
+        };
+        assert_eq!(verdict(0.16), Some(Verdict::WithinNoise));
+        // The reported row is unchanged; only the other estimator got worse.
+        assert_eq!(verdict(0.25), Some(Verdict::Regressed));
+        let _ = std::fs::remove_dir_all(&dir);
     }
 
     #[test]
