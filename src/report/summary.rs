@@ -217,6 +217,10 @@ pub struct Summary {
     pub bre_mm: Option<BreSummary>,
     pub thresholds: Vec<ThresholdSummary>,
     pub gates: Vec<GateResult>,
+    /// The estimator the truth gates check (`thresholds.gates.method`), when
+    /// it is not the reported calibration: the one the phantom is for.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub gated_method: Option<String>,
     pub regression_tolerances: Regression,
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub methods: Vec<MethodSummary>,
@@ -227,6 +231,16 @@ pub struct Summary {
     /// Wire phantoms: the start guess's offset and basin of convergence.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub start_guess: Option<StartGuess>,
+}
+
+impl Summary {
+    /// The truth error of the estimator the gates check, with its name, when
+    /// that is not the reported calibration.
+    pub fn gated_truth(&self) -> Option<(&str, TruthError)> {
+        let name = self.gated_method.as_deref()?;
+        let m = self.methods.iter().find(|m| m.name == name)?;
+        Some((name, m.truth?))
+    }
 }
 
 /// What the report says an estimator did.
@@ -357,6 +371,7 @@ impl Summary {
                 })
                 .collect(),
             gates: run.gates.clone(),
+            gated_method: manifest.thresholds.gates.method.clone(),
             regression_tolerances: manifest.thresholds.regression.clone(),
             methods: run
                 .methods
