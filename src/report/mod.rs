@@ -4,6 +4,7 @@
 //! thesis chapter, the index, the regression gate ([`check`]) and provenance.
 
 pub mod ablation;
+pub mod baseline;
 pub mod check;
 pub mod compare;
 pub mod console;
