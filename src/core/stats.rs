@@ -1,5 +1,6 @@
 //! Summary statistics, written once: mean and sample SD, mean and maximum,
-//! median, and percentiles (interpolated, or nearest rank on sorted values).
+//! median, percentiles (interpolated, or nearest rank on sorted values), and
+//! the bootstrap interval of a ratio of RMS values.
 
 use serde::{Deserialize, Serialize};
 
@@ -105,6 +106,42 @@ pub fn percentile_sorted_nearest(sorted: &[f32], q: f64) -> f32 {
     sorted[((sorted.len() - 1) as f64 * q).round() as usize]
 }
 
+/// Resamples of [`rms_ratio_interval`]'s bootstrap.
+pub const BOOTSTRAP_RESAMPLES: usize = 10_000;
+
+/// `√(Σ aᵢ² / Σ bᵢ²)` of paired values (e.g. each seed's error and its bound).
+pub fn rms_ratio(pairs: &[(f64, f64)]) -> Option<f64> {
+    let (a, b) = pairs.iter().fold((0.0, 0.0), |(a, b), (x, y)| (a + x * x, b + y * y));
+    let ratio = (a / b).sqrt();
+    (b > 0.0 && ratio.is_finite()).then_some(ratio)
+}
+
+/// The central `level` (e.g. 0.9) interval of [`rms_ratio`] over the pairs'
+/// population, by the percentile bootstrap: the pairs (not their members
+/// apart) are drawn with replacement, [`BOOTSTRAP_RESAMPLES`] times, from a
+/// fixed seed, so the same pairs give the same interval. `None` for fewer than
+/// two pairs, a value that is not finite, or a level outside (0, 1).
+pub fn rms_ratio_interval(pairs: &[(f64, f64)], level: f64) -> Option<[f64; 2]> {
+    let finite = pairs.iter().all(|(a, b)| a.is_finite() && b.is_finite());
+    if pairs.len() < 2 || !finite || !(level > 0.0 && level < 1.0) {
+        return None;
+    }
+    rms_ratio(pairs)?;
+    let mut rng = crate::core::rng::Rng::new(0x0b00_7572_a900);
+    let mut sample = vec![(0.0, 0.0); pairs.len()];
+    let mut ratios = Vec::with_capacity(BOOTSTRAP_RESAMPLES);
+    for _ in 0..BOOTSTRAP_RESAMPLES {
+        for s in sample.iter_mut() {
+            *s = pairs[rng.below(pairs.len())];
+        }
+        // A resample of only zero bounds has no ratio: it counts as unbounded.
+        ratios.push(rms_ratio(&sample).unwrap_or(f64::INFINITY));
+    }
+    let tail = (1.0 - level) / 2.0;
+    let interval = [percentile(&ratios, tail), percentile(&ratios, 1.0 - tail)];
+    interval.iter().all(|v| v.is_finite()).then_some(interval)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -121,6 +158,46 @@ mod tests {
         assert_eq!(percentile(&[0.0, 10.0, 20.0], 0.25), 5.0);
         assert_eq!(percentile_sorted_nearest(&[1.0, 2.0, 3.0], 0.74), 2.0);
         assert_eq!(mean([1.0, 2.0].into_iter()), Some(1.5));
+    }
+
+    #[test]
+    fn the_rms_ratio_interval_covers_the_population_ratio_about_as_often_as_its_level() {
+        // Ten seeds whose errors are their bounds times a chi (3 dof) / √3
+        // draw: the population's RMS ratio is 1.
+        let mut rng = crate::core::rng::Rng::new(11);
+        let trials = 400;
+        let mut covered = 0;
+        for _ in 0..trials {
+            let pairs: Vec<(f64, f64)> = (0..10)
+                .map(|_| {
+                    let bound = rng.uniform(0.1, 0.13);
+                    let chi2: f64 = (0..3).map(|_| rng.normal(0.0, 1.0).powi(2)).sum();
+                    (bound * (chi2 / 3.0).sqrt(), bound)
+                })
+                .collect();
+            let [lo, hi] = rms_ratio_interval(&pairs, 0.9).unwrap();
+            let point = rms_ratio(&pairs).unwrap();
+            assert!(lo <= point && point <= hi, "{lo} {point} {hi}");
+            covered += usize::from(lo <= 1.0 && 1.0 <= hi);
+        }
+        // The percentile bootstrap covers a little less than its level with
+        // ten values; a fixed width or a wrong resampling would fall far outside.
+        let rate = covered as f64 / trials as f64;
+        assert!((0.78..=0.95).contains(&rate), "covered in {rate}");
+    }
+
+    #[test]
+    fn the_rms_ratio_interval_is_repeatable_and_refuses_what_it_cannot_bound() {
+        let pairs = [(0.2, 0.1), (0.1, 0.1), (0.15, 0.12), (0.3, 0.11)];
+        let interval = rms_ratio_interval(&pairs, 0.9).unwrap();
+        assert_eq!(rms_ratio_interval(&pairs, 0.9), Some(interval));
+        assert!(interval[0] < interval[1]);
+        let point = rms_ratio(&pairs).unwrap();
+        assert!((point - (0.1625f64 / 0.0465).sqrt()).abs() < 1e-12, "{point}");
+        assert_eq!(rms_ratio_interval(&pairs[..1], 0.9), None);
+        assert_eq!(rms_ratio_interval(&[(0.1, 0.1), (f64::NAN, 0.1)], 0.9), None);
+        assert_eq!(rms_ratio_interval(&[(0.1, 0.0), (0.2, 0.0)], 0.9), None);
+        assert_eq!(rms_ratio_interval(&pairs, 1.0), None);
     }
 
     #[test]

@@ -127,7 +127,17 @@ pub struct MethodAccuracy {
     pub better_than_reported_seeds: usize,
     #[serde(default)]
     pub worse_than_reported_seeds: usize,
+    /// `rms_mm` over the RMS of the bound, over the seeds that have both.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rms_over_bound: Option<f64>,
+    /// Its 90 % interval: how far another set of as many seeds could move it
+    /// (a paired bootstrap over the seeds, [`crate::core::stats::rms_ratio_interval`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rms_over_bound_90: Option<[f64; 2]>,
 }
+
+/// The level of a study's bootstrap intervals.
+pub const INTERVAL_LEVEL: f64 = 0.9;
 
 /// A method's error is "better" ("worse") than the reported method's below
 /// (above) these multiples of it.
@@ -379,8 +389,17 @@ pub fn summarise(experiment: &str, bound: BoundModel, results: Vec<SeedResult>) 
                     Some((of(name)?, of(names.first()?)?))
                 })
                 .collect();
+            let against_bound: Vec<(f64, f64)> = results
+                .iter()
+                .filter_map(|r| {
+                    let error = r.rms_error_mm.iter().find(|(m, _)| m == name)?.1;
+                    Some((error, r.crlb_rms_mm?))
+                })
+                .collect();
             MethodAccuracy {
                 method: name.clone(),
+                rms_over_bound: crate::core::stats::rms_ratio(&against_bound),
+                rms_over_bound_90: crate::core::stats::rms_ratio_interval(&against_bound, INTERVAL_LEVEL),
                 better_than_reported_seeds: versus.iter().filter(|(e, r)| *e < BETTER_BELOW * r).count(),
                 worse_than_reported_seeds: versus.iter().filter(|(e, r)| *e > WORSE_ABOVE * r).count(),
                 mean_mm: errors.iter().sum::<f64>() / errors.len().max(1) as f64,
@@ -415,6 +434,35 @@ mod tests {
         assert!((ratio - 4.0).abs() < 0.4, "{rows:?}");
         // Half-normal per axis, a little less for the six fitted parameters: ≈ 0.59 σ.
         assert!((rows[2].std_per_axis_mm - 0.59).abs() < 0.05, "{rows:?}");
+    }
+
+    #[test]
+    fn each_method_carries_its_ratio_to_the_bound_with_an_interval_only_where_seeds_have_bounds() {
+        let seed = |seed: u64, errors: [f64; 2], bound: Option<f64>| SeedResult {
+            seed,
+            rms_error_mm: vec![("a".into(), errors[0]), ("b".into(), errors[1])],
+            crlb_rms_mm: bound,
+            frames_used: 40,
+        };
+        let bounded: Vec<SeedResult> = (0..6)
+            .map(|k| seed(k, [0.1 + 0.02 * k as f64, 0.3], Some(0.1)))
+            .collect();
+        let study = summarise("x", BoundModel::SphereFit, bounded);
+        for m in &study.methods {
+            let ratio = m.rms_over_bound.unwrap();
+            assert!((ratio - m.rms_mm / study.crlb_rms_mm).abs() < 1e-12, "{m:?}");
+            let [lo, hi] = m.rms_over_bound_90.unwrap();
+            assert!(lo <= ratio && ratio <= hi, "{m:?}");
+        }
+        // Errors that do not vary over the seeds leave nothing to resample.
+        let [lo, hi] = study.methods[1].rms_over_bound_90.unwrap();
+        assert!((lo - 3.0).abs() < 1e-12 && (hi - 3.0).abs() < 1e-12, "{lo} {hi}");
+        let unbounded: Vec<SeedResult> = (0..6).map(|k| seed(k, [0.1, 0.3], None)).collect();
+        let study = summarise("x", BoundModel::PointPairs, unbounded);
+        assert!(study
+            .methods
+            .iter()
+            .all(|m| m.rms_over_bound.is_none() && m.rms_over_bound_90.is_none()));
     }
 
     #[test]

@@ -60,18 +60,29 @@ pub fn markdown(sigma: &[SigmaRow], monte_carlo: Option<&MonteCarlo>) -> String 
                  intrinsics, as nuisances; `probecal design`'s noise model).\n\n"
             }
         });
+        md.push_str(&format!(
+            "RMS / CRLB is over the seeds that have a bound; in brackets its {:.0} % confidence interval for the \
+             population of seeds, a bootstrap over these {}.\n\n",
+            crate::pipeline::study::INTERVAL_LEVEL * 100.0,
+            mc.seeds.len()
+        ));
         let reported = mc.methods.first().map(|m| m.method.as_str()).unwrap_or("—");
         md.push_str(&format!(
             "| method | mean (mm) | 95th percentile (mm) | RMS (mm) | RMS / CRLB | seeds better / worse than {reported} by > 5 % |\n|---|---|---|---|---|---|\n"
         ));
         for m in &mc.methods {
+            let ratio = match (m.rms_over_bound, m.rms_over_bound_90) {
+                (Some(r), Some([lo, hi])) => format!("{r:.2} ({lo:.2}–{hi:.2})"),
+                (Some(r), None) => format!("{r:.2}"),
+                _ => "—".into(),
+            };
             md.push_str(&format!(
-                "| {} | {:.3} | {:.3} | {:.3} | {:.2} | {} / {} |\n",
+                "| {} | {:.3} | {:.3} | {:.3} | {} | {} / {} |\n",
                 m.method,
                 m.mean_mm,
                 m.p95_mm,
                 m.rms_mm,
-                m.rms_mm / mc.crlb_rms_mm,
+                ratio,
                 m.better_than_reported_seeds,
                 m.worse_than_reported_seeds
             ));
@@ -145,10 +156,18 @@ pub fn write(out: &Path, sigma: &[SigmaRow], monte_carlo: Option<&MonteCarlo>) -
         sigma_table: sigma.to_vec(),
         monte_carlo: monte_carlo.cloned(),
     };
-    std::fs::write(out.join("study.json"), to_text(&file).map_err(std::io::Error::other)?)?;
+    let json = to_text(&file).map_err(std::io::Error::other)?;
     let md = markdown(sigma, monte_carlo);
-    std::fs::write(out.join("study.md"), &md)?;
-    std::fs::write(out.join("study.html"), html(&md))
+    let html = html(&md);
+    // Each file is swapped in whole: an earlier study stays readable until then.
+    for (name, bytes) in [
+        ("study.json", json.as_bytes()),
+        ("study.md", md.as_bytes()),
+        ("study.html", html.as_bytes()),
+    ] {
+        crate::io::fs::write_atomic(&out.join(name), bytes).map_err(std::io::Error::other)?;
+    }
+    Ok(())
 }
 
 /// The σ-table as every study writes it: 50 frames, 200 repetitions, seed 1.
