@@ -79,3 +79,54 @@ fn the_first_seed_of_every_committed_study_reproduces() {
         differ.join("\n")
     );
 }
+
+/// `a` and `b` alike: the same structure and text, numbers equal to within
+/// 1e-12 of their size (`serde_json` reads a number to within its last bit,
+/// so a number read and written again may move there).
+fn alike(a: &serde_json::Value, b: &serde_json::Value) -> bool {
+    use serde_json::Value;
+    match (a, b) {
+        (Value::Number(x), Value::Number(y)) => {
+            let (x, y) = (x.as_f64().unwrap(), y.as_f64().unwrap());
+            (x - y).abs() <= 1e-12 * x.abs().max(1.0)
+        }
+        (Value::Array(x), Value::Array(y)) => x.len() == y.len() && x.iter().zip(y).all(|(x, y)| alike(x, y)),
+        (Value::Object(x), Value::Object(y)) => {
+            x.len() == y.len() && x.iter().all(|(k, v)| y.get(k).is_some_and(|w| alike(v, w)))
+        }
+        _ => a == b,
+    }
+}
+
+/// What a study writes beyond its seeds (each method's mean, percentile, RMS,
+/// its ratio to the bound and that ratio's interval, the pages) is a function
+/// of the seeds alone: every committed study must be what the current code
+/// makes of its own seeds (the pages byte for byte), or its summary has drifted.
+#[test]
+fn every_committed_study_is_the_summary_of_its_own_seeds() {
+    let mut differ = Vec::new();
+    for (_, folder) in STUDIES {
+        let committed = root().join("reports").join(folder);
+        let file = probecal::report::study::StudyFile::read(&committed.join("study.json")).unwrap();
+        let mc = file.monte_carlo.expect("a committed study has seeds");
+        let again = probecal::pipeline::study::summarise(&mc.experiment, mc.bound, mc.seeds.clone());
+        let out = scratch("study_summary", &folder.replace('/', "_"));
+        probecal::report::study::write(&out, &file.sigma_table, Some(&again)).unwrap();
+        let json = |dir: &std::path::Path| -> serde_json::Value {
+            serde_json::from_str(&std::fs::read_to_string(dir.join("study.json")).unwrap()).unwrap()
+        };
+        if !alike(&json(&committed), &json(&out)) {
+            differ.push(format!("reports/{folder}/study.json"));
+        }
+        for name in ["study.md", "study.html"] {
+            if std::fs::read(committed.join(name)).unwrap() != std::fs::read(out.join(name)).unwrap() {
+                differ.push(format!("reports/{folder}/{name}"));
+            }
+        }
+    }
+    assert!(
+        differ.is_empty(),
+        "not what the code makes of the study's own seeds (probecal study merge of its seeds rewrites them):\n{}",
+        differ.join("\n")
+    );
+}
