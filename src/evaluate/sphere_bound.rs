@@ -207,6 +207,137 @@ mod tests {
         (0..40).map(|i| 0.5 * ((i % 7) as f64 - 3.0) / 3.0).collect()
     }
 
+    /// The pose-prior sphere fit on data drawn from the bound's own model (edge
+    /// points with independent Gaussian distances from their spheres, each
+    /// frame's pose off by the hand's Gaussian motion, no shared error): its
+    /// RMS corner error over many draws is the bound's.
+    #[test]
+    fn the_pose_prior_fit_reaches_the_bound_on_its_own_model() {
+        use crate::core::rng::Rng;
+        use crate::estimate::sphere_bundle::{self, PosePriors};
+        use crate::estimate::sphere_fit::{self, ArcFrame, SphereSettings};
+        let spheres = three_domes();
+        let spacing = [0.2, 0.2];
+        let (edge_sd_mm, hand_mm, hand_deg): (f64, f64, f64) = (0.12, 0.1, 0.03);
+        let r = hand_deg.to_radians().powi(2);
+        let pose_cov = Matrix6::from_diagonal(&Vector6::new(
+            r,
+            r,
+            r,
+            hand_mm * hand_mm,
+            hand_mm * hand_mm,
+            hand_mm * hand_mm,
+        ));
+        let truth = rigid_from_axis_angle(Vector3::new(0.02, -0.03, 0.01), Vector3::new(-20.0, 160.0, 25.0));
+        let camera_T_phantom = rigid_from_axis_angle(Vector3::new(2.0, 0.1, 0.2), Vector3::new(-100.0, 80.0, 500.0));
+        let probes: Vec<Point3<f64>> = [[0.0, 0.0], [100.0, 0.0], [0.0, 80.0], [100.0, 80.0], [50.0, 40.0]]
+            .iter()
+            .map(|p| Point3::new(p[0], p[1], 0.0))
+            .collect();
+        let noise = EdgeNoise {
+            edge_sd_mm,
+            points_per_arc: 40.0,
+        };
+        let mut rng = Rng::new(21);
+        let trials = 30;
+        let (mut error2, mut bound2) = (0.0, 0.0);
+        for _ in 0..trials {
+            let (mut bound_frames, mut arcs) = (Vec::new(), Vec::new());
+            for frame in 0..40 {
+                let tilt = Vector3::new(
+                    rng.uniform(-0.15, 0.15),
+                    rng.uniform(-0.15, 0.15),
+                    rng.uniform(-0.1, 0.1),
+                );
+                let phantom_T_image = rigid_from_axis_angle(
+                    Vector3::new(-std::f64::consts::FRAC_PI_2, 0.0, 0.0) + tilt,
+                    Vector3::new(
+                        -40.0 + rng.uniform(-3.0, 3.0),
+                        rng.normal(0.0, 2.0),
+                        50.0 + rng.uniform(-5.0, 5.0),
+                    ),
+                );
+                let phantom_T_marker = phantom_T_image * truth.inverse();
+                let image_T_phantom = phantom_T_image.inverse();
+                let hand = rigid_from_axis_angle(
+                    Vector3::new(rng.normal(0.0, 1.0), rng.normal(0.0, 1.0), rng.normal(0.0, 1.0))
+                        * hand_deg.to_radians(),
+                    Vector3::new(rng.normal(0.0, 1.0), rng.normal(0.0, 1.0), rng.normal(0.0, 1.0)) * hand_mm,
+                );
+                let mut frame_arcs = Vec::new();
+                for (k, sphere) in spheres.iter().enumerate() {
+                    let c = image_T_phantom * sphere.centre_in_phantom_mm;
+                    if c.z.abs() > 0.8 * sphere.radius_mm {
+                        continue;
+                    }
+                    let rho = (sphere.radius_mm.powi(2) - c.z * c.z).sqrt();
+                    let on_circle: Vec<Point3<f64>> = (0..40)
+                        .map(|j| {
+                            let a = (-55.0 + 110.0 * j as f64 / 39.0f64).to_radians();
+                            Point3::new(c.x + rho * a.sin(), c.y - rho * a.cos(), 0.0)
+                        })
+                        .collect();
+                    // In the plane, radially, so far that the distance from the sphere is N(0, σ).
+                    let edge_px = on_circle
+                        .iter()
+                        .map(|p| {
+                            let out = (p - Point3::new(c.x, c.y, 0.0)) / rho;
+                            let q = p + out * rng.normal(0.0, edge_sd_mm) * sphere.radius_mm / rho;
+                            [q.x / spacing[0], q.y / spacing[1]]
+                        })
+                        .collect();
+                    arcs.push(ArcFrame {
+                        frame,
+                        sphere: k,
+                        edge_px,
+                        camera_T_marker: camera_T_phantom * phantom_T_marker * hand,
+                        camera_T_phantom,
+                    });
+                    frame_arcs.push((k, on_circle));
+                }
+                bound_frames.push(BoundFrame {
+                    phantom_T_marker,
+                    arcs: frame_arcs,
+                    pose_cov,
+                    pose_from_intrinsics: PoseFromIntrinsics::zeros(),
+                });
+            }
+            let settings = SphereSettings {
+                spheres: spheres.clone(),
+                spacing_mm_per_px: spacing,
+                elevation_prior_sd_mm: None,
+                fit_radius_offset: false,
+                points_per_frame: 40.0,
+            };
+            let plain = sphere_fit::refine(&truth, &arcs, &settings).unwrap();
+            let mut frames: Vec<(usize, Matrix6<f64>)> = arcs.iter().map(|a| (a.frame, pose_cov)).collect();
+            frames.dedup_by_key(|f| f.0);
+            let priors = PosePriors {
+                edge_sd_mm,
+                frames,
+                shared: None,
+            };
+            let fit = sphere_bundle::refine(&plain.marker_T_image, &arcs, &settings, &priors).unwrap();
+            error2 += probes
+                .iter()
+                .map(|q| (fit.marker_T_image * q - truth * q).norm_squared())
+                .sum::<f64>()
+                / probes.len() as f64;
+            let bound = corner_rms_bound(
+                &truth,
+                &bound_frames,
+                &spheres,
+                &noise,
+                &IntrinsicsInformation::zeros(),
+                &probes,
+            )
+            .unwrap();
+            bound2 += bound * bound;
+        }
+        let ratio = (error2 / bound2).sqrt();
+        assert!((0.8..=1.2).contains(&ratio), "RMS error over the bound: {ratio}");
+    }
+
     #[test]
     fn domes_at_different_offsets_bound_the_calibration_below_one_dome() {
         let truth = rigid_from_axis_angle(Vector3::zeros(), Vector3::new(-20.0, 160.0, 25.0));
