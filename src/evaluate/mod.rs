@@ -123,6 +123,32 @@ pub struct TruthComparison {
     pub corner_error_max_mm: f64,
     pub rotation_error_deg: f64,
     pub translation_error_mm: f64,
+    /// The same error along the image's own axes.
+    pub in_image: ImageFrameError,
+}
+
+/// A calibration's error as a motion of the image plane: `true_image_T_image`,
+/// `marker_T_image_true⁻¹ · marker_T_image` (rigid parts), which carries a
+/// point of the estimated image to where the truth puts it. Its rotation
+/// vector is about the image's axes (x lateral, y along the beam, z the plane's
+/// normal: a rotation about x tilts the plane up or down the depth), its
+/// translation along them; a point `p` of the image moves by `ω × p + t`.
+#[derive(Debug, Clone, Copy, Default, Serialize, Deserialize, PartialEq)]
+pub struct ImageFrameError {
+    pub rotation_about_image_axes_deg: [f64; 3],
+    pub translation_in_image_mm: [f64; 3],
+}
+
+impl ImageFrameError {
+    pub fn between(marker_T_image: &Rigid, true_marker_T_image: &Rigid) -> ImageFrameError {
+        let true_image_T_image = true_marker_T_image.inverse() * marker_T_image;
+        let rotation = true_image_T_image.rotation.scaled_axis();
+        let t = true_image_T_image.translation.vector;
+        ImageFrameError {
+            rotation_about_image_axes_deg: [rotation.x, rotation.y, rotation.z].map(f64::to_degrees),
+            translation_in_image_mm: [t.x, t.y, t.z],
+        }
+    }
 }
 
 pub fn compare_with_truth(
@@ -211,6 +237,7 @@ pub fn compare_mapped(
         corner_error_max_mm: distances.iter().cloned().fold(0.0, f64::max),
         rotation_error_deg: rotation_angle_between_deg(&estimate.target_T_source, marker_T_image),
         translation_error_mm: (estimate.target_T_source.translation.vector - marker_T_image.translation.vector).norm(),
+        in_image: ImageFrameError::between(&estimate.target_T_source, marker_T_image),
     }
 }
 
@@ -335,6 +362,32 @@ mod tests {
     use crate::core::geometry::rigid_from_axis_angle;
     use crate::estimate::correspondence::bre;
     use nalgebra::{Point3, Vector3};
+
+    #[test]
+    fn the_error_in_the_image_frame_is_the_planted_tilt_and_shift() {
+        let truth = rigid_from_axis_angle(Vector3::new(0.02, -0.03, 1.5), Vector3::new(-20.0, 160.0, 25.0));
+        // The estimate's image is the true one tilted 0.2° about its lateral
+        // axis and 0.3 mm off along its normal.
+        let moved = rigid_from_axis_angle(
+            Vector3::new(0.2f64.to_radians(), 0.0, 0.0),
+            Vector3::new(0.0, 0.0, -0.3),
+        );
+        let estimate = truth * moved;
+        let e = ImageFrameError::between(&estimate, &truth);
+        let [rx, ry, rz] = e.rotation_about_image_axes_deg;
+        assert!((rx - 0.2).abs() < 1e-9 && ry.abs() < 1e-9 && rz.abs() < 1e-9, "{e:?}");
+        let [tx, ty, tz] = e.translation_in_image_mm;
+        assert!(tx.abs() < 1e-9 && ty.abs() < 1e-9 && (tz + 0.3).abs() < 1e-9, "{e:?}");
+        // A point of the estimated image lands where ω × p + t says, to first order.
+        let p = Point3::new(40.0, 100.0, 0.0);
+        let shift = truth.inverse() * (estimate * p) - p;
+        let predicted = Vector3::new(rx, ry, rz).map(f64::to_radians).cross(&p.coords) + Vector3::new(tx, ty, tz);
+        // (The second-order term here is θ² · 100 mm / 2 = 0.0006 mm.)
+        assert!((shift - predicted).norm() < 1e-3, "{shift} vs {predicted}");
+        let none = ImageFrameError::between(&truth, &truth);
+        let size = |v: [f64; 3]| v.iter().map(|x| x * x).sum::<f64>().sqrt();
+        assert!(size(none.rotation_about_image_axes_deg) < 1e-9 && size(none.translation_in_image_mm) < 1e-9);
+    }
 
     #[test]
     fn a_bre_that_is_not_a_number_passes_no_cut_off() {

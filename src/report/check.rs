@@ -486,6 +486,7 @@ mod tests {
                     truth: Some(TruthError {
                         corner_error_mm: MeanMax { mean: fit_mm, max: 0.0 },
                         rotation_error_deg: 0.05,
+                        ..TruthError::default()
                     }),
                     ..MethodSummary::default()
                 }];

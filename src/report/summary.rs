@@ -142,6 +142,8 @@ impl MeanMax {
 pub struct TruthError {
     pub corner_error_mm: MeanMax,
     pub rotation_error_deg: f64,
+    #[serde(default)]
+    pub in_image: crate::evaluate::ImageFrameError,
 }
 
 impl From<TruthComparison> for TruthError {
@@ -152,6 +154,7 @@ impl From<TruthComparison> for TruthError {
                 max: t.corner_error_max_mm,
             },
             rotation_error_deg: t.rotation_error_deg,
+            in_image: t.in_image,
         }
     }
 }

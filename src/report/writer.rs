@@ -163,6 +163,7 @@ mod tests {
                 truth: Some(TruthError {
                     corner_error_mm: MeanMax { mean: 0.172, max: 0.3 },
                     rotation_error_deg: 0.16,
+                    ..TruthError::default()
                 }),
                 ..MethodSummary::default()
             }],
