@@ -8,7 +8,7 @@ mod common;
 use common::{probecal, root, scratch};
 
 /// (manifest, committed study folder under `reports/`).
-const STUDIES: [(&str, &str); 12] = [
+const STUDIES: [(&str, &str); 13] = [
     ("experiments/hemisphere_checkerboard.yaml", "study"),
     ("experiments/studies/hemisphere_true_camera.yaml", "study/true_camera"),
     (
@@ -24,6 +24,7 @@ const STUDIES: [(&str, &str); 12] = [
         "study/more_outliers",
     ),
     ("experiments/spheres_checkerboard.yaml", "study/spheres"),
+    ("experiments/spheres_checkerboard.yaml", "study/spheres_30"),
     ("experiments/spheres_checkerboard.yaml", "study/spheres_choice/refine"),
     (
         "experiments/studies/spheres_views_only.yaml",
