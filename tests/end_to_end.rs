@@ -29,7 +29,7 @@ fn run_writes_the_tables_summary_and_page() {
     std::fs::write(out.join("study/variant_a/study.html"), "<html></html>").unwrap();
     std::fs::write(
         out.join("study/variant_a/study.json"),
-        r#"{"monte_carlo": {"experiment": "rig_a", "seeds": [1000, 1001]}}"#,
+        r#"{"monte_carlo": {"experiment": "rig_a", "seeds": [{"seed": 1000}, {"seed": 1001}]}}"#,
     )
     .unwrap();
     std::fs::create_dir_all(out.join("study/variant_b")).unwrap();
@@ -67,7 +67,7 @@ fn run_writes_the_tables_summary_and_page() {
     let index = std::fs::read_to_string(out.join("index.html")).unwrap();
     assert!(index.contains("study&#x2F;variant_a&#x2F;study.html"), "{index}");
     assert!(
-        index.contains("Monte Carlo accuracy study of rig_a (2 seeds)"),
+        index.contains("Monte Carlo accuracy study of rig_a (2 seeds, 1000–1001)"),
         "{index}"
     );
     // Without a readable study.json the folder's name stands for it.

@@ -39,10 +39,30 @@ struct StudyHead {
 #[derive(Deserialize)]
 struct MonteCarloHead {
     experiment: String,
-    seeds: Vec<serde::de::IgnoredAny>,
+    seeds: Vec<SeedHead>,
 }
 
-/// The index's words for a study folder: its experiment and seed count from
+#[derive(Deserialize)]
+struct SeedHead {
+    seed: u64,
+}
+
+/// "N seeds", with their range when they run on without a gap (studies of one
+/// experiment differ by their seeds).
+fn seeds_phrase(seeds: &[u64]) -> String {
+    let (Some(first), Some(last)) = (seeds.iter().min(), seeds.iter().max()) else {
+        return "0 seeds".into();
+    };
+    let n = seeds.len();
+    let unbroken = last - first + 1 == n as u64 && seeds.windows(2).all(|w| w[0] < w[1]);
+    match n {
+        1 => format!("seed {first}"),
+        _ if unbroken => format!("{n} seeds, {first}–{last}"),
+        _ => format!("{n} seeds"),
+    }
+}
+
+/// The index's words for a study folder: its experiment and seeds from
 /// `study.json`, or the folder's name when that cannot be read.
 pub fn study_label(study_json: &Path, folder: &str) -> String {
     let head = std::fs::read_to_string(study_json)
@@ -51,9 +71,9 @@ pub fn study_label(study_json: &Path, folder: &str) -> String {
         .and_then(|s| s.monte_carlo);
     match head {
         Some(mc) => format!(
-            "Monte Carlo accuracy study of {} ({} seeds)",
+            "Monte Carlo accuracy study of {} ({})",
             mc.experiment,
-            mc.seeds.len()
+            seeds_phrase(&mc.seeds.iter().map(|s| s.seed).collect::<Vec<_>>())
         ),
         None => format!("Study: {}", folder.replace('_', " ")),
     }
@@ -125,4 +145,18 @@ pub fn write(out: &Path, entries: &[IndexEntry]) -> Vec<String> {
         Err(e) => errors.push(format!("index page: {e}")),
     }
     errors
+}
+
+#[cfg(test)]
+mod tests {
+    use super::seeds_phrase;
+
+    #[test]
+    fn a_study_is_named_by_its_seeds() {
+        assert_eq!(seeds_phrase(&[2000, 2001, 2002]), "3 seeds, 2000–2002");
+        assert_eq!(seeds_phrase(&[1000, 1002]), "2 seeds");
+        assert_eq!(seeds_phrase(&[1001, 1000]), "2 seeds");
+        assert_eq!(seeds_phrase(&[7]), "seed 7");
+        assert_eq!(seeds_phrase(&[]), "0 seeds");
+    }
 }
