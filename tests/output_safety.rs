@@ -154,22 +154,8 @@ fn a_failed_or_killed_rerun_keeps_the_previous_report_and_one_run_writes_at_a_ti
         // (a loaded machine): it then wrote the same report, and is started again.
         let mut cut_off = false;
         for _ in 0..5 {
-            let mut run = probecal();
-            run.arg("run")
-                .arg(&good)
-                .arg("--out")
-                .arg(&out_dir)
-                .arg("--datasets")
-                .arg(datasets(&out_dir))
-                .arg("--force")
-                .arg("--quiet");
-            interruptible(&mut run);
-            let mut child = run.spawn().unwrap();
-            // Wait until it has started writing, then kill it.
-            let started = Instant::now();
-            while !out_dir.join(".hemisphere_small.partial").exists() && started.elapsed() < Duration::from_secs(60) {
-                std::thread::sleep(Duration::from_millis(20));
-            }
+            // Caught while it writes, then killed.
+            let mut child = started_run(&good, &out_dir, &["--force"]);
             let killed = std::process::Command::new("kill")
                 .arg(signal)
                 .arg(child.id().to_string())
@@ -224,18 +210,20 @@ fn interruptible(command: &mut std::process::Command) {
     }
 }
 
-/// A run of the fixture into `out`, started and caught while it writes.
-fn started_run(manifest: &Path, out: &Path) -> std::process::Child {
-    let child = probecal()
-        .arg("run")
+/// A run of the fixture into `out` (with `extra` arguments), started and caught
+/// while it writes; Ctrl-C interrupts it.
+fn started_run(manifest: &Path, out: &Path, extra: &[&str]) -> std::process::Child {
+    let mut run = probecal();
+    run.arg("run")
         .arg(manifest)
         .arg("--out")
         .arg(out)
         .arg("--datasets")
         .arg(datasets(out))
         .arg("--quiet")
-        .spawn()
-        .unwrap();
+        .args(extra);
+    interruptible(&mut run);
+    let child = run.spawn().unwrap();
     let started = Instant::now();
     while !out.join(".hemisphere_small.partial").exists() && started.elapsed() < Duration::from_secs(120) {
         std::thread::sleep(Duration::from_millis(10));
@@ -249,7 +237,7 @@ fn a_second_process_is_kept_out_of_a_busy_output_folder_and_waits_for_a_busy_dat
     let dir = scratch("output_safety", "concurrent");
     let out_dir = dir.join("out");
     let good = write(&dir, "good.yaml", &fixture_text());
-    let mut first = started_run(&good, &out_dir);
+    let mut first = started_run(&good, &out_dir, &[]);
     let holder = format!("another probecal (process {})", first.id());
     // Until the first run holds its rendered dataset.
     let dataset_lock = datasets(&out_dir).join(".hemisphere_small__small.lock");
