@@ -26,5 +26,6 @@ pub mod summary;
 pub mod temporal;
 pub mod thesis;
 pub mod tracked;
+pub mod tracked_summary;
 pub mod write;
 pub mod writer;

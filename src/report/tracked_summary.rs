@@ -1,0 +1,135 @@
+//! `summary.json` of a tracked-sequence run (PLUS sequence files), typed: what
+//! [`crate::report::tracked`] writes and the regression gate reads back.
+
+use serde::{Deserialize, Serialize};
+
+use crate::core::stats::MeanSd;
+use crate::estimate::image_to_probe::{ConstraintModel, PixelModel};
+use crate::pipeline::record::GateResult;
+
+/// `summary.json` of a tracked-sequence run.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct TrackedSummary {
+    pub experiment: String,
+    pub dataset: String,
+    /// Always `tracked_sequence`.
+    pub kind: String,
+    pub frames: TrackedFrameCounts,
+    pub constraints: ConstraintCounts,
+    /// The tracker's lag behind the images, s.
+    pub time_offset_s: f64,
+    pub image_to_probe: ImageToProbeSummary,
+    /// How the model was chosen: cross-validation on the calibration frames.
+    pub model_selection: ModelSelectionSummary,
+    pub validation: Pre3d,
+    pub calibration: Pre3d,
+    pub gates: Vec<GateResult>,
+    pub regression_tolerances: TrackedTolerances,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub plus_result: Option<PlusResultSummary>,
+}
+
+/// One candidate model's cross-validated PRE3D (or why it has none).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CandidateScore {
+    pub constraints: ConstraintModel,
+    pub pixel_model: PixelModel,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cv_pre3d_mm: Option<MeanSd>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub failure: Option<String>,
+}
+
+/// The model family scored on the calibration frames and the model chosen.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct ModelSelectionSummary {
+    /// Contiguous blocks of calibration frames.
+    pub folds: usize,
+    /// Calibration frames cross-validated.
+    pub frames: usize,
+    pub candidates: Vec<CandidateScore>,
+    pub chosen_constraints: ConstraintModel,
+    pub chosen_pixel_model: PixelModel,
+}
+
+/// What `kind` says of a tracked run.
+pub const TRACKED_KIND: &str = "tracked_sequence";
+
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+pub struct Segmented {
+    pub segmented: usize,
+    pub total: usize,
+}
+
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+pub struct TrackedFrameCounts {
+    pub calibration: Segmented,
+    pub validation: Segmented,
+    pub rejected: usize,
+    /// Pixels of a screen grab's overlay left out (bright in every calibration
+    /// frame), when no clip rectangle was given.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub overlay_px: Option<usize>,
+}
+
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+pub struct ConstraintCounts {
+    pub model: ConstraintModel,
+    pub count: usize,
+    pub kept: usize,
+}
+
+/// SDs of the fitted parameters.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct ParameterSd {
+    pub rotation_mrad: Vec<f64>,
+    pub translation_mm: Vec<f64>,
+    pub spacing_mm_per_px: Vec<f64>,
+    pub shear_mm_per_px: f64,
+}
+
+/// PLUS's `Calibration`: `marker_T_image` after the pixel size.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct ImageToProbeSummary {
+    pub matrix: Vec<Vec<f64>>,
+    pub pixel_model: PixelModel,
+    pub spacing_mm_per_px: [f64; 2],
+    /// mm along the image's x axis per pixel row (0 but for the affine model).
+    pub shear_mm_per_px: f64,
+    pub rotation_zyx_deg: [f64; 3],
+    pub translation_mm: [f64; 3],
+    pub sd: ParameterSd,
+}
+
+/// PRE3D in PLUS's convention (best 95 %) and over all points.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+pub struct Pre3d {
+    pub pre3d_mm: Option<MeanSd>,
+    pub pre3d_all_mm: Option<MeanSd>,
+    /// PLUS's `ImageToProbe` (its result file) on the same dots and poses, same
+    /// convention: the like-for-like comparison.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub plus_matrix_pre3d_mm: Option<MeanSd>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub plus_matrix_pre3d_all_mm: Option<MeanSd>,
+}
+
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+pub struct TrackedTolerances {
+    pub pre3d_mm: f64,
+    pub frames_rejected: f64,
+}
+
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+pub struct PublishedPre3d {
+    pub mean: Option<f64>,
+    pub std: Option<f64>,
+}
+
+/// PLUS's own result file, and its matrix scored on our dots.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct PlusResultSummary {
+    pub matrix: Vec<Vec<f64>>,
+    pub published_validation_pre3d_mm: PublishedPre3d,
+    pub published_calibration_pre3d_mm: PublishedPre3d,
+}
