@@ -189,6 +189,46 @@ fn experiment_on_plus_data_chooses_on_calibration_frames_and_compares_like_for_l
     for f in ["ImageToProbe.xml", "ImageToProbe.tfm", "frames.csv", "report.html"] {
         assert!(folder.join(f).is_file(), "{f}");
     }
+    // What the validation score can tell: the spread of refits on resampled
+    // calibration blocks, the model's floor on the validation frames, the tilts.
+    let r = &summary["resolution"];
+    let b = &r["bootstrap_pre3d_mm"];
+    let (p5, p50, p95) = (
+        b["p5"].as_f64().unwrap(),
+        b["p50"].as_f64().unwrap(),
+        b["p95"].as_f64().unwrap(),
+    );
+    assert!(p5 < p50 && p50 < p95, "{b}");
+    assert_eq!(b["resamples"].as_u64().unwrap() + b["failed"].as_u64().unwrap(), 200);
+    // Refits on resampled frames scatter about the fit on all of them.
+    assert!(p5 < pre3d && pre3d < p95, "ours {pre3d} outside {p5}..{p95}");
+    // README: PLUS's matrix scores inside that spread (the recording cannot tell them apart).
+    assert!(p5 < plus && plus < p95, "PLUS's {plus} outside {p5}..{p95}");
+    let floor = r["own_fit_pre3d_mm"]["mean"].as_f64().unwrap();
+    assert!(
+        floor < pre3d && floor < plus,
+        "floor {floor}, ours {pre3d}, PLUS's {plus}"
+    );
+    let c = &r["pose_coverage"];
+    assert_eq!(
+        c["calibration"]["frames"].as_u64(),
+        summary["frames"]["calibration"]["segmented"].as_u64()
+    );
+    assert_eq!(c["validation"]["frames"].as_u64().unwrap(), 103);
+    assert!(c["validation_outside_calibration"].as_u64().unwrap() <= 103);
+    for sweep in ["calibration", "validation"] {
+        for axis in ["lateral_deg", "axial_deg"] {
+            let a = &c[sweep][axis];
+            let (lo, mid, hi) = (
+                a["min"].as_f64().unwrap(),
+                a["median"].as_f64().unwrap(),
+                a["max"].as_f64().unwrap(),
+            );
+            assert!(lo <= mid && mid <= hi && lo > -45.0 && hi < 45.0, "{sweep} {axis}: {a}");
+        }
+    }
+    let page = std::fs::read_to_string(folder.join("report.html")).unwrap();
+    assert!(page.contains("id=\"resolution\""), "the page has no resolution table");
 }
 
 /// The first `frames` frames of the calibration sequence as a new file, with the

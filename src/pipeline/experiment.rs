@@ -7,6 +7,7 @@ use std::time::SystemTime;
 
 use super::record::DatasetRun;
 use super::tracked::{self, TrackedInputs, TrackedRun};
+use super::tracked_resolution::{self, ValidationResolution};
 use crate::io::fs::{write_atomic, Lock, Staged};
 use crate::io::plus::result::PlusResult;
 use crate::manifest::tracked::TrackedManifest;
@@ -41,6 +42,7 @@ pub trait Reporter {
         &mut self,
         _manifest: &TrackedManifest,
         _run: &TrackedRun,
+        _resolution: &ValidationResolution,
         _plus: Option<&PlusResult>,
         _folder: &RunFolder<'_>,
         _started: SystemTime,
@@ -314,8 +316,10 @@ fn swap_in(staged: Staged, written: bool, reporter: &mut dyn Reporter) -> bool {
 fn run_tracked(m: &TrackedManifest, folder: &Path, target: &Path, reporter: &mut dyn Reporter) -> Result<bool, String> {
     let started = SystemTime::now();
     reporter.dataset_started(&m.experiment, &m.dataset);
-    let run = tracked::run(&TrackedInputs::from_manifest(m), m.min_frames)
-        .map_err(|e| format!("{}: {e}", m.path.display()))?;
+    let inputs = TrackedInputs::from_manifest(m);
+    let run = tracked::run(&inputs, m.min_frames).map_err(|e| format!("{}: {e}", m.path.display()))?;
+    // After the calibration is fitted, and never feeding back into it.
+    let resolution = tracked_resolution::evaluate(&run, &inputs);
     let plus = match &m.plus_result {
         Some(p) => Some(PlusResult::read(p).map_err(|e| e.to_string())?),
         None => None,
@@ -325,7 +329,7 @@ fn run_tracked(m: &TrackedManifest, folder: &Path, target: &Path, reporter: &mut
         write_to: &write_to,
         final_path: &final_path,
     };
-    reporter.tracked_done(m, &run, plus.as_ref(), &run_folder, started)?;
+    reporter.tracked_done(m, &run, &resolution, plus.as_ref(), &run_folder, started)?;
     let gates = tracked::gates(&run, m);
     for g in gates.iter().filter(|g| !g.passed) {
         reporter.gate_failed(&format!(

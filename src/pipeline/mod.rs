@@ -19,4 +19,5 @@ pub mod sphere_pose;
 pub mod study;
 pub mod temporal;
 pub mod tracked;
+pub mod tracked_resolution;
 pub mod truth;

@@ -8,10 +8,12 @@ use polars::prelude::*;
 
 use crate::core::geometry::{euler_zyx_deg, Rigid};
 use crate::core::stats::{best_95, mean_sd_of, MeanSd};
+use crate::evaluate::pose_coverage::AngleRange;
 use crate::io::fs::write_atomic;
 use crate::io::plus::result::PlusResult;
 use crate::manifest::tracked::TrackedManifest;
 use crate::pipeline::tracked::{Role, TrackedRun};
+use crate::pipeline::tracked_resolution::ValidationResolution;
 use crate::report::summary::{
     to_text, CandidateScore, ConstraintCounts, ImageToProbeSummary, ModelSelectionSummary, ParameterSd,
     PlusResultSummary, Pre3d, PublishedPre3d, Segmented, TrackedFrameCounts, TrackedSummary, TrackedTolerances,
@@ -75,7 +77,12 @@ fn model_selection(run: &TrackedRun) -> ModelSelectionSummary {
 }
 
 /// `summary.json`.
-pub fn summary(run: &TrackedRun, manifest: &TrackedManifest, plus: Option<&PlusResult>) -> TrackedSummary {
+pub fn summary(
+    run: &TrackedRun,
+    resolution: &ValidationResolution,
+    manifest: &TrackedManifest,
+    plus: Option<&PlusResult>,
+) -> TrackedSummary {
     let fit = &run.fit.image_to_probe;
     let matrix = fit.matrix();
     let (cal_used, cal_total) = run.segmented(Role::Calibration);
@@ -119,6 +126,7 @@ pub fn summary(run: &TrackedRun, manifest: &TrackedManifest, plus: Option<&PlusR
         },
         model_selection: model_selection(run),
         validation: pre3d(run, manifest, plus, Role::Validation),
+        resolution: *resolution,
         calibration: pre3d(run, manifest, plus, Role::Calibration),
         gates: crate::pipeline::tracked::gates(run, manifest),
         regression_tolerances: TrackedTolerances {
@@ -226,6 +234,7 @@ pub fn itk_tfm(matrix: &Matrix4<f64>) -> Option<String> {
 /// Writes the run's files into `folder`.
 pub fn write(
     run: &TrackedRun,
+    resolution: &ValidationResolution,
     manifest: &TrackedManifest,
     plus: Option<&PlusResult>,
     folder: &Path,
@@ -235,7 +244,7 @@ pub fn write(
         message: e.to_string(),
     })?;
     super::write::write_frames_table(folder, &mut frames_table(run, manifest.nwires.len())?)?;
-    let summary = summary(run, manifest, plus);
+    let summary = summary(run, resolution, manifest, plus);
     let text = to_text(&summary).map_err(|e| OutputError::Report(e.to_string()))?;
     write_atomic(&folder.join("summary.json"), text.as_bytes())?;
     let matrix = run.fit.image_to_probe.matrix();
@@ -248,6 +257,26 @@ pub fn write(
 }
 
 const TRACKED_TEMPLATE: &str = include_str!("../../templates/tracked.html.tera");
+
+/// The page's "what the validation score can tell" table; `null` when there is nothing in it.
+fn resolution_rows(r: &ValidationResolution) -> serde_json::Value {
+    let f3 = |x: f64| format!("{x:.3}");
+    let range = |a: &AngleRange| format!("{:.1} / {:.1} / {:.1}", a.min, a.median, a.max);
+    if r.bootstrap_pre3d_mm.is_none() && r.own_fit_pre3d_mm.is_none() && r.pose_coverage.is_none() {
+        return serde_json::Value::Null;
+    }
+    serde_json::json!({
+        "bootstrap": r.bootstrap_pre3d_mm.map(|b| serde_json::json!({
+            "p5": f3(b.p5), "p50": f3(b.p50), "p95": f3(b.p95), "resamples": b.resamples, "block_frames": b.block_frames,
+        })),
+        "own_fit": r.own_fit_pre3d_mm.map(|s| format!("{} ± {} (n = {})", f3(s.mean), f3(s.std), s.n)),
+        "coverage": r.pose_coverage.map(|c| serde_json::json!({
+            "cal_lateral": range(&c.calibration.lateral_deg), "val_lateral": range(&c.validation.lateral_deg),
+            "cal_axial": range(&c.calibration.axial_deg), "val_axial": range(&c.validation.axial_deg),
+            "outside": c.validation_outside_calibration, "val_frames": c.validation.frames,
+        })),
+    })
+}
 
 /// The page of a tracked (sequence-file) run, from its summary.
 fn render_page(run: &TrackedRun, manifest: &TrackedManifest, summary: &TrackedSummary) -> Result<String, OutputError> {
@@ -372,6 +401,7 @@ fn render_page(run: &TrackedRun, manifest: &TrackedManifest, summary: &TrackedSu
         }));
     }
     ctx.insert("pre3d", &pre3d);
+    ctx.insert("resolution", &resolution_rows(&summary.resolution));
     let gates: Vec<serde_json::Value> = summary
         .gates
         .iter()

@@ -6,6 +6,7 @@ use serde::{Deserialize, Serialize};
 use crate::core::stats::MeanSd;
 use crate::estimate::image_to_probe::{ConstraintModel, PixelModel};
 use crate::pipeline::record::GateResult;
+use crate::pipeline::tracked_resolution::ValidationResolution;
 
 /// `summary.json` of a tracked-sequence run.
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
@@ -22,6 +23,11 @@ pub struct TrackedSummary {
     /// How the model was chosen: cross-validation on the calibration frames.
     pub model_selection: ModelSelectionSummary,
     pub validation: Pre3d,
+    /// How far the validation score can tell calibrations apart (block bootstrap
+    /// of the calibration frames, the model's floor on the validation frames, the
+    /// sweeps' tilts).
+    #[serde(default)]
+    pub resolution: ValidationResolution,
     pub calibration: Pre3d,
     pub gates: Vec<GateResult>,
     pub regression_tolerances: TrackedTolerances,

@@ -13,6 +13,7 @@ use crate::manifest::Manifest;
 use crate::pipeline::experiment::{Reporter, RunFolder};
 use crate::pipeline::record::DatasetRun;
 use crate::pipeline::tracked::TrackedRun;
+use crate::pipeline::tracked_resolution::ValidationResolution;
 
 /// Writes each run's folder and the index; prints unless quiet.
 pub struct ReportWriter {
@@ -107,12 +108,13 @@ impl Reporter for ReportWriter {
         &mut self,
         manifest: &TrackedManifest,
         run: &TrackedRun,
+        resolution: &ValidationResolution,
         plus: Option<&PlusResult>,
         folder: &RunFolder<'_>,
         started: SystemTime,
     ) -> Result<(), String> {
         let (shown, folder) = (folder.final_path, folder.write_to);
-        let summary = super::tracked::write(run, manifest, plus, folder).map_err(|e| e.to_string())?;
+        let summary = super::tracked::write(run, resolution, manifest, plus, folder).map_err(|e| e.to_string())?;
         Provenance::new(
             &manifest.path,
             &manifest.sha256,
