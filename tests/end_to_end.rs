@@ -34,6 +34,9 @@ fn run_writes_the_tables_summary_and_page() {
     .unwrap();
     std::fs::create_dir_all(out.join("study/variant_b")).unwrap();
     std::fs::write(out.join("study/variant_b/study.html"), "<html></html>").unwrap();
+    // And one in a group of studies.
+    std::fs::create_dir_all(out.join("study/group/variant_c")).unwrap();
+    std::fs::write(out.join("study/group/variant_c/study.html"), "<html></html>").unwrap();
     let result = probecal()
         .arg("run")
         .arg(fixture())
@@ -73,6 +76,11 @@ fn run_writes_the_tables_summary_and_page() {
     // Without a readable study.json the folder's name stands for it.
     assert!(index.contains("study&#x2F;variant_b&#x2F;study.html"), "{index}");
     assert!(index.contains("Study: variant b"), "{index}");
+    assert!(
+        index.contains("study&#x2F;group&#x2F;variant_c&#x2F;study.html"),
+        "{index}"
+    );
+    assert!(!index.contains("study&#x2F;group&#x2F;study.html"), "{index}");
 
     let summary: Value = serde_json::from_str(&std::fs::read_to_string(run.join("summary.json")).unwrap()).unwrap();
     assert_eq!(summary["experiment"], "hemisphere_small");

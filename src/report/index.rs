@@ -102,15 +102,23 @@ pub fn pages_beside(out: &Path) -> (Vec<(String, String)>, Vec<String>) {
     }
     // Further studies (`probecal study <manifest> --out <out>/study/<name>`), e.g. the
     // error budget of `experiments/studies/`.
-    let more = subfolders_with(&out.join("study"), "study.html");
+    let more = nested_folders_with(&out.join("study"), "study.html", STUDY_DEPTH);
     for name in more {
         studies.push((
             format!("study/{name}/study.html"),
             study_label(&out.join("study").join(&name).join("study.json"), &name),
         ));
     }
+    // The dome layouts ranked by their bound (`probecal design --out <out>/design`).
+    if out.join("design/design.md").is_file() {
+        studies.push((
+            "design/design.md".into(),
+            "The multi-sphere layouts ranked by their Cramér–Rao bound (also design.json and the chosen layout's STL)"
+                .into(),
+        ));
+    }
     // Error budgets (`probecal ablate <manifest> --out <out>/ablation/<experiment>`).
-    let budgets = subfolders_with(&out.join("ablation"), "ablation.html");
+    let budgets = nested_folders_with(&out.join("ablation"), "ablation.html", 1);
     for name in budgets {
         studies.push((
             format!("ablation/{name}/ablation.html"),
@@ -120,17 +128,36 @@ pub fn pages_beside(out: &Path) -> (Vec<(String, String)>, Vec<String>) {
     (studies, errors)
 }
 
-/// The folders of `dir` that hold `file`, by name, sorted.
-fn subfolders_with(dir: &Path, file: &str) -> Vec<String> {
-    let mut names: Vec<String> = std::fs::read_dir(dir)
+/// How deep below `study/` further studies are looked for (`study/<group>/<name>`).
+const STUDY_DEPTH: usize = 3;
+
+/// The folders below `dir`, at most `depth` levels down, that hold `file`, as
+/// `/`-joined paths relative to `dir`, sorted; a folder holding `file` is
+/// listed and also searched further (a group of studies may sit beside one).
+fn nested_folders_with(dir: &Path, file: &str, depth: usize) -> Vec<String> {
+    let mut out = Vec::new();
+    if depth == 0 {
+        return out;
+    }
+    let mut children: Vec<(String, std::path::PathBuf)> = std::fs::read_dir(dir)
         .into_iter()
         .flatten()
         .flatten()
-        .filter(|e| e.path().join(file).is_file())
-        .filter_map(|e| e.file_name().to_str().map(str::to_string))
+        .filter(|e| e.file_type().is_ok_and(|t| t.is_dir()))
+        .filter_map(|e| e.file_name().to_str().map(|n| (n.to_string(), e.path())))
         .collect();
-    names.sort();
-    names
+    children.sort();
+    for (name, path) in children {
+        if path.join(file).is_file() {
+            out.push(name.clone());
+        }
+        out.extend(
+            nested_folders_with(&path, file, depth - 1)
+                .into_iter()
+                .map(|below| format!("{name}/{below}")),
+        );
+    }
+    out
 }
 
 /// Writes `out/index.html` for `entries` and the pages beside them; the errors met.
@@ -149,7 +176,32 @@ pub fn write(out: &Path, entries: &[IndexEntry]) -> Vec<String> {
 
 #[cfg(test)]
 mod tests {
-    use super::seeds_phrase;
+    use super::{nested_folders_with, seeds_phrase};
+
+    #[test]
+    fn studies_in_groups_are_found_down_to_the_depth_limit() {
+        let dir = std::env::temp_dir().join(format!("probecal-index-studies-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        for folder in ["a", "g/b", "g/c", "a/inner", "x", "d1/d2/d3/d4"] {
+            std::fs::create_dir_all(dir.join(folder)).unwrap();
+        }
+        for folder in ["a", "g/b", "a/inner", "d1/d2/d3/d4"] {
+            std::fs::write(dir.join(folder).join("study.html"), "").unwrap();
+        }
+        // A file named like a folder is not one.
+        std::fs::write(dir.join("g/study.html.d"), "").unwrap();
+        assert_eq!(
+            nested_folders_with(&dir, "study.html", 3),
+            ["a", "a/inner", "g/b"].map(String::from).to_vec()
+        );
+        assert_eq!(
+            nested_folders_with(&dir, "study.html", 1),
+            ["a"].map(String::from).to_vec()
+        );
+        assert!(nested_folders_with(&dir, "study.html", 4).contains(&"d1/d2/d3/d4".to_string()));
+        assert!(nested_folders_with(&dir.join("missing"), "study.html", 3).is_empty());
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 
     #[test]
     fn a_study_is_named_by_its_seeds() {
