@@ -277,11 +277,11 @@ fn fit_quality(fit: &image_to_probe::Fit) -> f64 {
     kept.iter().sum::<f64>() / kept.len().max(1) as f64
 }
 
-/// The usable calibration frames' constraints, in frame order.
-fn calibration_constraints(frames: &[TrackedFrame], nwires: &[NWire]) -> Vec<FrameConstraints> {
+/// The usable frames' constraints of one sequence, in frame order.
+pub fn usable_constraints(frames: &[TrackedFrame], nwires: &[NWire], role: Role) -> Vec<FrameConstraints> {
     frames
         .iter()
-        .filter(|f| f.role == Role::Calibration && f.rejected.is_none())
+        .filter(|f| f.role == role && f.rejected.is_none())
         .map(|f| constraints(f, nwires))
         .collect()
 }
@@ -346,7 +346,7 @@ pub fn run(inputs: &TrackedInputs, min_frames: usize) -> Result<TrackedRun, Trac
             for k in -steps..=steps {
                 let offset = k as f64 * step_s;
                 attach_poses(&calibration, &mut frames, inputs, offset);
-                let usable = calibration_constraints(&frames, &inputs.nwires);
+                let usable = usable_constraints(&frames, &inputs.nwires, Role::Calibration);
                 if let Ok(trained) = model_selection::fit(usable.iter(), candidate, fit_settings(inputs)) {
                     let q = fit_quality(&trained.fit);
                     offset_scan.push((offset, q));
@@ -387,7 +387,7 @@ pub fn run(inputs: &TrackedInputs, min_frames: usize) -> Result<TrackedRun, Trac
         });
     }
     // The model, chosen on the calibration frames alone.
-    let usable = calibration_constraints(&frames, &inputs.nwires);
+    let usable = usable_constraints(&frames, &inputs.nwires, Role::Calibration);
     let family = Candidate::family(inputs.model, inputs.pixel_model);
     let (scored, chosen) = model_selection::select(&usable, &family, inputs.folds, fit_settings(inputs));
     let chosen = match chosen {

@@ -13,7 +13,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::core::stats::{best_95, MeanSd};
 use crate::estimate::image_to_probe::Fit;
-use crate::estimate::model_selection::{self, FrameConstraints};
+use crate::estimate::model_selection;
 use crate::evaluate::block_bootstrap::{self, BlockBootstrap, ScoreSpread};
 use crate::evaluate::pose_coverage::{self, PoseCoverage};
 use crate::pipeline::tracked::{self, fit_settings, Role, TrackedFrame, TrackedInputs, TrackedRun};
@@ -59,12 +59,6 @@ fn used(frames: &[TrackedFrame], role: Role) -> impl Iterator<Item = &TrackedFra
     frames.iter().filter(move |f| f.role == role && f.rejected.is_none())
 }
 
-fn constraints_of(run: &TrackedRun, inputs: &TrackedInputs, role: Role) -> Vec<FrameConstraints> {
-    used(&run.frames, role)
-        .map(|f| tracked::constraints(f, &inputs.nwires))
-        .collect()
-}
-
 /// The phantom's wire direction in the image frame of each used frame of `role`.
 fn wires_in_image(run: &TrackedRun, inputs: &TrackedInputs, role: Role) -> Vec<Vector3<f64>> {
     let Some(wire) = inputs.nwires.first().map(|n| n.wires[0].direction()) else {
@@ -86,12 +80,12 @@ pub fn evaluate(run: &TrackedRun, inputs: &TrackedInputs) -> ValidationResolutio
     }
     let candidate = run.selection.chosen();
     let settings = fit_settings(inputs);
-    let calibration = constraints_of(run, inputs, Role::Calibration);
+    let calibration = tracked::usable_constraints(&run.frames, &inputs.nwires, Role::Calibration);
     let bootstrap_pre3d_mm = block_bootstrap::spread(&calibration, &BOOTSTRAP, |picked| {
         let trained = model_selection::fit(picked.iter().copied(), candidate, settings).ok()?;
         validation_pre3d(run, inputs, &trained.fit).map(|s| s.mean)
     });
-    let validation = constraints_of(run, inputs, Role::Validation);
+    let validation = tracked::usable_constraints(&run.frames, &inputs.nwires, Role::Validation);
     let own_fit_pre3d_mm = model_selection::fit(validation.iter(), candidate, settings)
         .ok()
         .and_then(|trained| validation_pre3d(run, inputs, &trained.fit));
