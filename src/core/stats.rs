@@ -76,14 +76,21 @@ pub fn percentile(values: &[f64], q: f64) -> f64 {
 
 /// The `q` quantile of already sorted grey levels, nearest rank; 0 for none.
 /// The median and the `q` quantile of `values` by nearest rank, as
-/// [`percentile_sorted_nearest`] gives them on the sorted values, found by
-/// selection (linear time; `values` is reordered). 0 for no values.
+/// [`percentile_sorted_nearest`] gives them on the sorted values (in
+/// `f32::total_cmp` order), found in linear time: by selection for few values
+/// (`values` is reordered), by a two-level radix count of the values' order
+/// keys for many (a B-scan's fan, where selection was the detector's slowest
+/// step). 0 for no values.
 pub fn median_and_quantile_nearest(values: &mut [f32], q: f64) -> (f32, f32) {
     if values.is_empty() {
         return (0.0, 0.0);
     }
     let rank = |q: f64| ((values.len() - 1) as f64 * q).round() as usize;
     let (m, k) = (rank(0.5), rank(q));
+    if values.len() >= RADIX_MIN_VALUES {
+        let [median, quantile] = nth_pair_by_radix(values, [m, k]);
+        return (median, quantile);
+    }
     let (_, median, _) = values.select_nth_unstable_by(m, |a, b| a.total_cmp(b));
     let median = *median;
     // The k-th smallest lies on the side of the median it ranks on.
@@ -97,6 +104,68 @@ pub fn median_and_quantile_nearest(values: &mut [f32], q: f64) -> (f32, f32) {
         std::cmp::Ordering::Less => *values[..m].select_nth_unstable_by(k, |a, b| a.total_cmp(b)).1,
     };
     (median, quantile)
+}
+
+/// Below this many values selection is faster than two passes of counting.
+const RADIX_MIN_VALUES: usize = 1 << 14;
+
+/// An unsigned key that orders like `f32::total_cmp`.
+fn order_key(v: f32) -> u32 {
+    let bits = v.to_bits();
+    if bits & 0x8000_0000 != 0 {
+        !bits
+    } else {
+        bits | 0x8000_0000
+    }
+}
+
+fn from_order_key(key: u32) -> f32 {
+    f32::from_bits(if key & 0x8000_0000 != 0 {
+        key & 0x7fff_ffff
+    } else {
+        !key
+    })
+}
+
+/// The `n[0]`-th and `n[1]`-th smallest values (0-based, below `values.len()`):
+/// the high 16 bits of their keys from one count over all values, the low 16
+/// from a count over the values that share them (one pass for both).
+fn nth_pair_by_radix(values: &[f32], n: [usize; 2]) -> [f32; 2] {
+    const BUCKETS: usize = 1 << 16;
+    let bucket = |counts: &[u32], mut left: usize| -> (usize, usize) {
+        for (b, c) in counts.iter().enumerate() {
+            if left < *c as usize {
+                return (b, left);
+            }
+            left -= *c as usize;
+        }
+        (counts.len() - 1, 0)
+    };
+    let mut high_counts = vec![0u32; BUCKETS];
+    for v in values {
+        high_counts[(order_key(*v) >> 16) as usize] += 1;
+    }
+    let found = n.map(|n| bucket(&high_counts, n));
+    let highs = found.map(|(high, _)| high as u32);
+    // Low-half counts of the first bucket, then of the second (if another).
+    let mut low_counts = vec![0u32; 2 * BUCKETS];
+    let second = usize::from(highs[1] != highs[0]) * BUCKETS;
+    for v in values {
+        let key = order_key(*v);
+        let (high, low) = (key >> 16, (key & 0xffff) as usize);
+        if high == highs[0] {
+            low_counts[low] += 1;
+        } else if high == highs[1] {
+            low_counts[second + low] += 1;
+        }
+    }
+    let mut out = [0f32; 2];
+    for (i, (high, left)) in found.iter().enumerate() {
+        let offset = if i == 1 { second } else { 0 };
+        let (low, _) = bucket(&low_counts[offset..offset + BUCKETS], *left);
+        out[i] = from_order_key(((*high as u32) << 16) | low as u32);
+    }
+    out
 }
 
 pub fn percentile_sorted_nearest(sorted: &[f32], q: f64) -> f32 {
@@ -203,8 +272,18 @@ mod tests {
     #[test]
     fn selection_gives_the_sorted_quantiles() {
         let mut rng = crate::core::rng::Rng::new(5);
-        for n in [1usize, 2, 3, 10, 1001, 40_000] {
-            let values: Vec<f32> = (0..n).map(|_| (rng.uniform(0.0, 50.0) as f32).round()).collect();
+        for n in [1usize, 2, 3, 10, 1001, 40_000, 100_000] {
+            // Many ties (rounded) for the small sizes, every sign, fraction and
+            // magnitude for the large, where the radix count is used.
+            let values: Vec<f32> = (0..n)
+                .map(|i| match (n > 50_000, i % 7) {
+                    (false, _) => (rng.uniform(0.0, 50.0) as f32).round(),
+                    (true, 0) => -0.0,
+                    (true, 1) => rng.uniform(-1e6, 1e6) as f32,
+                    (true, 2) => rng.uniform(-1e-3, 1e-3) as f32,
+                    (true, _) => rng.uniform(0.0, 255.0) as f32,
+                })
+                .collect();
             let mut sorted = values.clone();
             sorted.sort_by(|a, b| a.total_cmp(b));
             for q in [0.0, 0.2, 0.5, 0.9, 0.997, 1.0] {
@@ -219,5 +298,18 @@ mod tests {
                 );
             }
         }
+        for v in [
+            0.0f32,
+            -0.0,
+            1.5,
+            -1.5,
+            f32::MAX,
+            f32::MIN,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+        ] {
+            assert_eq!(from_order_key(order_key(v)).to_bits(), v.to_bits(), "{v}");
+        }
+        assert!(order_key(-0.0) < order_key(0.0) && order_key(-1.0) < order_key(-0.5));
     }
 }
