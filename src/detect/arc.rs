@@ -211,21 +211,11 @@ pub fn echo_points(image: &Mat, settings: &ArcSettings) -> Result<Result<EchoPoi
     let (w, h) = (gray.width, gray.height);
     let [sx, sy] = settings.spacing_mm_per_px;
     // Fan mask, its first row per column, and an eroded interior.
-    let inside = |x: usize, y: usize| gray.data[y * w + x] > 0;
-    let top = super::fan::first_rows(w, h, |i| gray.data[i] > 0);
+    let inside: Vec<bool> = gray.data.iter().map(|v| *v > 0).collect();
+    let top = super::fan::first_rows(w, h, |i| inside[i]);
     let edge_x = (FAN_EDGE_MM / sx).ceil() as usize;
     let edge_y = (FAN_EDGE_MM / sy).ceil() as usize;
-    let interior = |x: usize, y: usize| {
-        x >= edge_x
-            && x + edge_x < w
-            && y >= edge_y
-            && y + edge_y < h
-            && inside(x, y)
-            && inside(x - edge_x, y)
-            && inside(x + edge_x, y)
-            && inside(x, y - edge_y)
-            && inside(x, y + edge_y)
-    };
+    let interior = super::fan::eroded(w, h, &inside, [edge_x, edge_y]);
     let mut smooth: Vec<f32> = gray.data.iter().map(|v| *v as f32).collect();
     // Ridge orientation needs isotropic smoothing (in mm): an anisotropic blur
     // would tilt every ridge normal towards the blur's short axis.
@@ -235,11 +225,16 @@ pub fn echo_points(image: &Mat, settings: &ArcSettings) -> Result<Result<EchoPoi
 
     let near_rows = (NEAR_FIELD_MM / sy).ceil() as usize;
     // Rows in memory order (the quantiles do not depend on the order).
+    let first_searched: Vec<usize> = top
+        .iter()
+        .map(|t| t.map_or(usize::MAX, |t| (t + near_rows).min(h)))
+        .collect();
     let mut values: Vec<f32> = Vec::new();
     for y in 0..h {
-        for (x, t) in top.iter().enumerate() {
-            if t.is_some_and(|t| y >= (t + near_rows).min(h)) && interior(x, y) {
-                values.push(smooth[y * w + x]);
+        let row = y * w..(y + 1) * w;
+        for ((v, inner), first) in smooth[row.clone()].iter().zip(&interior[row]).zip(&first_searched) {
+            if y >= *first && *inner {
+                values.push(*v);
             }
         }
     }
@@ -262,7 +257,7 @@ pub fn echo_points(image: &Mat, settings: &ArcSettings) -> Result<Result<EchoPoi
                 continue;
             }
             let v = smooth[y * w + x];
-            if v < threshold || !interior(x, y) {
+            if v < threshold || !interior[y * w + x] {
                 continue;
             }
             let up = smooth[(y - 1) * w + x];

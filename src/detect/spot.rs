@@ -184,18 +184,8 @@ pub fn detect(image: &Mat, settings: &SpotSettings) -> Result<Spots, ImageError>
     let edge_y = (FAN_EDGE_MM / sy).ceil() as usize;
     let near_rows = (NEAR_FIELD_MM / sy).ceil() as usize;
     let top = super::fan::first_rows(w, h, |i| mask[i]);
-    let usable = |x: usize, y: usize| {
-        x >= edge_x
-            && x + edge_x < w
-            && y >= edge_y
-            && y + edge_y < h
-            && top[x].is_some_and(|t| y >= t + near_rows)
-            && mask[y * w + x]
-            && mask[y * w + x - edge_x]
-            && mask[y * w + x + edge_x]
-            && mask[(y - edge_y) * w + x]
-            && mask[(y + edge_y) * w + x]
-    };
+    let interior = super::fan::eroded(w, h, &mask, [edge_x, edge_y]);
+    let usable = |x: usize, y: usize| interior[y * w + x] && top[x].is_some_and(|t| y >= t + near_rows);
     let mut smooth: Vec<f32> = gray.data.iter().map(|v| *v as f32).collect();
     gaussian_blur_f32(w, h, &mut smooth, 0.25 / sx, 0.25 / sy)?;
     let mut values: Vec<f32> = (0..w * h)

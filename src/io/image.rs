@@ -250,16 +250,19 @@ pub fn gaussian_blur_f32(
     if sigma_x <= 0.0 && sigma_y <= 0.0 {
         return Ok(());
     }
-    let src = Mat::new_rows_cols_with_data(height as i32, width as i32, levels)?.try_clone()?;
     let mut dst = Mat::default();
-    opencv::imgproc::gaussian_blur(
-        &src,
-        &mut dst,
-        opencv::core::Size::new(0, 0),
-        sigma_x.max(0.01),
-        sigma_y.max(0.01),
-        opencv::core::BORDER_REPLICATE,
-    )?;
+    {
+        // OpenCV reads the levels in place (no copy) and writes the blur beside them.
+        let src = Mat::new_rows_cols_with_data(height as i32, width as i32, &*levels)?;
+        opencv::imgproc::gaussian_blur(
+            &src,
+            &mut dst,
+            opencv::core::Size::new(0, 0),
+            sigma_x.max(0.01),
+            sigma_y.max(0.01),
+            opencv::core::BORDER_REPLICATE,
+        )?;
+    }
     levels.copy_from_slice(dst.data_typed::<f32>()?);
     Ok(())
 }
