@@ -74,7 +74,6 @@ pub fn percentile(values: &[f64], q: f64) -> f64 {
     values[lo] + (values[hi] - values[lo]) * (pos - lo as f64)
 }
 
-/// The `q` quantile of already sorted grey levels, nearest rank; 0 for none.
 /// The median and the `q` quantile of `values` by nearest rank, as
 /// [`percentile_sorted_nearest`] gives them on the sorted values (in
 /// `f32::total_cmp` order), found in linear time: by selection for few values
@@ -168,6 +167,7 @@ fn nth_pair_by_radix(values: &[f32], n: [usize; 2]) -> [f32; 2] {
     out
 }
 
+/// The `q` quantile of already sorted grey levels, nearest rank; 0 for none.
 pub fn percentile_sorted_nearest(sorted: &[f32], q: f64) -> f32 {
     if sorted.is_empty() {
         return 0.0;
