@@ -95,6 +95,39 @@ pub enum ArcRejection {
     NotCircular { rms_px: f64, limit_px: f64 },
 }
 
+/// The accumulator's first strongest cell `(column, row, votes)`, or `None`
+/// when no cell has a vote. The maximum is found over all cells first and then
+/// its first cell, so the loops vectorise.
+fn accumulator_peak(accumulator: &[f32], width: usize) -> Option<(usize, usize, f32)> {
+    let votes = accumulator.iter().copied().fold(0f32, f32::max);
+    if votes <= 0.0 {
+        return None;
+    }
+    let best = accumulator.iter().position(|v| *v == votes)?;
+    Some((best % width, best / width, votes))
+}
+
+/// The strongest accumulator cell more than `exclusion` cells from `peak` in
+/// column or in row (0 when there is none): whole rows away from the peak's
+/// rows, and the parts left and right of the peak's columns in its rows.
+fn strongest_outside(accumulator: &[f32], width: usize, peak: [usize; 2], exclusion: usize) -> f32 {
+    let [bx, by] = peak;
+    let row_max = |row: &[f32]| row.iter().copied().fold(0f32, f32::max);
+    accumulator
+        .chunks(width.max(1))
+        .enumerate()
+        .map(|(y, row)| {
+            if y.abs_diff(by) > exclusion {
+                row_max(row)
+            } else {
+                let left = row_max(&row[..bx.saturating_sub(exclusion)]);
+                let right = row_max(row.get(bx + exclusion + 1..).unwrap_or(&[]));
+                left.max(right)
+            }
+        })
+        .fold(0f32, f32::max)
+}
+
 /// Geometric circle fit (Gauss–Newton) from a start; returns centre, radius, RMS (mm).
 /// With `fixed_radius` the radius stays at the start's value.
 fn fit_circle(points: &[[f64; 2]], start: ([f64; 2], f64), fixed_radius: bool) -> Option<([f64; 2], f64, f64)> {
@@ -358,23 +391,10 @@ fn arc_from_points(echo: &EchoPoints, settings: &ArcSettings) -> Result<Result<A
         }
     }
     gaussian_blur_f32(gw, gh, &mut accumulator, 2.0, 2.0)?;
-    let (best, best_votes) = accumulator
-        .iter()
-        .enumerate()
-        .fold((0, 0f32), |acc, (i, v)| if *v > acc.1 { (i, *v) } else { acc });
-    if best_votes <= 0.0 {
+    let Some((bx, by, best_votes)) = accumulator_peak(&accumulator, gw) else {
         return Ok(Err(ArcRejection::NoHoughPeak));
-    }
-    let (bx, by) = (best % gw, best / gw);
-    let exclusion = (3.0 / CELL_MM) as i64;
-    let competing = accumulator
-        .iter()
-        .enumerate()
-        .filter(|(i, _)| {
-            ((i % gw) as i64 - bx as i64).abs() > exclusion || ((i / gw) as i64 - by as i64).abs() > exclusion
-        })
-        .map(|(_, v)| *v)
-        .fold(0f32, f32::max);
+    };
+    let competing = strongest_outside(&accumulator, gw, [bx, by], (3.0 / CELL_MM) as usize);
     let peak_ratio = if competing > 0.0 {
         (best_votes / competing) as f64
     } else {
@@ -507,6 +527,42 @@ fn arc_from_points(echo: &EchoPoints, settings: &ArcSettings) -> Result<Result<A
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn peak_and_strongest_competitor_are_the_cell_by_cell_search() {
+        // Cell by cell, as the accumulator was once searched.
+        let brute = |acc: &[f32], gw: usize, e: i64| {
+            let (best, votes) = acc
+                .iter()
+                .enumerate()
+                .fold((0, 0f32), |a, (i, v)| if *v > a.1 { (i, *v) } else { a });
+            let (bx, by) = ((best % gw) as i64, (best / gw) as i64);
+            let competing = acc
+                .iter()
+                .enumerate()
+                .filter(|(i, _)| ((i % gw) as i64 - bx).abs() > e || ((i / gw) as i64 - by).abs() > e)
+                .map(|(_, v)| *v)
+                .fold(0f32, f32::max);
+            (votes > 0.0).then_some((best % gw, best / gw, votes, competing))
+        };
+        let mut state = 12345u64;
+        for (gw, gh) in [(1, 1), (7, 3), (40, 31), (3, 50)] {
+            for e in [0usize, 2, 12] {
+                let acc: Vec<f32> = (0..gw * gh)
+                    .map(|_| {
+                        state = state
+                            .wrapping_mul(6364136223846793005)
+                            .wrapping_add(1442695040888963407);
+                        ((state >> 40) % 7) as f32 // ties on purpose
+                    })
+                    .collect();
+                let fast =
+                    accumulator_peak(&acc, gw).map(|(x, y, v)| (x, y, v, strongest_outside(&acc, gw, [x, y], e)));
+                assert_eq!(fast, brute(&acc, gw, e as i64), "{gw}x{gh}, exclusion {e}");
+            }
+        }
+        assert_eq!(accumulator_peak(&[0.0; 6], 3), None);
+    }
 
     #[test]
     fn circle_fit_recovers_an_arc() {
