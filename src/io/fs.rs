@@ -44,9 +44,17 @@ pub fn display_path(path: &Path) -> String {
     path.to_string_lossy().replace('\\', "/")
 }
 
-/// SHA-256 of a file, streamed.
+/// SHA-256 of a file, streamed, with its size in bytes. A file hashed before in
+/// this process is not read again while its identity, size and times are the
+/// same (a run checks its cached dataset's hashes, then records them in its
+/// provenance): the change time, which no program can set back, moves with any
+/// write.
 pub fn file_sha256(path: &Path) -> std::io::Result<(u64, String)> {
     let mut file = std::fs::File::open(path)?;
+    let stamp = memo::Stamp::of(&file.metadata()?);
+    if let Some(known) = memo::lookup(path, &stamp) {
+        return Ok(known);
+    }
     let mut hasher = Sha256::new();
     let mut buffer = vec![0u8; 1 << 16];
     let mut total = 0u64;
@@ -58,7 +66,122 @@ pub fn file_sha256(path: &Path) -> std::io::Result<(u64, String)> {
         total += n as u64;
         hasher.update(&buffer[..n]);
     }
-    Ok((total, hex(&hasher.finalize())))
+    let hashed = (total, hex(&hasher.finalize()));
+    // A file that changed while it was read is not remembered.
+    if total == stamp.bytes && memo::Stamp::of(&file.metadata()?) == stamp {
+        memo::remember(path, stamp, &hashed);
+    }
+    Ok(hashed)
+}
+
+/// The hashes of files already hashed in this process, by path and stamp.
+mod memo {
+    use std::collections::HashMap;
+    use std::path::{Path, PathBuf};
+    use std::sync::Mutex;
+
+    /// At most this many files are remembered; then the memory starts again.
+    const MAX_FILES: usize = 100_000;
+
+    /// What identifies one version of a file: device, inode, size, modification
+    /// and change times (ns). `None` parts where the system does not tell.
+    #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+    pub struct Stamp {
+        pub bytes: u64,
+        identity: Option<[i64; 6]>,
+    }
+
+    impl Stamp {
+        pub fn of(meta: &std::fs::Metadata) -> Stamp {
+            #[cfg(unix)]
+            let identity = {
+                use std::os::unix::fs::MetadataExt;
+                Some([
+                    meta.dev() as i64,
+                    meta.ino() as i64,
+                    meta.mtime(),
+                    meta.mtime_nsec(),
+                    meta.ctime(),
+                    meta.ctime_nsec(),
+                ])
+            };
+            #[cfg(not(unix))]
+            let identity = None;
+            Stamp {
+                bytes: meta.len(),
+                identity,
+            }
+        }
+    }
+
+    type Known = HashMap<PathBuf, (Stamp, u64, String)>;
+    static KNOWN: Mutex<Option<Known>> = Mutex::new(None);
+
+    pub fn lookup(path: &Path, stamp: &Stamp) -> Option<(u64, String)> {
+        stamp.identity?;
+        let known = KNOWN.lock().ok()?;
+        let (s, bytes, sha) = known.as_ref()?.get(path)?;
+        (s == stamp).then(|| (*bytes, sha.clone()))
+    }
+
+    /// A file changed this recently may change again within the same tick of
+    /// the file system's clock without its times moving (the "racy" files of
+    /// git's index): it is not remembered.
+    const SETTLED_S: i64 = 2;
+
+    pub fn remember(path: &Path, stamp: Stamp, hashed: &(u64, String)) {
+        let Some([_, _, _, _, changed_s, _]) = stamp.identity else {
+            return;
+        };
+        let now_s = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_or(0, |d| d.as_secs() as i64);
+        if now_s - changed_s < SETTLED_S {
+            return;
+        }
+        if let Ok(mut known) = KNOWN.lock() {
+            let map = known.get_or_insert_with(HashMap::new);
+            if map.len() >= MAX_FILES {
+                map.clear();
+            }
+            map.insert(path.to_path_buf(), (stamp, hashed.0, hashed.1.clone()));
+        }
+    }
+
+    #[cfg(test)]
+    mod tests {
+        use super::*;
+
+        #[test]
+        fn only_settled_files_are_remembered_and_only_for_their_stamp() {
+            let path = Path::new("/nonexistent/probecal-memo-test");
+            let now_s = std::time::SystemTime::now()
+                .duration_since(std::time::UNIX_EPOCH)
+                .unwrap()
+                .as_secs() as i64;
+            let stamp = |changed_s: i64, bytes: u64| Stamp {
+                bytes,
+                identity: Some([1, 2, changed_s, 0, changed_s, 0]),
+            };
+            remember(path, stamp(now_s, 5), &(5, "just written".into()));
+            assert_eq!(
+                lookup(path, &stamp(now_s, 5)),
+                None,
+                "a file changed just now is not remembered"
+            );
+            let settled = stamp(now_s - 60, 5);
+            remember(path, settled, &(5, "settled".into()));
+            assert_eq!(lookup(path, &settled), Some((5, "settled".into())));
+            assert_eq!(lookup(path, &stamp(now_s - 59, 5)), None, "changed since");
+            assert_eq!(lookup(path, &stamp(now_s - 60, 6)), None, "another size");
+            let unknown = Stamp {
+                bytes: 5,
+                identity: None,
+            };
+            remember(path, unknown, &(5, "unknown".into()));
+            assert_eq!(lookup(path, &unknown), None, "no identity, no memory");
+        }
+    }
 }
 
 pub fn hex(bytes: &[u8]) -> String {
@@ -211,6 +334,20 @@ impl Staged {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_file_rewritten_at_once_is_hashed_again() {
+        let dir = scratch("memo");
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("a.bin");
+        for text in [&b"first"[..], b"other", b"third"] {
+            std::fs::write(&path, text).unwrap();
+            // Same size, same clock tick: only the content tells them apart.
+            assert_eq!(file_sha256(&path).unwrap(), (5, hex(&Sha256::digest(text))));
+            assert_eq!(file_sha256(&path).unwrap(), (5, hex(&Sha256::digest(text))));
+        }
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 
     fn scratch(name: &str) -> PathBuf {
         let dir = std::env::temp_dir().join(format!("probecal-fs-{name}-{}", std::process::id()));
