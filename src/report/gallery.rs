@@ -107,9 +107,12 @@ fn draw(run: &DatasetRun, record: &crate::pipeline::record::FrameRecord) -> Resu
 pub fn gallery(run: &DatasetRun) -> Result<Vec<GalleryImage>, opencv::Error> {
     let used = run.frames.iter().filter(|f| f.rejection.is_none()).take(USED_SHOWN);
     let rejected = run.frames.iter().filter(|f| f.rejection.is_some()).take(REJECTED_SHOWN);
+    let shown: Vec<&crate::pipeline::record::FrameRecord> = used.chain(rejected).collect();
+    // Drawn on every core, in frame order.
+    let drawn = crate::core::parallel::parallel_map(shown.len(), |i| draw(run, shown[i]));
     let mut out = Vec::new();
-    for record in used.chain(rejected) {
-        let Some(jpeg) = draw(run, record)? else { continue };
+    for (record, jpeg) in shown.into_iter().zip(drawn) {
+        let Some(jpeg) = jpeg? else { continue };
         let caption = match (&record.rejection, record.bre_mm) {
             (Some(reason), _) => {
                 format!(

@@ -197,13 +197,16 @@ pub fn write_dataset_run(
         let dir = folder.join("figures");
         std::fs::create_dir_all(&dir).map_err(io(&dir))?;
     }
-    for chart in &charts {
+    // Each chart is drawn (PNG and SVG) on a core of its own, in chart order.
+    let drawn = crate::core::parallel::parallel_map(charts.len(), |i| {
+        let chart = &charts[i];
+        Ok::<_, String>((crate::report::figures::png(chart)?, crate::report::figures::svg(chart)?))
+    });
+    for (chart, drawn) in charts.iter().zip(drawn) {
+        let (png, svg) = drawn.map_err(OutputError::Report)?;
         let file = format!("figures/{}.png", chart.id);
-        write_atomic(
-            &folder.join(&file),
-            &crate::report::figures::png(chart).map_err(OutputError::Report)?,
-        )?;
-        svgs.push(crate::report::figures::svg(chart).map_err(OutputError::Report)?);
+        write_atomic(&folder.join(&file), &png)?;
+        svgs.push(svg);
         context.figures.push(crate::report::context::GalleryEntry {
             file,
             caption: chart.caption.clone(),
