@@ -8,6 +8,7 @@ use clap::{Parser, Subcommand};
 
 use probecal::manifest::Experiment;
 use probecal::pipeline::experiment::{load_all, next_run_folder, run_all, Outcome, RunOptions};
+use probecal::report::compare;
 use probecal::report::live::LiveSource;
 use probecal::report::writer::ReportWriter;
 
@@ -191,13 +192,12 @@ fn run(args: RunArgs, side_by_side: bool) -> u8 {
         force: args.force,
     };
     let Outcome { code, manifests, runs } = run_all(&experiments, &options, &mut writer, &mut log);
-    if !side_by_side {
-        return code;
+    // Nothing to compare: a comparison of no runs fails.
+    if !side_by_side || runs.is_empty() {
+        return if side_by_side { code.max(1) } else { code };
     }
-    if runs.is_empty() {
-        return code.max(1);
-    }
-    if let Err(e) = probecal::report::compare::write(&out, &manifests, &runs, args.quiet) {
+    // The comparison, then the index again with the comparison beside the runs.
+    if let Err(e) = compare::write(&out, &manifests, &runs, args.quiet).and_then(|()| writer.write_index(&out)) {
         eprintln!("error: {e}");
         return 1;
     }

@@ -355,6 +355,9 @@ fn compare_checkerboard_and_aruco_on_the_same_motion() {
         assert!(table.contains(&format!("| {row} |")), "row `{row}` missing");
     }
     assert!(out.join("compare.html").is_file());
+    // The index, written again after the comparison into this new folder, links it.
+    let index = std::fs::read_to_string(out.join("index.html")).unwrap();
+    assert!(index.contains("<a href=\"compare.html\">"), "{index}");
     let aruco: Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("hemisphere_aruco/dataset3/summary.json")).unwrap())
             .unwrap();

@@ -79,12 +79,19 @@ pub fn study_label(study_json: &Path, folder: &str) -> String {
     }
 }
 
-/// The pages beside the runs in `out`, as (link, title): the thesis chapter
-/// (written here from the runs' summaries), the study in `study/` and the
-/// further studies in `study/<name>/`.
+/// The pages beside the runs in `out`, as (link, title): the side-by-side
+/// comparison, the thesis chapter (written here from the runs' summaries), the
+/// study in `study/` and the further studies in `study/<name>/`.
 pub fn pages_beside(out: &Path) -> (Vec<(String, String)>, Vec<String>) {
     let mut studies: Vec<(String, String)> = Vec::new();
     let mut errors = Vec::new();
+    // The experiments side by side (`probecal compare`).
+    if out.join("compare.html").is_file() {
+        studies.push((
+            "compare.html".into(),
+            "The experiments side by side (also compare.md and compare.tex)".into(),
+        ));
+    }
     // The thesis's results chapter, from whichever of its experiments are in `out`.
     match super::thesis::write(out) {
         Ok(Some(_)) => studies.push((

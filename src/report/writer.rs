@@ -28,6 +28,16 @@ impl ReportWriter {
             entries: Vec::new(),
         }
     }
+
+    /// Writes `out/index.html` for the runs reported so far and the pages beside them.
+    pub fn write_index(&self, out: &Path) -> Result<(), String> {
+        let errors = super::index::write(out, &self.entries);
+        if errors.is_empty() {
+            Ok(())
+        } else {
+            Err(errors.join("\n"))
+        }
+    }
 }
 
 fn f3(v: Option<f64>) -> String {
@@ -137,12 +147,7 @@ impl Reporter for ReportWriter {
     }
 
     fn finished(&mut self, out: &Path) -> Result<(), String> {
-        let errors = super::index::write(out, &self.entries);
-        if errors.is_empty() {
-            Ok(())
-        } else {
-            Err(errors.join("\n"))
-        }
+        self.write_index(out)
     }
 }
 
