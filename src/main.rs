@@ -8,7 +8,6 @@ use clap::{Parser, Subcommand};
 
 use probecal::manifest::Experiment;
 use probecal::pipeline::experiment::{load_all, next_run_folder, run_all, Outcome, RunOptions};
-use probecal::report::compare;
 use probecal::report::live::LiveSource;
 use probecal::report::writer::ReportWriter;
 
@@ -181,6 +180,7 @@ fn run(args: RunArgs, side_by_side: bool) -> u8 {
     let out = args.out.unwrap_or_else(next_run_folder);
     let quiet = args.quiet || side_by_side;
     let mut writer = ReportWriter::new(quiet);
+    writer.index_later = side_by_side;
     let mut log = |line: &str| {
         if !quiet {
             eprintln!("{line}");
@@ -192,16 +192,16 @@ fn run(args: RunArgs, side_by_side: bool) -> u8 {
         force: args.force,
     };
     let Outcome { code, manifests, runs } = run_all(&experiments, &options, &mut writer, &mut log);
-    // Nothing to compare: a comparison of no runs fails.
-    if !side_by_side || runs.is_empty() {
-        return if side_by_side { code.max(1) } else { code };
+    if !side_by_side {
+        return code;
     }
-    // The comparison, then the index again with the comparison beside the runs.
-    if let Err(e) = compare::write(&out, &manifests, &runs, args.quiet).and_then(|()| writer.write_index(&out)) {
+    if let Err(e) = writer.write_comparison(&out, &manifests, &runs, args.quiet) {
         eprintln!("error: {e}");
         return 1;
     }
-    println!("written to {} (compare.md, compare.html, compare.tex)", out.display());
+    if runs.is_empty() {
+        return code.max(1);
+    }
     code
 }
 

@@ -69,7 +69,7 @@ pub fn file_sha256(path: &Path) -> std::io::Result<(u64, String)> {
     let hashed = (total, hex(&hasher.finalize()));
     // A file that changed while it was read is not remembered.
     if total == stamp.bytes && memo::Stamp::of(&file.metadata()?) == stamp {
-        memo::remember(path, stamp, &hashed);
+        memo::remember(path, stamp, &hashed.1);
     }
     Ok(hashed)
 }
@@ -114,14 +114,14 @@ mod memo {
         }
     }
 
-    type Known = HashMap<PathBuf, (Stamp, u64, String)>;
+    type Known = HashMap<PathBuf, (Stamp, String)>;
     static KNOWN: Mutex<Option<Known>> = Mutex::new(None);
 
     pub fn lookup(path: &Path, stamp: &Stamp) -> Option<(u64, String)> {
         stamp.identity?;
         let known = KNOWN.lock().ok()?;
-        let (s, bytes, sha) = known.as_ref()?.get(path)?;
-        (s == stamp).then(|| (*bytes, sha.clone()))
+        let (s, sha) = known.as_ref()?.get(path)?;
+        (s == stamp).then(|| (s.bytes, sha.clone()))
     }
 
     /// A file changed this recently may change again within the same tick of
@@ -129,7 +129,8 @@ mod memo {
     /// git's index): it is not remembered.
     const SETTLED_S: i64 = 2;
 
-    pub fn remember(path: &Path, stamp: Stamp, hashed: &(u64, String)) {
+    /// Remembers the SHA-256 (hex) of the file version `stamp` names.
+    pub fn remember(path: &Path, stamp: Stamp, sha256: &str) {
         let Some([_, _, _, _, changed_s, _]) = stamp.identity else {
             return;
         };
@@ -144,7 +145,7 @@ mod memo {
             if map.len() >= MAX_FILES {
                 map.clear();
             }
-            map.insert(path.to_path_buf(), (stamp, hashed.0, hashed.1.clone()));
+            map.insert(path.to_path_buf(), (stamp, sha256.to_string()));
         }
     }
 
@@ -163,14 +164,14 @@ mod memo {
                 bytes,
                 identity: Some([1, 2, changed_s, 0, changed_s, 0]),
             };
-            remember(path, stamp(now_s, 5), &(5, "just written".into()));
+            remember(path, stamp(now_s, 5), "just written");
             assert_eq!(
                 lookup(path, &stamp(now_s, 5)),
                 None,
                 "a file changed just now is not remembered"
             );
             let settled = stamp(now_s - 60, 5);
-            remember(path, settled, &(5, "settled".into()));
+            remember(path, settled, "settled");
             assert_eq!(lookup(path, &settled), Some((5, "settled".into())));
             assert_eq!(lookup(path, &stamp(now_s - 59, 5)), None, "changed since");
             assert_eq!(lookup(path, &stamp(now_s - 60, 6)), None, "another size");
@@ -178,7 +179,7 @@ mod memo {
                 bytes: 5,
                 identity: None,
             };
-            remember(path, unknown, &(5, "unknown".into()));
+            remember(path, unknown, "unknown");
             assert_eq!(lookup(path, &unknown), None, "no identity, no memory");
         }
     }

@@ -19,6 +19,9 @@ use crate::pipeline::tracked_resolution::ValidationResolution;
 pub struct ReportWriter {
     pub quiet: bool,
     pub entries: Vec<IndexEntry>,
+    /// The index is left to the caller (`compare` writes it after the
+    /// comparison, which it links).
+    pub index_later: bool,
 }
 
 impl ReportWriter {
@@ -26,7 +29,28 @@ impl ReportWriter {
         ReportWriter {
             quiet,
             entries: Vec::new(),
+            index_later: false,
         }
+    }
+
+    /// `compare`'s pages for `runs` (none for no runs, and said where they are
+    /// otherwise), then the index, which links them; the index is written even
+    /// when the comparison fails.
+    pub fn write_comparison(
+        &self,
+        out: &Path,
+        manifests: &[crate::manifest::Manifest],
+        runs: &[(usize, crate::pipeline::record::DatasetRun)],
+        quiet: bool,
+    ) -> Result<(), String> {
+        let compared = match runs {
+            [] => Ok(()),
+            _ => super::compare::write(out, manifests, runs, quiet).map(|()| {
+                println!("written to {} (compare.md, compare.html, compare.tex)", out.display());
+            }),
+        };
+        let indexed = self.write_index(out);
+        compared.and(indexed)
     }
 
     /// Writes `out/index.html` for the runs reported so far and the pages beside them.
@@ -147,6 +171,9 @@ impl Reporter for ReportWriter {
     }
 
     fn finished(&mut self, out: &Path) -> Result<(), String> {
+        if self.index_later {
+            return Ok(());
+        }
         self.write_index(out)
     }
 }
