@@ -24,6 +24,7 @@
 
 use nalgebra::{DMatrix, DVector, Matrix6, Point3, Vector3, Vector6};
 
+use super::edge_offset::{offset_mm, EdgeOffset, EdgeTerms};
 use super::sphere_fit::{ArcFrame, KnownSphere, SphereFit, SphereFitError, SphereSettings};
 use crate::core::geometry::{perturbed, pixel_to_image_mm, Rigid};
 
@@ -43,6 +44,9 @@ pub struct PosePriors {
     pub frames: Vec<(usize, Matrix6<f64>)>,
     /// An error every frame's pose shares (the camera's intrinsics), if modelled.
     pub shared: Option<SharedError>,
+    /// The echo edge's offset from its sphere: the terms solved with the
+    /// calibration ([`EdgeOffset`]).
+    pub edge_offset: EdgeOffset,
 }
 
 /// An error `k` every frame's pose shares: frame `f`'s pose error is
@@ -88,32 +92,62 @@ impl FrameArcs {
         e + Vector6::from_iterator((&self.from_shared * k).iter().copied())
     }
 
-    /// Whitened point residuals under the calibration `c` (from `start`) and pose correction `d`.
-    fn residuals(&self, start: &Rigid, c: &Vector6<f64>, d: &Vector6<f64>, edge_sd_mm: f64) -> DVector<f64> {
+    /// Whitened point residuals under the calibration `c` (from `start`), pose
+    /// correction `d` and edge offsets `o`.
+    fn residuals(
+        &self,
+        start: &Rigid,
+        c: &Vector6<f64>,
+        d: &Vector6<f64>,
+        o: &EdgeTerms,
+        edge_sd_mm: f64,
+    ) -> DVector<f64> {
         let phantom_T_image = at(&self.phantom_T_marker, d) * at(start, c);
+        let image_T_phantom = phantom_T_image.inverse();
         let mut out = Vec::new();
         for (sphere, weight, points) in &self.arcs {
+            let offset = if o.iter().all(|t| *t == 0.0) {
+                0.0
+            } else {
+                offset_mm(o, sphere, (image_T_phantom * sphere.centre_in_phantom_mm).z)
+            };
             for p in points {
-                let distance = (phantom_T_image * p - sphere.centre_in_phantom_mm).norm() - sphere.radius_mm;
+                let distance = (phantom_T_image * p - sphere.centre_in_phantom_mm).norm() - sphere.radius_mm - offset;
                 out.push(weight * distance / edge_sd_mm);
             }
         }
         DVector::from_vec(out)
     }
 
-    fn cost(&self, start: &Rigid, x: &DVector<f64>, e: &Vector6<f64>, edge_sd_mm: f64) -> f64 {
-        let (c, k) = split(x);
-        self.residuals(start, &c, &self.correction(&k, e), edge_sd_mm)
-            .norm_squared()
+    fn cost(
+        &self,
+        start: &Rigid,
+        x: &DVector<f64>,
+        m: usize,
+        model: EdgeOffset,
+        e: &Vector6<f64>,
+        edge_sd_mm: f64,
+    ) -> f64 {
+        let (c, k, o) = split(x, m);
+        self.residuals(
+            start,
+            &c,
+            &self.correction(&k, e),
+            &model.expand(o.as_slice()),
+            edge_sd_mm,
+        )
+        .norm_squared()
             + (self.whiten * e).norm_squared()
     }
 }
 
-/// The calibration's correction and the shared error, from the unknowns `x`.
-fn split(x: &DVector<f64>) -> (Vector6<f64>, DVector<f64>) {
+/// The calibration's correction, the shared error (`m` values) and the edge
+/// offsets, from the unknowns `x`.
+fn split(x: &DVector<f64>, m: usize) -> (Vector6<f64>, DVector<f64>, DVector<f64>) {
     (
         Vector6::from_iterator(x.rows(0, 6).iter().copied()),
-        x.rows(6, x.len() - 6).into_owned(),
+        x.rows(6, m).into_owned(),
+        x.rows(6 + m, x.len() - 6 - m).into_owned(),
     )
 }
 
@@ -178,7 +212,9 @@ pub fn refine(
         .shared
         .as_ref()
         .map_or_else(|| DMatrix::zeros(0, 0), |s| s.information.clone());
-    let n = 6 + m;
+    let model = priors.edge_offset;
+    let q = model.unknowns();
+    let n = 6 + m + q;
     let sd = priors.edge_sd_mm;
     let mut x = DVector::zeros(n);
     let mut deltas = vec![Vector6::zeros(); frames.len()];
@@ -188,7 +224,7 @@ pub fn refine(
         frames
             .iter()
             .zip(deltas)
-            .map(|(f, e)| f.cost(start, x, e, sd))
+            .map(|(f, e)| f.cost(start, x, m, model, e, sd))
             .sum::<f64>()
             + prior
     };
@@ -203,22 +239,30 @@ pub fn refine(
         u.view_mut((6, 6), (m, m)).copy_from(&shared_information);
         g.rows_mut(6, m).copy_from(&(&shared_information * x.rows(6, m)));
         let mut blocks = Vec::with_capacity(frames.len());
-        let (c, k) = split(&x);
+        let (c, k, free) = split(&x, m);
+        let o = model.expand(free.as_slice());
         for (f, e) in frames.iter().zip(&deltas) {
             let d = f.correction(&k, e);
-            let r = f.residuals(start, &c, &d, sd);
+            let r = f.residuals(start, &c, &d, &o, sd);
             let mut jc = DMatrix::zeros(r.len(), 6);
             let mut jd = DMatrix::zeros(r.len(), 6);
             for j in 0..6 {
                 let mut s = Vector6::zeros();
                 s[j] = step_of(j);
-                jc.set_column(j, &((f.residuals(start, &(c + s), &d, sd) - &r) / s[j]));
-                jd.set_column(j, &((f.residuals(start, &c, &(d + s), sd) - &r) / s[j]));
+                jc.set_column(j, &((f.residuals(start, &(c + s), &d, &o, sd) - &r) / s[j]));
+                jd.set_column(j, &((f.residuals(start, &c, &(d + s), &o, sd) - &r) / s[j]));
             }
             let mut jx = DMatrix::zeros(r.len(), n);
             jx.columns_mut(0, 6).copy_from(&jc);
             if m > 0 {
                 jx.columns_mut(6, m).copy_from(&(&jd * &f.from_shared));
+            }
+            for j in 0..q {
+                let mut stepped = free.clone();
+                stepped[j] += TRANSLATION_STEP;
+                let column =
+                    (f.residuals(start, &c, &d, &model.expand(stepped.as_slice()), sd) - &r) / TRANSLATION_STEP;
+                jx.set_column(6 + m + j, &column);
             }
             u += jx.transpose() * &jx;
             g += jx.transpose() * &r;
@@ -278,7 +322,8 @@ pub fn refine(
             break;
         }
     }
-    let (c, k) = split(&x);
+    let (c, k, free) = split(&x, m);
+    let o = model.expand(free.as_slice());
     let marker_T_image = at(start, &c);
     let mut sum = 0.0;
     let mut count = 0usize;
@@ -290,11 +335,13 @@ pub fn refine(
         let image_T_phantom = phantom_T_image.inverse();
         let (mut s, mut n) = (0.0, 0usize);
         for (sphere, _, points) in &f.arcs {
+            let elevation = (image_T_phantom * sphere.centre_in_phantom_mm).z;
+            let offset = offset_mm(&o, sphere, elevation);
             for p in points {
-                s += ((phantom_T_image * p - sphere.centre_in_phantom_mm).norm() - sphere.radius_mm).powi(2);
+                s += ((phantom_T_image * p - sphere.centre_in_phantom_mm).norm() - sphere.radius_mm - offset).powi(2);
                 n += 1;
             }
-            elevation_mm.push((f.frame, (image_T_phantom * sphere.centre_in_phantom_mm).z));
+            elevation_mm.push((f.frame, elevation));
         }
         sum += s;
         count += n;
@@ -302,7 +349,8 @@ pub fn refine(
     }
     Ok(SphereFit {
         marker_T_image,
-        radius_offset_mm: 0.0,
+        radius_offset_mm: o[0],
+        edge_offset_mm: o,
         rms_mm: (sum / count.max(1) as f64).sqrt(),
         elevation_mm,
         frame_rms_mm,
@@ -408,6 +456,7 @@ mod tests {
             edge_sd_mm: 0.14,
             frames,
             shared: None,
+            edge_offset: EdgeOffset::None,
         }
     }
 

@@ -63,6 +63,9 @@ pub struct SphereFit {
     pub marker_T_image: Rigid,
     /// Estimated offset of the edge points outside the sphere, mm (0 when not fitted).
     pub radius_offset_mm: f64,
+    /// The edge offset's terms `(a, b, c)` solved with the calibration, mm
+    /// ([`super::edge_offset`]; 0 when not fitted).
+    pub edge_offset_mm: super::edge_offset::EdgeTerms,
     /// RMS point-to-sphere distance, mm.
     pub rms_mm: f64,
     /// Signed distance of each arc's sphere centre from its frame's plane, mm.
@@ -170,6 +173,7 @@ pub fn refine(start: &Rigid, frames: &[ArcFrame], settings: &SphereSettings) -> 
             .collect(),
         marker_T_image,
         radius_offset_mm,
+        edge_offset_mm: [0.0; super::edge_offset::TERMS],
         rms_mm: (sum / count.max(1) as f64).sqrt(),
         iterations: out.iterations,
     })

@@ -3,6 +3,7 @@
 
 use serde::{Deserialize, Serialize};
 
+use crate::estimate::edge_offset::EdgeOffset;
 use crate::evaluate::CutoffRule;
 use crate::spec::phantom::Phantom;
 use crate::spec::render::{RenderSpec, TrueTransform};
@@ -77,6 +78,15 @@ pub struct PosePrior {
     pub hand: crate::spec::realism::Hand,
     /// SD of the time between the photo and the B-scan, s.
     pub asynchrony_sd_s: f64,
+    /// The terms of the echo edge's offset outside its sphere that are solved
+    /// with the calibration (`none`, the default; `constant`; `obliquity`, a
+    /// term in `(d / R)²`; `constant_and_obliquity`): [`EdgeOffset`].
+    #[serde(default, skip_serializing_if = "is_no_offset")]
+    pub edge_offset: EdgeOffset,
+}
+
+fn is_no_offset(o: &EdgeOffset) -> bool {
+    *o == EdgeOffset::None
 }
 
 impl PosePrior {

@@ -287,6 +287,7 @@ pub fn bound_of(
         &spheres,
         &edge,
         &intrinsics_information,
+        edge_offset_model(manifest),
         &probes,
     )
     .ok_or("the layout leaves the calibration unobserved")?;
@@ -295,6 +296,17 @@ pub fn bound_of(
         frames: frames.len(),
         arcs,
     })
+}
+
+/// The echo edge's offset model the manifest's pose-prior fit solves (the
+/// bound marginalises the same unknowns).
+pub fn edge_offset_model(manifest: &Manifest) -> crate::estimate::edge_offset::EdgeOffset {
+    manifest
+        .sphere_fit
+        .pose_prior
+        .as_ref()
+        .map(|p| p.edge_offset)
+        .unwrap_or_default()
 }
 
 /// Whether the manifest solves the camera again with the frames' boards.

@@ -379,6 +379,8 @@ mod tests {
             tremor_sd_mm: 0.1,
             tremor_sd_deg: 0.1,
             intrinsics_fx_sd_px: None,
+            edge_offset: crate::estimate::edge_offset::EdgeOffset::None,
+            edge_offset_mm: [0.0; 3],
         };
         let all = [
             Method::CutoffWorstFirst { cutoff_mm: 2.0 },

@@ -14,6 +14,9 @@
 //!   refined it) know of the intrinsics, with the noise their residuals show
 //!   ([`crate::detect::camera_refinement::calibration_information`]). A camera
 //!   read from a file brings no views: its intrinsics are then taken as exact.
+//! - The echo edge's offset from its sphere: the terms the manifest names
+//!   (`solve.sphere_fit.pose_prior.edge_offset`), solved without a prior
+//!   ([`crate::estimate::edge_offset`]).
 
 use super::record::FrameRecord;
 use crate::core::geometry::Rigid;
@@ -21,6 +24,7 @@ use crate::core::stats::median;
 use crate::detect::board::PrintedBoard;
 use crate::detect::camera_calibration::CameraCalibration;
 use crate::detect::camera_refinement::{calibration_information, intrinsics_sd};
+use crate::estimate::edge_offset::EdgeOffset;
 use crate::estimate::sphere_bundle::{self, PosePriors, SharedError};
 use crate::estimate::sphere_fit::{ArcFrame, SphereFit, SphereFitError, SphereSettings};
 use crate::evaluate::pose_noise::{frame_pose_noise, PhotoNoise, SweepPhoto};
@@ -48,6 +52,10 @@ pub struct PoseFitNoise {
     /// With the intrinsics solved too: the focal length's SD the calibration
     /// gives them, px.
     pub intrinsics_fx_sd_px: Option<f64>,
+    /// The echo edge's offset terms solved with the calibration, and their
+    /// values `(a, b, c)`, mm (those not solved are 0).
+    pub edge_offset: EdgeOffset,
+    pub edge_offset_mm: crate::estimate::edge_offset::EdgeTerms,
 }
 
 /// A board's corner SD from its reprojection RMS (the pose's 6 unknowns taken out).
@@ -137,9 +145,11 @@ pub fn fit(
                 information: nalgebra::DMatrix::from_iterator(info.nrows(), info.ncols(), info.iter().copied()),
                 frames: shifts,
             }),
+            edge_offset: inputs.prior.edge_offset,
         },
     )
     .map_err(|e: SphereFitError| e.to_string())?;
+    let edge_offset_mm = fitted.edge_offset_mm;
     Ok((
         fitted,
         PoseFitNoise {
@@ -149,6 +159,8 @@ pub fn fit(
             tremor_sd_mm,
             tremor_sd_deg,
             intrinsics_fx_sd_px: intrinsics_information.as_ref().and_then(intrinsics_sd).map(|sd| sd[0]),
+            edge_offset: inputs.prior.edge_offset,
+            edge_offset_mm,
         },
     ))
 }

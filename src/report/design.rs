@@ -6,6 +6,7 @@ use std::path::Path;
 
 use serde::Serialize;
 
+use crate::estimate::edge_offset::EdgeOffset;
 use crate::pipeline::design::{self, Bound, BoundNoise, DesignRow, DESIGN_SEEDS, NOISE};
 use crate::spec::phantom::Phantom;
 
@@ -17,11 +18,19 @@ struct DesignFile<'a> {
     noise: BoundNoise,
     /// The intrinsics also solved from the boards in the frames' photos.
     camera_refined_with_frames: bool,
+    /// The terms of the echo edge's offset solved with the calibration
+    /// (nuisances of the bound; absent: none).
+    #[serde(skip_serializing_if = "is_no_offset")]
+    edge_offset: EdgeOffset,
     /// The manifest's own phantom.
     manifest_phantom: Result<Bound, String>,
     /// The thesis's hemisphere (R = 15 mm) at the lab's feature point.
     hemisphere: Result<Bound, String>,
     layouts: &'a [DesignRow],
+}
+
+fn is_no_offset(o: &EdgeOffset) -> bool {
+    *o == EdgeOffset::None
 }
 
 fn bound_cell(b: &Result<Bound, String>) -> String {
@@ -46,7 +55,7 @@ fn markdown(file: &DesignFile<'_>) -> String {
          with edge noise {} mm (an arc worth {} points); each frame's `phantom_T_marker` from the photo's \
          board poses, with corner noise {} px (probe board) and {} px (phantom board) and the sweep's tremor \
          between photo and B-scan, and the camera's intrinsics known only as well as its calibration views \
-         (corner noise {} px){} pin them down, one error shared by every frame.\n",
+         (corner noise {} px){} pin them down, one error shared by every frame{}.\n",
         n.edge_sd_mm,
         n.points_per_arc,
         n.probe_corner_sd_px,
@@ -56,6 +65,14 @@ fn markdown(file: &DesignFile<'_>) -> String {
             " and every frame's two boards (`camera.calibrate.refine_with_frames`)"
         } else {
             ""
+        },
+        match file.edge_offset {
+            EdgeOffset::None => String::new(),
+            model => format!(
+                "; the echo edge's offset outside its sphere unknown too (`{}`: the terms of a + b·(d/R)² the fit \
+                 solves, without a prior)",
+                model.name()
+            ),
         }
     );
     let _ = writeln!(
@@ -141,6 +158,7 @@ pub fn command(manifest: &Path, out: &Path) -> u8 {
         frames: spec.frames,
         noise: NOISE,
         camera_refined_with_frames: design::refines_with_frames(&manifest),
+        edge_offset: design::edge_offset_model(&manifest),
         manifest_phantom: design::bound_over_sweeps(&manifest, &manifest.phantom, &spec, DESIGN_SEEDS),
         hemisphere,
         layouts: &rows,

@@ -13,6 +13,7 @@ use serde::{Deserialize, Deserializer, Serialize, Serializer};
 
 use crate::core::geometry::{euler_zyx_deg, to_rows};
 use crate::core::stats::MeanSd;
+use crate::estimate::edge_offset::EdgeOffset;
 use crate::estimate::start_basin::StartGuess;
 use crate::evaluate::resampling::Bootstrap;
 use crate::evaluate::{cutoff_label, AxisStats, BreStats, TruthComparison};
@@ -290,7 +291,7 @@ pub fn describe(m: &MethodResult) -> String {
             "the reported calibration's frames, the edge points of every arc ({arcs}) on their own sphere (LM, no prior: the spheres cut at different offsets observe the planes' elevation), frames whose RMS exceeds {rms_limit_mm:.3} mm (median + 3 robust SD) left out and the fit repeated; RMS {rms_mm:.3} mm"
         ),
         Method::SphereFitPosePrior { arcs, rms_mm, noise } => format!(
-            "the sphere fit's arcs ({arcs}), every frame's phantom_T_marker free under its prior (board corners {:.4} px probe, {:.4} px phantom: the run's median reprojection RMS; the hand between photo and B-scan {:.3} mm, {:.3}° per axis: solve.sphere_fit.pose_prior), edge points {:.3} mm (the arcs' median RMS), {}; RMS {rms_mm:.3} mm",
+            "the sphere fit's arcs ({arcs}), every frame's phantom_T_marker free under its prior (board corners {:.4} px probe, {:.4} px phantom: the run's median reprojection RMS; the hand between photo and B-scan {:.3} mm, {:.3}° per axis: solve.sphere_fit.pose_prior), edge points {:.3} mm (the arcs' median RMS), {}{}; RMS {rms_mm:.3} mm",
             noise.probe_corner_sd_px,
             noise.phantom_corner_sd_px,
             noise.tremor_sd_mm,
@@ -301,6 +302,16 @@ pub fn describe(m: &MethodResult) -> String {
                     "the camera's nine intrinsics solved too, one error every frame's pose shares, under what the calibration's views know of them (fx SD {sd:.3} px)"
                 ),
                 None => "the camera's intrinsics taken as exact (no calibration views)".into(),
+            },
+            match noise.edge_offset {
+                EdgeOffset::None => String::new(),
+                model => format!(
+                    ", the echo edge's offset outside its sphere solved with it ({}: a + b·(d/R)² + c·d²/(R·r), a = {:.3} mm, b = {:.3} mm, c = {:.3} mm)",
+                    model.name(),
+                    noise.edge_offset_mm[0],
+                    noise.edge_offset_mm[1],
+                    noise.edge_offset_mm[2]
+                ),
             }
         ),
     }
