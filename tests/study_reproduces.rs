@@ -8,7 +8,7 @@ mod common;
 use common::{probecal, root, scratch};
 
 /// (manifest, committed study folder under `reports/`).
-const STUDIES: [(&str, &str); 14] = [
+const STUDIES: [(&str, &str); 18] = [
     ("experiments/hemisphere_checkerboard.yaml", "study"),
     ("experiments/studies/hemisphere_true_camera.yaml", "study/true_camera"),
     (
@@ -36,6 +36,22 @@ const STUDIES: [(&str, &str); 14] = [
     ),
     ("experiments/spheres_checkerboard.yaml", "study/spheres_design_seeds"),
     ("experiments/studies/spheres_thin_beam.yaml", "study/spheres_thin_beam"),
+    (
+        "experiments/studies/spheres_edge_obliquity.yaml",
+        "study/spheres_edge/obliquity",
+    ),
+    (
+        "experiments/studies/spheres_edge_slice.yaml",
+        "study/spheres_edge/slice",
+    ),
+    (
+        "experiments/studies/spheres_edge_constant.yaml",
+        "study/spheres_edge/constant",
+    ),
+    (
+        "experiments/studies/spheres_edge_constant_and_obliquity.yaml",
+        "study/spheres_edge/constant_and_obliquity",
+    ),
     ("experiments/thesis_twin_dataset3.yaml", "study/thesis_twin_dataset3"),
     ("experiments/thesis_twin_aruco.yaml", "study/thesis_twin_aruco"),
 ];
