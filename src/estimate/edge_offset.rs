@@ -16,7 +16,7 @@
 
 use super::sphere_fit::KnownSphere;
 
-/// Which of the offset's two terms are unknowns of the fit.
+/// Which of the offset's terms `(a, b, c)` are unknowns of the fit.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Deserialize, serde::Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum EdgeOffset {

@@ -103,14 +103,13 @@ impl FrameArcs {
         edge_sd_mm: f64,
     ) -> DVector<f64> {
         let phantom_T_image = at(&self.phantom_T_marker, d) * at(start, c);
-        let image_T_phantom = phantom_T_image.inverse();
+        // Only a solved offset needs the plane's distance from each centre.
+        let image_T_phantom = o.iter().any(|t| *t != 0.0).then(|| phantom_T_image.inverse());
         let mut out = Vec::new();
         for (sphere, weight, points) in &self.arcs {
-            let offset = if o.iter().all(|t| *t == 0.0) {
-                0.0
-            } else {
+            let offset = image_T_phantom.map_or(0.0, |image_T_phantom| {
                 offset_mm(o, sphere, (image_T_phantom * sphere.centre_in_phantom_mm).z)
-            };
+            });
             for p in points {
                 let distance = (phantom_T_image * p - sphere.centre_in_phantom_mm).norm() - sphere.radius_mm - offset;
                 out.push(weight * distance / edge_sd_mm);
