@@ -8,6 +8,7 @@
 //! - Against ground truth (rendered data): the image's four corners and centre
 //!   mapped by the estimated and the true `marker_T_image`; their distances.
 
+pub mod arc_noise;
 pub mod block_bootstrap;
 pub mod pose_coverage;
 pub mod pose_noise;

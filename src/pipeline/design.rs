@@ -63,6 +63,16 @@ pub struct BoundNoise {
     pub calibration_corner_sd_px: f64,
 }
 
+impl BoundNoise {
+    /// The arcs' part of it.
+    pub fn edge_noise(&self) -> EdgeNoise {
+        EdgeNoise {
+            edge_sd_mm: self.edge_sd_mm,
+            points_per_arc: self.points_per_arc,
+        }
+    }
+}
+
 /// Domes closer than this (mm, surface to surface) are not printable apart.
 pub const MIN_GAP_MM: f64 = 2.0;
 /// Echo points are taken this far either side of an arc's top (the dome's
@@ -205,25 +215,8 @@ pub fn bound_of(
                 .ok_or("a frame's board is behind the camera")?;
         }
     }
-    let spheres: Vec<KnownSphere> = match phantom {
-        Phantom::Spheres { spheres } => spheres
-            .iter()
-            .map(|s| KnownSphere {
-                centre_in_phantom_mm: Point3::from(s.centre_in_phantom_mm),
-                radius_mm: s.radius_mm,
-            })
-            .collect(),
-        Phantom::Hemisphere {
-            centre_in_phantom_mm,
-            radius_mm,
-        } => vec![KnownSphere {
-            centre_in_phantom_mm: Point3::from(*centre_in_phantom_mm),
-            radius_mm: *radius_mm,
-        }],
-        Phantom::Point { .. } | Phantom::FourWire { .. } => {
-            return Err("the bound is of dome phantoms (hemisphere, spheres)".into())
-        }
-    };
+    let spheres: Vec<KnownSphere> =
+        super::settings::known_spheres(phantom).ok_or("the bound is of dome phantoms (hemisphere, spheres)")?;
     let [sx, _] = manifest.bscan_spacing_mm_per_px;
     // The detector finds arcs down to this fraction of the radius.
     let min_fraction = manifest.arc_detection.radius_fraction[0];
@@ -277,10 +270,7 @@ pub fn bound_of(
         [scene.bscan.width_px, scene.bscan.height_px],
         manifest.bscan_spacing_mm_per_px,
     );
-    let edge = EdgeNoise {
-        edge_sd_mm: noise.edge_sd_mm,
-        points_per_arc: noise.points_per_arc,
-    };
+    let edge = noise.edge_noise();
     let rms_mm = sphere_bound::corner_rms_bound(
         &scene.marker_T_image,
         &frames,

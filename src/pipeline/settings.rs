@@ -6,6 +6,7 @@ use super::solve::SolveSettings;
 use crate::detect::arc::ArcSettings;
 use crate::detect::spot::SpotSettings;
 use crate::estimate::horn::Variant;
+use crate::estimate::sphere_fit::KnownSphere;
 use crate::manifest::{CameraSource, FitRadius, Manifest, SolveVariant};
 use crate::spec::phantom::Phantom;
 use crate::synth::Lab;
@@ -95,6 +96,29 @@ pub fn variant(manifest: &Manifest) -> Variant {
     match manifest.solve_variant {
         SolveVariant::Rigid => Variant::Rigid,
         SolveVariant::Similarity => Variant::Similarity,
+    }
+}
+
+/// A dome phantom's spheres (a hemisphere is one); `None` for the others.
+pub fn known_spheres(phantom: &Phantom) -> Option<Vec<KnownSphere>> {
+    match phantom {
+        Phantom::Spheres { spheres } => Some(
+            spheres
+                .iter()
+                .map(|s| KnownSphere {
+                    centre_in_phantom_mm: nalgebra::Point3::from(s.centre_in_phantom_mm),
+                    radius_mm: s.radius_mm,
+                })
+                .collect(),
+        ),
+        Phantom::Hemisphere {
+            centre_in_phantom_mm,
+            radius_mm,
+        } => Some(vec![KnownSphere {
+            centre_in_phantom_mm: nalgebra::Point3::from(*centre_in_phantom_mm),
+            radius_mm: *radius_mm,
+        }]),
+        Phantom::Point { .. } | Phantom::FourWire { .. } => None,
     }
 }
 
