@@ -234,6 +234,9 @@ pub struct TruthSummary {
     pub probe_pose_translation_error_mm: Option<(f64, f64)>,
     pub probe_pose_rotation_error_deg: Option<(f64, f64)>,
     pub phantom_pose_translation_error_mm: Option<(f64, f64)>,
+    /// Dome phantoms: the arcs' errors against their true cuts, set against the
+    /// bound's noise model.
+    pub arc_noise: Option<crate::evaluate::arc_noise::ArcNoiseCheck>,
 }
 
 /// An estimator and the parameters it ran with; the report writes the words.

@@ -230,10 +230,16 @@ pub fn run_dataset(
     timings.push(("calibration and evaluation", clock.elapsed().as_secs_f64()));
 
     // The calibration's truth comparison exists whenever truth was given (its fit succeeded above).
+    let spheres = settings::known_spheres(&manifest.phantom);
+    let domes = spheres.as_deref().map(|spheres| truth::DomeArcs {
+        spheres,
+        spacing_mm_per_px: spacing,
+        noise: super::design::NOISE.edge_noise(),
+    });
     let truth_summary = truth
         .as_ref()
         .zip(thresholds[primary].truth)
-        .map(|(t, calibration)| truth::score(&mut frames, t, &camera, calibration));
+        .map(|(t, calibration)| truth::score(&mut frames, t, &camera, calibration, domes.as_ref()));
 
     let clock = Instant::now();
     let image_size_px = truth_transform

@@ -4,8 +4,18 @@
 use super::record::{CameraStage, FrameRecord, TruthSummary};
 use crate::core::geometry::{rigid_from_rows, rotation_angle_between_deg, Rigid};
 use crate::core::stats::mean_max;
+use crate::estimate::sphere_fit::KnownSphere;
+use crate::evaluate::arc_noise::{self, ArcAgainstTruth, ArcNoiseCheck};
+use crate::evaluate::sphere_bound::EdgeNoise;
 use crate::evaluate::TruthComparison;
 use crate::io::truth::GroundTruth;
+
+/// A dome phantom's arcs and the noise model they are checked against.
+pub struct DomeArcs<'a> {
+    pub spheres: &'a [KnownSphere],
+    pub spacing_mm_per_px: [f64; 2],
+    pub noise: EdgeNoise,
+}
 
 /// Scores every frame against the truth (kept on its record) and sums up the
 /// dataset; `calibration` is the reported calibration's comparison.
@@ -14,6 +24,7 @@ pub fn score(
     t: &GroundTruth,
     camera: &CameraStage,
     calibration: TruthComparison,
+    domes: Option<&DomeArcs>,
 ) -> TruthSummary {
     let mut arc_errors = Vec::new();
     let mut pose_t = Vec::new();
@@ -74,6 +85,7 @@ pub fn score(
         }
     }
     let tk = &t.camera.camera_matrix;
+    let arc_noise = domes.and_then(|domes| arc_noise_check(frames, t, domes));
     TruthSummary {
         calibration,
         camera_focal_error_px: camera
@@ -88,5 +100,54 @@ pub fn score(
         probe_pose_translation_error_mm: mean_max(&pose_t),
         probe_pose_rotation_error_deg: mean_max(&pose_r),
         phantom_pose_translation_error_mm: mean_max(&phantom_t),
+        arc_noise,
     }
+}
+
+/// Every arc of the kept ordinary frames against its sphere's true cut
+/// (`evaluate::arc_noise`). An arc is its sphere's when the true plane cuts
+/// that sphere and its circle's centre lies within half a radius of the
+/// centre's true projection; a frame is kept when no stage rejected it. The
+/// truth's image frame is the displayed one only at the medium's true speed of
+/// sound: with another, no check.
+fn arc_noise_check(frames: &[FrameRecord], t: &GroundTruth, domes: &DomeArcs) -> Option<ArcNoiseCheck> {
+    if t.range_scale != 1.0 {
+        return None;
+    }
+    let [sx, sy] = domes.spacing_mm_per_px;
+    let phantom_T_camera = t.camera_T_phantom.inverse();
+    let mut arcs = Vec::new();
+    for f in frames.iter().filter(|f| f.rejection.is_none()) {
+        let Some(tf) = t.frame(f.files.frame).filter(|tf| tf.kind == "normal") else {
+            continue;
+        };
+        let Ok(camera_T_marker) = rigid_from_rows(&tf.camera_T_marker_bscan) else {
+            continue;
+        };
+        let image_T_phantom = (phantom_T_camera * camera_T_marker * t.marker_T_image).inverse();
+        let centres: Vec<_> = domes
+            .spheres
+            .iter()
+            .map(|s| (image_T_phantom * s.centre_in_phantom_mm, s.radius_mm))
+            .collect();
+        // One arc per B-scan (a hemisphere) is kept as the frame's arc alone.
+        let found = if f.arcs.is_empty() { f.arc.as_slice() } else { &f.arcs };
+        for arc in found {
+            let at = [arc.centre_px[0] * sx, arc.centre_px[1] * sy];
+            let nearest = centres
+                .iter()
+                .filter(|(c, radius)| c.z.abs() < *radius)
+                .map(|(c, radius)| ((c.x - at[0]).hypot(c.y - at[1]), c, radius))
+                .filter(|(distance, _, radius)| *distance < 0.5 * **radius)
+                .min_by(|a, b| a.0.total_cmp(&b.0));
+            if let Some((_, c, radius)) = nearest {
+                arcs.push(ArcAgainstTruth {
+                    edge_points_in_image_mm: arc.arc_points_px.iter().map(|p| [p[0] * sx, p[1] * sy]).collect(),
+                    centre_in_image_mm: [c.x, c.y, c.z],
+                    radius_mm: *radius,
+                });
+            }
+        }
+    }
+    arc_noise::check(&arcs, &domes.noise)
 }

@@ -361,6 +361,22 @@ pub fn context(run: &DatasetRun, manifest: &crate::manifest::Manifest) -> RunCon
                 format!("{} / {}", mm(mean), mm(max)),
             ));
         }
+        if let Some(check) = &tr.arc_noise {
+            truth.push(kv(
+                "arcs against their true cuts: the bound's noise model (edge SD, points an arc is worth)",
+                format!("{} mm, {}", mm(check.model_edge_sd_mm), check.model_points_per_arc),
+            ));
+            for b in std::iter::once(&check.all).chain(&check.by_cut) {
+                let [radius, along_u, along_v] = b.sd_over_model;
+                truth.push(kv(
+                    &format!(
+                        "arcs cut {:.1}–{:.1} R from the centre ({}): edge RMS (mm); spread of radius, centre u, centre v over the model's",
+                        b.cut[0], b.cut[1], b.arcs
+                    ),
+                    format!("{}; {:.2}, {:.2}, {:.2}", mm(b.point_rms_mm), radius, along_u, along_v),
+                ));
+            }
+        }
         truth_by_cutoff = vec![
             StatRow {
                 parameter: "corner error mean (mm)".into(),

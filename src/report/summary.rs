@@ -203,6 +203,10 @@ pub struct TruthSummaryJson {
     pub probe_pose_error_mm: Option<MeanMax>,
     pub probe_pose_error_deg: Option<MeanMax>,
     pub phantom_pose_error_mm: Option<MeanMax>,
+    /// Dome phantoms: the arcs' errors against their true cuts, set against the
+    /// bound's noise model (`evaluate::arc_noise`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub arc_noise: Option<crate::evaluate::arc_noise::ArcNoiseCheck>,
 }
 
 /// `summary.json` of a camera (or tracker-CSV) run.
@@ -420,6 +424,7 @@ impl Summary {
                 probe_pose_error_mm: MeanMax::of(t.probe_pose_translation_error_mm),
                 probe_pose_error_deg: MeanMax::of(t.probe_pose_rotation_error_deg),
                 phantom_pose_error_mm: MeanMax::of(t.phantom_pose_translation_error_mm),
+                arc_noise: t.arc_noise.clone(),
             }),
         }
     }
