@@ -5,6 +5,7 @@ use std::path::{Path, PathBuf};
 use serde::Deserialize;
 
 use crate::core::geometry::{rigid_from_rows, Rigid};
+use crate::spec::phantom::Phantom;
 
 /// Name of the ground-truth file inside a rendered dataset folder.
 pub const GROUND_TRUTH_FILE: &str = "ground_truth.json";
@@ -40,6 +41,9 @@ struct RawTruth {
     range_scale: f64,
     camera: TruthCamera,
     frames: Vec<TruthFrame>,
+    /// The phantom as built (a rig with measurement errors states another in its manifest).
+    #[serde(default)]
+    phantom: Option<Phantom>,
 }
 
 fn one() -> f64 {
@@ -65,6 +69,8 @@ pub struct GroundTruth {
     pub range_scale: f64,
     pub camera: TruthCamera,
     pub frames: Vec<TruthFrame>,
+    /// The phantom as built, where the truth states it.
+    pub phantom: Option<Phantom>,
 }
 
 #[derive(Debug, thiserror::Error)]
@@ -95,10 +101,50 @@ impl GroundTruth {
             range_scale: raw.range_scale,
             camera: raw.camera,
             frames: raw.frames,
+            phantom: raw.phantom,
         }))
     }
 
     pub fn frame(&self, frame: usize) -> Option<&TruthFrame> {
         self.frames.iter().find(|f| f.frame == frame)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn truth_text(phantom: &str) -> String {
+        let identity = "[[1,0,0,0],[0,1,0,0],[0,0,1,0],[0,0,0,1]]";
+        format!(
+            r#"{{"marker_T_image": {identity}, "camera_T_phantom": {identity}, "bscan_size_px": [801, 601],
+                "camera": {{"camera_matrix": [[1400,0,960],[0,1400,540],[0,0,1]], "distortion": [0,0,0,0,0]}},
+                "frames": []{phantom}}}"#
+        )
+    }
+
+    fn load_text(name: &str, text: &str) -> Result<Option<GroundTruth>, TruthError> {
+        let folder = std::env::temp_dir().join(format!("probecal-truth-{name}-{}", std::process::id()));
+        std::fs::create_dir_all(&folder).unwrap();
+        std::fs::write(folder.join(GROUND_TRUTH_FILE), text).unwrap();
+        let truth = GroundTruth::load(&folder);
+        std::fs::remove_dir_all(&folder).unwrap();
+        truth
+    }
+
+    #[test]
+    fn the_phantom_as_built_is_read_when_the_truth_states_it() {
+        let text = truth_text(
+            r#", "phantom": {"spheres": {"spheres": [{"name": "dome1", "centre_in_phantom_mm": [1.0, 2.0, 3.5], "radius_mm": 10.0}]}}"#,
+        );
+        let truth = load_text("spheres", &text).unwrap().unwrap();
+        match truth.phantom {
+            Some(Phantom::Spheres { spheres }) => assert_eq!(spheres[0].centre_in_phantom_mm, [1.0, 2.0, 3.5]),
+            other => panic!("{other:?}"),
+        }
+        assert!(load_text("none", &truth_text("")).unwrap().unwrap().phantom.is_none());
+        // A phantom the truth states wrongly is an error naming the file.
+        let bad = load_text("bad", &truth_text(r#", "phantom": {"spheres": {"domes": []}}"#)).unwrap_err();
+        assert!(bad.to_string().contains(GROUND_TRUTH_FILE), "{bad}");
     }
 }

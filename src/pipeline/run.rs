@@ -15,6 +15,7 @@ use super::frames::{self, Targets};
 use super::methods::{self, MethodInputs};
 use super::record::{DatasetRun, GateResult, TruthSummary};
 use super::solve::{self, PairingInputs};
+pub use super::truth::true_calibration;
 use super::{camera, settings, truth};
 use crate::detect::board_pose::RigBoards;
 use crate::detect::camera_calibration;
@@ -135,16 +136,6 @@ pub fn claim_file(folder: &Path) -> PathBuf {
     folder.parent().unwrap_or(Path::new(".")).join(format!(".{name}.lock"))
 }
 
-/// The evaluation's view of a rendered dataset's truth.
-pub fn true_calibration(t: &GroundTruth) -> crate::evaluate::TrueCalibration {
-    crate::evaluate::TrueCalibration {
-        marker_T_image: t.marker_T_image,
-        image_size_px: t.bscan_size_px,
-        range_scale: t.range_scale,
-        apex_mm: t.bscan_apex_mm,
-    }
-}
-
 /// Runs one dataset of a manifest. `datasets_root` holds rendered datasets.
 pub fn run_dataset(
     manifest: &Manifest,
@@ -230,16 +221,14 @@ pub fn run_dataset(
     timings.push(("calibration and evaluation", clock.elapsed().as_secs_f64()));
 
     // The calibration's truth comparison exists whenever truth was given (its fit succeeded above).
-    let spheres = settings::known_spheres(&manifest.phantom);
-    let domes = spheres.as_deref().map(|spheres| truth::DomeArcs {
-        spheres,
+    let arcs_against = truth::ArcCheck {
         spacing_mm_per_px: spacing,
         noise: super::design::NOISE.edge_noise(),
-    });
+    };
     let truth_summary = truth
         .as_ref()
         .zip(thresholds[primary].truth)
-        .map(|(t, calibration)| truth::score(&mut frames, t, &camera, calibration, domes.as_ref()));
+        .map(|(t, calibration)| truth::score(&mut frames, t, &camera, calibration, &arcs_against));
 
     let clock = Instant::now();
     let image_size_px = truth_transform

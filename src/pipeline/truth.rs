@@ -2,17 +2,27 @@
 //! made): each frame's feature pixels and board poses, and the camera.
 
 use super::record::{CameraStage, FrameRecord, TruthSummary};
+use super::settings;
 use crate::core::geometry::{rigid_from_rows, rotation_angle_between_deg, Rigid};
 use crate::core::stats::mean_max;
-use crate::estimate::sphere_fit::KnownSphere;
 use crate::evaluate::arc_noise::{self, ArcAgainstTruth, ArcNoiseCheck};
 use crate::evaluate::sphere_bound::EdgeNoise;
 use crate::evaluate::TruthComparison;
 use crate::io::truth::GroundTruth;
 
-/// A dome phantom's arcs and the noise model they are checked against.
-pub struct DomeArcs<'a> {
-    pub spheres: &'a [KnownSphere],
+/// The evaluation's view of a rendered dataset's truth.
+pub fn true_calibration(t: &GroundTruth) -> crate::evaluate::TrueCalibration {
+    crate::evaluate::TrueCalibration {
+        marker_T_image: t.marker_T_image,
+        image_size_px: t.bscan_size_px,
+        range_scale: t.range_scale,
+        apex_mm: t.bscan_apex_mm,
+    }
+}
+
+/// How a dome phantom's arcs are checked against the truth: the run's pixel
+/// size and the noise model the bound assumes.
+pub struct ArcCheck {
     pub spacing_mm_per_px: [f64; 2],
     pub noise: EdgeNoise,
 }
@@ -24,7 +34,7 @@ pub fn score(
     t: &GroundTruth,
     camera: &CameraStage,
     calibration: TruthComparison,
-    domes: Option<&DomeArcs>,
+    arcs_against: &ArcCheck,
 ) -> TruthSummary {
     let mut arc_errors = Vec::new();
     let mut pose_t = Vec::new();
@@ -85,7 +95,7 @@ pub fn score(
         }
     }
     let tk = &t.camera.camera_matrix;
-    let arc_noise = domes.and_then(|domes| arc_noise_check(frames, t, domes));
+    let arc_noise = arc_noise_check(frames, t, arcs_against);
     TruthSummary {
         calibration,
         camera_focal_error_px: camera
@@ -105,16 +115,24 @@ pub fn score(
 }
 
 /// Every arc of the kept ordinary frames against its sphere's true cut
-/// (`evaluate::arc_noise`). An arc is its sphere's when the true plane cuts
-/// that sphere and its circle's centre lies within half a radius of the
-/// centre's true projection; a frame is kept when no stage rejected it. The
-/// truth's image frame is the displayed one only at the medium's true speed of
-/// sound: with another, no check.
-fn arc_noise_check(frames: &[FrameRecord], t: &GroundTruth, domes: &DomeArcs) -> Option<ArcNoiseCheck> {
-    if t.range_scale != 1.0 {
-        return None;
-    }
-    let [sx, sy] = domes.spacing_mm_per_px;
+/// (`evaluate::arc_noise`), the spheres as the truth states them built (a
+/// manifest may state them as measured). An arc is its sphere's when the true
+/// plane cuts that sphere and its circle's centre lies within half a radius of
+/// the centre's true projection; a frame is kept when no stage rejected it. At
+/// another speed of sound than the medium's, each displayed point is taken
+/// where its echo truly is. `None` for a truth without a dome phantom.
+fn arc_noise_check(frames: &[FrameRecord], t: &GroundTruth, check: &ArcCheck) -> Option<ArcNoiseCheck> {
+    let spheres = settings::known_spheres(t.phantom.as_ref()?)?;
+    let true_calibration = true_calibration(t);
+    let [sx, sy] = check.spacing_mm_per_px;
+    let in_image_mm = |p: &[f64; 2]| {
+        let shown = [p[0] * sx, p[1] * sy];
+        if t.range_scale == 1.0 {
+            shown
+        } else {
+            true_calibration.true_point_of_displayed(shown)
+        }
+    };
     let phantom_T_camera = t.camera_T_phantom.inverse();
     let mut arcs = Vec::new();
     for f in frames.iter().filter(|f| f.rejection.is_none()) {
@@ -125,15 +143,14 @@ fn arc_noise_check(frames: &[FrameRecord], t: &GroundTruth, domes: &DomeArcs) ->
             continue;
         };
         let image_T_phantom = (phantom_T_camera * camera_T_marker * t.marker_T_image).inverse();
-        let centres: Vec<_> = domes
-            .spheres
+        let centres: Vec<_> = spheres
             .iter()
             .map(|s| (image_T_phantom * s.centre_in_phantom_mm, s.radius_mm))
             .collect();
         // One arc per B-scan (a hemisphere) is kept as the frame's arc alone.
         let found = if f.arcs.is_empty() { f.arc.as_slice() } else { &f.arcs };
         for arc in found {
-            let at = [arc.centre_px[0] * sx, arc.centre_px[1] * sy];
+            let at = in_image_mm(&arc.centre_px);
             let nearest = centres
                 .iter()
                 .filter(|(c, radius)| c.z.abs() < *radius)
@@ -142,12 +159,12 @@ fn arc_noise_check(frames: &[FrameRecord], t: &GroundTruth, domes: &DomeArcs) ->
                 .min_by(|a, b| a.0.total_cmp(&b.0));
             if let Some((_, c, radius)) = nearest {
                 arcs.push(ArcAgainstTruth {
-                    edge_points_in_image_mm: arc.arc_points_px.iter().map(|p| [p[0] * sx, p[1] * sy]).collect(),
+                    edge_points_in_image_mm: arc.arc_points_px.iter().map(in_image_mm).collect(),
                     centre_in_image_mm: [c.x, c.y, c.z],
                     radius_mm: *radius,
                 });
             }
         }
     }
-    arc_noise::check(&arcs, &domes.noise)
+    arc_noise::check(&arcs, &check.noise)
 }
