@@ -220,11 +220,12 @@ pub fn run_dataset(
     } = solved;
     timings.push(("calibration and evaluation", clock.elapsed().as_secs_f64()));
 
-    // The calibration's truth comparison exists whenever truth was given (its fit succeeded above).
+    // A dome phantom's arcs are checked against the noise model the bound assumes.
     let arcs_against = truth::ArcCheck {
         spacing_mm_per_px: spacing,
         noise: super::design::NOISE.edge_noise(),
     };
+    // The calibration's truth comparison exists whenever truth was given (its fit succeeded above).
     let truth_summary = truth
         .as_ref()
         .zip(thresholds[primary].truth)
