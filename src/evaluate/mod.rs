@@ -207,8 +207,12 @@ impl TrueCalibration {
     }
 
     /// Where an echo displayed at `shown_mm` (image frame) truly is: its range
-    /// from the transducer face scaled by `range_scale` along its beam.
+    /// from the transducer face scaled by `range_scale` along its beam (where
+    /// it is shown, exactly, at a scale of 1).
     pub fn true_point_of_displayed(&self, shown_mm: [f64; 2]) -> [f64; 2] {
+        if self.range_scale == 1.0 {
+            return shown_mm;
+        }
         let [ax, ay] = self.apex_mm;
         let face = -ay;
         let (dx, dy) = (shown_mm[0] - ax, shown_mm[1] - ay);

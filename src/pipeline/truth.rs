@@ -125,14 +125,7 @@ fn arc_noise_check(frames: &[FrameRecord], t: &GroundTruth, check: &ArcCheck) ->
     let spheres = settings::known_spheres(t.phantom.as_ref()?)?;
     let true_calibration = true_calibration(t);
     let [sx, sy] = check.spacing_mm_per_px;
-    let in_image_mm = |p: &[f64; 2]| {
-        let shown = [p[0] * sx, p[1] * sy];
-        if t.range_scale == 1.0 {
-            shown
-        } else {
-            true_calibration.true_point_of_displayed(shown)
-        }
-    };
+    let in_image_mm = |p: &[f64; 2]| true_calibration.true_point_of_displayed([p[0] * sx, p[1] * sy]);
     let phantom_T_camera = t.camera_T_phantom.inverse();
     let mut arcs = Vec::new();
     for f in frames.iter().filter(|f| f.rejection.is_none()) {
