@@ -617,6 +617,34 @@ const CASES: &[Case] = &[
         in_output: "stderr",
     },
     Case {
+        name: "slice blur of no pulse",
+        setup: |d| {
+            with_manifest(
+                d,
+                "bscan:\n",
+                "solve:\n  sphere_fit:\n    pose_prior:\n      hand: {speed_mm_per_s: 3.0, rotation_deg_per_s: 1.0}\n      asynchrony_sd_s: 0.05\n      slice_blur: {axial_sd_mm: 0, elevation_sd_mm: 0.41}\nbscan:\n",
+            )
+        },
+        args: validate,
+        code: 2,
+        expect: "field `solve.sphere_fit.pose_prior.slice_blur.axial_sd_mm`: must be a positive number",
+        in_output: "stderr",
+    },
+    Case {
+        name: "slice blur field unknown",
+        setup: |d| {
+            with_manifest(
+                d,
+                "bscan:\n",
+                "solve:\n  sphere_fit:\n    pose_prior:\n      hand: {speed_mm_per_s: 3.0, rotation_deg_per_s: 1.0}\n      asynchrony_sd_s: 0.05\n      slice_blur: {axial_sd_mm: 0.36, width_mm: 1.5}\nbscan:\n",
+            )
+        },
+        args: validate,
+        code: 2,
+        expect: "experiment.yaml:15: field `solve.sphere_fit.pose_prior.slice_blur.width_mm`: unknown field `width_mm`, expected `axial_sd_mm` or `elevation_sd_mm`",
+        in_output: "stderr",
+    },
+    Case {
         name: "ArUco ids overlap",
         setup: |d| {
             with_manifest(d, "  checkerboard:\n    probe_board: {inner_corners: [10, 10], square_mm: 13.0, id_dots: 1}\n    phantom_board: {inner_corners: [10, 10], square_mm: 13.0, id_dots: 2}\n", "  aruco:\n    dictionary: DICT_4X4_50\n    probe_board: {markers: [4, 4], marker_mm: 30, separation_mm: 8, first_id: 0}\n    phantom_board: {markers: [4, 4], marker_mm: 30, separation_mm: 8, first_id: 8}\n")

@@ -1,6 +1,7 @@
 //! Solving for `marker_T_image`: Horn's closed form, robust estimators over
 //! frames, wire matching, Levenberg–Marquardt with pixel scales, the sphere fit.
 pub mod correspondence;
+pub mod edge_blur;
 pub mod edge_offset;
 pub mod horn;
 pub mod image_to_probe;

@@ -10,7 +10,8 @@
 //! `δ_f`, with the prior `δ_f ~ N(0, Σ_f)` that the board corners and the hand
 //! give (`Σ_f` from the caller, in [`perturbed`]'s coordinates of
 //! `phantom_T_marker`: rotation vector on the left, then translation, rad and
-//! mm), and the edge points weighted by their own noise `σ_e`: the maximum a
+//! mm), and the edge points weighted by their own noise `σ_e` (grown, with a
+//! [`SliceBlur`], for arcs cut off their domes' centres): the maximum a
 //! posteriori calibration under the model the design's Cramér–Rao bound
 //! assumes. The poses are eliminated frame by frame (the normal equations'
 //! Schur complement), so the solve stays a 6-unknown one per iteration.
@@ -24,6 +25,7 @@
 
 use nalgebra::{DMatrix, DVector, Matrix6, Point3, Vector3, Vector6};
 
+use super::edge_blur::{variance_factor, SliceBlur};
 use super::edge_offset::{offset_mm, EdgeOffset, EdgeTerms};
 use super::sphere_fit::{ArcFrame, KnownSphere, SphereFit, SphereFitError, SphereSettings};
 use crate::core::geometry::{perturbed, pixel_to_image_mm, Rigid};
@@ -47,6 +49,10 @@ pub struct PosePriors {
     /// The echo edge's offset from its sphere: the terms solved with the
     /// calibration ([`EdgeOffset`]).
     pub edge_offset: EdgeOffset,
+    /// How an edge point's noise grows as the plane cuts farther from its
+    /// dome's centre ([`SliceBlur`]; the cut taken under `start`): absent,
+    /// every arc alike.
+    pub slice_blur: Option<SliceBlur>,
 }
 
 /// An error `k` every frame's pose shares: frame `f`'s pose error is
@@ -185,8 +191,14 @@ pub fn refine(
             .iter()
             .map(|p| pixel_to_image_mm(*p, settings.spacing_mm_per_px))
             .collect();
-        let weight = (settings.points_per_frame / points.len() as f64).sqrt();
-        let arc = (settings.spheres[a.sphere], weight, points);
+        let phantom_T_marker = a.camera_T_phantom.inverse() * a.camera_T_marker;
+        let sphere = settings.spheres[a.sphere];
+        let cut_mm = ((phantom_T_marker * start).inverse() * sphere.centre_in_phantom_mm).z;
+        let weight = (settings.points_per_frame
+            / points.len() as f64
+            / variance_factor(priors.slice_blur, sphere.radius_mm, cut_mm))
+        .sqrt();
+        let arc = (sphere, weight, points);
         match frames.iter_mut().find(|f| f.frame == a.frame) {
             Some(f) => f.arcs.push(arc),
             None => {
@@ -194,7 +206,7 @@ pub fn refine(
                 let Some(whiten) = l.l().try_inverse() else { continue };
                 frames.push(FrameArcs {
                     frame: a.frame,
-                    phantom_T_marker: a.camera_T_phantom.inverse() * a.camera_T_marker,
+                    phantom_T_marker,
                     arcs: vec![arc],
                     information: whiten.transpose() * whiten,
                     whiten,
@@ -456,6 +468,7 @@ mod tests {
             frames,
             shared: None,
             edge_offset: EdgeOffset::None,
+            slice_blur: None,
         }
     }
 

@@ -18,6 +18,7 @@ use nalgebra::{Matrix3, Vector3};
 use serde::{Deserialize, Serialize};
 
 use super::sphere_bound::EdgeNoise;
+use crate::estimate::edge_blur::{variance_factor, SliceBlur};
 
 /// One arc's edge points and its sphere, both in the true image frame (mm).
 #[derive(Debug, Clone, PartialEq)]
@@ -51,6 +52,9 @@ pub struct ArcNoiseCheck {
     /// The model's edge SD (mm) and independent points per arc.
     pub model_edge_sd_mm: f64,
     pub model_points_per_arc: f64,
+    /// The model's growth of the edge noise with the cut, if it has one.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub model_slice_blur: Option<SliceBlur>,
     pub all: ArcNoiseBin,
     pub by_cut: Vec<ArcNoiseBin>,
 }
@@ -100,7 +104,9 @@ fn reduce(arc: &ArcAgainstTruth, noise: &EdgeNoise) -> Option<Reduced> {
     let own_ss: f64 = rows.iter().map(|(row, e)| (e - row.dot(&coefficients)).powi(2)).sum();
     // n points worth `points_per_arc` independent ones: each point's variance
     // scaled by n / points_per_arc.
-    let model_cov = inverse * (noise.edge_sd_mm.powi(2) * n as f64 / noise.points_per_arc);
+    // The slice's growth of that variance with the cut, when the model has it.
+    let factor = variance_factor(noise.slice_blur, arc.radius_mm, d);
+    let model_cov = inverse * (noise.edge_sd_mm.powi(2) * factor * n as f64 / noise.points_per_arc);
     let values = coefficients.iter().chain(model_cov.iter()).copied().chain([own_ss]);
     if values.into_iter().any(|v| !v.is_finite()) {
         return None;
@@ -153,6 +159,7 @@ pub fn check(arcs: &[ArcAgainstTruth], noise: &EdgeNoise) -> Option<ArcNoiseChec
     Some(ArcNoiseCheck {
         model_edge_sd_mm: noise.edge_sd_mm,
         model_points_per_arc: noise.points_per_arc,
+        model_slice_blur: noise.slice_blur,
         all,
         by_cut,
     })
@@ -167,17 +174,35 @@ mod tests {
     const MODEL: EdgeNoise = EdgeNoise {
         edge_sd_mm: 0.12,
         points_per_arc: 40.0,
+        slice_blur: None,
     };
 
     /// `count` arcs of a 10 mm sphere cut at `|d|` spread over the sphere, each
     /// with `points` edge points over ±55° whose radial errors are independent
     /// with SD `sd`, plus a per-arc radius error of SD `arc_sd` and a common `bias`.
     fn arcs(count: usize, points: usize, sd: f64, arc_sd: f64, bias: f64, seed: u64) -> Vec<ArcAgainstTruth> {
+        arcs_cut(count, points, sd, arc_sd, bias, seed, 4.0, None)
+    }
+
+    /// The same, cut from `-reach` to `reach`, each point's variance grown by
+    /// `blur`'s factor for its cut.
+    #[allow(clippy::too_many_arguments)]
+    fn arcs_cut(
+        count: usize,
+        points: usize,
+        sd: f64,
+        arc_sd: f64,
+        bias: f64,
+        seed: u64,
+        reach: f64,
+        blur: Option<SliceBlur>,
+    ) -> Vec<ArcAgainstTruth> {
         let mut rng = Rng::new(seed);
         (0..count)
             .map(|i| {
-                let d = 8.0 * (i as f64 / count as f64) - 4.0;
+                let d = 2.0 * reach * (i as f64 / count as f64) - reach;
                 let r = (100.0f64 - d * d).sqrt();
+                let sd = sd * variance_factor(blur, 10.0, d).sqrt();
                 let centre = [40.0 + rng.uniform(-5.0, 5.0), 60.0, d];
                 let arc_error = rng.normal(0.0, arc_sd);
                 let edge_points_in_image_mm = (0..points)
@@ -256,5 +281,34 @@ mod tests {
         }));
         few.extend(arcs(3, 5, 0.12, 0.0, 0.0, 13));
         assert!(check(&few, &noise).is_none());
+    }
+
+    #[test]
+    fn oblique_arcs_noisier_by_the_slice_match_a_model_with_it_and_not_one_without() {
+        let blur = SliceBlur {
+            axial_sd_mm: 0.3,
+            elevation_sd_mm: 0.5,
+        };
+        let drawn = arcs_cut(600, 40, 0.12, 0.0, 0.0, 14, 8.0, Some(blur));
+        let with = check(
+            &drawn,
+            &EdgeNoise {
+                slice_blur: Some(blur),
+                ..MODEL
+            },
+        )
+        .unwrap();
+        assert_eq!(with.model_slice_blur, Some(blur));
+        for bin in &with.by_cut {
+            for ratio in bin.sd_over_model {
+                assert!((0.85..1.15).contains(&ratio), "{with:?}");
+            }
+        }
+        let without = check(&drawn, &MODEL).unwrap();
+        let oblique = without.by_cut.last().unwrap();
+        assert_eq!(oblique.cut, CUTS[2]);
+        for ratio in oblique.sd_over_model {
+            assert!(ratio > 1.5, "{without:?}");
+        }
     }
 }

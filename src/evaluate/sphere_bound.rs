@@ -12,13 +12,15 @@
 //! unknowns shared by all frames, with the camera calibration's own
 //! information as their prior, marginalised last. The edge noise is correlated along an arc
 //! (speckle, blur), so each arc counts as `points_per_arc` independent points,
-//! as the sphere fit weighs it. The bound on the calibration maps to an RMS
+//! as the sphere fit weighs it, and its points' variance grows with how far the
+//! plane cuts from the dome's centre when the noise has a [`SliceBlur`]. The bound on the calibration maps to an RMS
 //! error over the image's corners and centre (the study's measure).
 
 use nalgebra::{DMatrix, Matrix6, Point3, Vector6};
 
 use super::pose_noise::{pose_at as at, IntrinsicsInformation, PoseFromIntrinsics, INTRINSICS};
 use crate::core::geometry::Rigid;
+use crate::estimate::edge_blur::{variance_factor, SliceBlur};
 use crate::estimate::edge_offset::EdgeOffset;
 use crate::estimate::sphere_fit::KnownSphere;
 
@@ -42,6 +44,10 @@ pub struct EdgeNoise {
     pub edge_sd_mm: f64,
     /// Independent points an arc is worth.
     pub points_per_arc: f64,
+    /// How the edge noise grows as the plane cuts a dome farther from its
+    /// centre (absent: every arc alike), [`SliceBlur`].
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub slice_blur: Option<SliceBlur>,
 }
 
 const STEP: f64 = 1e-6;
@@ -87,8 +93,12 @@ pub fn corner_rms_bound(
         let image_T_phantom = image_T_marker * frame.phantom_T_marker.inverse();
         for (k, points) in &frame.arcs {
             let sphere = spheres.get(*k)?;
-            let w = noise.points_per_arc / points.len() as f64 / noise.edge_sd_mm.powi(2);
-            let offset_terms = edge_offset.terms(sphere, (image_T_phantom * sphere.centre_in_phantom_mm).z);
+            let cut_mm = (image_T_phantom * sphere.centre_in_phantom_mm).z;
+            let w = noise.points_per_arc
+                / points.len() as f64
+                / noise.edge_sd_mm.powi(2)
+                / variance_factor(noise.slice_blur, sphere.radius_mm, cut_mm);
+            let offset_terms = edge_offset.terms(sphere, cut_mm);
             let residual = |p: &Rigid, m: &Rigid, x: &Point3<f64>| {
                 (p * (m * x) - sphere.centre_in_phantom_mm).norm() - sphere.radius_mm
             };
@@ -243,7 +253,9 @@ mod tests {
     /// spheres plus the offset `terms_mm` gives ([`edge_offset::offset_mm`]), each
     /// frame's pose off by the hand's Gaussian motion, no shared error): its
     /// RMS corner error over many draws, over the bound's under the same model.
-    fn fit_over_bound(model: EdgeOffset, terms_mm: EdgeTerms) -> f64 {
+    /// With `blur`, each point's variance grows with its arc's cut as
+    /// [`SliceBlur`] says, and the fit and the bound both know it.
+    fn fit_over_bound(model: EdgeOffset, terms_mm: EdgeTerms, blur: Option<SliceBlur>) -> f64 {
         use crate::core::rng::Rng;
         use crate::estimate::sphere_bundle::PosePriors;
         use crate::estimate::sphere_fit::{self, ArcFrame, SphereSettings};
@@ -268,6 +280,7 @@ mod tests {
         let noise = EdgeNoise {
             edge_sd_mm,
             points_per_arc: 40.0,
+            slice_blur: blur,
         };
         let mut rng = Rng::new(21);
         let trials = 30;
@@ -303,6 +316,7 @@ mod tests {
                     }
                     let rho = (sphere.radius_mm.powi(2) - c.z * c.z).sqrt();
                     let offset = edge_offset::offset_mm(&terms_mm, sphere, c.z);
+                    let sd = edge_sd_mm * variance_factor(blur, sphere.radius_mm, c.z).sqrt();
                     let on_circle: Vec<Point3<f64>> = (0..40)
                         .map(|j| {
                             let a = (-55.0 + 110.0 * j as f64 / 39.0f64).to_radians();
@@ -314,7 +328,7 @@ mod tests {
                         .iter()
                         .map(|p| {
                             let out = (p - Point3::new(c.x, c.y, 0.0)) / rho;
-                            let q = p + out * (offset + rng.normal(0.0, edge_sd_mm)) * sphere.radius_mm / rho;
+                            let q = p + out * (offset + rng.normal(0.0, sd)) * sphere.radius_mm / rho;
                             [q.x / spacing[0], q.y / spacing[1]]
                         })
                         .collect();
@@ -349,6 +363,7 @@ mod tests {
                 frames,
                 shared: None,
                 edge_offset: model,
+                slice_blur: blur,
             };
             let fit = sphere_bundle::refine(&plain.marker_T_image, &arcs, &settings, &priors).unwrap();
             error2 += probes
@@ -373,7 +388,20 @@ mod tests {
 
     #[test]
     fn the_pose_prior_fit_reaches_the_bound_on_its_own_model() {
-        let ratio = fit_over_bound(EdgeOffset::None, [0.0; 3]);
+        let ratio = fit_over_bound(EdgeOffset::None, [0.0; 3], None);
+        assert!((0.8..=1.2).contains(&ratio), "RMS error over the bound: {ratio}");
+    }
+
+    /// Arcs noisier the farther their plane cuts from their dome's centre, as a
+    /// slice of 1.5 mm (SD 0.5 mm) over a pulse of SD 0.3 mm makes them: the
+    /// fit that weighs them so reaches the bound that knows it.
+    #[test]
+    fn the_pose_prior_fit_reaches_the_bound_with_the_slice_blur() {
+        let blur = SliceBlur {
+            axial_sd_mm: 0.3,
+            elevation_sd_mm: 0.5,
+        };
+        let ratio = fit_over_bound(EdgeOffset::None, [0.0; 3], Some(blur));
         assert!((0.8..=1.2).contains(&ratio), "RMS error over the bound: {ratio}");
     }
 
@@ -385,12 +413,12 @@ mod tests {
         // About what the renderer's echoes show: +0.02 mm when the plane
         // passes near the centre, +0.13 mm at d = 0.75 R.
         let offset_mm = [0.02, 0.2, 0.0];
-        let solved = fit_over_bound(EdgeOffset::ConstantAndObliquity, offset_mm);
+        let solved = fit_over_bound(EdgeOffset::ConstantAndObliquity, offset_mm, None);
         assert!((0.8..=1.2).contains(&solved), "RMS error over the bound: {solved}");
-        let ignored = fit_over_bound(EdgeOffset::None, offset_mm);
+        let ignored = fit_over_bound(EdgeOffset::None, offset_mm, None);
         assert!(ignored > 1.5, "the offset ignored: RMS error over the bound {ignored}");
         // The slice's shape, d²/(R·r), steeper near the dome's rim.
-        let slice = fit_over_bound(EdgeOffset::Slice, [0.0, 0.0, 0.13]);
+        let slice = fit_over_bound(EdgeOffset::Slice, [0.0, 0.0, 0.13], None);
         assert!((0.8..=1.2).contains(&slice), "slice: RMS error over the bound {slice}");
     }
 
@@ -400,6 +428,7 @@ mod tests {
         let noise = EdgeNoise {
             edge_sd_mm: 0.1,
             points_per_arc: 20.0,
+            slice_blur: None,
         };
         let none = PoseFromIntrinsics::zeros();
         let known = IntrinsicsInformation::zeros();
@@ -446,6 +475,25 @@ mod tests {
         )
         .unwrap();
         assert!(b3n > b3, "{b3n} vs {b3}");
+        // Arcs cut off their domes' centres worth less under a thick slice: a larger bound.
+        let blurred = EdgeNoise {
+            slice_blur: Some(SliceBlur {
+                axial_sd_mm: 0.3,
+                elevation_sd_mm: 0.5,
+            }),
+            ..noise
+        };
+        let b3b = corner_rms_bound(
+            &truth,
+            &frames(&d, &three, &none),
+            &three,
+            &blurred,
+            &known,
+            EdgeOffset::None,
+            &probes(),
+        )
+        .unwrap();
+        assert!(b3b > b3 * 1.01, "{b3b} vs {b3}");
     }
 
     #[test]
@@ -455,6 +503,7 @@ mod tests {
         let noise = EdgeNoise {
             edge_sd_mm: 0.1,
             points_per_arc: 20.0,
+            slice_blur: None,
         };
         let three = three_domes();
         let d = elevations();

@@ -3,6 +3,7 @@
 
 use serde::{Deserialize, Serialize};
 
+use crate::estimate::edge_blur::SliceBlur;
 use crate::estimate::edge_offset::EdgeOffset;
 use crate::evaluate::CutoffRule;
 use crate::spec::phantom::Phantom;
@@ -83,6 +84,11 @@ pub struct PosePrior {
     /// term in `(d / R)²`; `constant_and_obliquity`): [`EdgeOffset`].
     #[serde(default, skip_serializing_if = "is_no_offset")]
     pub edge_offset: EdgeOffset,
+    /// The scanner's pulse and slice, by which an arc's edge noise grows the
+    /// farther from its dome's centre the plane cuts ([`SliceBlur`]; absent:
+    /// every arc weighed alike).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub slice_blur: Option<SliceBlur>,
 }
 
 fn is_no_offset(o: &EdgeOffset) -> bool {

@@ -299,6 +299,10 @@ fn solve_section(c: &mut Checker<'_>, raw: &raw::RawManifest) {
         c.positive(&format!("{f}.hand.speed_mm_per_s"), prior.hand.speed_mm_per_s);
         c.positive(&format!("{f}.hand.rotation_deg_per_s"), prior.hand.rotation_deg_per_s);
         c.positive(&format!("{f}.asynchrony_sd_s"), prior.asynchrony_sd_s);
+        if let Some(blur) = &prior.slice_blur {
+            c.positive(&format!("{f}.slice_blur.axial_sd_mm"), blur.axial_sd_mm);
+            c.positive(&format!("{f}.slice_blur.elevation_sd_mm"), blur.elevation_sd_mm);
+        }
         if !matches!(raw.phantom, Phantom::Spheres { .. }) {
             c.fail(
                 f,

@@ -15,6 +15,7 @@ use serde::Serialize;
 
 use crate::core::geometry::{image_probe_points, Rigid};
 use crate::detect::board_pose::RigBoards;
+use crate::estimate::edge_blur::SliceBlur;
 use crate::estimate::sphere_fit::KnownSphere;
 use crate::evaluate::pose_noise::{self, PhotoNoise, SweepPhoto};
 use crate::evaluate::sphere_bound::{self, BoundFrame, EdgeNoise};
@@ -64,11 +65,13 @@ pub struct BoundNoise {
 }
 
 impl BoundNoise {
-    /// The arcs' part of it.
-    pub fn edge_noise(&self) -> EdgeNoise {
+    /// The arcs' part of it, with the growth of the edge noise with the cut
+    /// that the manifest's pose-prior fit weighs the arcs by.
+    pub fn edge_noise(&self, manifest: &Manifest) -> EdgeNoise {
         EdgeNoise {
             edge_sd_mm: self.edge_sd_mm,
             points_per_arc: self.points_per_arc,
+            slice_blur: slice_blur_model(manifest),
         }
     }
 }
@@ -270,7 +273,7 @@ pub fn bound_of(
         [scene.bscan.width_px, scene.bscan.height_px],
         manifest.bscan_spacing_mm_per_px,
     );
-    let edge = noise.edge_noise();
+    let edge = noise.edge_noise(manifest);
     let rms_mm = sphere_bound::corner_rms_bound(
         &scene.marker_T_image,
         &frames,
@@ -297,6 +300,12 @@ pub fn edge_offset_model(manifest: &Manifest) -> crate::estimate::edge_offset::E
         .as_ref()
         .map(|p| p.edge_offset)
         .unwrap_or_default()
+}
+
+/// The growth of the edge noise with the cut that the manifest's pose-prior
+/// fit weighs the arcs by (the bound assumes the same).
+pub fn slice_blur_model(manifest: &Manifest) -> Option<SliceBlur> {
+    manifest.sphere_fit.pose_prior.as_ref().and_then(|p| p.slice_blur)
 }
 
 /// Whether the manifest solves the camera again with the frames' boards.

@@ -384,6 +384,7 @@ mod tests {
             intrinsics_fx_sd_px: None,
             edge_offset: crate::estimate::edge_offset::EdgeOffset::None,
             edge_offset_mm: [0.0; 3],
+            slice_blur: None,
         };
         let all = [
             Method::CutoffWorstFirst { cutoff_mm: 2.0 },

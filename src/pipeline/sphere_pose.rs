@@ -7,7 +7,9 @@
 //!   reprojection RMS of each board over the frames, scaled for the pose's six
 //!   unknowns), and the hand's motion between photo and B-scan
 //!   (`solve.sphere_fit.pose_prior`), first order ([`crate::evaluate::pose_noise`]).
-//! - The edge points' noise: the median RMS of the arcs about their own circles.
+//! - The edge points' noise: the median RMS of the arcs about their own circles,
+//!   grown for arcs cut off their domes' centres by the scanner's pulse and
+//!   slice when the manifest states them (`solve.sphere_fit.pose_prior.slice_blur`).
 //! - The camera's intrinsics, one error every frame's pose shares: each frame's
 //!   pose shift per unit intrinsic error ([`crate::evaluate::pose_noise`]), and
 //!   what the camera calibration's views (the frames' boards too, when they
@@ -56,6 +58,8 @@ pub struct PoseFitNoise {
     /// values `(a, b, c)`, mm (those not solved are 0).
     pub edge_offset: EdgeOffset,
     pub edge_offset_mm: crate::estimate::edge_offset::EdgeTerms,
+    /// The growth of the edge noise with the cut the arcs were weighed by.
+    pub slice_blur: Option<crate::estimate::edge_blur::SliceBlur>,
 }
 
 /// A board's corner SD from its reprojection RMS (the pose's 6 unknowns taken out).
@@ -146,6 +150,7 @@ pub fn fit(
                 frames: shifts,
             }),
             edge_offset: inputs.prior.edge_offset,
+            slice_blur: inputs.prior.slice_blur,
         },
     )
     .map_err(|e: SphereFitError| e.to_string())?;
@@ -161,6 +166,7 @@ pub fn fit(
             intrinsics_fx_sd_px: intrinsics_information.as_ref().and_then(intrinsics_sd).map(|sd| sd[0]),
             edge_offset: inputs.prior.edge_offset,
             edge_offset_mm,
+            slice_blur: inputs.prior.slice_blur,
         },
     ))
 }
