@@ -6,6 +6,7 @@ use std::path::Path;
 
 use serde::Serialize;
 
+use crate::estimate::edge_blur::SliceBlur;
 use crate::estimate::edge_offset::EdgeOffset;
 use crate::pipeline::design::{self, Bound, BoundNoise, DesignRow, DESIGN_SEEDS, NOISE};
 use crate::spec::phantom::Phantom;
@@ -22,6 +23,9 @@ struct DesignFile<'a> {
     /// (nuisances of the bound; absent: none).
     #[serde(skip_serializing_if = "is_no_offset")]
     edge_offset: EdgeOffset,
+    /// The growth of the edge noise with the cut (absent: every arc alike).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    slice_blur: Option<SliceBlur>,
     /// The manifest's own phantom.
     manifest_phantom: Result<Bound, String>,
     /// The thesis's hemisphere (R = 15 mm) at the lab's feature point.
@@ -52,12 +56,20 @@ fn markdown(file: &DesignFile<'_>) -> String {
         s,
         "Bound: RMS error over the image's corners and centre (mm) of any unbiased estimate from the arcs' edges \
          (RMS over the sweeps), \
-         with edge noise {} mm (an arc worth {} points); each frame's `phantom_T_marker` from the photo's \
+         with edge noise {} mm (an arc worth {} points{}); each frame's `phantom_T_marker` from the photo's \
          board poses, with corner noise {} px (probe board) and {} px (phantom board) and the sweep's tremor \
          between photo and B-scan, and the camera's intrinsics known only as well as its calibration views \
          (corner noise {} px){} pin them down, one error shared by every frame{}.\n",
         n.edge_sd_mm,
         n.points_per_arc,
+        match file.slice_blur {
+            None => String::new(),
+            Some(b) => format!(
+                "; its variance grown by 1 + (σ_e·|d|/(r·σ_a))² for an arc cut d from its dome's centre, \
+                 pulse σ_a {} mm and slice σ_e {} mm: `solve.sphere_fit.pose_prior.slice_blur`, as the fit weighs it",
+                b.axial_sd_mm, b.elevation_sd_mm
+            ),
+        },
         n.probe_corner_sd_px,
         n.phantom_corner_sd_px,
         n.calibration_corner_sd_px,
@@ -159,6 +171,7 @@ pub fn command(manifest: &Path, out: &Path) -> u8 {
         noise: NOISE,
         camera_refined_with_frames: design::refines_with_frames(&manifest),
         edge_offset: design::edge_offset_model(&manifest),
+        slice_blur: design::slice_blur_model(&manifest),
         manifest_phantom: design::bound_over_sweeps(&manifest, &manifest.phantom, &spec, DESIGN_SEEDS),
         hemisphere,
         layouts: &rows,

@@ -295,12 +295,19 @@ pub fn describe(m: &MethodResult) -> String {
             "the reported calibration's frames, the edge points of every arc ({arcs}) on their own sphere (LM, no prior: the spheres cut at different offsets observe the planes' elevation), frames whose RMS exceeds {rms_limit_mm:.3} mm (median + 3 robust SD) left out and the fit repeated; RMS {rms_mm:.3} mm"
         ),
         Method::SphereFitPosePrior { arcs, rms_mm, noise } => format!(
-            "the sphere fit's arcs ({arcs}), every frame's phantom_T_marker free under its prior (board corners {:.4} px probe, {:.4} px phantom: the run's median reprojection RMS; the hand between photo and B-scan {:.3} mm, {:.3}° per axis: solve.sphere_fit.pose_prior), edge points {:.3} mm (the arcs' median RMS), {}{}; RMS {rms_mm:.3} mm",
+            "the sphere fit's arcs ({arcs}), every frame's phantom_T_marker free under its prior (board corners {:.4} px probe, {:.4} px phantom: the run's median reprojection RMS; the hand between photo and B-scan {:.3} mm, {:.3}° per axis: solve.sphere_fit.pose_prior), edge points {:.3} mm (the arcs' median RMS){}, {}{}; RMS {rms_mm:.3} mm",
             noise.probe_corner_sd_px,
             noise.phantom_corner_sd_px,
             noise.tremor_sd_mm,
             noise.tremor_sd_deg,
             noise.edge_sd_mm,
+            match noise.slice_blur {
+                None => String::new(),
+                Some(b) => format!(
+                    " with their variance grown by 1 + (σ_e·|d|/(r·σ_a))² for an arc cut d from its dome's centre (pulse σ_a {:.3} mm, slice σ_e {:.3} mm: solve.sphere_fit.pose_prior.slice_blur)",
+                    b.axial_sd_mm, b.elevation_sd_mm
+                ),
+            },
             match noise.intrinsics_fx_sd_px {
                 Some(sd) => format!(
                     "the camera's nine intrinsics solved too, one error every frame's pose shares, under what the calibration's views know of them (fx SD {sd:.3} px)"
