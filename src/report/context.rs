@@ -364,17 +364,14 @@ pub fn context(run: &DatasetRun, manifest: &crate::manifest::Manifest) -> RunCon
         if let Some(check) = &tr.arc_noise {
             truth.push(kv(
                 "arcs against their true cuts: the bound's noise model (edge SD, points an arc is worth)",
-                match check.model_slice_blur {
-                    None => format!("{} mm, {}", mm(check.model_edge_sd_mm), check.model_points_per_arc),
-                    Some(b) => format!(
-                        "{} mm, {}; grown with the cut by the pulse (SD {} mm) and the slice (SD {} mm)",
-                        mm(check.model_edge_sd_mm),
-                        check.model_points_per_arc,
-                        mm(b.axial_sd_mm),
-                        mm(b.elevation_sd_mm)
-                    ),
-                },
+                format!("{} mm, {}", mm(check.model_edge_sd_mm), check.model_points_per_arc),
             ));
+            if let Some(blur) = check.model_slice_blur {
+                truth.push(kv(
+                    "the model's growth with the cut: the scanner's pulse and slice SD (mm)",
+                    format!("{}, {}", mm(blur.axial_sd_mm), mm(blur.elevation_sd_mm)),
+                ));
+            }
             for b in std::iter::once(&check.all).chain(&check.by_cut) {
                 let [radius, along_u, along_v] = b.sd_over_model;
                 truth.push(kv(

@@ -304,7 +304,7 @@ pub fn describe(m: &MethodResult) -> String {
             match noise.slice_blur {
                 None => String::new(),
                 Some(b) => format!(
-                    " with their variance grown by 1 + (σ_e·|d|/(r·σ_a))² for an arc cut d from its dome's centre (pulse σ_a {:.3} mm, slice σ_e {:.3} mm: solve.sphere_fit.pose_prior.slice_blur)",
+                    " with their variance grown by 1 + (σ_e·|d|/(r·σ_a))² for an arc cut d from its dome's centre (pulse σ_a {:.3} mm, slice σ_e {:.3} mm: the pose prior's slice_blur)",
                     b.axial_sd_mm, b.elevation_sd_mm
                 ),
             },
