@@ -198,6 +198,10 @@ pub fn refine(
             / points.len() as f64
             / variance_factor(priors.slice_blur, sphere.radius_mm, cut_mm))
         .sqrt();
+        // A weight that is not a positive number (a pose or start not finite) leaves the arc out.
+        if !(weight.is_finite() && weight > 0.0) {
+            continue;
+        }
         let arc = (sphere, weight, points);
         match frames.iter_mut().find(|f| f.frame == a.frame) {
             Some(f) => f.arcs.push(arc),
