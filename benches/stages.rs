@@ -70,6 +70,7 @@ fn main() {
         max_rms_px: 2.5,
         min_points: 25,
         fixed_radius_mm: Some(15.0),
+        peak: probecal::detect::ridge::RidgePeak::Column,
     };
     let arc = median_s(15, || {
         black_box(probecal::detect::arc::detect(&bscan, &settings).unwrap().unwrap());

@@ -617,6 +617,14 @@ const CASES: &[Case] = &[
         in_output: "stderr",
     },
     Case {
+        name: "arc peak unknown",
+        setup: |d| with_manifest(d, "bscan:\n", "bscan:\n  arc_detection: {peak: ridge}\n"),
+        args: validate,
+        code: 2,
+        expect: "field `bscan.arc_detection.peak`: unknown variant `ridge`, expected `column` or `normal`",
+        in_output: "stderr",
+    },
+    Case {
         name: "slice blur of no pulse",
         setup: |d| {
             with_manifest(

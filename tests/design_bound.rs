@@ -66,3 +66,43 @@ fn the_committed_printable_model_is_what_probecal_phantom_writes() {
         "reports/design/spheres_checkerboard.stl is not what `probecal phantom` writes now"
     );
 }
+
+/// The bound's edge noise for the normal-peak detector is what its measuring
+/// run gives: the median arc-fit RMS of the default hemisphere run with that
+/// detector (`experiments/studies/hemisphere_normal_peak.yaml`).
+#[test]
+#[ignore = "renders a dataset (full tier: scripts/test.sh)"]
+fn the_normal_peaks_edge_noise_is_its_hemisphere_runs_median_arc_rms() {
+    let dir = scratch("design_bound", "normal_peak");
+    let out = probecal()
+        .args([
+            "run",
+            root()
+                .join("experiments/studies/hemisphere_normal_peak.yaml")
+                .to_str()
+                .unwrap(),
+            "--out",
+            dir.join("reports").to_str().unwrap(),
+            "--datasets",
+            root().join("datasets").to_str().unwrap(),
+            "--quiet",
+        ])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let frames = std::fs::read_to_string(dir.join("reports/hemisphere_normal_peak/dataset3/frames.csv")).unwrap();
+    let mut lines = frames.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let column = header.iter().position(|h| *h == "arc_rms_px").unwrap();
+    let mut rms_px: Vec<f64> = lines
+        .filter_map(|l| l.split(',').nth(column).and_then(|v| v.parse().ok()))
+        .collect();
+    assert!(rms_px.len() > 40, "{} arcs", rms_px.len());
+    let median_px = probecal::core::stats::median(&mut rms_px);
+    let stated = design::NOISE_NORMAL_PEAK.edge_sd_mm;
+    assert!(
+        (median_px * 0.2 - stated).abs() < 0.0001,
+        "median arc RMS {median_px} px = {} mm, the bound assumes {stated} mm",
+        median_px * 0.2
+    );
+}

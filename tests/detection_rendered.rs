@@ -126,6 +126,7 @@ fn arc_centres_match_the_truth_and_missing_arcs_are_rejected() {
         max_rms_px: 2.5,
         min_points: 25,
         fixed_radius_mm: Some(15.0),
+        peak: probecal::detect::ridge::RidgePeak::Column,
     };
     let mut normal_errors = Vec::new();
     let mut missing = 0;

@@ -7,7 +7,8 @@
 //!
 //! 1. Echo points: along each image column, local maxima of the smoothed image
 //!    above an adaptive threshold, below the transducer's near field, inside the
-//!    fan (eroded, so the fan's edge is no echo), refined to sub-pixel.
+//!    fan (eroded, so the fan's edge is no echo), refined to sub-pixel: along
+//!    the column, or along the ridge's normal (`ArcSettings::peak`, [`super::ridge`]).
 //! 2. Every point votes for the centres below it (the dome faces the probe) at all
 //!    radii in the searched range; the smoothed accumulator's peak is the centre.
 //! 3. The radius is the peak of the histogram of point distances to that centre.
@@ -16,6 +17,7 @@
 //!    too short, has too few points, is not circular, or has an implausible radius.
 
 use super::fan::{FAN_EDGE_MM, NEAR_FIELD_MM};
+use super::ridge::{locate, RidgePeak, RidgeSample};
 use crate::core::stats::median_and_quantile_nearest;
 use opencv::core::Mat;
 
@@ -34,6 +36,8 @@ pub struct ArcSettings {
     /// near its centre. A free radius makes the centre of a short arc unstable
     /// along the arc's axis; `None` fits the radius too.
     pub fixed_radius_mm: Option<f64>,
+    /// How an echo point is placed on its ridge ([`super::ridge`]).
+    pub peak: RidgePeak,
 }
 
 /// A detected arc.
@@ -277,7 +281,8 @@ pub fn echo_points(image: &Mat, settings: &ArcSettings) -> Result<Result<EchoPoi
     let (median, high) = median_and_quantile_nearest(&mut values, 0.997);
     let threshold = median + 0.45 * (high - median).max(10.0);
 
-    // 1. Echo points: column-wise ridge maxima, sub-pixel, with the ridge's normal
+    // 1. Echo points: column-wise ridge maxima, placed on the ridge as
+    //    `settings.peak` says, with the ridge's normal
     //    (Hessian eigenvector of the most negative curvature), kept only where the
     //    structure is line-like rather than a speckle blob.
     //    The image is read row by row, in memory order; the points are then put
@@ -323,13 +328,18 @@ pub fn echo_points(image: &Mat, settings: &ArcSettings) -> Result<Result<EchoPoi
                 nx = -nx;
                 ny = -ny;
             }
-            let denom = up - 2.0 * v + down;
-            let offset = if denom.abs() > 1e-6 {
-                (0.5 * (up - down) / denom).clamp(-0.5, 0.5)
-            } else {
-                0.0
+            let sample = RidgeSample {
+                column: [up, v, down],
+                gradient: [
+                    (at(x + 2, y) - at(x - 2, y)) / (4.0 * sx),
+                    (at(x, y + 2) - at(x, y - 2)) / (4.0 * sy),
+                ],
+                hessian: [ixx, ixy, iyy],
+                normal: [nx, ny],
             };
-            found.push((x, [x as f64 * sx, (y as f64 + offset as f64) * sy], [nx, ny]));
+            if let Some(point) = locate(settings.peak, x, y, &sample, [sx, sy]) {
+                found.push((x, point, [nx, ny]));
+            }
         }
     }
     found.sort_by_key(|(x, _, _)| *x);

@@ -14,4 +14,5 @@ pub mod line;
 pub mod nwire;
 pub mod overlay;
 pub mod projection;
+pub mod ridge;
 pub mod spot;

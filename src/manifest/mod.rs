@@ -21,7 +21,7 @@ use validate::validate;
 use std::fmt;
 use std::path::{Path, PathBuf};
 
-pub use raw::{ArcDetection, FitRadius, Gates, Regression, SolveVariant, TrackerCsv};
+pub use raw::{ArcDetection, EchoPeak, FitRadius, Gates, Regression, SolveVariant, TrackerCsv};
 
 use crate::evaluate::CutoffRule;
 use crate::spec::phantom::Phantom;

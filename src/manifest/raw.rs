@@ -206,6 +206,11 @@ pub struct ArcDetection {
     /// Fit the arc with the sphere's radius (`known`) or with a free radius (`free`).
     /// A free radius lets the centre of a short arc slide along the arc's axis.
     pub fit_radius: FitRadius,
+    /// Where an echo point is placed on its ridge: at the column's peak
+    /// (`column`, the default) or at the ridge's centre along its normal
+    /// (`normal`), which the echo's weakening towards an arc's ends does not move.
+    #[serde(skip_serializing_if = "EchoPeak::is_column")]
+    pub peak: EchoPeak,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize)]
@@ -213,6 +218,20 @@ pub struct ArcDetection {
 pub enum FitRadius {
     Known,
     Free,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum EchoPeak {
+    #[default]
+    Column,
+    Normal,
+}
+
+impl EchoPeak {
+    pub fn is_column(&self) -> bool {
+        *self == EchoPeak::Column
+    }
 }
 
 impl Default for ArcDetection {
@@ -225,6 +244,7 @@ impl Default for ArcDetection {
             max_rms_px: 2.5,
             min_points: 25,
             fit_radius: FitRadius::Known,
+            peak: EchoPeak::Column,
         }
     }
 }

@@ -50,6 +50,25 @@ pub const NOISE: BoundNoise = BoundNoise {
     calibration_corner_sd_px: 0.0792,
 };
 
+/// [`NOISE`] with the edge points placed at their ridges' centres along the
+/// normal (`bscan.arc_detection.peak: normal`): the median arc-fit RMS of the
+/// default hemisphere run with that detector
+/// (`probecal run experiments/studies/hemisphere_normal_peak.yaml`, its
+/// `frames.csv`), 0.2685 px of 0.2 mm. An arc is still taken as worth 20
+/// independent points.
+pub const NOISE_NORMAL_PEAK: BoundNoise = BoundNoise {
+    edge_sd_mm: 0.0537,
+    ..NOISE
+};
+
+/// The noise the bound assumes for the manifest's arc detector.
+pub fn noise(manifest: &Manifest) -> BoundNoise {
+    match manifest.arc_detection.peak {
+        crate::manifest::EchoPeak::Column => NOISE,
+        crate::manifest::EchoPeak::Normal => NOISE_NORMAL_PEAK,
+    }
+}
+
 /// The noise of the arcs and of the camera's measurements.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct BoundNoise {
@@ -338,7 +357,7 @@ pub fn bound_over_sweeps(
     for seed in seeds {
         let mut spec = spec.clone();
         spec.seed = seed;
-        bounds.push(bound_of(manifest, phantom, &spec, &NOISE).map_err(|e| format!("seed {seed}: {e}"))?);
+        bounds.push(bound_of(manifest, phantom, &spec, &noise(manifest)).map_err(|e| format!("seed {seed}: {e}"))?);
     }
     let n = bounds.len().max(1) as f64;
     Ok(Bound {

@@ -4,10 +4,11 @@
 use super::frames::{Detector, Targets};
 use super::solve::SolveSettings;
 use crate::detect::arc::ArcSettings;
+use crate::detect::ridge::RidgePeak;
 use crate::detect::spot::SpotSettings;
 use crate::estimate::horn::Variant;
 use crate::estimate::sphere_fit::KnownSphere;
-use crate::manifest::{CameraSource, FitRadius, Manifest, SolveVariant};
+use crate::manifest::{CameraSource, EchoPeak, FitRadius, Manifest, SolveVariant};
 use crate::spec::phantom::Phantom;
 use crate::synth::Lab;
 
@@ -22,6 +23,14 @@ pub fn lab(manifest: &Manifest) -> Lab<'_> {
             CameraSource::IntrinsicsFile(_) | CameraSource::TrackerCsv(_) => None,
         },
         described_in: &manifest.path,
+    }
+}
+
+/// The arc detector's placement of an echo point on its ridge.
+fn echo_peak(manifest: &Manifest) -> RidgePeak {
+    match manifest.arc_detection.peak {
+        EchoPeak::Column => RidgePeak::Column,
+        EchoPeak::Normal => RidgePeak::Normal,
     }
 }
 
@@ -43,6 +52,7 @@ pub fn detector(manifest: &Manifest) -> (Detector, Targets<'_>) {
                 max_rms_px: manifest.arc_detection.max_rms_px,
                 min_points: manifest.arc_detection.min_points,
                 fixed_radius_mm: (manifest.arc_detection.fit_radius == FitRadius::Known).then_some(*radius_mm),
+                peak: echo_peak(manifest),
             }),
             Targets::Point(*centre_in_phantom_mm),
         ),
@@ -72,6 +82,7 @@ pub fn detector(manifest: &Manifest) -> (Detector, Targets<'_>) {
                         min_points: manifest.arc_detection.min_points,
                         // A plane beside a centre cuts a smaller circle: the radius is fitted.
                         fixed_radius_mm: None,
+                        peak: echo_peak(manifest),
                     },
                     spheres.len(),
                 ),

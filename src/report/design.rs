@@ -8,7 +8,7 @@ use serde::Serialize;
 
 use crate::estimate::edge_blur::SliceBlur;
 use crate::estimate::edge_offset::EdgeOffset;
-use crate::pipeline::design::{self, Bound, BoundNoise, DesignRow, DESIGN_SEEDS, NOISE};
+use crate::pipeline::design::{self, Bound, BoundNoise, DesignRow, DESIGN_SEEDS};
 use crate::spec::phantom::Phantom;
 
 #[derive(Serialize)]
@@ -168,7 +168,7 @@ pub fn command(manifest: &Path, out: &Path) -> u8 {
         experiment: &manifest.experiment,
         seeds: [DESIGN_SEEDS.start, DESIGN_SEEDS.end - 1],
         frames: spec.frames,
-        noise: NOISE,
+        noise: design::noise(&manifest),
         camera_refined_with_frames: design::refines_with_frames(&manifest),
         edge_offset: design::edge_offset_model(&manifest),
         slice_blur: design::slice_blur_model(&manifest),
