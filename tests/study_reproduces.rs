@@ -8,7 +8,7 @@ mod common;
 use common::{probecal, root, scratch};
 
 /// (manifest, committed study folder under `reports/`).
-const STUDIES: [(&str, &str); 18] = [
+const STUDIES: [(&str, &str); 21] = [
     ("experiments/hemisphere_checkerboard.yaml", "study"),
     ("experiments/studies/hemisphere_true_camera.yaml", "study/true_camera"),
     (
@@ -36,6 +36,18 @@ const STUDIES: [(&str, &str); 18] = [
     ),
     ("experiments/spheres_checkerboard.yaml", "study/spheres_design_seeds"),
     ("experiments/studies/spheres_thin_beam.yaml", "study/spheres_thin_beam"),
+    (
+        "experiments/studies/spheres_uniform_arcs.yaml",
+        "study/spheres_uniform_arcs",
+    ),
+    (
+        "experiments/studies/spheres_uniform_arcs.yaml",
+        "study/spheres_edge/none",
+    ),
+    (
+        "experiments/studies/spheres_normal_peak.yaml",
+        "study/spheres_normal_peak",
+    ),
     (
         "experiments/studies/spheres_edge_obliquity.yaml",
         "study/spheres_edge/obliquity",
