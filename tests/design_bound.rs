@@ -69,7 +69,7 @@ fn the_committed_printable_model_is_what_probecal_phantom_writes() {
 
 /// The bound's edge noise for the normal-peak detector is what its measuring
 /// run gives: the median arc-fit RMS of the default hemisphere run with that
-/// detector (`experiments/studies/hemisphere_normal_peak.yaml`).
+/// detector (`experiments/measurements/hemisphere_normal_peak.yaml`).
 #[test]
 #[ignore = "renders a dataset (full tier: scripts/test.sh)"]
 fn the_normal_peaks_edge_noise_is_its_hemisphere_runs_median_arc_rms() {
@@ -78,7 +78,7 @@ fn the_normal_peaks_edge_noise_is_its_hemisphere_runs_median_arc_rms() {
         .args([
             "run",
             root()
-                .join("experiments/studies/hemisphere_normal_peak.yaml")
+                .join("experiments/measurements/hemisphere_normal_peak.yaml")
                 .to_str()
                 .unwrap(),
             "--out",

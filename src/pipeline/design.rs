@@ -53,7 +53,7 @@ pub const NOISE: BoundNoise = BoundNoise {
 /// [`NOISE`] with the edge points placed at their ridges' centres along the
 /// normal (`bscan.arc_detection.peak: normal`): the median arc-fit RMS of the
 /// default hemisphere run with that detector
-/// (`probecal run experiments/studies/hemisphere_normal_peak.yaml`, its
+/// (`probecal run experiments/measurements/hemisphere_normal_peak.yaml`, its
 /// `frames.csv`), 0.2685 px of 0.2 mm. An arc is still taken as worth 20
 /// independent points.
 pub const NOISE_NORMAL_PEAK: BoundNoise = BoundNoise {
