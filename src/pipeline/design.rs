@@ -83,15 +83,14 @@ pub struct BoundNoise {
     pub calibration_corner_sd_px: f64,
 }
 
-impl BoundNoise {
-    /// The arcs' part of it, with the growth of the edge noise with the cut
-    /// that the manifest's pose-prior fit weighs the arcs by.
-    pub fn edge_noise(&self, manifest: &Manifest) -> EdgeNoise {
-        EdgeNoise {
-            edge_sd_mm: self.edge_sd_mm,
-            points_per_arc: self.points_per_arc,
-            slice_blur: slice_blur_model(manifest),
-        }
+/// The arcs' part of the manifest's [`noise`], with the growth of the edge
+/// noise with the cut that its pose-prior fit weighs the arcs by.
+pub fn edge_noise(manifest: &Manifest) -> EdgeNoise {
+    let noise = noise(manifest);
+    EdgeNoise {
+        edge_sd_mm: noise.edge_sd_mm,
+        points_per_arc: noise.points_per_arc,
+        slice_blur: slice_blur_model(manifest),
     }
 }
 
@@ -191,12 +190,9 @@ pub struct Bound {
 /// B-scan, or the plane misses), each cut dome's arc sampled one point per
 /// pixel column within ±55° of its top; the boards' poses from their corners
 /// in the scene's photos, with the intrinsics from the scene's calibration views.
-pub fn bound_of(
-    manifest: &Manifest,
-    phantom: &Phantom,
-    spec: &RenderSpec,
-    noise: &BoundNoise,
-) -> Result<Bound, String> {
+/// The noise is the manifest's [`noise`].
+pub fn bound_of(manifest: &Manifest, phantom: &Phantom, spec: &RenderSpec) -> Result<Bound, String> {
+    let noise = noise(manifest);
     let mut lab = super::settings::lab(manifest);
     lab.phantom = phantom;
     let scene = crate::synth::scene_of(&lab, spec).map_err(|e| e.to_string())?;
@@ -292,7 +288,7 @@ pub fn bound_of(
         [scene.bscan.width_px, scene.bscan.height_px],
         manifest.bscan_spacing_mm_per_px,
     );
-    let edge = noise.edge_noise(manifest);
+    let edge = edge_noise(manifest);
     let rms_mm = sphere_bound::corner_rms_bound(
         &scene.marker_T_image,
         &frames,
@@ -357,7 +353,7 @@ pub fn bound_over_sweeps(
     for seed in seeds {
         let mut spec = spec.clone();
         spec.seed = seed;
-        bounds.push(bound_of(manifest, phantom, &spec, &noise(manifest)).map_err(|e| format!("seed {seed}: {e}"))?);
+        bounds.push(bound_of(manifest, phantom, &spec).map_err(|e| format!("seed {seed}: {e}"))?);
     }
     let n = bounds.len().max(1) as f64;
     Ok(Bound {

@@ -223,7 +223,7 @@ pub fn run_dataset(
     // A dome phantom's arcs are checked against the noise model the bound assumes.
     let arcs_against = truth::ArcCheck {
         spacing_mm_per_px: spacing,
-        noise: super::design::noise(manifest).edge_noise(manifest),
+        noise: super::design::edge_noise(manifest),
     };
     // The calibration's truth comparison exists whenever truth was given (its fit succeeded above).
     let truth_summary = truth

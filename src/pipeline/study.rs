@@ -338,11 +338,9 @@ pub fn seed_results(
         // Dome phantoms fitted on their arcs' edges: the bound of that model over
         // this seed's sweep; point pairs: the bound from their residuals.
         let crlb = match BoundModel::of(manifest) {
-            BoundModel::SphereFit => {
-                super::design::bound_of(manifest, &manifest.phantom, &spec, &super::design::noise(manifest))
-                    .ok()
-                    .map(|b| b.rms_mm)
-            }
+            BoundModel::SphereFit => super::design::bound_of(manifest, &manifest.phantom, &spec)
+                .ok()
+                .map(|b| b.rms_mm),
             BoundModel::PointPairs => seed_bound(&run, &truth.marker_T_image, size),
         };
         log(&format!(
