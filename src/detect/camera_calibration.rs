@@ -44,9 +44,12 @@ pub struct CameraCalibration {
 }
 
 /// A view whose every corner lies within this many pixels of an earlier view's
-/// is the same view again: it adds nothing, and repeated it would make one pose
-/// look like many.
-pub const DUPLICATE_VIEW_PX: f64 = 0.5;
+/// is the same view again: while a corner stays within its pixel the corner
+/// detector's sub-pixel error and the lens's departure from its model there
+/// repeat, so the view adds only its sensor noise, and counted again it would
+/// make one pose look like many. The calibration refuses it; a refinement with
+/// the frames' boards counts a static board once (`camera_refinement::repeats`).
+pub const DUPLICATE_VIEW_PX: f64 = 1.0;
 
 /// Views whose boards all face the camera within this angle of each other leave
 /// the focal length and the board distance confounded.
@@ -295,7 +298,7 @@ pub fn calibrate(
 }
 
 /// The largest distance between corresponding corners of two views, px.
-fn max_shift_px(a: &[[f64; 2]], b: &[[f64; 2]]) -> f64 {
+pub(super) fn max_shift_px(a: &[[f64; 2]], b: &[[f64; 2]]) -> f64 {
     a.iter()
         .zip(b)
         .map(|(p, q)| ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2)).sqrt())

@@ -1,9 +1,12 @@
 //! The camera's intrinsics solved again with more views of known boards: the
 //! calibration views and, as views of their own, the boards the frames' photos
-//! show. Every board view brings its own pose as an unknown, so a board seen in
-//! the same place many times adds only the averaging of its corner noise, and a
-//! board seen at many tilts (the probe's, over a sweep) adds the foreshortening
-//! that pins the focal length and the principal point down.
+//! show. Every board view brings its own pose as an unknown, and a board seen at
+//! many tilts (the probe's, over a sweep) adds the foreshortening that pins the
+//! focal length and the principal point down. A board seen again where an
+//! earlier photo saw it (the phantom's, in every frame of a fixed camera) is
+//! that view again and counted once ([`repeats`]): its photos differ by the
+//! sensor's noise only, while the corner detector's sub-pixel error and the
+//! lens's departures from its model at those pixels repeat in every one.
 //!
 //! The solve is the one `calibrateCamera` (flags 0) does, the sum of squared
 //! reprojection errors over the nine intrinsics and every view's pose, by
@@ -15,7 +18,9 @@ use nalgebra::{DVector, Matrix6, Point2, SMatrix, Vector6};
 
 use super::board::BoardLayout;
 use super::board_pose::pnp;
-use super::camera_calibration::{CalibrationError, CameraCalibration, OUTLIER_VIEW_FLOOR_PX, OUTLIER_VIEW_RATIO};
+use super::camera_calibration::{
+    max_shift_px, CalibrationError, CameraCalibration, DUPLICATE_VIEW_PX, OUTLIER_VIEW_FLOOR_PX, OUTLIER_VIEW_RATIO,
+};
 use super::corners::object_points;
 use super::projection::{board_jacobians, intrinsics_vector, pose_at, projections, with_intrinsics, INTRINSICS};
 use crate::core::geometry::Rigid;
@@ -188,6 +193,29 @@ fn initial_poses(camera: &CameraIntrinsics, views: &[BoardView]) -> opencv::Resu
         .collect()
 }
 
+/// For each view, the earlier view it repeats, if any: one of the same board
+/// points (in its frame, in the same order) with every corner within
+/// [`DUPLICATE_VIEW_PX`] of that view's. Only views that repeat none are
+/// compared with, so the first photo of a static board stands for all of them.
+pub fn repeats(views: &[BoardView]) -> Vec<Option<usize>> {
+    let mut distinct: Vec<usize> = Vec::new();
+    let mut out = Vec::with_capacity(views.len());
+    for (i, view) in views.iter().enumerate() {
+        let same = |k: &usize| {
+            let earlier = &views[*k];
+            earlier.corners_mm == view.corners_mm
+                && earlier.corners_px.len() == view.corners_px.len()
+                && max_shift_px(&earlier.corners_px, &view.corners_px) < DUPLICATE_VIEW_PX
+        };
+        let repeated = distinct.iter().find(|k| same(k)).copied();
+        if repeated.is_none() {
+            distinct.push(i);
+        }
+        out.push(repeated);
+    }
+    out
+}
+
 /// One more view of a known board.
 #[derive(Debug, Clone)]
 pub struct BoardView {
@@ -208,6 +236,8 @@ pub struct Refinement {
     pub boards_used: usize,
     /// Added views left out, each with its reason.
     pub boards_dropped: Vec<String>,
+    /// Added views left out as a repeat of an earlier one ([`repeats`]).
+    pub boards_repeated: usize,
     /// RMS reprojection error over the added views used, px.
     pub boards_rms_px: f64,
     /// The SD of each intrinsic (`fx, fy, cx, cy` px, `k1, k2, p1, p2, k3`)
@@ -254,7 +284,8 @@ pub fn calibration_information(calibration: &CameraCalibration) -> Option<KMatri
 }
 
 /// `calibration` solved again by [`bundle`] (from its own intrinsics) with
-/// `boards` as more views. A board view whose RMS is above [`OUTLIER_VIEW_RATIO`] times the
+/// `boards` as more views, each counted once ([`repeats`]: a view of a board
+/// where an earlier one saw it is left out). A board view whose RMS is above [`OUTLIER_VIEW_RATIO`] times the
 /// median of the added views (and above [`OUTLIER_VIEW_FLOOR_PX`]) is dropped,
 /// once, and the camera solved again, as for the calibration views.
 pub fn refine_with_boards(
@@ -269,7 +300,14 @@ pub fn refine_with_boards(
         let poses = initial_poses(start, &views)?;
         bundle(start, poses, &views).ok_or(CalibrationError::Diverged)
     };
-    let mut kept: Vec<&BoardView> = boards.iter().collect();
+    let repeated = repeats(boards);
+    let mut kept: Vec<&BoardView> = boards
+        .iter()
+        .zip(&repeated)
+        .filter(|(_, r)| r.is_none())
+        .map(|(b, _)| b)
+        .collect();
+    let boards_repeated = boards.len() - kept.len();
     let mut dropped = Vec::new();
     let mut solved = solve_with(&kept)?;
     let mut added: Vec<f64> = solved.per_view_rms_px[n_own..].to_vec();
@@ -314,6 +352,7 @@ pub fn refine_with_boards(
         views_only: calibration.intrinsics.clone(),
         boards_used: kept.len(),
         boards_dropped: dropped,
+        boards_repeated,
         boards_rms_px: (squares / corners.max(1) as f64).sqrt(),
         intrinsics_sd: solved.intrinsics_information.as_ref().and_then(intrinsics_sd),
         intrinsics_information: solved.intrinsics_information,
@@ -431,5 +470,72 @@ mod tests {
                 "{name}: scatter {scatter:.4}, predicted SD {sd:.4}"
             );
         }
+    }
+
+    #[test]
+    fn a_board_seen_again_in_place_is_one_view_and_a_moved_one_is_another() {
+        // Ten photos of one static board (0.1 px of sensor noise apart), the
+        // same board moved by two pixels, and a board of other points where
+        // the first one was: only the static board's nine later photos repeat.
+        let moving = views(&truth(), 0.0, 3, 1);
+        let mut rng = Rng::new(7);
+        let mut all: Vec<BoardView> = (0..10)
+            .map(|k| BoardView {
+                label: format!("photo {k}"),
+                corners_mm: moving[0].corners_mm.clone(),
+                corners_px: moving[0]
+                    .corners_px
+                    .iter()
+                    .map(|p| [p[0] + rng.normal(0.0, 0.1), p[1] + rng.normal(0.0, 0.1)])
+                    .collect(),
+            })
+            .collect();
+        let mut moved = moving[0].clone();
+        for p in moved.corners_px.iter_mut() {
+            p[0] += 2.0;
+        }
+        let mut other = moving[0].clone();
+        other.corners_mm.iter_mut().for_each(|p| p.x += 1.0);
+        all.extend([moved, other, moving[1].clone(), moving[2].clone()]);
+        let repeated = repeats(&all);
+        assert_eq!(repeated[0], None);
+        assert!(repeated[1..10].iter().all(|r| *r == Some(0)), "{repeated:?}");
+        assert!(repeated[10..].iter().all(|r| r.is_none()), "{repeated:?}");
+    }
+
+    #[test]
+    fn a_refinement_counts_a_static_board_once() {
+        // The calibration's views, then 30 photos of one static board: solved
+        // with the first photo alone, as if the other 29 were not there.
+        let own = views(&truth(), 0.05, 8, 3);
+        let calibration = CameraCalibration {
+            intrinsics: truth(),
+            views: Vec::new(),
+            inner_corners: [9, 6],
+            square_mm: 30.0,
+            warnings: Vec::new(),
+            used_corners_px: own.iter().map(|v| v.corners_px.clone()).collect(),
+            refined: None,
+        };
+        let board = views(&truth(), 0.0, 1, 9).remove(0);
+        let mut rng = Rng::new(11);
+        let photos: Vec<BoardView> = (0..30)
+            .map(|k| BoardView {
+                label: format!("frame {k}"),
+                corners_mm: board.corners_mm.clone(),
+                corners_px: board
+                    .corners_px
+                    .iter()
+                    .map(|p| [p[0] + rng.normal(0.0, 0.05), p[1] + rng.normal(0.0, 0.05)])
+                    .collect(),
+            })
+            .collect();
+        let all = refine_with_boards(&calibration, &photos).unwrap();
+        let first = refine_with_boards(&calibration, &photos[..1]).unwrap();
+        let (a, b) = (all.refined.unwrap(), first.refined.unwrap());
+        assert_eq!((a.boards_used, a.boards_repeated), (1, 29));
+        assert_eq!((b.boards_used, b.boards_repeated), (1, 0));
+        assert_eq!(a.intrinsics_information, b.intrinsics_information);
+        assert_eq!(all.intrinsics.camera_matrix, first.intrinsics.camera_matrix);
     }
 }

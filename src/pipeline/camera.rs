@@ -120,10 +120,13 @@ pub fn refine_with_frames(
         super::frames::pose_again(record, &refined.intrinsics, &layout)?;
     }
     if let Some(r) = &refined.refined {
-        camera.source = format!(
-            "{}, refined with {} boards of the frames' photos",
-            camera.source, r.boards_used
-        );
+        camera.source = match r.boards_repeated {
+            0 => format!("{}, refined with {} boards of the frames' photos", camera.source, r.boards_used),
+            n => format!(
+                "{}, refined with {} boards of the frames' photos ({n} more showed a board where an earlier photo had it and were counted once)",
+                camera.source, r.boards_used
+            ),
+        };
     }
     camera.intrinsics = Some(refined.intrinsics.clone());
     camera.calibration = Some(refined);

@@ -10,15 +10,17 @@
 //! stand at least `MIN_GAP_MM` apart and the sweep can be laid out with every cut
 //! dome's arc inside the fan (the renderer's own placement decides).
 
-use nalgebra::{Point3, Vector3};
+use nalgebra::{Point2, Point3, Vector3};
 use serde::Serialize;
 
 use crate::core::geometry::{image_probe_points, Rigid};
 use crate::detect::board_pose::RigBoards;
+use crate::detect::camera_refinement::{self, BoardView};
 use crate::estimate::edge_blur::SliceBlur;
 use crate::estimate::sphere_fit::KnownSphere;
 use crate::evaluate::pose_noise::{self, PhotoNoise, SweepPhoto};
 use crate::evaluate::sphere_bound::{self, BoundFrame, EdgeNoise};
+use crate::io::camera_model::CameraIntrinsics;
 use crate::manifest::Manifest;
 use crate::spec::phantom::{Phantom, Sphere};
 use crate::spec::render::RenderSpec;
@@ -219,6 +221,8 @@ pub fn bound_of(manifest: &Manifest, phantom: &Phantom, spec: &RenderSpec) -> Re
         // Every photo's two boards are more calibration views (each with its own
         // pose): the information their corners hold on the intrinsics beyond
         // what they hold on their poses, which the frames' pose noise carries.
+        // A board where an earlier photo saw it is that view again, counted
+        // once, as the run's refinement counts it (`camera_refinement::repeats`).
         let marker_views: Vec<_> = scene
             .frames
             .iter()
@@ -229,7 +233,9 @@ pub fn bound_of(manifest: &Manifest, phantom: &Phantom, spec: &RenderSpec) -> Re
             (&marker_views, &probe_corners, noise.probe_corner_sd_px),
             (&phantom_views, &phantom_corners, noise.phantom_corner_sd_px),
         ] {
-            intrinsics_information += pose_noise::calibration_information(&scene.camera, views, corners, sd)
+            let distinct =
+                distinct_views(&scene.camera, views, corners).ok_or("a frame's board is behind the camera")?;
+            intrinsics_information += pose_noise::calibration_information(&scene.camera, &distinct, corners, sd)
                 .ok_or("a frame's board is behind the camera")?;
         }
     }
@@ -324,6 +330,35 @@ pub fn slice_blur_model(manifest: &Manifest) -> Option<SliceBlur> {
 }
 
 /// Whether the manifest solves the camera again with the frames' boards.
+/// The views of one board that are not a repeat of an earlier one as the
+/// camera sees them (`camera_refinement::repeats`), or `None` if a corner is
+/// behind the camera.
+fn distinct_views(
+    camera: &CameraIntrinsics,
+    camera_T_views: &[Rigid],
+    corners_mm: &[Point2<f64>],
+) -> Option<Vec<Rigid>> {
+    let views = camera_T_views
+        .iter()
+        .map(|pose| {
+            let flat = crate::detect::projection::projections(camera, pose, corners_mm)?;
+            Some(BoardView {
+                label: String::new(),
+                corners_mm: corners_mm.to_vec(),
+                corners_px: flat.chunks(2).map(|p| [p[0], p[1]]).collect(),
+            })
+        })
+        .collect::<Option<Vec<_>>>()?;
+    Some(
+        camera_refinement::repeats(&views)
+            .iter()
+            .zip(camera_T_views)
+            .filter(|(r, _)| r.is_none())
+            .map(|(_, pose)| *pose)
+            .collect(),
+    )
+}
+
 pub fn refines_with_frames(manifest: &Manifest) -> bool {
     matches!(&manifest.camera, crate::manifest::CameraSource::Calibrate { board, .. } if board.refine_with_frames)
 }

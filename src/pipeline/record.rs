@@ -230,6 +230,9 @@ pub struct TruthSummary {
     /// `None` without a camera (tracker poses).
     pub camera_focal_error_px: Option<f64>,
     pub camera_principal_error_px: Option<f64>,
+    /// The camera's nine intrinsics against the truth, weighed by what its
+    /// calibration states it knows of them (see `truth::camera_nees`).
+    pub camera_intrinsics_nees: Option<f64>,
     pub arc_centre_error_px: Option<(f64, f64)>,
     pub probe_pose_translation_error_mm: Option<(f64, f64)>,
     pub probe_pose_rotation_error_deg: Option<(f64, f64)>,

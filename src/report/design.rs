@@ -74,7 +74,8 @@ fn markdown(file: &DesignFile<'_>) -> String {
         n.phantom_corner_sd_px,
         n.calibration_corner_sd_px,
         if file.camera_refined_with_frames {
-            " and every frame's two boards (`camera.calibrate.refine_with_frames`)"
+            " and every frame's two boards, a board where an earlier photo saw it counted once \
+             (`camera.calibrate.refine_with_frames`),"
         } else {
             ""
         },

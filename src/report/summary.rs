@@ -199,6 +199,10 @@ pub struct TruthSummaryJson {
     pub translation_error_mm: f64,
     pub camera_focal_error_px: Option<f64>,
     pub camera_principal_point_error_px: Option<f64>,
+    /// The camera's intrinsics against the truth in the uncertainty its
+    /// calibration states (χ², nine degrees of freedom, when that is honest).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub camera_intrinsics_nees: Option<f64>,
     pub arc_centre_error_px: Option<MeanMax>,
     pub probe_pose_error_mm: Option<MeanMax>,
     pub probe_pose_error_deg: Option<MeanMax>,
@@ -427,6 +431,7 @@ impl Summary {
                 translation_error_mm: t.calibration.translation_error_mm,
                 camera_focal_error_px: t.camera_focal_error_px,
                 camera_principal_point_error_px: t.camera_principal_error_px,
+                camera_intrinsics_nees: t.camera_intrinsics_nees,
                 arc_centre_error_px: MeanMax::of(t.arc_centre_error_px),
                 probe_pose_error_mm: MeanMax::of(t.probe_pose_translation_error_mm),
                 probe_pose_error_deg: MeanMax::of(t.probe_pose_rotation_error_deg),
