@@ -366,6 +366,7 @@ pub fn refine(
         marker_T_image,
         radius_offset_mm: o[0],
         edge_offset_mm: o,
+        spacing_mm_per_px: settings.spacing_mm_per_px,
         rms_mm: (sum / count.max(1) as f64).sqrt(),
         elevation_mm,
         frame_rms_mm,
@@ -449,6 +450,7 @@ mod tests {
             elevation_prior_sd_mm: None,
             fit_radius_offset: false,
             points_per_frame: 20.0,
+            fit_pixel_size: false,
         }
     }
 

@@ -14,7 +14,11 @@
 //! also carry a prior `d ~ N(0, σ_d)` (`elevation_prior_sd_mm`): with it the fit is
 //! the MAP estimate between the thesis's assumption (`σ_d → 0`) and the sphere
 //! alone (`σ_d → ∞`). The echo's leading edge may sit a little off the true
-//! surface; `fit_radius_offset` estimates that offset as one more unknown.
+//! surface; `fit_radius_offset` estimates that offset as one more unknown, and
+//! `fit_pixel_size` the pixel size across and along the beam as two more (a
+//! medium whose speed of sound is not the scanner's scales every depth; on a
+//! convex probe the scale acts along each beam, which the two sizes only
+//! approximate).
 
 use nalgebra::{DVector, Point3, Vector3};
 
@@ -56,6 +60,10 @@ pub struct SphereSettings {
     pub fit_radius_offset: bool,
     /// Edge points per frame are weighted so each frame counts as this many points.
     pub points_per_frame: f64,
+    /// Also estimate the pixel size (two more unknowns, across and along the
+    /// beam): a medium whose speed of sound is not the scanner's shows every
+    /// echo at a scaled depth.
+    pub fit_pixel_size: bool,
 }
 
 #[derive(Debug, Clone)]
@@ -66,6 +74,9 @@ pub struct SphereFit {
     /// The edge offset's terms `(a, b, c)` solved with the calibration, mm
     /// ([`super::edge_offset`]; 0 when not fitted).
     pub edge_offset_mm: super::edge_offset::EdgeTerms,
+    /// The pixel size the fit maps edge pixels with: the settings' own, or the
+    /// fitted one with `fit_pixel_size`, mm per pixel.
+    pub spacing_mm_per_px: [f64; 2],
     /// RMS point-to-sphere distance, mm.
     pub rms_mm: f64,
     /// Signed distance of each arc's sphere centre from its frame's plane, mm.
@@ -103,21 +114,37 @@ pub fn refine(start: &Rigid, frames: &[ArcFrame], settings: &SphereSettings) -> 
         return Err(SphereFitError::TooFewFrames(frames.len()));
     }
     let sphere = |f: &ArcFrame| settings.spheres[f.sphere];
-    let in_image: Vec<Vec<Point3<f64>>> = frames
-        .iter()
-        .map(|f| {
-            f.edge_px
-                .iter()
-                .map(|p| pixel_to_image_mm(*p, settings.spacing_mm_per_px))
-                .collect()
-        })
-        .collect();
-    let unknowns = if settings.fit_radius_offset { 7 } else { 6 };
+    let offset_at = settings.fit_radius_offset.then_some(6);
+    let scale_at = settings
+        .fit_pixel_size
+        .then_some(6 + usize::from(settings.fit_radius_offset));
+    let unknowns = 6 + usize::from(settings.fit_radius_offset) + 2 * usize::from(settings.fit_pixel_size);
+    let spacing_of = |x: &DVector<f64>| match scale_at {
+        Some(k) => [
+            settings.spacing_mm_per_px[0] * (1.0 + x[k]),
+            settings.spacing_mm_per_px[1] * (1.0 + x[k + 1]),
+        ],
+        None => settings.spacing_mm_per_px,
+    };
+    let in_image = |spacing: [f64; 2]| -> Vec<Vec<Point3<f64>>> {
+        frames
+            .iter()
+            .map(|f| f.edge_px.iter().map(|p| pixel_to_image_mm(*p, spacing)).collect())
+            .collect()
+    };
+    let fixed = in_image(settings.spacing_mm_per_px);
     let residuals = |x: &DVector<f64>| {
         let marker_T_image = model_at(start, x);
-        let offset = if settings.fit_radius_offset { x[6] } else { 0.0 };
+        let offset = offset_at.map_or(0.0, |k| x[k]);
+        let scaled;
+        let points_of = if scale_at.is_some() {
+            scaled = in_image(spacing_of(x));
+            &scaled
+        } else {
+            &fixed
+        };
         let mut r = Vec::new();
-        for (f, points) in frames.iter().zip(&in_image) {
+        for (f, points) in frames.iter().zip(points_of) {
             let phantom_T_image = f.phantom_T_marker() * marker_T_image;
             let w = (settings.points_per_frame / points.len() as f64).sqrt();
             let KnownSphere {
@@ -139,7 +166,9 @@ pub fn refine(start: &Rigid, frames: &[ArcFrame], settings: &SphereSettings) -> 
     }
     let out = lm::minimise(DVector::zeros(unknowns), &steps, 200, residuals)?;
     let marker_T_image = model_at(start, &out.x);
-    let radius_offset_mm = if settings.fit_radius_offset { out.x[6] } else { 0.0 };
+    let radius_offset_mm = offset_at.map_or(0.0, |k| out.x[k]);
+    let spacing_mm_per_px = spacing_of(&out.x);
+    let in_image = in_image(spacing_mm_per_px);
     let mut sum = 0.0;
     let mut count = 0usize;
     let mut per_frame: Vec<(usize, f64, usize)> = Vec::new();
@@ -174,6 +203,7 @@ pub fn refine(start: &Rigid, frames: &[ArcFrame], settings: &SphereSettings) -> 
         marker_T_image,
         radius_offset_mm,
         edge_offset_mm: [0.0; super::edge_offset::TERMS],
+        spacing_mm_per_px,
         rms_mm: (sum / count.max(1) as f64).sqrt(),
         iterations: out.iterations,
     })
@@ -249,6 +279,7 @@ mod tests {
             elevation_prior_sd_mm: prior,
             fit_radius_offset: false,
             points_per_frame: 20.0,
+            fit_pixel_size: false,
         }
     }
 

@@ -9,8 +9,12 @@
 //! absorbs the start's error; a frame needs two arcs for that); arcs are paired
 //! with the nearest prediction of similar radius within a gate, and
 //! `marker_T_image` is refined on every paired arc's edge points at once (the
-//! sphere fit, each arc on its own sphere). Prediction, pairing and refinement
-//! repeat, without the shift, until the pairing stops changing.
+//! sphere fit, each arc on its own sphere), starting from the rough calibration
+//! moved by the frames' median shift (a start ten millimetres off in the plane
+//! would otherwise settle in a false minimum). Prediction, pairing and
+//! refinement repeat, without the shift, until the pairing stops changing.
+//! With `fit_pixel_size` the fit also estimates the pixel size, and the next
+//! round places the arcs with it.
 //!
 //! Each paired arc becomes a point pair: its centre, placed off the image plane
 //! at its sphere centre's elevation under the fit, and the sphere centre.
@@ -109,8 +113,9 @@ fn pair_frame(
     marker_T_image: &Rigid,
     spheres: &[NamedSphere],
     spacing: [f64; 2],
+    radius_scale: f64,
     shift: bool,
-) -> (Vec<(usize, usize)>, usize) {
+) -> (Vec<(usize, usize)>, usize, Option<[f64; 2]>) {
     let predicted: Vec<(usize, [f64; 2], f64)> = spheres
         .iter()
         .enumerate()
@@ -119,7 +124,12 @@ fn pair_frame(
     let seen: Vec<([f64; 2], f64)> = frame
         .arcs
         .iter()
-        .map(|a| ([a.centre_px[0] * spacing[0], a.centre_px[1] * spacing[1]], a.radius_mm))
+        .map(|a| {
+            (
+                [a.centre_px[0] * spacing[0], a.centre_px[1] * spacing[1]],
+                a.radius_mm * radius_scale,
+            )
+        })
         .collect();
     let candidates = |offset: [f64; 2]| {
         let mut c: Vec<(f64, usize, usize)> = Vec::new();
@@ -166,10 +176,10 @@ fn pair_frame(
         }
         match best {
             Some((n, _, s)) if n >= 2 => offset = s,
-            _ => return (Vec::new(), predicted.len()),
+            _ => return (Vec::new(), predicted.len(), None),
         }
     }
-    (candidates(offset).0, predicted.len())
+    (candidates(offset).0, predicted.len(), shift.then_some(offset))
 }
 
 /// Pairs arcs with spheres and fits `marker_T_image` on every paired arc's edge.
@@ -178,6 +188,7 @@ pub fn match_and_solve(
     spheres: &[NamedSphere],
     start: &Rigid,
     spacing: [f64; 2],
+    fit_pixel_size: bool,
     min_frames: usize,
 ) -> Result<SphereMatching, SphereMatchError> {
     let settings = SphereSettings {
@@ -186,23 +197,40 @@ pub fn match_and_solve(
         elevation_prior_sd_mm: None,
         fit_radius_offset: false,
         points_per_frame: POINTS_PER_ARC,
+        fit_pixel_size,
     };
     let mut marker_T_image = *start;
+    // The pixel size arcs are placed with (the fitted one, with `fit_pixel_size`);
+    // the detector's radii, measured with `spacing`, scale with it.
+    let mut current = spacing;
+    let mut radius_scale = 1.0;
     let mut previous: Option<Vec<Vec<(usize, usize)>>> = None;
     let mut fit: Option<SphereFit> = None;
     let mut rounds = 0;
     let mut predicted_counts = vec![0; frames.len()];
     for round in 0..MAX_ROUNDS {
         rounds = round + 1;
+        let mut shifts: [Vec<f64>; 2] = [Vec::new(), Vec::new()];
         let pairs: Vec<Vec<(usize, usize)>> = frames
             .iter()
             .enumerate()
             .map(|(i, f)| {
-                let (pairs, predicted) = pair_frame(f, &marker_T_image, spheres, spacing, round == 0);
+                let (pairs, predicted, shift) =
+                    pair_frame(f, &marker_T_image, spheres, current, radius_scale, round == 0);
                 predicted_counts[i] = predicted;
+                if let Some(s) = shift.filter(|_| !pairs.is_empty()) {
+                    shifts[0].push(s[0]);
+                    shifts[1].push(s[1]);
+                }
                 pairs
             })
             .collect();
+        if round == 0 && !shifts[0].is_empty() {
+            // The fit starts where the frames' shifts put the plane: the image
+            // origin moved by their median against it.
+            let [x, y] = shifts.map(|mut v| crate::core::stats::median(&mut v));
+            marker_T_image *= Rigid::translation(-x, -y, 0.0);
+        }
         if previous.as_ref() == Some(&pairs) && fit.is_some() {
             break;
         }
@@ -228,6 +256,8 @@ pub fn match_and_solve(
             .collect();
         let refined = sphere_fit::refine(&marker_T_image, &arcs, &settings)?;
         marker_T_image = refined.marker_T_image;
+        current = refined.spacing_mm_per_px;
+        radius_scale = ((current[0] * current[1]) / (spacing[0] * spacing[1])).sqrt();
         fit = Some(refined);
         previous = Some(pairs);
     }
@@ -359,7 +389,7 @@ mod tests {
     fn arcs_find_their_spheres_from_a_start_5_mm_and_1_4_degrees_off() {
         let (truth, spheres, frames) = planted(4);
         let off = rigid_from_axis_angle(Vector3::new(0.01, -0.01, 0.02), Vector3::new(4.0, -3.0, 2.0));
-        let m = match_and_solve(&frames, &spheres, &(truth * off), [0.2, 0.2], 10).unwrap();
+        let m = match_and_solve(&frames, &spheres, &(truth * off), [0.2, 0.2], false, 10).unwrap();
         assert!(m.rejected.is_empty(), "{:?}", m.rejected);
         // Every arc is paired with the sphere it was drawn from (arcs were listed
         // in reverse: the first arc of a frame is its last cut sphere).
@@ -392,12 +422,57 @@ mod tests {
         assert!(th < 0.2, "Horn on the elevated pairs: {th} mm");
     }
 
+    /// How far `m`'s fit is from `truth`: mm and degrees.
+    fn off_by(m: &SphereMatching, truth: &Rigid) -> (f64, f64) {
+        let t = (m.fit.marker_T_image.translation.vector - truth.translation.vector).norm();
+        (t, m.fit.marker_T_image.rotation.angle_to(&truth.rotation).to_degrees())
+    }
+
+    #[test]
+    fn a_start_11_mm_off_in_the_plane_is_moved_by_the_frames_shift_before_the_first_fit() {
+        let (truth, spheres, frames) = planted(6);
+        let off = rigid_from_axis_angle(Vector3::new(0.0, 0.0, 0.02), Vector3::new(7.0, 9.0, 0.0));
+        let m = match_and_solve(&frames, &spheres, &(truth * off), [0.2, 0.2], false, 10).unwrap();
+        assert!(m.rejected.is_empty(), "{:?}", m.rejected);
+        let (t, a) = off_by(&m, &truth);
+        assert!(t < 0.1 && a < 0.05, "{t} mm, {a}°");
+    }
+
+    #[test]
+    fn depths_shown_4_percent_too_deep_are_absorbed_by_the_fitted_pixel_size() {
+        let (truth, spheres, mut frames) = planted(7);
+        // A medium 4 % slower than the scanner assumes: every echo shown 4 % deeper.
+        for f in &mut frames {
+            for a in &mut f.arcs {
+                a.centre_px[1] *= 1.04;
+                a.radius_mm *= 1.02;
+                for p in &mut a.edge_px {
+                    p[1] *= 1.04;
+                }
+            }
+        }
+        let off = rigid_from_axis_angle(Vector3::new(0.01, -0.01, 0.02), Vector3::new(4.0, -3.0, 2.0));
+        let m = match_and_solve(&frames, &spheres, &(truth * off), [0.2, 0.2], true, 10).unwrap();
+        assert!(m.rejected.is_empty(), "{:?}", m.rejected);
+        let [sx, sy] = m.fit.spacing_mm_per_px;
+        assert!(
+            (sx / 0.2 - 1.0).abs() < 2e-3 && (sy * 1.04 / 0.2 - 1.0).abs() < 2e-3,
+            "{sx} {sy}"
+        );
+        let (t, a) = off_by(&m, &truth);
+        assert!(t < 0.1 && a < 0.05, "{t} mm, {a}°");
+        // Held at the nominal size, the same arcs pull the fit millimetres off.
+        let nominal = match_and_solve(&frames, &spheres, &(truth * off), [0.2, 0.2], false, 10);
+        let (t, _) = off_by(&nominal.unwrap(), &truth);
+        assert!(t > 1.0, "{t} mm");
+    }
+
     #[test]
     fn a_start_beyond_the_shift_pairs_nothing() {
         let (truth, spheres, frames) = planted(5);
         let off = rigid_from_axis_angle(Vector3::zeros(), Vector3::new(40.0, 0.0, 0.0));
         assert!(matches!(
-            match_and_solve(&frames, &spheres, &(truth * off), [0.2, 0.2], 10),
+            match_and_solve(&frames, &spheres, &(truth * off), [0.2, 0.2], false, 10),
             Err(SphereMatchError::TooFewFrames { .. })
         ));
     }

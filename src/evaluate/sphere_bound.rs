@@ -354,6 +354,7 @@ mod tests {
                 elevation_prior_sd_mm: None,
                 fit_radius_offset: false,
                 points_per_frame: 40.0,
+                fit_pixel_size: false,
             };
             let plain = sphere_fit::refine(&truth, &arcs, &settings).unwrap();
             let mut frames: Vec<(usize, Matrix6<f64>)> = arcs.iter().map(|a| (a.frame, pose_cov)).collect();

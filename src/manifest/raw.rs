@@ -64,6 +64,11 @@ pub struct SphereFitOptions {
     pub elevation_prior_from_data: bool,
     /// Estimate a constant offset of the echo edge from the sphere surface.
     pub fit_radius_offset: bool,
+    /// Multi-sphere phantoms: also estimate the B-scan's pixel size, across and
+    /// along the beam, in the pairing and the sphere fits (a medium whose speed of
+    /// sound is not the scanner's shows every echo at a scaled depth).
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub fit_pixel_size: bool,
     /// Multi-sphere phantoms: the sphere fit again with every frame's pose free
     /// under the prior its boards' corners and the hand give (absent: not run).
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -113,6 +118,7 @@ impl Default for SphereFitOptions {
             elevation_prior_sd_mm: Some(1.0),
             elevation_prior_from_data: false,
             fit_radius_offset: true,
+            fit_pixel_size: false,
             pose_prior: None,
         }
     }

@@ -231,6 +231,14 @@ const BAD: &[BadCase] = &[
         "must be a positive number",
     ),
     (
+        "a fitted pixel size on the hemisphere",
+        "bscan:\n  spacing_mm_per_px: [0.2, 0.2]\n",
+        "bscan:\n  spacing_mm_per_px: [0.2, 0.2]\nsolve:\n  sphere_fit:\n    fit_pixel_size: true\n",
+        "solve.sphere_fit.fit_pixel_size",
+        Some(18),
+        "`phantom: spheres:` only",
+    ),
+    (
         "4-wire phantom without a start",
         "  hemisphere:\n    centre_in_phantom_mm: [285.7, 76.2, -26.5]\n    radius_mm: 15.0\n",
         "  four_wire:\n    wire_diameter_mm: 1.5\n    wires:\n      - {name: a, start_in_phantom_mm: [0, 0, 0], end_in_phantom_mm: [0, 50, 0]}\n      - {name: b, start_in_phantom_mm: [30, 0, 0], end_in_phantom_mm: [30, 50, 0]}\n      - {name: c, start_in_phantom_mm: [0, 0, 0], end_in_phantom_mm: [30, 50, 0]}\n",

@@ -310,6 +310,12 @@ fn solve_section(c: &mut Checker<'_>, raw: &raw::RawManifest) {
             );
         }
     }
+    if raw.solve.sphere_fit.fit_pixel_size && !matches!(raw.phantom, Phantom::Spheres { .. }) {
+        c.fail(
+            "solve.sphere_fit.fit_pixel_size",
+            "the fitted pixel size belongs to the multi-sphere fit: `phantom: spheres:` only",
+        );
+    }
     if let Some(sd) = raw.solve.sphere_fit.elevation_prior_sd_mm {
         c.positive("solve.sphere_fit.elevation_prior_sd_mm", sd);
     }

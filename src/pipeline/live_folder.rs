@@ -173,6 +173,7 @@ impl State<'_> {
             spacing_mm_per_px: spacing,
             initial_marker_T_image: None,
             min_frames: 0,
+            fit_pixel_size: false,
         };
         let pair = solve::point_pairs(
             std::slice::from_mut(&mut record),

@@ -222,6 +222,7 @@ pub fn methods_stage(manifest: &Manifest, inputs: &MethodInputs<'_>, log: &mut d
         elevation_prior_sd_mm: manifest.sphere_fit.elevation_prior_sd_mm,
         fit_radius_offset: manifest.sphere_fit.fit_radius_offset,
         points_per_frame: 20.0,
+        fit_pixel_size: false,
     };
     let mut fitted = sphere_fit::refine(&ransac.fit.target_T_source, &arcs, &settings);
     if manifest.sphere_fit.elevation_prior_from_data {
@@ -256,6 +257,7 @@ pub fn methods_stage(manifest: &Manifest, inputs: &MethodInputs<'_>, log: &mut d
 pub fn spheres_methods(
     inputs: &MethodInputs<'_>,
     spheres: &[crate::spec::phantom::Sphere],
+    fit_pixel_size: bool,
     pose: Option<&super::sphere_pose::PoseInputs<'_>>,
     log: &mut dyn FnMut(&str),
 ) -> Vec<MethodResult> {
@@ -264,13 +266,14 @@ pub fn spheres_methods(
     let Ok(fit) = &reported.fit else {
         return Vec::new();
     };
-    let result = |method: Method, frames_used: usize, m: &Rigid| MethodResult {
+    // `fitted`: the pixel size the method maps pixels with (its own when fitted).
+    let result = |method: Method, frames_used: usize, m: &Rigid, fitted: [f64; 2]| MethodResult {
         method,
         frames_used,
         frames_left_out: left_out(inputs.frames, |f| reported.frames.contains(&f.frame)),
         marker_T_image: *m,
-        spacing_mm_per_px: spacing,
-        truth: truth_of(m, spacing, spacing, inputs.truth),
+        spacing_mm_per_px: fitted,
+        truth: truth_of(m, fitted, spacing, inputs.truth),
     };
     let mut out = vec![result(
         Method::CutoffWorstFirst {
@@ -278,6 +281,7 @@ pub fn spheres_methods(
         },
         reported.frames.len(),
         &fit.target_T_source,
+        spacing,
     )];
     let arcs: Vec<ArcFrame> = inputs
         .frames
@@ -316,6 +320,7 @@ pub fn spheres_methods(
         elevation_prior_sd_mm: None,
         fit_radius_offset: false,
         points_per_frame: 20.0,
+        fit_pixel_size,
     };
     let first = match sphere_fit::refine(&fit.target_T_source, &arcs, &settings) {
         Ok(first) => first,
@@ -353,9 +358,16 @@ pub fn spheres_methods(
             },
             frames_kept,
             &sphere.marker_T_image,
+            sphere.spacing_mm_per_px,
         )
     });
     if let Some(pose) = pose {
+        // The pose-prior fit maps pixels with the sphere fit's pixel size.
+        let settings = SphereSettings {
+            spacing_mm_per_px: sphere.spacing_mm_per_px,
+            fit_pixel_size: false,
+            ..settings
+        };
         match super::sphere_pose::fit(&sphere.marker_T_image, &kept, inputs.records, &settings, pose) {
             Ok((posed, noise)) => out.push(MethodResult {
                 frames_left_out: kept_left_out,
@@ -367,6 +379,7 @@ pub fn spheres_methods(
                     },
                     frames_kept,
                     &posed.marker_T_image,
+                    posed.spacing_mm_per_px,
                 )
             }),
             Err(e) => log(&format!("sphere fit with pose priors: {e}")),

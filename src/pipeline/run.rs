@@ -200,6 +200,7 @@ pub fn run_dataset(
         spacing_mm_per_px: spacing,
         initial_marker_T_image: manifest.initial_marker_T_image,
         min_frames,
+        fit_pixel_size: manifest.sphere_fit.fit_pixel_size,
     };
     let (correspondences, start_guess) = solve::point_pairs(&mut frames, targets, &pairing, log)?;
     solve::enough_frames(&frames, &correspondences, min_frames, &name)?;
@@ -293,6 +294,7 @@ pub fn run_dataset(
                 truth: truth_transform,
             },
             spheres,
+            manifest.sphere_fit.fit_pixel_size,
             pose_inputs.as_ref(),
             log,
         ),

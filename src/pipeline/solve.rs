@@ -31,6 +31,8 @@ pub struct PairingInputs<'a> {
     /// The rough `marker_T_image` wire dots are paired from.
     pub initial_marker_T_image: Option<Rigid>,
     pub min_frames: usize,
+    /// Multi-sphere phantoms: the pairing's sphere fit also estimates the pixel size.
+    pub fit_pixel_size: bool,
 }
 
 /// The usable frames' measurements. Point phantoms: one pair per frame. Wire
@@ -167,11 +169,18 @@ fn spheres_pairs(
     let start = inputs
         .initial_marker_T_image
         .ok_or_else(|| RunError::Unsupported("the spheres phantom needs solve.initial_marker_T_image".into()))?;
-    let matching = sphere_matching::match_and_solve(&seen, &named, &start, inputs.spacing_mm_per_px, inputs.min_frames)
-        .map_err(|e| RunError::Solve {
-            dataset: inputs.dataset.to_string(),
-            source: crate::estimate::horn::HornError::Refinement(e.to_string()),
-        })?;
+    let matching = sphere_matching::match_and_solve(
+        &seen,
+        &named,
+        &start,
+        inputs.spacing_mm_per_px,
+        inputs.fit_pixel_size,
+        inputs.min_frames,
+    )
+    .map_err(|e| RunError::Solve {
+        dataset: inputs.dataset.to_string(),
+        source: crate::estimate::horn::HornError::Refinement(e.to_string()),
+    })?;
     let arcs_used: usize = matching.labels.iter().map(|(_, l)| l.len()).sum();
     log(&format!(
         "spheres: {} arcs of {} frames paired in {} rounds, {} frames left out; sphere fit RMS {:.3} mm",
