@@ -274,6 +274,8 @@ pub enum Method {
         arcs: usize,
         rms_mm: f64,
         rms_limit_mm: f64,
+        /// The pixel size solved with it (`solve.sphere_fit.fit_pixel_size`).
+        pixel_size_fitted: bool,
     },
     /// Multi-sphere phantoms: the sphere fit's arcs with every frame's pose free
     /// under the prior its boards' corners and the hand's motion give.
@@ -281,6 +283,8 @@ pub enum Method {
         arcs: usize,
         rms_mm: f64,
         noise: super::sphere_pose::PoseFitNoise,
+        /// The pixel size held at the sphere fit's fitted one.
+        pixel_size_fitted: bool,
     },
 }
 
@@ -406,11 +410,13 @@ mod tests {
                 arcs: 1,
                 rms_mm: 0.1,
                 rms_limit_mm: 0.3,
+                pixel_size_fitted: false,
             },
             Method::SphereFitPosePrior {
                 arcs: 1,
                 rms_mm: 0.1,
                 noise,
+                pixel_size_fitted: false,
             },
         ];
         let names: Vec<&str> = all.iter().map(|m| m.name()).collect();

@@ -254,6 +254,15 @@ impl Summary {
     }
 }
 
+/// The pixel size a sphere fit mapped pixels with, when it was not the manifest's.
+fn fitted_pixel_size(fitted: bool, m: &MethodResult, how: &str) -> String {
+    if !fitted {
+        return String::new();
+    }
+    let [x, y] = m.spacing_mm_per_px;
+    format!(", the pixel size {how} ({x:.4} x {y:.4} mm/px)")
+}
+
 /// What the report says an estimator did.
 pub fn describe(m: &MethodResult) -> String {
     match m.method {
@@ -295,11 +304,19 @@ pub fn describe(m: &MethodResult) -> String {
             arcs,
             rms_mm,
             rms_limit_mm,
+            pixel_size_fitted,
         } => format!(
-            "the reported calibration's frames, the edge points of every arc ({arcs}) on their own sphere (LM, no prior: the spheres cut at different offsets observe the planes' elevation), frames whose RMS exceeds {rms_limit_mm:.3} mm (median + 3 robust SD) left out and the fit repeated; RMS {rms_mm:.3} mm"
+            "the reported calibration's frames, the edge points of every arc ({arcs}) on their own sphere (LM, no prior: the spheres cut at different offsets observe the planes' elevation){}, frames whose RMS exceeds {rms_limit_mm:.3} mm (median + 3 robust SD) left out and the fit repeated; RMS {rms_mm:.3} mm",
+            fitted_pixel_size(pixel_size_fitted, m, "solved with it")
         ),
-        Method::SphereFitPosePrior { arcs, rms_mm, noise } => format!(
-            "the sphere fit's arcs ({arcs}), every frame's phantom_T_marker free under its prior (board corners {:.4} px probe, {:.4} px phantom: the run's median reprojection RMS; the hand between photo and B-scan {:.3} mm, {:.3}° per axis: solve.sphere_fit.pose_prior), edge points {:.3} mm (the arcs' median RMS){}, {}{}; RMS {rms_mm:.3} mm",
+        Method::SphereFitPosePrior {
+            arcs,
+            rms_mm,
+            noise,
+            pixel_size_fitted,
+        } => format!(
+            "the sphere fit's arcs ({arcs}){}, every frame's phantom_T_marker free under its prior (board corners {:.4} px probe, {:.4} px phantom: the run's median reprojection RMS; the hand between photo and B-scan {:.3} mm, {:.3}° per axis: solve.sphere_fit.pose_prior), edge points {:.3} mm (the arcs' median RMS){}, {}{}; RMS {rms_mm:.3} mm",
+            fitted_pixel_size(pixel_size_fitted, m, "the sphere fit's"),
             noise.probe_corner_sd_px,
             noise.phantom_corner_sd_px,
             noise.tremor_sd_mm,
