@@ -8,7 +8,7 @@ mod common;
 use common::{probecal, root, scratch};
 
 /// (manifest, committed study folder under `reports/`).
-const STUDIES: [(&str, &str); 21] = [
+const STUDIES: [(&str, &str); 25] = [
     ("experiments/hemisphere_checkerboard.yaml", "study"),
     ("experiments/studies/hemisphere_true_camera.yaml", "study/true_camera"),
     (
@@ -66,6 +66,19 @@ const STUDIES: [(&str, &str); 21] = [
     ),
     ("experiments/thesis_twin_dataset3.yaml", "study/thesis_twin_dataset3"),
     ("experiments/thesis_twin_aruco.yaml", "study/thesis_twin_aruco"),
+    ("experiments/thesis_twin_spheres.yaml", "study/thesis_twin_spheres"),
+    (
+        "experiments/thesis_twin_spheres.yaml",
+        "study/thesis_twin_spheres_choice/chosen",
+    ),
+    (
+        "experiments/studies/thesis_twin_spheres_refine.yaml",
+        "study/thesis_twin_spheres_choice/refine",
+    ),
+    (
+        "experiments/studies/thesis_twin_spheres_nominal_pixels.yaml",
+        "study/thesis_twin_spheres_choice/nominal_pixels",
+    ),
 ];
 
 fn first_seed(study: &serde_json::Value) -> &serde_json::Value {

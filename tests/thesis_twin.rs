@@ -6,11 +6,12 @@ mod common;
 
 use common::{probecal, root, scratch, shared_data};
 
-const TWINS: [&str; 4] = [
+const TWINS: [&str; 5] = [
     "thesis_twin_dataset1",
     "thesis_twin_dataset2",
     "thesis_twin_dataset3",
     "thesis_twin_aruco",
+    "thesis_twin_spheres",
 ];
 
 /// `key value` lines of a command's output.
@@ -93,4 +94,16 @@ fn a_variant_of_the_committed_error_budget_reproduces() {
         .unwrap();
     assert_eq!(r.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&r.stderr).contains("no variant `only fog`"));
+}
+
+#[test]
+fn the_multi_sphere_twin_has_the_hemisphere_twins_error_sources() {
+    let realism = |name: &str| {
+        let path = root().join(format!("experiments/{name}.yaml"));
+        let yaml: serde_yaml::Value = serde_yaml::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+        yaml["datasets"][0]["render"]["realism"].clone()
+    };
+    let hemisphere = realism("thesis_twin_dataset3");
+    assert!(hemisphere.as_mapping().is_some_and(|m| m.len() >= 10), "{hemisphere:?}");
+    assert_eq!(realism("thesis_twin_spheres"), hemisphere);
 }
