@@ -92,7 +92,18 @@ pub enum SphereFitError {
     TooFewFrames(usize),
     #[error("sphere fit: {0}")]
     Lm(#[from] LmError),
+    #[error(
+        "the fitted pixel size {fitted_mm:?} mm/px is more than {:.0} % off the manifest's {nominal_mm:?}: no medium's speed of sound does that",
+        MAX_PIXEL_SIZE_CHANGE * 100.0
+    )]
+    PixelSize { fitted_mm: [f64; 2], nominal_mm: [f64; 2] },
 }
+
+/// The most a fitted pixel size may differ from the manifest's: media from 1310
+/// to 1770 m/s under a scanner's 1540 (water at any temperature, saline,
+/// tissue-mimicking gels all lie inside). A fit beyond it has found something
+/// other than the speed of sound and is refused.
+pub const MAX_PIXEL_SIZE_CHANGE: f64 = 0.15;
 
 fn model_at(start: &Rigid, x: &DVector<f64>) -> Rigid {
     perturbed(start, Vector3::new(x[0], x[1], x[2]), Vector3::new(x[3], x[4], x[5]))
@@ -168,6 +179,17 @@ pub fn refine(start: &Rigid, frames: &[ArcFrame], settings: &SphereSettings) -> 
     let marker_T_image = model_at(start, &out.x);
     let radius_offset_mm = offset_at.map_or(0.0, |k| out.x[k]);
     let spacing_mm_per_px = spacing_of(&out.x);
+    let nominal = settings.spacing_mm_per_px;
+    let plausible = |k: usize| {
+        let change = (spacing_mm_per_px[k] / nominal[k] - 1.0).abs();
+        change.is_finite() && change <= MAX_PIXEL_SIZE_CHANGE
+    };
+    if !(plausible(0) && plausible(1)) {
+        return Err(SphereFitError::PixelSize {
+            fitted_mm: spacing_mm_per_px,
+            nominal_mm: nominal,
+        });
+    }
     let in_image = in_image(spacing_mm_per_px);
     let mut sum = 0.0;
     let mut count = 0usize;
@@ -267,6 +289,34 @@ mod tests {
             ));
         }
         (marker_T_image, arcs, centres)
+    }
+
+    #[test]
+    fn a_fitted_pixel_size_no_medium_gives_is_refused() {
+        let (truth, arcs, _) = planted(0.0, 2.0, 21);
+        // The manifest's size 5 % off the true 0.2 mm: found, and the fit kept.
+        let near = SphereSettings {
+            spacing_mm_per_px: [0.21, 0.21],
+            fit_pixel_size: true,
+            ..settings(None)
+        };
+        let fit = refine(&truth, &arcs, &near).unwrap();
+        for k in 0..2 {
+            assert!(
+                (fit.spacing_mm_per_px[k] / 0.2 - 1.0).abs() < 0.01,
+                "{:?}",
+                fit.spacing_mm_per_px
+            );
+        }
+        // 50 % off: the fit would need a medium at 1030 m/s and is refused.
+        let far = SphereSettings {
+            spacing_mm_per_px: [0.3, 0.3],
+            ..near
+        };
+        assert!(matches!(
+            refine(&truth, &arcs, &far),
+            Err(SphereFitError::PixelSize { .. })
+        ));
     }
 
     fn settings(prior: Option<f64>) -> SphereSettings {
