@@ -44,3 +44,36 @@ pub(super) fn check(c: &mut Checker<'_>, raw: &raw::RawManifest, spheres: &[crat
         );
     }
 }
+
+/// The options of the multi-sphere fits (`solve.sphere_fit.pose_prior`,
+/// `fit_pixel_size`): positive values, and a `spheres` phantom to fit.
+pub(super) fn fit_options(c: &mut Checker<'_>, raw: &raw::RawManifest) {
+    if let Some(prior) = &raw.solve.sphere_fit.pose_prior {
+        let f = "solve.sphere_fit.pose_prior";
+        c.positive(&format!("{f}.hand.speed_mm_per_s"), prior.hand.speed_mm_per_s);
+        c.positive(&format!("{f}.hand.rotation_deg_per_s"), prior.hand.rotation_deg_per_s);
+        c.positive(&format!("{f}.asynchrony_sd_s"), prior.asynchrony_sd_s);
+        if let Some(blur) = &prior.slice_blur {
+            c.positive(&format!("{f}.slice_blur.axial_sd_mm"), blur.axial_sd_mm);
+            c.positive(&format!("{f}.slice_blur.elevation_sd_mm"), blur.elevation_sd_mm);
+        }
+    }
+    let multi_sphere_only = [
+        (
+            "pose_prior",
+            "the pose prior",
+            raw.solve.sphere_fit.pose_prior.is_some(),
+        ),
+        (
+            "fit_pixel_size",
+            "the fitted pixel size",
+            raw.solve.sphere_fit.fit_pixel_size,
+        ),
+    ];
+    for (field, what, set) in multi_sphere_only {
+        if set && !matches!(raw.phantom, crate::spec::phantom::Phantom::Spheres { .. }) {
+            let message = format!("{what} belongs to the multi-sphere fit: `phantom: spheres:` only");
+            c.fail(&format!("solve.sphere_fit.{field}"), message);
+        }
+    }
+}

@@ -294,28 +294,7 @@ fn solve_section(c: &mut Checker<'_>, raw: &raw::RawManifest) {
             );
         }
     }
-    if let Some(prior) = &raw.solve.sphere_fit.pose_prior {
-        let f = "solve.sphere_fit.pose_prior";
-        c.positive(&format!("{f}.hand.speed_mm_per_s"), prior.hand.speed_mm_per_s);
-        c.positive(&format!("{f}.hand.rotation_deg_per_s"), prior.hand.rotation_deg_per_s);
-        c.positive(&format!("{f}.asynchrony_sd_s"), prior.asynchrony_sd_s);
-        if let Some(blur) = &prior.slice_blur {
-            c.positive(&format!("{f}.slice_blur.axial_sd_mm"), blur.axial_sd_mm);
-            c.positive(&format!("{f}.slice_blur.elevation_sd_mm"), blur.elevation_sd_mm);
-        }
-        if !matches!(raw.phantom, Phantom::Spheres { .. }) {
-            c.fail(
-                f,
-                "the pose prior belongs to the multi-sphere fit: `phantom: spheres:` only",
-            );
-        }
-    }
-    if raw.solve.sphere_fit.fit_pixel_size && !matches!(raw.phantom, Phantom::Spheres { .. }) {
-        c.fail(
-            "solve.sphere_fit.fit_pixel_size",
-            "the fitted pixel size belongs to the multi-sphere fit: `phantom: spheres:` only",
-        );
-    }
+    super::spheres::fit_options(c, raw);
     if let Some(sd) = raw.solve.sphere_fit.elevation_prior_sd_mm {
         c.positive("solve.sphere_fit.elevation_prior_sd_mm", sd);
     }
