@@ -143,8 +143,8 @@ enum Command {
         #[arg(long)]
         out: PathBuf,
     },
-    /// The printable model of a manifest's dome phantom (base plate, pillars,
-    /// domes) as a binary STL, in millimetres.
+    /// A dome phantom's printable model (plate, riser, domes, board seat) as a
+    /// binary STL in mm, and its sheet (sizes, domes, seat) as <name>.json.
     Phantom {
         manifest: PathBuf,
         #[arg(long)]

@@ -69,7 +69,7 @@ fn the_committed_table_is_current_and_ranks_the_experiments_layout() {
 fn the_committed_printable_model_is_what_probecal_phantom_writes() {
     let dir = scratch("design_bound", "stl");
     std::fs::create_dir_all(&dir).unwrap();
-    let stl = dir.join("spheres.stl");
+    let stl = dir.join("spheres_checkerboard.stl");
     let out = probecal()
         .args([
             "phantom",
@@ -84,6 +84,11 @@ fn the_committed_printable_model_is_what_probecal_phantom_writes() {
     assert!(
         std::fs::read(&stl).unwrap() == committed,
         "reports/design/spheres_checkerboard.stl is not what `probecal phantom` writes now"
+    );
+    let sheet = std::fs::read(stl.with_extension("json")).unwrap();
+    assert!(
+        sheet == std::fs::read(root().join("reports/design/spheres_checkerboard.json")).unwrap(),
+        "reports/design/spheres_checkerboard.json is not the sheet `probecal phantom` writes now"
     );
 }
 

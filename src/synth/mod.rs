@@ -6,6 +6,7 @@
 //! the dataset is rendered again only when they change. Rendering happens in a
 //! temporary folder that is renamed into place when complete.
 
+pub mod board_seat;
 pub mod bscan_geometry;
 pub mod bscan_render;
 pub mod camera_render;

@@ -1,13 +1,19 @@
-//! The printable model of a dome phantom: a base plate and, for each sphere, a
-//! pillar of the sphere's radius capped by its dome, in the lab's upright frame
-//! (z up, millimetres; x and y as the lab's world axes), the plate's underside
-//! at z = 0. The plate's top is the tank floor the renderer puts the domes over;
-//! the pillars reach 1 mm into the plate so that a slicer joins the shells.
-//! Each shell is closed, with outward normals.
+//! The printable model of a dome phantom: a base plate on the bed, a riser
+//! whose top is the tank floor the renderer puts the domes over, for each sphere
+//! a pillar of the sphere's radius capped by its dome, and the seat of the
+//! phantom board ([`super::board_seat`]), in the lab's upright frame (z up,
+//! millimetres; x and y as the lab's world axes), the bed at z = 0. The board
+//! stands beside the tank and reaches below its floor, so the base lies under
+//! the seat and the riser lifts the domes to the floor. The shells overlap
+//! (pillars 1 mm into the riser, the riser 1 mm into the plate, the seat's
+//! parts into the plate and each other) so that a slicer joins them. Each shell
+//! is closed, with outward normals.
 
 use nalgebra::{Point3, Vector3};
 
+use super::board_seat::{self, BoardSeat, Mount, SeatError};
 use super::scene::lab_layout;
+use crate::core::geometry::Rigid;
 use crate::io::stl::Triangle;
 use crate::spec::phantom::Phantom;
 use crate::spec::render::RenderSpec;
@@ -28,20 +34,27 @@ pub struct PrintedDome {
     pub radius_mm: f64,
 }
 
-/// The model: the plate's corners (min, max) and the domes.
+/// The model: the base plate's corners (min, max), the riser's (absent when the
+/// floor is the plate's top), the domes and the board's seat.
 #[derive(Debug, Clone, PartialEq)]
 pub struct PrintableModel {
     pub plate_min_mm: Point3<f64>,
     pub plate_max_mm: Point3<f64>,
+    pub riser: Option<[Point3<f64>; 2]>,
     pub domes: Vec<PrintedDome>,
+    pub seat: BoardSeat,
 }
 
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum PrintableError {
     #[error("phantom: only dome phantoms (hemisphere, spheres) are printable models here")]
     NotDomes,
-    #[error("phantom.spheres.spheres[{index}] (`{name}`): its dome's top half sits {below_mm:.1} mm below the plate (centre at most {FLOOR_BELOW_CENTRE_MM} mm under the mean centre)")]
-    BelowPlate { index: usize, name: String, below_mm: f64 },
+    #[error("phantom.spheres.spheres[{index}] (`{name}`): its dome's top half sits {below_mm:.1} mm below the tank floor (centre at most {FLOOR_BELOW_CENTRE_MM} mm under the mean centre)")]
+    BelowFloor { index: usize, name: String, below_mm: f64 },
+    #[error("{0}")]
+    Seat(#[from] SeatError),
+    #[error("the board seat's profile is not star-shaped; its shell cannot be closed")]
+    SeatShell,
 }
 
 /// The model of the manifest's phantom in its lab (`render` gives the camera
@@ -75,17 +88,21 @@ pub fn model(
     };
     let n = spheres.len() as f64;
     let mean = spheres.iter().fold(Vector3::zeros(), |acc, (_, c, _)| acc + c.coords) / n;
-    // Upright frame: the plate's underside at z = 0, the plate's top at the floor.
+    // Upright frame: the bed at z = 0 under the lower of the plate under the
+    // floor and the seat's bottom; x and y centred on the domes.
     let floor_z = mean.z - FLOOR_BELOW_CENTRE_MM;
-    let offset = Vector3::new(-mean.x, -mean.y, PLATE_MM - floor_z);
+    let mount = Mount::of(phantom_board)?;
+    let bed_z = (floor_z - PLATE_MM).min(board_seat::lowest_z_mm(&world_T_phantom, &mount));
+    let offset = Vector3::new(-mean.x, -mean.y, -bed_z);
+    let floor_mm = floor_z - bed_z;
     let mut domes = Vec::new();
     for (index, (name, centre, radius_mm)) in spheres.iter().enumerate() {
         let centre_mm = centre + offset;
-        if centre_mm.z < PLATE_MM {
-            return Err(PrintableError::BelowPlate {
+        if centre_mm.z < floor_mm {
+            return Err(PrintableError::BelowFloor {
                 index,
                 name: name.clone(),
-                below_mm: PLATE_MM - centre_mm.z,
+                below_mm: floor_mm - centre_mm.z,
             });
         }
         domes.push(PrintedDome {
@@ -93,45 +110,82 @@ pub fn model(
             radius_mm: *radius_mm,
         });
     }
-    let lo = |k: usize| {
+    let reach = |k: usize, sign: f64| {
         domes
             .iter()
-            .map(|d| d.centre_mm[k] - d.radius_mm)
-            .fold(f64::INFINITY, f64::min)
-    };
-    let hi = |k: usize| {
-        domes
-            .iter()
-            .map(|d| d.centre_mm[k] + d.radius_mm)
+            .map(|d| sign * d.centre_mm[k] + d.radius_mm + MARGIN_MM)
             .fold(f64::NEG_INFINITY, f64::max)
+            * sign
     };
+    let riser_min = Point3::new(reach(0, -1.0), reach(1, -1.0), PLATE_MM - 1.0);
+    let riser_max = Point3::new(reach(0, 1.0), reach(1, 1.0), floor_mm);
+    let upright_T_phantom = Rigid::from_parts(offset.into(), nalgebra::UnitQuaternion::identity()) * world_T_phantom;
+    let seat = board_seat::build(upright_T_phantom, mount)?;
+    let mut plate_min_mm = Point3::new(riser_min.x, riser_min.y, 0.0);
+    let mut plate_max_mm = Point3::new(riser_max.x, riser_max.y, PLATE_MM);
+    for prism in &seat.prisms {
+        for p in prism.profile.iter().flat_map(|&p| [p, p + prism.sweep]) {
+            for k in 0..2 {
+                plate_min_mm[k] = plate_min_mm[k].min(p[k] - MARGIN_MM);
+                plate_max_mm[k] = plate_max_mm[k].max(p[k] + MARGIN_MM);
+            }
+        }
+    }
     Ok(PrintableModel {
-        plate_min_mm: Point3::new(lo(0) - MARGIN_MM, lo(1) - MARGIN_MM, 0.0),
-        plate_max_mm: Point3::new(hi(0) + MARGIN_MM, hi(1) + MARGIN_MM, PLATE_MM),
+        plate_min_mm,
+        plate_max_mm,
+        riser: (floor_mm > PLATE_MM).then_some([riser_min, riser_max]),
         domes,
+        seat,
     })
 }
 
 impl PrintableModel {
-    /// The closed shells' triangles: the plate, then each pillar with its dome.
-    pub fn triangles(&self) -> Vec<Triangle> {
+    /// The tank floor's height, mm: the riser's top, or the plate's.
+    pub fn floor_mm(&self) -> f64 {
+        self.riser.map_or(PLATE_MM, |[_, hi]| hi.z)
+    }
+
+    /// The model's top, mm: the highest dome or the seat's backrest.
+    pub fn top_mm(&self) -> f64 {
+        let domes = self.domes.iter().map(|d| d.centre_mm.z + d.radius_mm);
+        let seat = self.seat.prisms.iter().flat_map(|p| p.profile.iter().map(|q| q.z));
+        domes.chain(seat).fold(0.0, f64::max)
+    }
+
+    /// How many closed shells the model has.
+    pub fn shells(&self) -> usize {
+        1 + usize::from(self.riser.is_some()) + self.domes.len() + self.seat.prisms.len()
+    }
+
+    /// The closed shells' triangles: the plate, the riser, each pillar with its
+    /// dome, then the seat's parts.
+    pub fn triangles(&self) -> Result<Vec<Triangle>, PrintableError> {
         let mut out = box_triangles(self.plate_min_mm, self.plate_max_mm);
-        for d in &self.domes {
-            out.extend(dome_triangles(d, PLATE_MM - 1.0));
+        if let Some([lo, hi]) = self.riser {
+            out.extend(box_triangles(lo, hi));
         }
-        out
+        for d in &self.domes {
+            out.extend(dome_triangles(d, self.floor_mm() - 1.0));
+        }
+        for prism in &self.seat.prisms {
+            out.extend(prism.triangles().ok_or(PrintableError::SeatShell)?);
+        }
+        Ok(out)
     }
 
     /// The enclosed volume of the shells, mm³ (of the smooth shapes, each shell on its own).
     pub fn volume_mm3(&self) -> f64 {
-        let e = self.plate_max_mm - self.plate_min_mm;
-        let plate = e.x * e.y * e.z;
-        plate
+        let box_volume = |lo: Point3<f64>, hi: Point3<f64>| (hi - lo).product();
+        let floor = self.floor_mm();
+        box_volume(self.plate_min_mm, self.plate_max_mm)
+            + self.riser.map_or(0.0, |[lo, hi]| box_volume(lo, hi))
+            + self.seat.prisms.iter().map(|p| p.volume_mm3()).sum::<f64>()
             + self
                 .domes
                 .iter()
                 .map(|d| {
-                    let pillar = d.centre_mm.z - (PLATE_MM - 1.0);
+                    let pillar = d.centre_mm.z - (floor - 1.0);
                     std::f64::consts::PI * d.radius_mm.powi(2) * pillar
                         + 2.0 / 3.0 * std::f64::consts::PI * d.radius_mm.powi(3)
                 })
