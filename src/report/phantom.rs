@@ -7,7 +7,6 @@ use crate::manifest::{DatasetSource, Experiment, Manifest};
 use nalgebra::Point3;
 use serde::Serialize;
 
-use crate::spec::phantom::Phantom;
 use crate::spec::render::RenderSpec;
 use crate::synth::{board_seat, printable};
 
@@ -75,10 +74,6 @@ pub struct SheetSeat {
 }
 
 fn sheet(manifest: &Manifest, model: &printable::PrintableModel, stl: &Path, triangles: usize) -> ModelSheet {
-    let names: Vec<String> = match &manifest.phantom {
-        Phantom::Spheres { spheres } => spheres.iter().map(|s| s.name.clone()).collect(),
-        _ => vec!["hemisphere".into()],
-    };
     let mount = model.seat.mount;
     let corner = model.seat.upright_T_phantom * Point3::new(mount.left_x_mm, mount.bottom_y_mm, 0.0);
     let size = model.plate_max_mm - model.plate_min_mm;
@@ -94,11 +89,11 @@ fn sheet(manifest: &Manifest, model: &printable::PrintableModel, stl: &Path, tri
         height_mm: model.top_mm(),
         floor_mm: model.floor_mm(),
         volume_cm3: model.volume_mm3() / 1000.0,
-        domes: names
-            .into_iter()
-            .zip(&model.domes)
-            .map(|(name, d)| SheetDome {
-                name,
+        domes: model
+            .domes
+            .iter()
+            .map(|d| SheetDome {
+                name: d.name.clone(),
                 centre_mm: d.centre_mm.coords.into(),
                 radius_mm: d.radius_mm,
             })

@@ -27,9 +27,10 @@ pub const FLOOR_BELOW_CENTRE_MM: f64 = 30.0;
 const AROUND: usize = 64;
 const RINGS: usize = 16;
 
-/// A dome of the model: its centre in the upright frame and its radius.
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// A dome of the model: its sphere's name, its centre in the upright frame and its radius.
+#[derive(Debug, Clone, PartialEq)]
 pub struct PrintedDome {
+    pub name: String,
     pub centre_mm: Point3<f64>,
     pub radius_mm: f64,
 }
@@ -106,6 +107,7 @@ pub fn model(
             });
         }
         domes.push(PrintedDome {
+            name: name.clone(),
             centre_mm,
             radius_mm: *radius_mm,
         });
@@ -119,7 +121,7 @@ pub fn model(
     };
     let riser_min = Point3::new(reach(0, -1.0), reach(1, -1.0), PLATE_MM - 1.0);
     let riser_max = Point3::new(reach(0, 1.0), reach(1, 1.0), floor_mm);
-    let upright_T_phantom = Rigid::from_parts(offset.into(), nalgebra::UnitQuaternion::identity()) * world_T_phantom;
+    let upright_T_phantom = Rigid::translation(offset.x, offset.y, offset.z) * world_T_phantom;
     let seat = board_seat::build(upright_T_phantom, mount)?;
     let mut plate_min_mm = Point3::new(riser_min.x, riser_min.y, 0.0);
     let mut plate_max_mm = Point3::new(riser_max.x, riser_max.y, PLATE_MM);
