@@ -7,21 +7,32 @@
 //! the same in pixels as in millimetres), the middle dot sits at
 //! `W12 + alpha (W32 - W12)` in the phantom frame, where W12 (W32) is the crossing
 //! of the infinite lines of wires 1 and 2 (3 and 2): similar triangles.
+//!
+//! The pattern search takes PLUS's device-set settings with PLUS's meaning
+//! (`PlusFidLabeling`, `PlusFidLineFinder`): rows (PLUS's lines) of three
+//! collinear dots at an angle within `MinThetaDegrees`..`MaxThetaDegrees`; every
+//! two rows of a set parallel within `AngleToleranceDegrees`, apart by between
+//! the phantom's smallest plane distance less `MaxLinePairDistanceErrorPercent`
+//! and its largest plus it, and shifted along each other by at most
+//! `MaxLineShiftMm`. probecal's own checks on top are scale-free (they hold
+//! whatever the true pixel size): neighbouring rows apart in the proportion of
+//! their patterns' planes, the rows' lengths stretched alike, and the middle dots
+//! as far apart as the phantom puts them, each within the same percentage.
 
 use serde::{Deserialize, Serialize};
 
+use crate::io::plus::config::PlusConfig;
 use crate::spec::nwire::NWire;
 
-/// Settings of the dot segmentation.
-#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
-#[serde(deny_unknown_fields, default)]
+/// Settings of the dot segmentation (each with the PLUS attribute it stands for).
+#[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Segmentation {
     /// Pixels brighter than this grey level belong to a dot; absent: each
     /// frame's own, `threshold_percent` % of its brightest pixel after the opening
     /// (inside the clip rectangle).
     pub threshold_grey: Option<u8>,
-    /// The frame's threshold as a share of its brightest opened pixel, % (PLUS's
-    /// `ThresholdImagePercent`).
+    /// The frame's threshold as a share of its brightest opened pixel, %
+    /// (`ThresholdImagePercent`).
     pub threshold_percent: f64,
     /// Fewest pixels of a dot.
     pub min_dot_px: usize,
@@ -31,25 +42,34 @@ pub struct Segmentation {
     /// Radius of the disk of the morphological opening applied first (0: none);
     /// absent: `opening_radius_mm` over the approximate pixel size.
     pub opening_radius_px: Option<u32>,
-    /// The opening's radius in the image, mm (PLUS's
-    /// `MorphologicalOpeningCircleRadiusMm`): thinner than a wire's echo, thicker
-    /// than speckle.
+    /// The opening's radius in the image, mm (`MorphologicalOpeningCircleRadiusMm`):
+    /// thinner than a wire's echo, thicker than speckle.
     pub opening_radius_mm: f64,
-    /// How many of the brightest spots are considered.
+    /// How many of the brightest spots are considered
+    /// (`NumberOfMaximumFiducialPointCandidates`).
     pub max_candidates: usize,
-    /// Largest distance of the middle dot from the line through the outer two.
+    /// Largest distance of the middle dot from the line through the outer two, mm
+    /// (`CollinearPointsMaxDistanceFromLineMm`).
     pub collinear_tolerance_mm: f64,
-    /// Largest tilt of a row of dots from the image's horizontal.
+    /// Smallest and largest angle of a row of dots from the image's horizontal,
+    /// degrees (`MinThetaDegrees`, `MaxThetaDegrees`).
+    pub min_row_angle_deg: f64,
     pub max_row_angle_deg: f64,
-    /// Largest angle between the rows of one frame.
+    /// Largest angle between two rows of one frame, degrees
+    /// (`AngleToleranceDegrees`: rows closer than it are parallel; the
+    /// patterns' planes are parallel, so no other pair is a pattern set).
     pub max_row_angle_difference_deg: f64,
-    /// Largest difference between two neighbouring rows' distance and the
-    /// phantom's distance between their patterns, % (PLUS's
-    /// `MaxLinePairDistanceErrorPercent`).
+    /// Every two rows of a set lie between the phantom's smallest plane distance
+    /// less this and its largest plus this, % (`MaxLinePairDistanceErrorPercent`);
+    /// probecal's scale-free checks use the same percentage.
     pub row_gap_tolerance_percent: f64,
-    /// Largest shift of neighbouring rows' centres along the rows, mm (PLUS's
-    /// `MaxLineShiftMm`): the patterns lie one behind the other.
+    /// Largest shift of two rows' midpoints along the rows, mm (`MaxLineShiftMm`):
+    /// the patterns lie one behind the other.
     pub max_row_shift_mm: f64,
+    /// A spot's strength is the sum of the original image's grey levels over it
+    /// (`UseOriginalImageIntensityForDotIntensityScore`); otherwise the opened
+    /// image's, as PLUS's default.
+    pub original_intensity_score: bool,
     /// Region searched `[u, v, width, height]` px; absent: the configuration's clip
     /// rectangle, or the whole image.
     pub clip_rectangle_px: Option<[usize; 4]>,
@@ -57,6 +77,83 @@ pub struct Segmentation {
     pub first_pattern_row: RowOrder,
     /// On which side of a row the pattern's wire 1 appears.
     pub first_wire_side: Side,
+}
+
+/// A manifest's `bscan.segmentation`: each key replaces the device set's value
+/// (or PLUS's default where the device set gives none).
+#[derive(Debug, Clone, Default, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct SegmentationOverrides {
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub threshold_grey: Option<u8>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub threshold_percent: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub min_dot_px: Option<usize>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub core_fraction: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub opening_radius_px: Option<u32>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub opening_radius_mm: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub max_candidates: Option<usize>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub collinear_tolerance_mm: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub min_row_angle_deg: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub max_row_angle_deg: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub max_row_angle_difference_deg: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub row_gap_tolerance_percent: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub max_row_shift_mm: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub original_intensity_score: Option<bool>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub clip_rectangle_px: Option<[usize; 4]>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub first_pattern_row: Option<RowOrder>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub first_wire_side: Option<Side>,
+}
+
+impl SegmentationOverrides {
+    /// `base` with every key this gives replaced.
+    pub fn apply(&self, base: &Segmentation) -> Segmentation {
+        let mut s = base.clone();
+        macro_rules! set {
+            ($($field:ident),*) => {$(if let Some(v) = self.$field { s.$field = v; })*};
+        }
+        set!(
+            threshold_percent,
+            min_dot_px,
+            core_fraction,
+            opening_radius_mm,
+            max_candidates,
+            collinear_tolerance_mm,
+            min_row_angle_deg,
+            max_row_angle_deg,
+            max_row_angle_difference_deg,
+            row_gap_tolerance_percent,
+            max_row_shift_mm,
+            original_intensity_score,
+            first_pattern_row,
+            first_wire_side
+        );
+        if self.threshold_grey.is_some() {
+            s.threshold_grey = self.threshold_grey;
+        }
+        if self.opening_radius_px.is_some() {
+            s.opening_radius_px = self.opening_radius_px;
+        }
+        if self.clip_rectangle_px.is_some() {
+            s.clip_rectangle_px = self.clip_rectangle_px;
+        }
+        s
+    }
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize)]
@@ -75,9 +172,10 @@ pub enum Side {
 
 impl Default for Segmentation {
     fn default() -> Self {
-        // The threshold and the opening follow each image and its pixel size, with
-        // PLUS's defaults (10 % of the brightest opened pixel; a 0.27 mm disk);
-        // comet tails below a dot are dimmer and off the row's line.
+        // PLUS's defaults (`PlusFidSegmentation`): the threshold and the opening
+        // follow each image and its pixel size (10 % of the brightest opened
+        // pixel; a 0.27 mm disk); comet tails below a dot are dimmer and off the
+        // row's line.
         Segmentation {
             threshold_grey: None,
             threshold_percent: 10.0,
@@ -87,10 +185,12 @@ impl Default for Segmentation {
             opening_radius_mm: 0.27,
             max_candidates: 20,
             collinear_tolerance_mm: 0.6,
-            max_row_angle_deg: 40.0,
+            min_row_angle_deg: -70.0,
+            max_row_angle_deg: 70.0,
             max_row_angle_difference_deg: 10.0,
             row_gap_tolerance_percent: 10.0,
             max_row_shift_mm: 10.0,
+            original_intensity_score: false,
             clip_rectangle_px: None,
             first_pattern_row: RowOrder::Top,
             first_wire_side: Side::Right,
@@ -98,7 +198,39 @@ impl Default for Segmentation {
     }
 }
 
+/// Most dot candidates a frame's pattern search considers.
+const MAX_CANDIDATES: usize = 50;
+
 impl Segmentation {
+    /// The segmentation settings a device set gives, over PLUS's defaults, each
+    /// with PLUS's meaning (the module's doc).
+    pub fn from_device_set(config: &PlusConfig) -> Segmentation {
+        let s = &config.segmentation;
+        let defaults = Segmentation::default();
+        let (min_row_angle_deg, max_row_angle_deg) = s
+            .theta_range_deg
+            .unwrap_or((defaults.min_row_angle_deg, defaults.max_row_angle_deg));
+        Segmentation {
+            opening_radius_mm: s.opening_radius_mm.unwrap_or(defaults.opening_radius_mm),
+            threshold_percent: s.threshold_percent.unwrap_or(defaults.threshold_percent),
+            collinear_tolerance_mm: s.collinear_tolerance_mm.unwrap_or(defaults.collinear_tolerance_mm),
+            row_gap_tolerance_percent: s
+                .row_gap_tolerance_percent
+                .unwrap_or(defaults.row_gap_tolerance_percent),
+            max_row_shift_mm: s.max_row_shift_mm.unwrap_or(defaults.max_row_shift_mm),
+            max_row_angle_difference_deg: s.angle_tolerance_deg.unwrap_or(defaults.max_row_angle_difference_deg),
+            min_row_angle_deg,
+            max_row_angle_deg,
+            original_intensity_score: s.original_intensity_score.unwrap_or(defaults.original_intensity_score),
+            max_candidates: s
+                .max_candidates
+                .map(|n| n.clamp(defaults.max_candidates, MAX_CANDIDATES))
+                .unwrap_or(defaults.max_candidates),
+            clip_rectangle_px: config.clip_rectangle_px.map(|(o, s)| [o[0], o[1], s[0], s[1]]),
+            ..defaults
+        }
+    }
+
     /// The opening's radius for images of about `spacing_mm_per_px`.
     pub fn opening_radius_for(&self, spacing_mm_per_px: f64) -> u32 {
         self.opening_radius_px
@@ -121,6 +253,15 @@ impl Segmentation {
             .round()
             .clamp(1.0, 254.0) as u8
     }
+
+    /// Whether a row at `angle_deg` from the horizontal (either direction) lies
+    /// within `MinThetaDegrees`..`MaxThetaDegrees`.
+    fn row_angle_allowed(&self, angle_deg: f64) -> bool {
+        let (lo, hi) = (self.min_row_angle_deg, self.max_row_angle_deg);
+        [angle_deg, angle_deg - 180.0, angle_deg + 180.0]
+            .iter()
+            .any(|a| *a > lo && *a < hi)
+    }
 }
 
 /// A bright region that may be a wire dot: its intensity-weighted centre and strength.
@@ -128,7 +269,8 @@ impl Segmentation {
 pub struct DotCandidate {
     pub centre_px: [f64; 2],
     pub pixels: usize,
-    /// Sum of grey levels above the threshold.
+    /// Sum of the spot's grey levels (the opened image's, or the original's with
+    /// `original_intensity_score`).
     pub weight: f64,
 }
 
@@ -209,7 +351,12 @@ pub fn find_spots(
             if members.len() < settings.min_dot_px {
                 continue;
             }
-            let weight: f64 = members.iter().map(|&j| f64::from(pixels[j] - t)).sum();
+            let scored = if settings.original_intensity_score {
+                pixels
+            } else {
+                centre_pixels
+            };
+            let weight: f64 = members.iter().map(|&j| f64::from(scored[j])).sum();
             // The centre from the dot's core: grey levels above a fraction of its peak.
             let centre = |grey: &[u8]| {
                 let peak = members.iter().map(|&j| grey[j]).max().unwrap_or(t);
@@ -252,28 +399,96 @@ pub fn find_spots(
 struct Row {
     spots: [usize; 3],
     angle_rad: f64,
-    /// Outer dots' distance over the pattern width's scale (px).
+    /// Outer dots' distance (px).
     length_px: f64,
     weight: f64,
-    mean_u: f64,
+    /// The outer dots (px): PLUS's line start and end.
+    ends: [[f64; 2]; 2],
     mean_v: f64,
+}
+
+impl Row {
+    fn midpoint(&self) -> [f64; 2] {
+        let [a, b] = self.ends;
+        [(a[0] + b[0]) / 2.0, (a[1] + b[1]) / 2.0]
+    }
+
+    fn unit(&self) -> [f64; 2] {
+        let [a, b] = self.ends;
+        [(b[0] - a[0]) / self.length_px, (b[1] - a[1]) / self.length_px]
+    }
+
+    /// Distance of `point` from this row's line, px.
+    fn distance_of(&self, point: [f64; 2]) -> f64 {
+        let [a, _] = self.ends;
+        let d = self.unit();
+        ((point[0] - a[0]) * d[1] - (point[1] - a[1]) * d[0]).abs()
+    }
+}
+
+/// One check of the pattern search that a set of rows failed: what was
+/// measured, and the limit it broke.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FailedCheck {
+    /// The check's name (one of [`CHECKS`]).
+    pub check: &'static str,
+    pub value: f64,
+    pub limit: f64,
+    pub unit: &'static str,
+    /// The setting the limit comes from.
+    pub setting: &'static str,
+}
+
+/// The checks of a set of rows, in the order they are made.
+pub const CHECKS: [&str; 6] = [
+    "rows parallel",
+    "line pair distance",
+    "line shift",
+    "row lengths alike",
+    "row gaps in the phantom's proportion",
+    "middle dots as the phantom's",
+];
+
+impl std::fmt::Display for FailedCheck {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "{} {:.2} {}, limit {:.2} {} ({})",
+            self.check, self.value, self.unit, self.limit, self.unit, self.setting
+        )
+    }
 }
 
 /// Why a B-scan's dots do not make the phantom's N-wire patterns.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum NWireRejection {
-    #[error("{spots} bright spots above the grey threshold, {needed} needed for {patterns} N-wires")]
+    #[error("spot count: {spots} bright spots above the grey threshold, {needed} needed for {patterns} N-wires")]
     TooFewSpots {
         spots: usize,
         needed: usize,
         patterns: usize,
     },
-    #[error("{rows} rows of 3 collinear dots among {spots} spots, {patterns} needed")]
-    TooFewRows { rows: usize, spots: usize, patterns: usize },
     #[error(
-        "no {patterns} disjoint, parallel rows of 3 collinear dots spaced as the phantom's patterns (of {rows} candidate rows)"
+        "row count: {rows} rows of 3 collinear dots (CollinearPointsMaxDistanceFromLineMm, MinThetaDegrees..MaxThetaDegrees) among {spots} spots, {patterns} needed"
     )]
-    NoParallelRows { patterns: usize, rows: usize },
+    TooFewRows { rows: usize, spots: usize, patterns: usize },
+    #[error("{failed} (the strongest set of {patterns} disjoint rows of {rows} candidate rows that got furthest)")]
+    NoPattern {
+        patterns: usize,
+        rows: usize,
+        failed: FailedCheck,
+    },
+}
+
+impl NWireRejection {
+    /// The check that failed, for summaries.
+    pub fn check(&self) -> &'static str {
+        match self {
+            NWireRejection::TooFewSpots { .. } => "spot count",
+            NWireRejection::TooFewRows { .. } => "row count",
+            NWireRejection::NoPattern { failed, .. } => failed.check,
+        }
+    }
 }
 
 /// What the image of the phantom's patterns should look like.
@@ -286,6 +501,10 @@ pub struct PatternGeometry {
     /// Distance between each pattern's plane and the next one's, over the
     /// approximate pixel size (px), in the phantom definition's order.
     pub row_gaps_px: Vec<f64>,
+    /// Smallest and largest distance between any two patterns' planes, over the
+    /// approximate pixel size (px): PLUS's line pair distance range before its
+    /// tolerance.
+    pub plane_distances_px: (f64, f64),
     pub spacing_mm_per_px: f64,
     /// The patterns themselves (empty: their middle dots are not checked).
     pub nwires: Vec<NWire>,
@@ -294,10 +513,10 @@ pub struct PatternGeometry {
 /// Finds one row of three collinear dots per pattern and assigns them to the wires.
 ///
 /// A row may be up to 1.6x longer than its pattern's width (a plane crossing the
-/// wires obliquely) and 0.85x shorter; neighbouring rows must lie as far apart
-/// as their patterns, within `row_gap_tolerance_percent`, taken along the rows'
-/// normal (a plane tilted about the rows only lengthens that distance by a few
-/// percent at the tilts a sweep uses).
+/// wires obliquely) and 0.85x shorter. A set of rows is then checked as PLUS
+/// checks it and by probecal's scale-free checks (the module's doc); among the
+/// sets that pass, the strongest is taken. When none passes, the rejection names
+/// the check that the set that got furthest failed, with its value and limit.
 pub fn segment(
     spots: &[DotCandidate],
     geometry: &PatternGeometry,
@@ -314,7 +533,6 @@ pub fn segment(
         });
     }
     let tolerance_px = settings.collinear_tolerance_mm / spacing_mm_per_px;
-    let max_angle = settings.max_row_angle_deg.to_radians();
     let mut rows = Vec::new();
     let n = spots.len();
     for a in 0..n {
@@ -329,7 +547,7 @@ pub fn segment(
                     continue;
                 }
                 let angle = dy.atan2(dx);
-                if angle.abs() > max_angle {
+                if !settings.row_angle_allowed(angle.to_degrees()) {
                     continue;
                 }
                 let off = ((q[0] - p[0]) * dy - (q[1] - p[1]) * dx).abs() / length;
@@ -341,7 +559,7 @@ pub fn segment(
                     angle_rad: angle,
                     length_px: length,
                     weight: idx.iter().map(|&i| spots[i].weight).sum(),
-                    mean_u: (p[0] + q[0] + r[0]) / 3.0,
+                    ends: [p, r],
                     mean_v: (p[1] + q[1] + r[1]) / 3.0,
                 });
             }
@@ -356,10 +574,6 @@ pub fn segment(
     }
     rows.sort_by(|a, b| b.weight.total_cmp(&a.weight));
     rows.truncate(60);
-    // The strongest set of disjoint, parallel rows.
-    let max_diff = settings.max_row_angle_difference_deg.to_radians();
-    let mut best: Option<(f64, Vec<usize>)> = None;
-    let mut chosen = Vec::new();
     let mut gaps = geometry.row_gaps_px.clone();
     // Rows of patterns whose side wires all run alike are stretched alike.
     let parallel = geometry.nwires.windows(2).all(|p| {
@@ -378,20 +592,37 @@ pub fn segment(
         gaps.reverse();
         widths.reverse();
     }
+    let tolerance = settings.row_gap_tolerance_percent / 100.0;
     let limits = SearchLimits {
         wanted: patterns,
-        max_diff,
+        max_angle_rad: settings.max_row_angle_difference_deg.to_radians(),
+        pair_distance_px: (
+            geometry.plane_distances_px.0 * (1.0 - tolerance),
+            geometry.plane_distances_px.1 * (1.0 + tolerance),
+        ),
         gaps_px: &gaps,
-        gap_tolerance: settings.row_gap_tolerance_percent / 100.0,
+        tolerance,
         widths_mm: &widths,
         max_shift_px: settings.max_row_shift_mm / spacing_mm_per_px,
-        phantom: (!geometry.nwires.is_empty()).then_some((spots, &geometry.nwires[..], spacing_mm_per_px, settings)),
+        spacing_mm_per_px,
+        phantom: (!geometry.nwires.is_empty()).then_some((spots, &geometry.nwires[..], settings)),
     };
-    search(&rows, &limits, 0, &mut chosen, &mut best);
-    let (_, picked) = best.ok_or(NWireRejection::NoParallelRows {
-        patterns,
-        rows: rows.len(),
-    })?;
+    let mut search = Search::default();
+    search.run(&rows, &limits, 0, &mut Vec::new());
+    let Some((_, picked)) = search.best else {
+        let failed = search.furthest.map(|(_, _, f)| f).unwrap_or(FailedCheck {
+            check: "rows parallel",
+            value: f64::NAN,
+            limit: settings.max_row_angle_difference_deg,
+            unit: "°",
+            setting: "no disjoint rows",
+        });
+        return Err(NWireRejection::NoPattern {
+            patterns,
+            rows: rows.len(),
+            failed,
+        });
+    };
     Ok(NWireDots {
         patterns: assign(&rows, &picked, spots, settings),
     })
@@ -417,99 +648,227 @@ fn assign(rows: &[Row], chosen: &[usize], spots: &[DotCandidate], settings: &Seg
         .collect()
 }
 
-/// Whether the middle dots lie as far apart in the image as the points of the
-/// phantom their ratios put them at (both in mm, the image's at the approximate
-/// pixel size): a wrong dot moves its pattern's point along the diagonal wire.
-fn middles_consistent(patterns: &[[[f64; 2]; 3]], nwires: &[NWire], spacing_mm_per_px: f64, tolerance: f64) -> bool {
+/// What a set of rows must satisfy.
+struct SearchLimits<'a> {
+    wanted: usize,
+    /// `AngleToleranceDegrees`.
+    max_angle_rad: f64,
+    /// PLUS's allowed distance between any two rows, px.
+    pair_distance_px: (f64, f64),
+    /// The phantom's distances between neighbouring patterns, top to bottom, px.
+    gaps_px: &'a [f64],
+    /// `MaxLinePairDistanceErrorPercent` as a fraction.
+    tolerance: f64,
+    /// The patterns' widths, top to bottom (empty: not checked), mm.
+    widths_mm: &'a [f64],
+    max_shift_px: f64,
+    spacing_mm_per_px: f64,
+    /// The phantom, when known: the middle dots must agree with it.
+    phantom: Option<(&'a [DotCandidate], &'a [NWire], &'a Segmentation)>,
+}
+
+/// The pattern search's state: the strongest set that passed, and the failure of
+/// the set that got furthest through the checks (strongest first among equals).
+#[derive(Default)]
+struct Search {
+    best: Option<(f64, Vec<usize>)>,
+    furthest: Option<(usize, f64, FailedCheck)>,
+}
+
+impl Search {
+    fn run(&mut self, rows: &[Row], limits: &SearchLimits<'_>, start: usize, chosen: &mut Vec<usize>) {
+        if chosen.len() == limits.wanted {
+            let weight: f64 = chosen.iter().map(|&i| rows[i].weight).sum();
+            match check_set(rows, chosen, limits) {
+                Ok(()) => {
+                    if self.best.as_ref().is_none_or(|(w, _)| weight > *w) {
+                        self.best = Some((weight, chosen.clone()));
+                    }
+                }
+                Err(failed) => {
+                    let stage = CHECKS.iter().position(|c| *c == failed.check).unwrap_or(0);
+                    let further = self
+                        .furthest
+                        .as_ref()
+                        .is_none_or(|(s, w, _)| stage > *s || (stage == *s && weight > *w));
+                    if further {
+                        self.furthest = Some((stage, weight, failed));
+                    }
+                }
+            }
+            return;
+        }
+        for i in start..rows.len() {
+            let disjoint = chosen
+                .iter()
+                .all(|&j| rows[i].spots.iter().all(|s| !rows[j].spots.contains(s)));
+            if disjoint {
+                chosen.push(i);
+                self.run(rows, limits, i + 1, chosen);
+                chosen.pop();
+            }
+        }
+    }
+}
+
+/// The checks of one set of rows, in [`CHECKS`]' order: the first that fails.
+fn check_set(rows: &[Row], chosen: &[usize], limits: &SearchLimits<'_>) -> Result<(), FailedCheck> {
+    let mut sorted: Vec<&Row> = chosen.iter().map(|&i| &rows[i]).collect();
+    sorted.sort_by(|a, b| a.mean_v.total_cmp(&b.mean_v));
+    let mm = limits.spacing_mm_per_px;
+    // PLUS's checks, on every pair of rows.
+    let pairs: Vec<(&Row, &Row)> = (0..sorted.len())
+        .flat_map(|i| (i + 1..sorted.len()).map(move |j| (i, j)))
+        .map(|(i, j)| (sorted[i], sorted[j]))
+        .collect();
+    let worst = |values: Vec<f64>| values.into_iter().fold(0.0, f64::max);
+    let angle = worst(
+        pairs
+            .iter()
+            .map(|(a, b)| {
+                let d = (a.angle_rad - b.angle_rad).abs();
+                d.min(std::f64::consts::PI - d)
+            })
+            .collect(),
+    );
+    if angle >= limits.max_angle_rad {
+        return Err(FailedCheck {
+            check: CHECKS[0],
+            value: angle.to_degrees(),
+            limit: limits.max_angle_rad.to_degrees(),
+            unit: "°",
+            setting: "AngleToleranceDegrees",
+        });
+    }
+    let (lo, hi) = limits.pair_distance_px;
+    for (a, b) in &pairs {
+        let distance = b.distance_of(a.ends[0]);
+        if distance > hi || distance < lo {
+            let limit = if distance > hi { hi } else { lo };
+            return Err(FailedCheck {
+                check: CHECKS[1],
+                value: distance * mm,
+                limit: limit * mm,
+                unit: "mm",
+                setting: "MaxLinePairDistanceErrorPercent",
+            });
+        }
+    }
+    for (a, b) in &pairs {
+        let (ma, mb, d) = (a.midpoint(), b.midpoint(), a.unit());
+        let shift = ((mb[0] - ma[0]) * d[0] + (mb[1] - ma[1]) * d[1]).abs();
+        if shift > limits.max_shift_px {
+            return Err(FailedCheck {
+                check: CHECKS[2],
+                value: shift * mm,
+                limit: limits.max_shift_px * mm,
+                unit: "mm",
+                setting: "MaxLineShiftMm",
+            });
+        }
+    }
+    scale_free_checks(&sorted, limits)?;
+    if let Some((spots, nwires, settings)) = limits.phantom {
+        let patterns = assign(rows, chosen, spots, settings);
+        if let Some(off) = middles_off(&patterns, nwires, mm) {
+            if off > limits.tolerance {
+                return Err(FailedCheck {
+                    check: CHECKS[5],
+                    value: off * 100.0,
+                    limit: limits.tolerance * 100.0,
+                    unit: "%",
+                    setting: "MaxLinePairDistanceErrorPercent",
+                });
+            }
+        }
+    }
+    Ok(())
+}
+
+/// The image's scale against the approximate pixel size: the rows' gaps over
+/// the phantom's, top to bottom (1 with a single row).
+fn image_scale(sorted: &[&Row], gaps_px: &[f64]) -> f64 {
+    let observed: f64 = sorted
+        .windows(2)
+        .map(|pair| pair[1].distance_of(pair[0].midpoint()))
+        .sum();
+    let expected: f64 = gaps_px.iter().take(sorted.len().saturating_sub(1)).sum();
+    if expected > 0.0 && observed > 0.0 {
+        observed / expected
+    } else {
+        1.0
+    }
+}
+
+/// probecal's checks that hold whatever the true pixel size: the rows' lengths
+/// stretched alike (patterns whose side wires run alike) and the neighbouring
+/// rows apart in the proportion of their patterns' planes.
+fn scale_free_checks(sorted: &[&Row], limits: &SearchLimits<'_>) -> Result<(), FailedCheck> {
+    let stretch: Vec<f64> = sorted
+        .iter()
+        .zip(limits.widths_mm)
+        .map(|(row, w)| row.length_px / w)
+        .collect();
+    if stretch.len() >= 2 {
+        let (lo, hi) = stretch
+            .iter()
+            .fold((f64::INFINITY, 0.0f64), |(lo, hi), s| (lo.min(*s), hi.max(*s)));
+        if hi - lo > limits.tolerance * hi {
+            return Err(FailedCheck {
+                check: CHECKS[3],
+                value: (hi - lo) / hi * 100.0,
+                limit: limits.tolerance * 100.0,
+                unit: "%",
+                setting: "MaxLinePairDistanceErrorPercent",
+            });
+        }
+    }
+    let scale = image_scale(sorted, limits.gaps_px);
+    for (pair, want) in sorted.windows(2).zip(limits.gaps_px) {
+        let gap = pair[1].distance_of(pair[0].midpoint());
+        let off = (gap / scale - want).abs() / want;
+        if off > limits.tolerance {
+            return Err(FailedCheck {
+                check: CHECKS[4],
+                value: off * 100.0,
+                limit: limits.tolerance * 100.0,
+                unit: "%",
+                setting: "MaxLinePairDistanceErrorPercent",
+            });
+        }
+    }
+    Ok(())
+}
+
+/// How far (a fraction) the middle dots lie from as far apart in the image as
+/// the points of the phantom their ratios put them at (a wrong dot moves its
+/// pattern's point along the diagonal wire). With three patterns or more, each
+/// neighbouring pair against their common scale, whatever the true pixel size;
+/// with two, against the approximate pixel size (as PLUS's line pair distance).
+/// `None` with a single pattern.
+fn middles_off(patterns: &[[[f64; 2]; 3]], nwires: &[NWire], spacing_mm_per_px: f64) -> Option<f64> {
     let points: Vec<_> = patterns
         .iter()
         .zip(nwires)
         .map(|(dots, n)| (dots[1], n.middle_in_phantom_mm(dots)))
         .collect();
-    points.windows(2).all(|pair| {
-        let ((a, pa), (b, pb)) = (pair[0], pair[1]);
-        let in_image = ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2)).sqrt() * spacing_mm_per_px;
-        let in_phantom = (pa - pb).norm();
-        (in_image - in_phantom).abs() <= tolerance * in_phantom
-    })
-}
-
-/// What a set of rows must satisfy.
-struct SearchLimits<'a> {
-    wanted: usize,
-    max_diff: f64,
-    /// Expected distances between neighbouring rows, top to bottom, px.
-    gaps_px: &'a [f64],
-    gap_tolerance: f64,
-    /// The patterns' widths, top to bottom (empty: not checked), mm.
-    widths_mm: &'a [f64],
-    max_shift_px: f64,
-    /// The phantom, when known: the middle dots must agree with it.
-    phantom: Option<(&'a [DotCandidate], &'a [NWire], f64, &'a Segmentation)>,
-}
-
-/// Whether the rows, top to bottom, are spaced as the patterns.
-fn spaced_as_patterns(rows: &[Row], chosen: &[usize], limits: &SearchLimits<'_>) -> bool {
-    let mut sorted: Vec<&Row> = chosen.iter().map(|&i| &rows[i]).collect();
-    sorted.sort_by(|a, b| a.mean_v.total_cmp(&b.mean_v));
-    let stretch: Vec<Option<f64>> = (0..sorted.len())
-        .map(|k| limits.widths_mm.get(k).map(|w| sorted[k].length_px / w))
-        .collect();
-    sorted
+    let pairs: Vec<(f64, f64)> = points
         .windows(2)
-        .zip(limits.gaps_px)
-        .enumerate()
-        .all(|(k, (pair, want))| {
-            // The second row's centre from the first row's line, along its normal.
-            let angle = (pair[0].angle_rad + pair[1].angle_rad) / 2.0;
-            let (du, dv) = (pair[1].mean_u - pair[0].mean_u, pair[1].mean_v - pair[0].mean_v);
-            let gap = dv * angle.cos() - du * angle.sin();
-            let shift = du * angle.cos() + dv * angle.sin();
-            // One plane cutting parallel side wires stretches every pattern's width alike.
-            let alike = match (stretch[k], stretch[k + 1]) {
-                (Some(a), Some(b)) => (a - b).abs() <= limits.gap_tolerance * a.max(b),
-                _ => true,
-            };
-            (gap - want).abs() <= limits.gap_tolerance * want && shift.abs() <= limits.max_shift_px && alike
+        .map(|pair| {
+            let ((a, pa), (b, pb)) = (pair[0], pair[1]);
+            let in_image = ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2)).sqrt() * spacing_mm_per_px;
+            (in_image, (pa - pb).norm())
         })
-}
-
-fn search(
-    rows: &[Row],
-    limits: &SearchLimits<'_>,
-    start: usize,
-    chosen: &mut Vec<usize>,
-    best: &mut Option<(f64, Vec<usize>)>,
-) {
-    let (wanted, max_diff) = (limits.wanted, limits.max_diff);
-    if chosen.len() == wanted {
-        if !spaced_as_patterns(rows, chosen, limits) {
-            return;
-        }
-        if let Some((spots, nwires, spacing, settings)) = limits.phantom {
-            let patterns = assign(rows, chosen, spots, settings);
-            if !middles_consistent(&patterns, nwires, spacing, limits.gap_tolerance) {
-                return;
-            }
-        }
-        let weight: f64 = chosen.iter().map(|&i| rows[i].weight).sum();
-        if best.as_ref().is_none_or(|(w, _)| weight > *w) {
-            *best = Some((weight, chosen.clone()));
-        }
-        return;
-    }
-    for i in start..rows.len() {
-        let row = &rows[i];
-        let fits = chosen.iter().all(|&j| {
-            let other = &rows[j];
-            (row.angle_rad - other.angle_rad).abs() <= max_diff && row.spots.iter().all(|s| !other.spots.contains(s))
-        });
-        if fits {
-            chosen.push(i);
-            search(rows, limits, i + 1, chosen, best);
-            chosen.pop();
-        }
-    }
+        .collect();
+    let scale = if pairs.len() >= 2 {
+        pairs.iter().map(|p| p.0).sum::<f64>() / pairs.iter().map(|p| p.1).sum::<f64>()
+    } else {
+        1.0
+    };
+    pairs
+        .iter()
+        .map(|(in_image, in_phantom)| (in_image / scale - in_phantom).abs() / in_phantom)
+        .reduce(f64::max)
 }
 
 #[cfg(test)]
@@ -543,6 +902,7 @@ mod tests {
             patterns: 3,
             widths_px: (110.0, 130.0),
             row_gaps_px: vec![35.0, 35.0],
+            plane_distances_px: (35.0, 70.0),
             spacing_mm_per_px: 0.1,
             nwires: Vec::new(),
         };
@@ -554,20 +914,68 @@ mod tests {
         // Rows spaced unlike the phantom's patterns are not a pattern set.
         let far_apart = PatternGeometry {
             row_gaps_px: vec![60.0, 60.0],
+            plane_distances_px: (60.0, 120.0),
             ..geometry.clone()
         };
-        assert!(matches!(
-            segment(&spots, &far_apart, &settings),
-            Err(NWireRejection::NoParallelRows { .. })
-        ));
+        let rejection = segment(&spots, &far_apart, &settings).unwrap_err();
+        assert_eq!(rejection.check(), "line pair distance", "{rejection}");
+        assert!(
+            rejection
+                .to_string()
+                .contains("limit 5.40 mm (MaxLinePairDistanceErrorPercent)"),
+            "{rejection}"
+        );
         // Two patterns 70 px apart: the top and bottom rows, not neighbours.
         let two = PatternGeometry {
             patterns: 2,
             row_gaps_px: vec![70.0],
+            plane_distances_px: (70.0, 70.0),
             ..geometry
         };
         let dots = segment(&spots, &two, &settings).unwrap();
         assert!((dots.patterns[0][0][1] - 23.0).abs() < 1e-9 && (dots.patterns[1][0][1] - 93.0).abs() < 1e-9);
+    }
+
+    /// Rows 11 % further apart than the approximate pixel size puts the
+    /// patterns (39 px for 35): PLUS's 10 % refuses the outer pair (78 px
+    /// against at most 77), 15 % takes them, as PLUS would.
+    #[test]
+    fn line_pair_distance_is_plus_s_range_over_every_pair() {
+        let (w, h) = (200usize, 140usize);
+        let mut img = vec![0u8; w * h];
+        for v in [20usize, 59, 98] {
+            for u in [30usize, 90, 150] {
+                for dv in 0..3 {
+                    for du in 0..3 {
+                        img[(v + dv) * w + u + du] = 200;
+                    }
+                }
+            }
+        }
+        let geometry = PatternGeometry {
+            patterns: 3,
+            widths_px: (110.0, 130.0),
+            row_gaps_px: vec![35.0, 35.0],
+            plane_distances_px: (35.0, 70.0),
+            spacing_mm_per_px: 0.1,
+            nwires: Vec::new(),
+        };
+        let strict = Segmentation::default();
+        let spots = find_spots(&img, &img, w, h, [0, 0, w, h], &strict);
+        let rejection = segment(&spots, &geometry, &strict).unwrap_err();
+        assert_eq!(rejection.check(), "line pair distance");
+        let NWireRejection::NoPattern { failed, .. } = &rejection else {
+            panic!("{rejection}")
+        };
+        assert!(
+            (failed.value - 7.8).abs() < 1e-9 && (failed.limit - 7.7).abs() < 1e-9,
+            "{rejection}"
+        );
+        let loose = Segmentation {
+            row_gap_tolerance_percent: 15.0,
+            ..Segmentation::default()
+        };
+        assert_eq!(segment(&spots, &geometry, &loose).unwrap().patterns.len(), 3);
     }
 
     /// The threshold follows each image's own brightness unless the manifest

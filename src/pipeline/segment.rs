@@ -14,9 +14,6 @@ use crate::io::plus::sequence::{Orientation, Sequence};
 use crate::pipeline::sequence_frames::{clip_or_overlay, segment_frames, Role, SegmentationInputs, TrackedFrame};
 use crate::pipeline::tracked::TrackedError;
 
-/// Most dot candidates a frame's pattern search considers.
-const MAX_CANDIDATES: usize = 50;
-
 /// A segmented sequence.
 #[derive(Debug, Clone)]
 pub struct SegmentRun {
@@ -36,24 +33,9 @@ pub struct SegmentRun {
     pub images: Sequence,
 }
 
-/// The segmentation settings a device set gives, over the defaults.
+/// The segmentation settings a device set gives, over PLUS's defaults.
 pub fn settings_of(config: &PlusConfig) -> Segmentation {
-    let s = &config.segmentation;
-    let defaults = Segmentation::default();
-    Segmentation {
-        opening_radius_mm: s.opening_radius_mm.unwrap_or(defaults.opening_radius_mm),
-        threshold_percent: s.threshold_percent.unwrap_or(defaults.threshold_percent),
-        collinear_tolerance_mm: s.collinear_tolerance_mm.unwrap_or(defaults.collinear_tolerance_mm),
-        row_gap_tolerance_percent: s
-            .row_gap_tolerance_percent
-            .unwrap_or(defaults.row_gap_tolerance_percent),
-        max_row_shift_mm: s.max_row_shift_mm.unwrap_or(defaults.max_row_shift_mm),
-        max_candidates: s
-            .max_candidates
-            .map(|n| n.clamp(defaults.max_candidates, MAX_CANDIDATES))
-            .unwrap_or(defaults.max_candidates),
-        ..defaults
-    }
+    Segmentation::from_device_set(config)
 }
 
 /// Segments every frame of `sequence` with the phantom and settings of `config`.

@@ -61,6 +61,51 @@ pub enum TrackedRejection {
     Pose(PoseFault),
 }
 
+impl TrackedRejection {
+    /// The check that rejected the frame, for summaries per check.
+    pub fn check(&self) -> String {
+        match self {
+            TrackedRejection::ImageStatus(_) => "image status".into(),
+            TrackedRejection::Opening(_) => "segmentation: opening".into(),
+            TrackedRejection::Segmentation(e) => format!("segmentation: {}", e.check()),
+            TrackedRejection::Pose(_) => "pose".into(),
+        }
+    }
+}
+
+/// How many frames each check rejected, most first (ties by name).
+pub fn rejections_by_check<'a>(frames: impl IntoIterator<Item = &'a TrackedFrame>) -> Vec<(String, usize)> {
+    let mut counts = std::collections::BTreeMap::<String, usize>::new();
+    for r in frames.into_iter().filter_map(|f| f.rejected.as_ref()) {
+        *counts.entry(r.check()).or_default() += 1;
+    }
+    let mut out: Vec<(String, usize)> = counts.into_iter().collect();
+    out.sort_by(|a, b| b.1.cmp(&a.1).then(a.0.cmp(&b.0)));
+    out
+}
+
+/// Share of frames whose rejection is said loudly (on the console), not only
+/// in the tables.
+pub const LOUD_REJECTION_SHARE: f64 = 0.05;
+
+/// The warning a sequence's rejections earn: more than
+/// [`LOUD_REJECTION_SHARE`] of its frames, with the most common check.
+pub fn rejection_warning(frames: &[TrackedFrame], role: Role, what: &str) -> Option<String> {
+    let of_role: Vec<&TrackedFrame> = frames.iter().filter(|f| f.role == role).collect();
+    let rejected = of_role.iter().filter(|f| f.rejected.is_some()).count();
+    if of_role.is_empty() || (rejected as f64) <= LOUD_REJECTION_SHARE * of_role.len() as f64 {
+        return None;
+    }
+    let by_check = rejections_by_check(of_role.iter().copied());
+    let (check, count) = by_check.first()?;
+    Some(format!(
+        "{rejected} of {} {what} frames rejected ({:.0} %, more than {:.0} %); most common: {check} ({count} frames)",
+        of_role.len(),
+        100.0 * rejected as f64 / of_role.len() as f64,
+        100.0 * LOUD_REJECTION_SHARE
+    ))
+}
+
 /// Written as its text.
 impl Serialize for TrackedRejection {
     fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
@@ -124,9 +169,26 @@ pub fn pattern_geometry(inputs: &SegmentationInputs<'_>) -> PatternGeometry {
             .windows(2)
             .map(|pair| pair[0].distance_to(&pair[1]) / inputs.spacing_guess_mm_per_px)
             .collect(),
+        plane_distances_px: plane_distances_px(inputs.nwires, inputs.spacing_guess_mm_per_px),
         spacing_mm_per_px: inputs.spacing_guess_mm_per_px,
         nwires: inputs.nwires.to_vec(),
     }
+}
+
+/// The smallest and largest distance between any two patterns' planes, px at
+/// `spacing_mm_per_px` (PLUS's `PlusFidLabeling`; (0, 0) with one pattern).
+fn plane_distances_px(nwires: &[NWire], spacing_mm_per_px: f64) -> (f64, f64) {
+    let distances: Vec<f64> = (0..nwires.len())
+        .flat_map(|i| (i + 1..nwires.len()).map(move |j| (i, j)))
+        .map(|(i, j)| nwires[i].distance_to(&nwires[j]) / spacing_mm_per_px)
+        .collect();
+    if distances.is_empty() {
+        return (0.0, 0.0);
+    }
+    (
+        distances.iter().copied().fold(f64::INFINITY, f64::min),
+        distances.iter().copied().fold(0.0, f64::max),
+    )
 }
 
 /// Frame `index` of `sequence` segmented (or why not); its pose is attached later.

@@ -57,6 +57,18 @@ pub struct PlusSegmentation {
     pub row_gap_tolerance_percent: Option<f64>,
     /// `MaxLineShiftMm`.
     pub max_row_shift_mm: Option<f64>,
+    /// `AngleToleranceDegrees`.
+    pub angle_tolerance_deg: Option<f64>,
+    /// `MaxAngleDifferenceDegrees`: read and checked; PLUS's N-wire labeling does
+    /// not use it (`AngleToleranceDegrees` decides which rows are parallel).
+    pub max_angle_difference_deg: Option<f64>,
+    /// `MinThetaDegrees`, `MaxThetaDegrees`.
+    pub theta_range_deg: Option<(f64, f64)>,
+    /// `MorphologicalOpeningBarSizeMm`: read and checked; probecal's opening is
+    /// the disk alone.
+    pub opening_bar_size_mm: Option<f64>,
+    /// `UseOriginalImageIntensityForDotIntensityScore`.
+    pub original_intensity_score: Option<bool>,
 }
 
 impl PlusConfig {
@@ -154,7 +166,38 @@ impl PlusConfig {
                 max_candidates: positive("NumberOfMaximumFiducialPointCandidates")?.map(|n| n.round() as usize),
                 row_gap_tolerance_percent: positive("MaxLinePairDistanceErrorPercent")?,
                 max_row_shift_mm: positive("MaxLineShiftMm")?,
+                angle_tolerance_deg: positive("AngleToleranceDegrees")?,
+                max_angle_difference_deg: positive("MaxAngleDifferenceDegrees")?,
+                theta_range_deg: theta_range(&x, seg)?,
+                opening_bar_size_mm: positive("MorphologicalOpeningBarSizeMm")?,
+                original_intensity_score: match seg.attribute("UseOriginalImageIntensityForDotIntensityScore") {
+                    None => None,
+                    Some(v) if v.eq_ignore_ascii_case("true") || v == "1" => Some(true),
+                    Some(v) if v.eq_ignore_ascii_case("false") || v == "0" => Some(false),
+                    Some(v) => {
+                        return Err(x.fail(
+                            seg,
+                            format!("`UseOriginalImageIntensityForDotIntensityScore` must be TRUE or FALSE, got `{v}`"),
+                        ))
+                    }
+                },
             };
+            for (name, value, most) in [
+                (
+                    "MaxLinePairDistanceErrorPercent",
+                    segmentation.row_gap_tolerance_percent,
+                    100.0,
+                ),
+                ("AngleToleranceDegrees", segmentation.angle_tolerance_deg, 90.0),
+                ("MaxAngleDifferenceDegrees", segmentation.max_angle_difference_deg, 90.0),
+            ] {
+                if value.is_some_and(|v| v >= most) {
+                    return Err(x.fail(
+                        seg,
+                        format!("`{name}` must be below {most}, got {}", value.unwrap_or(0.0)),
+                    ));
+                }
+            }
         }
         Ok(PlusConfig {
             path: path.to_path_buf(),
@@ -184,6 +227,29 @@ impl PlusConfig {
             line: None,
             message: format!("CoordinateDefinitions has no transform {from}To{to} (nor its inverse)"),
         })
+    }
+}
+
+/// `MinThetaDegrees` and `MaxThetaDegrees`, both or neither, each within ±90°
+/// and the first below the second.
+fn theta_range(x: &Xml, seg: roxmltree::Node) -> Result<Option<(f64, f64)>, ConfigError> {
+    match (seg.attribute("MinThetaDegrees"), seg.attribute("MaxThetaDegrees")) {
+        (None, None) => Ok(None),
+        (Some(_), Some(_)) => {
+            let lo = x.numbers(seg, "MinThetaDegrees", 1)?[0];
+            let hi = x.numbers(seg, "MaxThetaDegrees", 1)?[0];
+            if !(-90.0..=90.0).contains(&lo) || !(-90.0..=90.0).contains(&hi) || lo >= hi {
+                return Err(x.fail(
+                    seg,
+                    format!("`MinThetaDegrees` {lo} and `MaxThetaDegrees` {hi} must lie within ±90 with the first below the second"),
+                ));
+            }
+            Ok(Some((lo, hi)))
+        }
+        _ => Err(x.fail(
+            seg,
+            "give both `MinThetaDegrees` and `MaxThetaDegrees`, or neither".into(),
+        )),
     }
 }
 
