@@ -36,7 +36,7 @@ use super::{deserialize_located, sha256_hex, Checker, ManifestErrors};
 use nalgebra::Point3;
 
 use crate::core::limits::MAX_FOLDS;
-use crate::detect::nwire::Segmentation;
+use crate::detect::nwire::{Segmentation, SegmentationOverrides};
 use crate::estimate::image_to_probe::{ConstraintModel, PixelModel};
 use crate::io::plus::config::PlusConfig;
 use crate::io::tracker_poses::{check_near_rigid, ORTHONORMAL_TOLERANCE};
@@ -170,7 +170,9 @@ struct TrackedBscan {
     /// Approximate pixel size for the segmentation; absent: the configuration's
     /// `ApproximateSpacingMmPerPixel`.
     approximate_spacing_mm_per_px: Option<f64>,
-    segmentation: Segmentation,
+    /// Each key replaces the device set's setting (PLUS's default where it gives
+    /// none); absent: the device set's.
+    segmentation: SegmentationOverrides,
 }
 
 #[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
@@ -250,12 +252,11 @@ impl Default for TrackedRegression {
 #[derive(Debug, Clone, PartialEq)]
 pub enum TimeOffset {
     Fixed(f64),
-    /// The offset in `[-range, range]` s (steps of `step`) whose calibration fits
-    /// the calibration frames best.
-    Estimate {
-        range_s: f64,
-        step_s: f64,
-    },
+    /// Found from the calibration sweep's own motion
+    /// ([`crate::pipeline::sweep_lag`]): the wire dots' measured motion in the
+    /// images against the motion the tracker's poses predict, cross-correlated
+    /// as PLUS's temporal calibration does; not applied when unresolved.
+    Estimate,
     /// The lag `probecal temporal` finds in a recording of the probe over a flat
     /// reflector (PLUS's `TrackerLagSec`: a frame's pose is the tracker's at its
     /// time plus the lag).
@@ -318,10 +319,7 @@ impl TrackedManifest {
             .map(|v| c.existing(&format!("{f}.validation"), &base, v, false));
         let time_offset = match &seq.time_offset_s {
             OffsetSetting::Seconds(s) if s.is_finite() && s.abs() <= 1.0 => TimeOffset::Fixed(*s),
-            OffsetSetting::Word(w) if w == "estimate" => TimeOffset::Estimate {
-                range_s: 0.1,
-                step_s: 0.005,
-            },
+            OffsetSetting::Word(w) if w == "estimate" => TimeOffset::Estimate,
             OffsetSetting::Temporal { temporal } => TimeOffset::Temporal {
                 tracker: c.existing(
                     &format!("{f}.time_offset_s.temporal.tracker"),
@@ -359,6 +357,7 @@ impl TrackedManifest {
         let mut config_spacing = *phantom_spacing;
         let mut clip_rectangle_px = None;
         let mut config_file = None;
+        let mut base_segmentation = Segmentation::default();
         match (plus_config, patterns) {
             (Some(plus_config), None) => {
                 let config_field = "phantom.nwire.plus_config";
@@ -390,6 +389,7 @@ impl TrackedManifest {
                             }
                             config_spacing = config.approximate_spacing_mm_per_px;
                             clip_rectangle_px = config.clip_rectangle_px.map(|(o, s)| [o[0], o[1], s[0], s[1]]);
+                            base_segmentation = Segmentation::from_device_set(&config);
                         }
                         Err(e) => c.fail(config_field, e.to_string()),
                     }
@@ -452,7 +452,7 @@ impl TrackedManifest {
                 1.0
             }
         };
-        let seg = &raw.bscan.segmentation;
+        let seg = &raw.bscan.segmentation.apply(&base_segmentation);
         let sf = "bscan.segmentation";
         c.positive(&format!("{sf}.collinear_tolerance_mm"), seg.collinear_tolerance_mm);
         if !(seg.threshold_percent > 0.0 && seg.threshold_percent < 100.0) {
@@ -471,10 +471,25 @@ impl TrackedManifest {
                 format!("must be a fraction in [0, 1), got {}", seg.core_fraction),
             );
         }
-        if !(seg.max_row_angle_deg > 0.0 && seg.max_row_angle_deg < 90.0) {
+        if !(-90.0..=90.0).contains(&seg.min_row_angle_deg)
+            || !(-90.0..=90.0).contains(&seg.max_row_angle_deg)
+            || seg.min_row_angle_deg >= seg.max_row_angle_deg
+        {
             c.fail(
                 &format!("{sf}.max_row_angle_deg"),
-                format!("must be between 0 and 90 degrees, got {}", seg.max_row_angle_deg),
+                format!(
+                    "the row angles {}..{} must lie within ±90 degrees, the first below the second",
+                    seg.min_row_angle_deg, seg.max_row_angle_deg
+                ),
+            );
+        }
+        if !(seg.row_gap_tolerance_percent > 0.0 && seg.row_gap_tolerance_percent < 100.0) {
+            c.fail(
+                &format!("{sf}.row_gap_tolerance_percent"),
+                format!(
+                    "must be a percentage between 0 and 100, got {}",
+                    seg.row_gap_tolerance_percent
+                ),
             );
         }
         c.at_least(
@@ -482,11 +497,11 @@ impl TrackedManifest {
             seg.max_row_angle_difference_deg,
             0.0,
         );
-        if seg.max_candidates < 3 * nwires.len().max(1) || seg.max_candidates > 40 {
+        if seg.max_candidates < 3 * nwires.len().max(1) || seg.max_candidates > 50 {
             c.fail(
                 &format!("{sf}.max_candidates"),
                 format!(
-                    "must be between {} (3 per N-wire) and 40, got {}",
+                    "must be between {} (3 per N-wire) and 50, got {}",
                     3 * nwires.len().max(1),
                     seg.max_candidates
                 ),
@@ -550,7 +565,7 @@ impl TrackedManifest {
             reference_T_phantom,
             spacing_guess_mm_per_px,
             clip_rectangle_px,
-            segmentation: raw.bscan.segmentation,
+            segmentation: raw.bscan.segmentation.apply(&base_segmentation),
             model: raw.solve.constraints,
             pixel_model: raw.solve.pixel_model,
             folds: raw.solve.folds,

@@ -171,7 +171,7 @@ pub fn run(
             crate::pipeline::temporal::run(video, tracker, &inputs.probe_transform, &inputs.reference_transform)?
                 .tracker_lag_s
         }
-        TimeOffset::Estimate { .. } => 0.0,
+        TimeOffset::Estimate => 0.0,
     };
     let mut state = State {
         inputs,

@@ -17,6 +17,7 @@ pub mod settings;
 pub mod solve;
 pub mod sphere_pose;
 pub mod study;
+pub mod sweep_lag;
 pub mod temporal;
 pub mod tracked;
 pub mod tracked_resolution;

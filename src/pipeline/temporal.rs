@@ -43,6 +43,104 @@ pub enum TemporalError {
     },
     #[error("the recordings overlap for {overlap_s:.2} s, too short to search lags of ±{MAX_LAG_S} s")]
     NoOverlap { overlap_s: f64 },
+    /// The correlation peaks at (or next to) the end of the lags searched: the
+    /// true lag may lie beyond, so none is reported.
+    #[error(
+        "unresolved: the correlation peaks at {lag_s:+.3} s, at the edge of the ±{MAX_LAG_S} s searched (correlation {peak_correlation:.3})"
+    )]
+    AtEdge { lag_s: f64, peak_correlation: f64 },
+    /// A signal that does not vary (a probe held still) has no lag to find.
+    #[error("unresolved: the {which} signal does not vary (SD {sd:.3e}): too little motion to tell the lag")]
+    NoMotion { which: &'static str, sd: f64 },
+}
+
+/// The lag at which two signals of the same motion line up best.
+#[derive(Debug, Clone)]
+pub struct Correlation {
+    /// How much the second signal lags the first, s: `second(t + lag)` lines up
+    /// with `first(t)`.
+    pub lag_s: f64,
+    /// Correlation at the peak (its sign: whether the signals move alike).
+    pub peak_correlation: f64,
+    /// (lag, correlation) at every step searched.
+    pub curve: Vec<(f64, f64)>,
+}
+
+/// The normalised cross-correlation of `first` with `second` shifted by each lag
+/// within ±[`MAX_LAG_S`] in steps of [`STEP_S`], on a grid over `first`'s span
+/// that leaves room for every lag; its peak (of either sign) refined by a
+/// parabola. A peak at the edge of the search, or a signal that does not vary,
+/// is refused: no estimate is made from there.
+pub fn correlate(first: &[(f64, f64)], second: &[(f64, f64)]) -> Result<Correlation, TemporalError> {
+    let (Some(f0), Some(f1), Some(s0), Some(s1)) = (first.first(), first.last(), second.first(), second.last()) else {
+        return Err(TemporalError::NoOverlap { overlap_s: 0.0 });
+    };
+    let start = f0.0.max(s0.0 + MAX_LAG_S);
+    let end = f1.0.min(s1.0 - MAX_LAG_S);
+    if end - start < 4.0 * MAX_LAG_S {
+        return Err(TemporalError::NoOverlap {
+            overlap_s: (end - start).max(0.0),
+        });
+    }
+    let steps = ((end - start) / STEP_S) as usize;
+    let times: Vec<f64> = (0..=steps).map(|k| start + k as f64 * STEP_S).collect();
+    let v: Vec<f64> = times.iter().map(|t| interpolate(first, *t).unwrap_or(0.0)).collect();
+    let sd = spread(&v);
+    if sd.is_nan() || sd <= 1e-9 {
+        return Err(TemporalError::NoMotion { which: "first", sd });
+    }
+    let v = normalised(&v);
+    let max_k = (MAX_LAG_S / STEP_S).round() as i64;
+    let mut curve = Vec::with_capacity(2 * max_k as usize + 1);
+    for k in -max_k..=max_k {
+        let lag = k as f64 * STEP_S;
+        let p: Vec<f64> = times
+            .iter()
+            .map(|t| interpolate(second, t + lag).unwrap_or(0.0))
+            .collect();
+        let sd = spread(&p);
+        if sd.is_nan() || sd <= 1e-9 {
+            return Err(TemporalError::NoMotion { which: "second", sd });
+        }
+        let p = normalised(&p);
+        let ncc = v.iter().zip(&p).map(|(a, b)| a * b).sum::<f64>() / v.len() as f64;
+        curve.push((lag, ncc));
+    }
+    peak(curve)
+}
+
+/// The peak (of either sign) of a correlation `curve` over evenly spaced lags,
+/// refined by a parabola through its neighbours; refused at (or next to) the
+/// curve's ends, where the true peak may lie beyond.
+pub fn peak(curve: Vec<(f64, f64)>) -> Result<Correlation, TemporalError> {
+    let Some(peak) = (0..curve.len()).max_by(|&a, &b| curve[a].1.abs().total_cmp(&curve[b].1.abs())) else {
+        return Err(TemporalError::NoOverlap { overlap_s: 0.0 });
+    };
+    if peak <= 1 || peak + 2 >= curve.len() {
+        return Err(TemporalError::AtEdge {
+            lag_s: curve[peak].0,
+            peak_correlation: curve[peak].1,
+        });
+    }
+    let step = curve[peak + 1].0 - curve[peak].0;
+    let mut lag = curve[peak].0;
+    let (a, b, c) = (curve[peak - 1].1.abs(), curve[peak].1.abs(), curve[peak + 1].1.abs());
+    let denominator = a - 2.0 * b + c;
+    if denominator.abs() > 1e-12 {
+        lag += step * 0.5 * (a - c) / denominator;
+    }
+    Ok(Correlation {
+        lag_s: lag,
+        peak_correlation: curve[peak].1,
+        curve,
+    })
+}
+
+/// The population SD of `values`.
+fn spread(values: &[f64]) -> f64 {
+    let n = values.len().max(1) as f64;
+    let mean = values.iter().sum::<f64>() / n;
+    (values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / n).sqrt()
 }
 
 /// One B-scan's line, or why it has none.
@@ -77,7 +175,7 @@ fn timestamp(seq: &Sequence, index: usize) -> Result<f64, TemporalError> {
 }
 
 /// Linear interpolation of `(t, value)` samples (sorted by t) at `t`.
-fn interpolate(samples: &[(f64, f64)], t: f64) -> Option<f64> {
+pub fn interpolate(samples: &[(f64, f64)], t: f64) -> Option<f64> {
     let k = samples.partition_point(|(s, _)| *s < t);
     if k == 0 || k == samples.len() {
         return (k < samples.len() && samples[k].0 == t).then(|| samples[k].1);
@@ -180,62 +278,43 @@ pub fn run(video_path: &Path, tracker_path: &Path, probe: &str, reference: &str)
     }
     let tracker = Sequence::read(tracker_path)?;
     let tracker_signal = tracker_signal(&tracker, probe, reference)?;
-    // The video's grid, inside the tracker's span with room for every lag.
-    let start = video_signal[0].0.max(tracker_signal[0].0 + MAX_LAG_S);
-    let end = video_signal[video_signal.len() - 1]
-        .0
-        .min(tracker_signal[tracker_signal.len() - 1].0 - MAX_LAG_S);
-    if end - start < 4.0 * MAX_LAG_S {
-        return Err(TemporalError::NoOverlap {
-            overlap_s: (end - start).max(0.0),
-        });
-    }
-    let steps = ((end - start) / STEP_S) as usize;
-    let times: Vec<f64> = (0..=steps).map(|k| start + k as f64 * STEP_S).collect();
-    let v: Vec<f64> = times
-        .iter()
-        .map(|t| interpolate(&video_signal, *t).unwrap_or(0.0))
-        .collect();
-    let v = normalised(&v);
-    let max_k = (MAX_LAG_S / STEP_S).round() as i64;
-    let curve: Vec<(f64, f64)> = (-max_k..=max_k)
-        .map(|k| {
-            let lag = k as f64 * STEP_S;
-            let p: Vec<f64> = times
-                .iter()
-                .map(|t| interpolate(&tracker_signal, t + lag).unwrap_or(0.0))
-                .collect();
-            let p = normalised(&p);
-            let ncc = v.iter().zip(&p).map(|(a, b)| a * b).sum::<f64>() / v.len() as f64;
-            (lag, ncc)
-        })
-        .collect();
-    let peak = (0..curve.len())
-        .max_by(|&a, &b| curve[a].1.abs().total_cmp(&curve[b].1.abs()))
-        .unwrap_or(0);
-    // A parabola through the peak and its neighbours.
-    let mut lag = curve[peak].0;
-    if peak > 0 && peak + 1 < curve.len() {
-        let (a, b, c) = (curve[peak - 1].1.abs(), curve[peak].1.abs(), curve[peak + 1].1.abs());
-        let denominator = a - 2.0 * b + c;
-        if denominator.abs() > 1e-12 {
-            lag += STEP_S * 0.5 * (a - c) / denominator;
-        }
-    }
+    let found = correlate(&video_signal, &tracker_signal)?;
     Ok(TemporalRun {
         video: video_path.to_path_buf(),
         tracker: tracker_path.to_path_buf(),
         frames,
         tracker_samples: tracker_signal.len(),
-        tracker_lag_s: lag,
-        peak_correlation: curve[peak].1,
-        curve,
+        tracker_lag_s: found.lag_s,
+        peak_correlation: found.peak_correlation,
+        curve: found.curve,
     })
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A sine seen twice, the second 120 ms late: the lag is found; late by
+    /// 600 ms (beyond the search) it is refused as at the edge; a still second
+    /// signal is refused as too little motion.
+    #[test]
+    fn correlation_finds_the_lag_and_refuses_the_edge() {
+        let signal = |delay: f64| -> Vec<(f64, f64)> {
+            (0..400)
+                .map(|k| {
+                    let t = k as f64 * 0.05;
+                    (t, (0.9 * (t - delay)).sin() + 0.3 * (2.3 * (t - delay)).sin())
+                })
+                .collect()
+        };
+        let found = correlate(&signal(0.0), &signal(0.12)).unwrap();
+        assert!((found.lag_s - 0.12).abs() < 0.005, "{}", found.lag_s);
+        let e = correlate(&signal(0.0), &signal(0.6)).unwrap_err();
+        assert!(matches!(e, TemporalError::AtEdge { .. }), "{e}");
+        let still: Vec<(f64, f64)> = (0..400).map(|k| (k as f64 * 0.05, 3.0)).collect();
+        let e = correlate(&signal(0.0), &still).unwrap_err();
+        assert!(matches!(e, TemporalError::NoMotion { .. }), "{e}");
+    }
 
     #[test]
     fn interpolation_stays_inside_the_samples() {

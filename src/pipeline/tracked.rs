@@ -129,8 +129,8 @@ pub struct TrackedRun {
     pub image_size_px: [usize; 2],
     /// The tracker lag used, s.
     pub time_offset_s: f64,
-    /// When estimated: each offset tried and the calibration's mean residual, mm.
-    pub offset_scan: Vec<(f64, f64)>,
+    /// When estimated: what the sweep's motion gave (unresolved: not applied).
+    pub sweep_lag: Option<crate::pipeline::sweep_lag::SweepLag>,
     /// The model family's cross-validation on the calibration frames.
     pub selection: Selection,
     /// Pixels of the calibration sequence's screen overlay left out, when no
@@ -265,18 +265,6 @@ pub fn pre3d(
         .collect()
 }
 
-/// How well a calibration fits its own frames: mean residual of the kept constraints, mm.
-fn fit_quality(fit: &image_to_probe::Fit) -> f64 {
-    let kept: Vec<f64> = fit
-        .residual_mm
-        .iter()
-        .zip(&fit.inlier)
-        .filter(|(_, k)| **k)
-        .map(|(r, _)| *r)
-        .collect();
-    kept.iter().sum::<f64>() / kept.len().max(1) as f64
-}
-
 /// The usable frames' constraints of one sequence, in frame order.
 pub fn usable_constraints(frames: &[TrackedFrame], nwires: &[NWire], role: Role) -> Vec<FrameConstraints> {
     frames
@@ -326,36 +314,34 @@ pub fn run(inputs: &TrackedInputs, min_frames: usize) -> Result<TrackedRun, Trac
     let image_size_px = [calibration.width, calibration.height];
     let (mut frames, overlay_px) = segment_sequence(&calibration, Role::Calibration, inputs);
     // The tracker's lag, from the calibration frames alone.
-    let mut offset_scan = Vec::new();
+    let mut sweep_lag = None;
     let time_offset_s = match &inputs.time_offset {
         TimeOffset::Fixed(s) => *s,
         TimeOffset::Temporal { tracker, video } => {
             crate::pipeline::temporal::run(video, tracker, &inputs.probe_transform, &inputs.reference_transform)?
                 .tracker_lag_s
         }
-        &TimeOffset::Estimate { range_s, step_s } => {
-            let steps = (range_s / step_s).round() as i64;
-            let mut best = (f64::INFINITY, 0.0);
-            // The lag is found with the family's first constraints and its most
-            // flexible pixel model (whose residual carries the least model error).
+        TimeOffset::Estimate => {
+            // Poses with no lag map the wires into the images through a
+            // calibration of the family's first constraints and its most flexible
+            // pixel model; the lag is when the two motions line up.
             let family = Candidate::family(inputs.model, inputs.pixel_model);
             let candidate = Candidate {
                 pixel_model: family[family.len() - 1].pixel_model,
                 ..family[0]
             };
-            for k in -steps..=steps {
-                let offset = k as f64 * step_s;
-                attach_poses(&calibration, &mut frames, inputs, offset);
-                let usable = usable_constraints(&frames, &inputs.nwires, Role::Calibration);
-                if let Ok(trained) = model_selection::fit(usable.iter(), candidate, fit_settings(inputs)) {
-                    let q = fit_quality(&trained.fit);
-                    offset_scan.push((offset, q));
-                    if q < best.0 {
-                        best = (q, offset);
-                    }
-                }
-            }
-            best.1
+            attach_poses(&calibration, &mut frames, inputs, 0.0);
+            let usable = usable_constraints(&frames, &inputs.nwires, Role::Calibration);
+            let found = match model_selection::fit(usable.iter(), candidate, fit_settings(inputs)) {
+                Ok(trained) => crate::pipeline::sweep_lag::estimate(&frames, &inputs.nwires, &trained.fit),
+                Err(e) => crate::pipeline::sweep_lag::SweepLag {
+                    unresolved: Some(format!("no calibration to map the poses with: {e}")),
+                    ..Default::default()
+                },
+            };
+            let lag = found.lag_s.unwrap_or(0.0);
+            sweep_lag = Some(found);
+            lag
         }
     };
     attach_poses(&calibration, &mut frames, inputs, time_offset_s);
@@ -421,7 +407,7 @@ pub fn run(inputs: &TrackedInputs, min_frames: usize) -> Result<TrackedRun, Trac
         constraints,
         image_size_px,
         time_offset_s,
-        offset_scan,
+        sweep_lag,
         selection,
         overlay_px,
     })
