@@ -119,8 +119,14 @@ enum Command {
         /// The PLUS device set with the phantom (and its segmentation settings).
         #[arg(long)]
         config: PathBuf,
+        /// The output folder (written whole on success).
         #[arg(long)]
         out: PathBuf,
+        /// PLUS's segmentation of the same sequence (a segmentation test baseline
+        /// or a calibration result XML): recall, extra frames and point distances
+        /// on the page and in summary.json.
+        #[arg(long)]
+        plus_baseline: Option<PathBuf>,
     },
     /// The tracker's lag behind the video from a probe moved over a flat reflector
     /// (PLUS's temporal calibration): summary.json, lines.csv, report.html in --out.
@@ -226,7 +232,12 @@ fn main() -> ExitCode {
         } => probecal::report::check::run(&runs, &baselines, update, allow_drop),
         Command::Validate { manifests } => probecal::report::console::validate(&manifests),
         Command::Temporal { tracker, video, out } => probecal::report::temporal::command(&video, &tracker, &out),
-        Command::Segment { sequence, config, out } => probecal::report::segment::command(&sequence, &config, &out),
+        Command::Segment {
+            sequence,
+            config,
+            out,
+            plus_baseline,
+        } => probecal::report::segment::command(&sequence, &config, &out, plus_baseline.as_deref()),
         Command::Live {
             manifest,
             out,

@@ -7,7 +7,7 @@ use crate::detect::camera_calibration::CameraCalibration;
 use crate::evaluate::{cutoff_label, BreStats, STAT_ROWS};
 use crate::manifest::Experiment;
 use crate::pipeline::record::DatasetRun;
-use crate::pipeline::tracked::TrackedRun;
+use crate::pipeline::tracked::{Role, TrackedRun};
 use crate::report::summary::{Summary, TrackedSummary};
 
 /// The thesis's BRE table (rows Std./Mean/Min/Max, columns x, y, z) as text.
@@ -92,6 +92,14 @@ pub fn tracked_run(run: &TrackedRun, summary: &TrackedSummary, folder: &std::pat
         frames.validation.total,
         run.time_offset_s * 1000.0
     );
+    if let Some(why) = run.sweep_lag.as_ref().and_then(|l| l.unresolved.as_ref()) {
+        eprintln!("warning: the tracker's lag could not be estimated, none is applied: {why}");
+    }
+    for (role, what) in [(Role::Calibration, "calibration"), (Role::Validation, "validation")] {
+        if let Some(w) = crate::pipeline::sequence_frames::rejection_warning(&run.frames, role, what) {
+            eprintln!("warning: {w}");
+        }
+    }
     println!("ImageToProbe\n{}", run.fit.image_to_probe.matrix());
     let (best, all) = (summary.validation.pre3d_mm, summary.validation.pre3d_all_mm);
     println!(
@@ -104,10 +112,20 @@ pub fn tracked_run(run: &TrackedRun, summary: &TrackedSummary, folder: &std::pat
         n(all),
     );
     if let Some(plus) = &summary.plus_result {
+        let v = &summary.validation;
+        let c = v.frames_compared.unwrap_or_default();
         println!(
-            "PLUS's result: published {} mm; its matrix on the same dots and poses {} mm",
+            "on the {} validation frames both segmented (ours {}, PLUS's {}): probecal {} mm, PLUS's matrix {} mm (same dots and poses, best 95 %)",
+            c.both,
+            c.ours,
+            c.plus.map(|n| n.to_string()).unwrap_or_else(|| "not listed".into()),
+            f3(v.same_frames_pre3d_mm.map(|s| s.mean)),
+            f3(v.plus_matrix_pre3d_mm.map(|s| s.mean)),
+        );
+        println!(
+            "PLUS's published validation PRE3D: {} mm on its own dots{}",
             f3(plus.published_validation_pre3d_mm.mean),
-            f3(summary.validation.plus_matrix_pre3d_mm.map(|s| s.mean)),
+            c.plus.map(|n| format!(" ({n} frames)")).unwrap_or_default(),
         );
     }
     println!("written to {}", folder.display());

@@ -13,7 +13,63 @@ use opencv::imgproc;
 use opencv::prelude::*;
 
 use crate::io::fs::write_all_atomic;
+use crate::io::plus::segmentation::{score, FrameResults, PlusSegmentation, SegmentationScore};
 use crate::pipeline::segment::SegmentRun;
+
+/// PLUS's segmentation of the same sequence, and how probecal's compares.
+pub struct Baseline {
+    pub path: std::path::PathBuf,
+    pub section: String,
+    pub score: SegmentationScore,
+}
+
+/// The section of `file` that is `run`'s sequence: its only one, or the one
+/// listing as many frames as the sequence has.
+fn baseline_section<'a>(
+    file: &'a PlusSegmentation,
+    frames: usize,
+    path: &Path,
+) -> Result<(&'a str, &'a FrameResults), String> {
+    let fits: Vec<&(String, FrameResults)> = if file.sections.len() == 1 {
+        file.sections.iter().collect()
+    } else {
+        file.sections.iter().filter(|(_, f)| f.len() == frames).collect()
+    };
+    match fits.as_slice() {
+        [(name, f)] => Ok((name.as_str(), f)),
+        _ => Err(format!(
+            "{}: no single section lists the sequence's {frames} frames (sections: {})",
+            path.display(),
+            file.sections
+                .iter()
+                .map(|(n, f)| format!("{n} with {} frames", f.len()))
+                .collect::<Vec<_>>()
+                .join(", ")
+        )),
+    }
+}
+
+/// Scores `run` against PLUS's segmentation in `path`.
+pub fn against_plus(run: &SegmentRun, path: &Path) -> Result<Baseline, String> {
+    let file = PlusSegmentation::read(path).map_err(|e| e.to_string())?;
+    let (section, plus) = baseline_section(&file, run.frames.len(), path)?;
+    let ours = run
+        .frames
+        .iter()
+        .map(|f| {
+            let points = f
+                .rejected
+                .is_none()
+                .then(|| f.dots_px.iter().flatten().copied().collect::<Vec<_>>());
+            (f.index, points)
+        })
+        .collect();
+    Ok(Baseline {
+        path: path.to_path_buf(),
+        section: section.to_string(),
+        score: score(&ours, plus),
+    })
+}
 
 /// `segmentation.csv`.
 pub fn csv(run: &SegmentRun) -> String {
@@ -41,9 +97,19 @@ fn failures(run: &SegmentRun) -> Vec<(usize, String)> {
 }
 
 /// `summary.json`.
-pub fn summary(run: &SegmentRun) -> serde_json::Value {
+pub fn summary(run: &SegmentRun, baseline: Option<&Baseline>) -> serde_json::Value {
     let found = run.frames.iter().filter(|f| f.rejected.is_none()).count();
+    let by_check: Vec<serde_json::Value> = crate::pipeline::sequence_frames::rejections_by_check(&run.frames)
+        .into_iter()
+        .map(|(check, frames)| serde_json::json!({"check": check, "frames": frames}))
+        .collect();
     serde_json::json!({
+        "plus_baseline": baseline.map(|b| serde_json::json!({
+            "file": crate::io::fs::display_path(&b.path),
+            "section": b.section,
+            "score": b.score,
+        })),
+        "not_found_by_check": by_check,
         "sequence": crate::io::fs::display_path(&run.sequence),
         "config": crate::io::fs::display_path(&run.config),
         "image_size_px": run.image_size_px,
@@ -103,18 +169,21 @@ fn picture(run: &SegmentRun, k: usize) -> Result<Vec<u8>, opencv::Error> {
         imgproc::circle(&mut bgr, at(dots[0]), 4, green, -1, imgproc::LINE_AA, 0)?;
     }
     if let Some(reason) = &frame.rejected {
-        let text: String = reason.to_string().chars().take(90).collect();
-        imgproc::put_text(
-            &mut bgr,
-            &text,
-            Point::new(8, 20),
-            imgproc::FONT_HERSHEY_SIMPLEX,
-            0.45,
-            red,
-            1,
-            imgproc::LINE_AA,
-            false,
-        )?;
+        // The whole reason, wrapped to the picture's width.
+        let per_line = (w / 8).max(20);
+        for (k, line) in wrap(&reason.to_string(), per_line).iter().enumerate() {
+            imgproc::put_text(
+                &mut bgr,
+                line,
+                Point::new(8, 20 + 18 * k as i32),
+                imgproc::FONT_HERSHEY_SIMPLEX,
+                0.45,
+                red,
+                1,
+                imgproc::LINE_AA,
+                false,
+            )?;
+        }
     }
     let mut jpeg = Vector::<u8>::new();
     let params = Vector::<i32>::from_slice(&[opencv::imgcodecs::IMWRITE_JPEG_QUALITY, 80]);
@@ -122,13 +191,39 @@ fn picture(run: &SegmentRun, k: usize) -> Result<Vec<u8>, opencv::Error> {
     Ok(jpeg.to_vec())
 }
 
+/// `text` in lines of at most `width` characters, broken at spaces.
+fn wrap(text: &str, width: usize) -> Vec<String> {
+    let mut lines = vec![String::new()];
+    for word in text.split(' ') {
+        let last = lines.last_mut().map(|l| l.chars().count()).unwrap_or(0);
+        if last > 0 && last + 1 + word.chars().count() > width {
+            lines.push(String::new());
+        }
+        let line = lines.last_mut().expect("one line at least");
+        if !line.is_empty() {
+            line.push(' ');
+        }
+        line.push_str(word);
+    }
+    lines
+}
+
 fn gallery_name(frame: usize) -> String {
     format!("gallery/frame_{frame:04}.jpg")
 }
 
 /// `report.html`.
-pub fn html(run: &SegmentRun) -> String {
+pub fn html(run: &SegmentRun, baseline: Option<&Baseline>) -> String {
     let found = run.frames.iter().filter(|f| f.rejected.is_none()).count();
+    let mut by_check = String::new();
+    for (check, frames) in crate::pipeline::sequence_frames::rejections_by_check(&run.frames) {
+        let _ = writeln!(
+            by_check,
+            "<tr><td class=\"key\">{}</td><td>{frames}</td></tr>",
+            escape(&check)
+        );
+    }
+    let plus = baseline.map(baseline_html).unwrap_or_default();
     let mut rows = String::new();
     for (frame, reason) in failures(run) {
         let _ = writeln!(
@@ -152,7 +247,7 @@ pub fn html(run: &SegmentRun) -> String {
          <style>body{{font-family:sans-serif;max-width:70em;margin:2em auto}}td,th{{padding:.2em .6em;text-align:right}}.key{{text-align:left}}figure{{display:inline-block;margin:.3em;width:320px;vertical-align:top;font-size:.8em}}</style></head>\n\
          <body>\n<h1>N-wire segmentation</h1>\n<p>{} with {}: {} of {} frames segmented ({} N-wires, {} px images read as MF from {:?}, \
          {region}, opening {} px, each frame's threshold {} % of its brightest opened pixel).</p>\n\
-         <h2>Frames not segmented</h2>\n<table id=\"not-found\"><thead><tr><th>frame</th><th class=\"key\">reason</th></tr></thead><tbody>\n{rows}</tbody></table>\n\
+         {plus}<h2>Frames not segmented</h2>\n<table id=\"not-found-by-check\"><thead><tr><th class=\"key\">check</th><th>frames</th></tr></thead><tbody>\n{by_check}</tbody></table>\n<table id=\"not-found\"><thead><tr><th>frame</th><th class=\"key\">reason</th></tr></thead><tbody>\n{rows}</tbody></table>\n\
          <p>Every found point is in <code>segmentation.csv</code> (frame, found, wire id, x, y in pixels).</p>\n\
          <h2>Gallery</h2>\n<p>Candidate spots yellow, the chosen patterns green (the dot is wire 1), the clip rectangle blue, a failed frame's reason red; frames not segmented first.</p>\n{}</body>\n</html>\n",
         escape(&crate::io::fs::display_path(&run.sequence)),
@@ -165,6 +260,43 @@ pub fn html(run: &SegmentRun) -> String {
         run.segmentation.opening_radius_for(run.spacing_guess_mm_per_px),
         run.segmentation.threshold_percent,
         gallery_html(run),
+    )
+}
+
+/// The comparison with PLUS's segmentation, as a section of the page.
+fn baseline_html(b: &Baseline) -> String {
+    let s = &b.score;
+    let list = |frames: &[usize]| {
+        if frames.is_empty() {
+            "none".to_string()
+        } else {
+            frames.iter().map(|f| f.to_string()).collect::<Vec<_>>().join(", ")
+        }
+    };
+    format!(
+        "<h2>Against PLUS's segmentation</h2>\n<p>{} ({}).</p>\n<table id=\"plus-baseline\"><tbody>\n\
+         <tr><td class=\"key\">frames PLUS segmented</td><td>{}</td></tr>\n\
+         <tr><td class=\"key\">of them segmented here too (recall)</td><td>{} ({:.1} %)</td></tr>\n\
+         <tr><td class=\"key\">missed here</td><td>{}</td></tr>\n\
+         <tr><td class=\"key\">segmented here, not by PLUS</td><td>{}</td></tr>\n\
+         <tr><td class=\"key\">distance to PLUS's point of the same wire (px)</td><td>{}</td></tr>\n\
+         </tbody></table>\n",
+        escape(&crate::io::fs::display_path(&b.path)),
+        escape(&b.section),
+        s.plus_frames,
+        s.both_frames,
+        100.0 * s.recall,
+        list(&s.missed_frames),
+        list(&s.extra_frames),
+        s.point_distance_px
+            .map(|d| format!(
+                "mean {:.3}, SD {:.3}, max {:.3} (n = {})",
+                d.mean,
+                d.std,
+                s.point_distance_max_px.unwrap_or(f64::NAN),
+                d.n
+            ))
+            .unwrap_or_else(|| "—".into()),
     )
 }
 
@@ -188,22 +320,22 @@ fn gallery_html(run: &SegmentRun) -> String {
 }
 
 /// Every output file: the gallery's pictures, then the tables and the page.
-fn outputs(run: &SegmentRun) -> Result<Vec<(String, Vec<u8>)>, String> {
+fn outputs(run: &SegmentRun, baseline: Option<&Baseline>) -> Result<Vec<(String, Vec<u8>)>, String> {
     let mut files = Vec::with_capacity(run.frames.len() + 3);
     for (k, f) in run.frames.iter().enumerate() {
         let jpeg = picture(run, k).map_err(|e| format!("frame {}: drawing: {e}", f.index))?;
         files.push((gallery_name(f.index), jpeg));
     }
-    let text = crate::report::summary::to_text(&summary(run)).map_err(|e| e.to_string())?;
+    let text = crate::report::summary::to_text(&summary(run, baseline)).map_err(|e| e.to_string())?;
     files.push(("segmentation.csv".into(), csv(run).into_bytes()));
     files.push(("summary.json".into(), text.into_bytes()));
-    files.push(("report.html".into(), html(run).into_bytes()));
+    files.push(("report.html".into(), html(run, baseline).into_bytes()));
     Ok(files)
 }
 
 /// `probecal segment`: exit code 0 on success, 1 when the inputs cannot be read
 /// or the outputs written.
-pub fn command(sequence: &Path, config: &Path, out: &Path) -> u8 {
+pub fn command(sequence: &Path, config: &Path, out: &Path, plus_baseline: Option<&Path>) -> u8 {
     let run = match crate::pipeline::segment::run(sequence, config) {
         Ok(r) => r,
         Err(e) => {
@@ -211,10 +343,36 @@ pub fn command(sequence: &Path, config: &Path, out: &Path) -> u8 {
             return 1;
         }
     };
-    let written = outputs(&run).and_then(|files| write_all_atomic(out, &files).map_err(|e| e.to_string()));
+    let baseline = match plus_baseline.map(|p| against_plus(&run, p)).transpose() {
+        Ok(b) => b,
+        Err(e) => {
+            eprintln!("error: {e}");
+            return 1;
+        }
+    };
+    let written =
+        outputs(&run, baseline.as_ref()).and_then(|files| write_all_atomic(out, &files).map_err(|e| e.to_string()));
     match written {
         Ok(()) => {
             let found = run.frames.iter().filter(|f| f.rejected.is_none()).count();
+            let role = crate::pipeline::sequence_frames::Role::Calibration;
+            if let Some(w) = crate::pipeline::sequence_frames::rejection_warning(&run.frames, role, "sequence") {
+                eprintln!("warning: {w}");
+            }
+            if let Some(b) = &baseline {
+                let s = &b.score;
+                println!(
+                    "against PLUS's segmentation ({}): {} of the {} frames PLUS segmented found here ({:.1} %), {} found here only; mean distance to PLUS's points {}",
+                    b.section,
+                    s.both_frames,
+                    s.plus_frames,
+                    100.0 * s.recall,
+                    s.extra_frames.len(),
+                    s.point_distance_px
+                        .map(|d| format!("{:.3} px", d.mean))
+                        .unwrap_or_else(|| "—".into())
+                );
+            }
             println!(
                 "{found} of {} frames segmented; written to {}",
                 run.frames.len(),

@@ -15,44 +15,104 @@ use crate::manifest::tracked::TrackedManifest;
 use crate::pipeline::tracked::{Role, TrackedRun};
 use crate::pipeline::tracked_resolution::ValidationResolution;
 use crate::report::summary::{
-    to_text, CandidateScore, ConstraintCounts, ImageToProbeSummary, ModelSelectionSummary, ParameterSd,
+    to_text, CandidateScore, ConstraintCounts, FramesCompared, ImageToProbeSummary, ModelSelectionSummary, ParameterSd,
     PlusResultSummary, Pre3d, PublishedPre3d, Segmented, TrackedFrameCounts, TrackedSummary, TrackedTolerances,
     TRACKED_KIND,
 };
 use crate::report::write::OutputError;
 
-/// PRE3D of a general `Calibration` matrix (e.g. PLUS's) on this run's segmented
-/// dots and poses, with the phantom's registration as configured (a correction
-/// this run may have fitted is its own, not the matrix's).
+/// PRE3D of `image_to_probe` (PLUS's `Calibration` matrix) on `role`'s used
+/// dots and poses in the frames `keep` admits, with the phantom's registration
+/// as configured (a correction this run may have fitted is its own, not the
+/// matrix's).
 pub fn pre3d_of_matrix(
     run: &TrackedRun,
     manifest: &TrackedManifest,
     image_to_probe: &Matrix4<f64>,
     role: Role,
+    keep: impl Fn(usize) -> bool,
 ) -> Vec<f64> {
     let map = |pixel: [f64; 2]| image_to_probe.transform_point(&nalgebra::Point3::new(pixel[0], pixel[1], 0.0));
     run.frames
         .iter()
-        .filter(|f| f.role == role && f.rejected.is_none())
+        .filter(|f| f.role == role && f.rejected.is_none() && keep(f.index))
         .flat_map(|f| crate::pipeline::tracked::pre3d(f, &manifest.nwires, map, &Rigid::identity()))
         .collect()
+}
+
+/// How the tracker's lag was had, in words.
+pub fn time_offset_note(run: &TrackedRun) -> String {
+    match &run.sweep_lag {
+        None => "as the manifest gives it".into(),
+        Some(lag) => match (&lag.unresolved, lag.peak_correlation) {
+            (Some(why), _) => format!("estimate unresolved, none applied: {why}"),
+            (None, r) => format!(
+                "from the calibration sweep's motion: {} frames, dots moving {:.1} px (SD), correlation {:.3} at the peak{}",
+                lag.frames,
+                lag.motion_sd_px,
+                r.unwrap_or(f64::NAN),
+                lag.bootstrap_lag_s
+                    .map(|b| format!(
+                        ", {:.0} to {:.0} ms over resamples of the sweep (90 %)",
+                        b.p5 * 1000.0,
+                        b.p95 * 1000.0
+                    ))
+                    .unwrap_or_default()
+            ),
+        },
+    }
 }
 
 pub fn rows(m: &Matrix4<f64>) -> Vec<Vec<f64>> {
     (0..4).map(|r| (0..4).map(|c| m[(r, c)]).collect()).collect()
 }
 
-/// PRE3D of our calibration on `role`'s frames, and of PLUS's matrix on the same
-/// dots and poses when its result is given.
+/// PRE3D of our calibration on `role`'s frames; with PLUS's result, its matrix
+/// and ours side by side on the frames both segmented (all ours where the file
+/// does not list PLUS's).
 fn pre3d(run: &TrackedRun, manifest: &TrackedManifest, plus: Option<&PlusResult>, role: Role) -> Pre3d {
     let ours = run.pre3d(role);
-    let theirs = plus.map(|p| pre3d_of_matrix(run, manifest, &p.image_to_probe, role));
-    Pre3d {
+    let mut out = Pre3d {
         pre3d_mm: best_95(&ours),
         pre3d_all_mm: mean_sd_of(&ours),
-        plus_matrix_pre3d_mm: theirs.as_deref().and_then(best_95),
-        plus_matrix_pre3d_all_mm: theirs.as_deref().and_then(mean_sd_of),
-    }
+        ..Pre3d::default()
+    };
+    let Some(plus) = plus else { return out };
+    let theirs = match role {
+        Role::Calibration => plus.calibration_frames_segmented.as_ref(),
+        Role::Validation => plus.validation_frames_segmented.as_ref(),
+    };
+    let keep = |index: usize| theirs.is_none_or(|t| t.contains(&index));
+    let used: Vec<usize> = run
+        .frames
+        .iter()
+        .filter(|f| f.role == role && f.rejected.is_none())
+        .map(|f| f.index)
+        .collect();
+    let matrix = pre3d_of_matrix(run, manifest, &plus.image_to_probe, role, keep);
+    let fit = &run.fit;
+    let same: Vec<f64> = run
+        .frames
+        .iter()
+        .filter(|f| f.role == role && f.rejected.is_none() && keep(f.index))
+        .flat_map(|f| {
+            crate::pipeline::tracked::pre3d(
+                f,
+                &manifest.nwires,
+                |pixel| fit.image_to_probe.apply(pixel),
+                &fit.phantom_correction,
+            )
+        })
+        .collect();
+    out.plus_matrix_pre3d_mm = best_95(&matrix);
+    out.plus_matrix_pre3d_all_mm = mean_sd_of(&matrix);
+    out.same_frames_pre3d_mm = best_95(&same);
+    out.frames_compared = Some(FramesCompared {
+        ours: used.len(),
+        plus: theirs.map(|t| t.len()),
+        both: used.iter().filter(|i| keep(**i)).count(),
+    });
+    out
 }
 
 fn model_selection(run: &TrackedRun) -> ModelSelectionSummary {
@@ -102,6 +162,7 @@ pub fn summary(
                 total: val_total,
             },
             rejected: (cal_total - cal_used) + (val_total - val_used),
+            rejected_by_check: crate::pipeline::sequence_frames::rejections_by_check(&run.frames),
             overlay_px: run.overlay_px,
         },
         constraints: ConstraintCounts {
@@ -110,6 +171,7 @@ pub fn summary(
             kept: run.fit.inlier.iter().filter(|k| **k).count(),
         },
         time_offset_s: run.time_offset_s,
+        time_offset_estimate: run.sweep_lag.clone(),
         image_to_probe: ImageToProbeSummary {
             matrix: rows(&matrix),
             pixel_model: run.fit.pixel_model,
@@ -169,6 +231,12 @@ pub fn frames_table(run: &TrackedRun, patterns: usize) -> PolarsResult<DataFrame
             "status".into(),
             f.iter()
                 .map(|r| if r.rejected.is_none() { "used" } else { "rejected" })
+                .collect::<Vec<_>>(),
+        ),
+        Column::new(
+            "check".into(),
+            f.iter()
+                .map(|r| r.rejected.as_ref().map(|j| j.check()))
                 .collect::<Vec<_>>(),
         ),
         Column::new(
@@ -329,6 +397,7 @@ fn render_page(run: &TrackedRun, manifest: &TrackedManifest, summary: &TrackedSu
     ctx.insert("constraints", &run.constraints);
     ctx.insert("kept", &run.fit.inlier.iter().filter(|k| **k).count());
     ctx.insert("time_offset_ms", &format!("{:.0}", run.time_offset_s * 1000.0));
+    ctx.insert("time_offset_note", &time_offset_note(run));
     ctx.insert("probecal_version", env!("CARGO_PKG_VERSION"));
     ctx.insert("opencv_version", &super::provenance::opencv_version());
     let (cs, ct) = run.segmented(Role::Calibration);
@@ -347,6 +416,11 @@ fn render_page(run: &TrackedRun, manifest: &TrackedManifest, summary: &TrackedSu
         })
         .collect();
     ctx.insert("rejected", &rejected);
+    let by_check: Vec<serde_json::Value> = crate::pipeline::sequence_frames::rejections_by_check(&run.frames)
+        .into_iter()
+        .map(|(check, frames)| serde_json::json!({"check": check, "frames": frames}))
+        .collect();
+    ctx.insert("rejected_by_check", &by_check);
     let m = run.fit.image_to_probe.matrix();
     let matrix_text = (0..4)
         .map(|r| {
@@ -388,14 +462,31 @@ fn render_page(run: &TrackedRun, manifest: &TrackedManifest, summary: &TrackedSu
         ),
     ];
     if let Some(plus) = &summary.plus_result {
+        let both = summary
+            .validation
+            .frames_compared
+            .map(|c| format!("validation, the {} frames both segmented", c.both))
+            .unwrap_or_else(|| "validation".into());
         pre3d.push(row(
-            "PLUS's ImageToProbe, same dots and poses",
-            "validation",
+            "probecal, same frames as PLUS's matrix",
+            &both,
+            summary.validation.same_frames_pre3d_mm,
+            None,
+        ));
+        pre3d.push(row(
+            "PLUS's ImageToProbe, same dots, poses and frames",
+            &both,
             summary.validation.plus_matrix_pre3d_mm,
             summary.validation.plus_matrix_pre3d_all_mm,
         ));
+        let published_frames = summary
+            .validation
+            .frames_compared
+            .and_then(|c| c.plus)
+            .map(|n| format!("validation, {n} frames PLUS segmented"))
+            .unwrap_or_else(|| "validation".into());
         pre3d.push(serde_json::json!({
-            "estimate": "PLUS as published (its own dots)", "frames": "validation",
+            "estimate": "PLUS as published (its own dots)", "frames": published_frames,
             "mean": f3(plus.published_validation_pre3d_mm.mean), "std": f3(plus.published_validation_pre3d_mm.std),
             "n": "—", "mean_all": "—", "std_all": "—", "n_all": "—",
         }));

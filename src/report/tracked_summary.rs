@@ -17,8 +17,12 @@ pub struct TrackedSummary {
     pub kind: String,
     pub frames: TrackedFrameCounts,
     pub constraints: ConstraintCounts,
-    /// The tracker's lag behind the images, s.
+    /// The tracker's lag behind the images applied, s.
     pub time_offset_s: f64,
+    /// When the manifest asks for the lag to be estimated: what the sweep's own
+    /// motion gave (an unresolved lag is not applied).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub time_offset_estimate: Option<crate::pipeline::sweep_lag::SweepLag>,
     pub image_to_probe: ImageToProbeSummary,
     /// How the model was chosen: cross-validation on the calibration frames.
     pub model_selection: ModelSelectionSummary,
@@ -67,11 +71,14 @@ pub struct Segmented {
     pub total: usize,
 }
 
-#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct TrackedFrameCounts {
     pub calibration: Segmented,
     pub validation: Segmented,
     pub rejected: usize,
+    /// How many frames each check rejected, most first.
+    #[serde(default)]
+    pub rejected_by_check: Vec<(String, usize)>,
     /// Pixels of a screen grab's overlay left out (bright in every calibration
     /// frame), when no clip rectangle was given.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -112,12 +119,28 @@ pub struct ImageToProbeSummary {
 pub struct Pre3d {
     pub pre3d_mm: Option<MeanSd>,
     pub pre3d_all_mm: Option<MeanSd>,
-    /// PLUS's `ImageToProbe` (its result file) on the same dots and poses, same
+    /// PLUS's `ImageToProbe` (its result file) on the same dots, poses and
+    /// frames (those both segmented, where the file lists PLUS's), same
     /// convention: the like-for-like comparison.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub plus_matrix_pre3d_mm: Option<MeanSd>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub plus_matrix_pre3d_all_mm: Option<MeanSd>,
+    /// Ours on exactly the frames of `plus_matrix_pre3d_mm`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub same_frames_pre3d_mm: Option<MeanSd>,
+    /// How many frames each used.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub frames_compared: Option<FramesCompared>,
+}
+
+/// Frames of one sequence: used here, segmented by PLUS (when its file lists
+/// them), and both.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+pub struct FramesCompared {
+    pub ours: usize,
+    pub plus: Option<usize>,
+    pub both: usize,
 }
 
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]

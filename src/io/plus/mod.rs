@@ -3,4 +3,5 @@
 pub mod config;
 pub mod orientation;
 pub mod result;
+pub mod segmentation;
 pub mod sequence;

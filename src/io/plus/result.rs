@@ -14,6 +14,10 @@ pub struct PlusResult {
     pub validation_std_mm: Option<f64>,
     pub calibration_mean_mm: Option<f64>,
     pub calibration_std_mm: Option<f64>,
+    /// The frames PLUS's segmentation found in the calibration and the
+    /// validation sequence, where the file lists them per frame.
+    pub calibration_frames_segmented: Option<std::collections::BTreeSet<usize>>,
+    pub validation_frames_segmented: Option<std::collections::BTreeSet<usize>>,
 }
 
 impl PlusResult {
@@ -46,7 +50,15 @@ impl PlusResult {
                 .and_then(|n| n.attribute(name))
                 .and_then(|v| v.parse::<f64>().ok())
         };
+        let per_frame = super::segmentation::PlusSegmentation::read(path)?;
+        let found = |name: &str| {
+            per_frame
+                .section(name)
+                .map(|frames| frames.iter().filter(|(_, p)| p.is_some()).map(|(f, _)| *f).collect())
+        };
         Ok(PlusResult {
+            calibration_frames_segmented: found("calibration"),
+            validation_frames_segmented: found("validation"),
             image_to_probe: Matrix4::from_fn(|r, c| numbers[r * 4 + c]),
             validation_mean_mm: stat("ValidationMeanMm"),
             validation_std_mm: stat("ValidationStdDevMm"),
