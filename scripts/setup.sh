@@ -2,12 +2,14 @@
 # Installs what probecal needs on Debian 12: OpenCV 4.6 with contrib, clang for
 # the opencv crate's bindings, the fonts figures use, and the readers the report
 # tests check the reports in (pdflatex with the LaTeX report's packages, Chromium),
-# and ADMesh, the independent STL reader the printable phantom is checked with.
+# ADMesh, the independent STL reader the printable phantom is checked with, and
+# python3-opencv, OpenCV's own calibration sample the camera calibration is
+# checked against.
 # Safe to run again.
 set -euo pipefail
 
 packages=(libopencv-dev libopencv-contrib-dev clang libclang-dev fonts-dejavu-core pkg-config admesh
-  texlive-latex-recommended texlive-latex-extra texlive-science lmodern chromium)
+  texlive-latex-recommended texlive-latex-extra texlive-science lmodern chromium python3-opencv)
 missing=()
 for p in "${packages[@]}"; do
   dpkg -s "$p" >/dev/null 2>&1 || missing+=("$p")

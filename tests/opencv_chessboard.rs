@@ -86,9 +86,14 @@ fn calibrate_camera_command_writes_opencv_filestorage() {
 #[ignore = "needs ../shared/data (full tier: scripts/test.sh)"]
 fn too_few_views_is_a_clear_error() {
     let one = data().join("left01.jpg");
-    let err = probecal::detect::camera_calibration::calibrate_from(&[one], [9, 6], 1.0)
-        .unwrap_err()
-        .to_string();
+    let err = probecal::detect::camera_calibration::calibrate_from(
+        &[one],
+        [9, 6],
+        1.0,
+        probecal::detect::corners::Search::OpenCvSample,
+    )
+    .unwrap_err()
+    .to_string();
     assert!(err.contains("found in 1 of 1 views; at least 4 are needed"), "{err}");
     let wrong_board = probecal::detect::camera_calibration::calibrate_folder(&data(), [7, 7], 1.0)
         .unwrap_err()
@@ -120,4 +125,135 @@ fn one_photo_repeated_as_every_view_is_refused() {
     assert!(stderr.contains("was found in 1 of 6 views"), "{stderr}");
     assert!(stderr.contains("the same view as"), "{stderr}");
     assert!(!dir.join("camera.yml").exists());
+}
+
+/// OpenCV's calibration sample run by Debian's python3-opencv, an independent
+/// peer: the views it used and its RMS, px; `None` (with the reason printed)
+/// where the peer is not installed.
+fn opencv_sample(folder: &std::path::Path) -> Option<(usize, f64)> {
+    let script = r#"
+import glob, sys, cv2 as cv, numpy as np
+pattern = (9, 6)
+obj = np.zeros((54, 3), np.float32); obj[:, :2] = np.indices(pattern).T.reshape(-1, 2)
+objp, imgp = [], []
+term = (cv.TERM_CRITERIA_EPS + cv.TERM_CRITERIA_COUNT, 30, 0.1)
+for f in sorted(glob.glob(sys.argv[1] + '/*.jpg')):
+    img = cv.imread(f, cv.IMREAD_GRAYSCALE)
+    found, corners = cv.findChessboardCorners(img, pattern)
+    if found:
+        cv.cornerSubPix(img, corners, (5, 5), (-1, -1), term)
+        objp.append(obj); imgp.append(corners.reshape(-1, 2))
+rms = cv.calibrateCamera(objp, imgp, img.shape[::-1], None, None)[0]
+print(len(objp), repr(rms))
+"#;
+    let out = std::process::Command::new("/usr/bin/python3")
+        .args(["-c", script])
+        .arg(folder)
+        .output();
+    match out {
+        Ok(o) if o.status.success() => {
+            let text = String::from_utf8_lossy(&o.stdout).to_string();
+            let mut words = text.split_whitespace();
+            Some((words.next()?.parse().ok()?, words.next()?.parse().ok()?))
+        }
+        Ok(o) => {
+            println!(
+                "skipped: python3-opencv is not usable ({})",
+                String::from_utf8_lossy(&o.stderr).lines().last().unwrap_or("")
+            );
+            None
+        }
+        Err(e) => {
+            println!("skipped: /usr/bin/python3 cannot run ({e})");
+            None
+        }
+    }
+}
+
+/// `calibrate-camera` into a folder that does not exist yet: the intrinsics
+/// and, per view, its fate.
+fn calibrate_camera(images: &std::path::Path, name: &str) -> (String, String) {
+    let out = PathBuf::from(env!("CARGO_TARGET_TMPDIR"))
+        .join(format!("{name}-{}", std::process::id()))
+        .join("new folder")
+        .join("camera.yml");
+    let r = std::process::Command::new(env!("CARGO_BIN_EXE_probecal"))
+        .args(["calibrate-camera", "--board", "9x6", "--square-mm", "1", "--out"])
+        .arg(&out)
+        .arg(images)
+        .output()
+        .expect("run probecal");
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    (
+        std::fs::read_to_string(&out).expect("the output, its folder made"),
+        String::from_utf8_lossy(&r.stderr).to_string(),
+    )
+}
+
+/// The command's views and RMS are those of OpenCV's own calibration sample
+/// (same flags, same sub-pixel refinement) to 1e-4 px.
+#[test]
+#[ignore = "needs ../shared/data and python3-opencv (full tier: scripts/test.sh)"]
+fn the_command_reproduces_opencvs_sample_to_a_ten_thousandth_of_a_pixel() {
+    let Some((views, rms)) = opencv_sample(&data()) else {
+        return;
+    };
+    let (text, _) = calibrate_camera(&data(), "sample");
+    let ours: f64 = text
+        .lines()
+        .find_map(|l| l.strip_prefix("avg_reprojection_error: "))
+        .and_then(|v| v.trim().parse().ok())
+        .expect("the RMS in the file");
+    println!(
+        "OpenCV's sample: {views} views, RMS {rms}; ours {} views, RMS {ours}",
+        text.matches("used: 1").count()
+    );
+    assert_eq!(text.matches("used: 1").count(), views);
+    assert!((ours - rms).abs() <= 1e-4, "RMS {ours} against OpenCV's {rms}");
+}
+
+/// Blurred copies of the photos (Gaussian, sigma 2.5 px): OpenCV's default
+/// search finds boards the adaptive threshold alone misses, and
+/// findChessboardCornersSB finds more; every view OpenCV's default flags find
+/// is used, and each view's fate is in the output file.
+#[test]
+#[ignore = "needs ../shared/data (full tier: scripts/test.sh)"]
+fn every_board_opencv_finds_is_used_and_every_view_says_how() {
+    use opencv::core::{Point2f, Size, Vector};
+    use opencv::prelude::*;
+    let folder = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(format!("blurred-{}", std::process::id()));
+    std::fs::create_dir_all(&folder).unwrap();
+    let (mut adaptive_only, mut default_flags) = (0, 0);
+    for entry in std::fs::read_dir(data()).unwrap() {
+        let path = entry.unwrap().path();
+        if path.extension().and_then(|e| e.to_str()) != Some("jpg") {
+            continue;
+        }
+        let image = opencv::imgcodecs::imread(path.to_str().unwrap(), opencv::imgcodecs::IMREAD_GRAYSCALE).unwrap();
+        let mut blurred = opencv::core::Mat::default();
+        opencv::imgproc::gaussian_blur_def(&image, &mut blurred, Size::new(0, 0), 2.5).unwrap();
+        let name = folder.join(path.file_name().unwrap()).with_extension("png");
+        opencv::imgcodecs::imwrite_def(name.to_str().unwrap(), &blurred).unwrap();
+        let mut corners = Vector::<Point2f>::new();
+        let pattern = Size::new(9, 6);
+        let flags = opencv::calib3d::CALIB_CB_ADAPTIVE_THRESH;
+        adaptive_only +=
+            usize::from(opencv::calib3d::find_chessboard_corners(&blurred, pattern, &mut corners, flags).unwrap());
+        default_flags +=
+            usize::from(opencv::calib3d::find_chessboard_corners_def(&blurred, pattern, &mut corners).unwrap());
+        assert!(blurred.rows() == 480);
+    }
+    let (text, stderr) = calibrate_camera(&folder, "blurred-calibration");
+    let used = text.matches("used: 1").count();
+    println!("blurred: adaptive threshold alone {adaptive_only}, OpenCV's default flags {default_flags}, used {used}\n{stderr}");
+    assert!(
+        default_flags > adaptive_only,
+        "the blur no longer tells the searches apart"
+    );
+    assert!(
+        used >= default_flags,
+        "{used} views used, OpenCV's default flags find {default_flags}"
+    );
+    assert_eq!(text.matches("image: ").count(), 13, "every view's fate:\n{text}");
+    assert!(text.contains("how: board found by findChessboardCornersSB"), "{text}");
 }

@@ -12,7 +12,7 @@ use opencv::core::{Mat, Size, Vector};
 use opencv::prelude::*;
 
 use crate::detect::board::BoardLayout;
-use crate::detect::corners::{detect_chessboard_reduced, image_points, object_points, SubPix};
+use crate::detect::corners::{image_points, object_points, search_chessboard_reduced, Found, Search, SubPix};
 use crate::io::camera_model::CameraIntrinsics;
 use crate::io::image::read_gray;
 
@@ -24,6 +24,8 @@ pub struct CalibrationView {
     /// Why the view was not used.
     pub reason: Option<String>,
     pub rms_px: Option<f64>,
+    /// Which search found its board.
+    pub found_by: Option<Found>,
 }
 
 /// The stage's output.
@@ -132,6 +134,7 @@ pub fn calibrate(
     inner_corners: [u32; 2],
     square_mm: f64,
     subpix: SubPix,
+    search: Search,
 ) -> Result<CameraCalibration, CalibrationError> {
     let layout = BoardLayout {
         inner_corners,
@@ -151,7 +154,7 @@ pub fn calibrate(
             let size = Size::new(image.cols(), image.rows());
             (
                 size,
-                detect_chessboard_reduced(&image, inner_corners, subpix, SEARCH_MAX_SIDE_PX),
+                search_chessboard_reduced(&image, inner_corners, subpix, SEARCH_MAX_SIDE_PX, search),
             )
         })
     });
@@ -164,6 +167,7 @@ pub fn calibrate(
                     used: false,
                     reason: Some(e.to_string()),
                     rms_px: None,
+                    found_by: None,
                 });
                 continue;
             }
@@ -183,7 +187,7 @@ pub fn calibrate(
             _ => {}
         }
         match found? {
-            Some(corners) => match duplicate_of(&corners, &used_corners) {
+            Some((corners, found_by)) => match duplicate_of(&corners, &used_corners) {
                 Some(same) => {
                     let shift_px = max_shift_px(&corners, &used_corners[same]);
                     let earlier = views[used_index[same]].image.display().to_string();
@@ -194,6 +198,7 @@ pub fn calibrate(
                             "the same view as {earlier} (every corner within {shift_px:.2} px): it adds nothing"
                         )),
                         rms_px: None,
+                        found_by: Some(found_by),
                     });
                 }
                 None => {
@@ -206,14 +211,19 @@ pub fn calibrate(
                         used: true,
                         reason: None,
                         rms_px: None,
+                        found_by: Some(found_by),
                     });
                 }
             },
             None => views.push(CalibrationView {
                 image: path.clone(),
                 used: false,
-                reason: Some(format!("no {}x{} chessboard found", inner_corners[0], inner_corners[1])),
+                reason: Some(format!(
+                    "no {}x{} chessboard found (adaptive threshold, OpenCV's default flags, findChessboardCornersSB)",
+                    inner_corners[0], inner_corners[1]
+                )),
                 rms_px: None,
+                found_by: None,
             }),
         }
     }
@@ -396,14 +406,16 @@ fn solve(
     })
 }
 
-/// Calibrates from files and folders (the `calibrate-camera` command and the pipeline).
+/// Calibrates from files and folders (the `calibrate-camera` command and the
+/// pipeline), each board searched as `search` says.
 pub fn calibrate_from(
     inputs: &[PathBuf],
     inner_corners: [u32; 2],
     square_mm: f64,
+    search: Search,
 ) -> Result<CameraCalibration, CalibrationError> {
     let images = collect_images(inputs)?;
-    calibrate(&images, inner_corners, square_mm, SubPix::default())
+    calibrate(&images, inner_corners, square_mm, SubPix::default(), search)
 }
 
 /// Convenience for a single folder.
@@ -412,7 +424,7 @@ pub fn calibrate_folder(
     inner_corners: [u32; 2],
     square_mm: f64,
 ) -> Result<CameraCalibration, CalibrationError> {
-    calibrate_from(&[folder.to_path_buf()], inner_corners, square_mm)
+    calibrate_from(&[folder.to_path_buf()], inner_corners, square_mm, Search::Thorough)
 }
 
 /// A board's inner corners from `COLSxROWS` (the command line's `--board`).

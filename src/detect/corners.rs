@@ -1,6 +1,9 @@
 //! Chessboard inner-corner detection: OpenCV's `findChessboardCorners` (adaptive
 //! threshold) followed by `cornerSubPix`. The camera calibration
-//! and the per-frame board poses both go through this one function.
+//! and the per-frame board poses both go through this one function; the camera
+//! calibration searches a view that the first search misses again, as OpenCV's
+//! own calibration does and then with `findChessboardCornersSB`
+//! ([`Search::Thorough`]).
 
 use opencv::core::{Mat, Point2f, Size, TermCriteria, TermCriteria_Type, Vector};
 use opencv::prelude::*;
@@ -33,11 +36,77 @@ impl Default for SubPix {
 /// 0.36 s without. OpenCV's own sample photos are all still found and their
 /// published calibration reproduced (`tests/opencv_chessboard.rs`), and every
 /// rendered experiment keeps the frames it kept.
-fn find(image: &Mat, inner_corners: [u32; 2]) -> opencv::Result<Option<Vector<Point2f>>> {
+fn find(image: &Mat, inner_corners: [u32; 2], search: Search) -> opencv::Result<Option<(Vector<Point2f>, Found)>> {
     let pattern = Size::new(inner_corners[0] as i32, inner_corners[1] as i32);
-    let mut corners = Vector::<Point2f>::new();
-    let flags = calib3d::CALIB_CB_ADAPTIVE_THRESH;
-    Ok(calib3d::find_chessboard_corners(image, pattern, &mut corners, flags)?.then_some(corners))
+    let order: &[Found] = match search {
+        Search::Fast => &[Found::AdaptiveThreshold],
+        Search::Thorough => &[Found::AdaptiveThreshold, Found::OpenCvDefault, Found::SectorBased],
+        Search::OpenCvSample => &[Found::OpenCvDefault, Found::AdaptiveThreshold, Found::SectorBased],
+    };
+    for way in order {
+        let mut corners = Vector::<Point2f>::new();
+        let found = match way {
+            Found::AdaptiveThreshold => {
+                calib3d::find_chessboard_corners(image, pattern, &mut corners, calib3d::CALIB_CB_ADAPTIVE_THRESH)?
+            }
+            Found::OpenCvDefault => calib3d::find_chessboard_corners(
+                image,
+                pattern,
+                &mut corners,
+                calib3d::CALIB_CB_ADAPTIVE_THRESH | calib3d::CALIB_CB_NORMALIZE_IMAGE,
+            )?,
+            Found::SectorBased => calib3d::find_chessboard_corners_sb(
+                image,
+                pattern,
+                &mut corners,
+                calib3d::CALIB_CB_NORMALIZE_IMAGE | calib3d::CALIB_CB_EXHAUSTIVE | calib3d::CALIB_CB_ACCURACY,
+            )?,
+        };
+        if found {
+            return Ok(Some((corners, *way)));
+        }
+    }
+    Ok(None)
+}
+
+/// How hard a board is searched for.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Search {
+    /// The adaptive threshold alone (per-frame board poses: a frame whose board
+    /// is hidden costs one search).
+    Fast,
+    /// Then OpenCV's default flags (adaptive threshold and a normalised image, as
+    /// its calibration sample), then `findChessboardCornersSB` (normalised,
+    /// exhaustive, accurate) before giving up: the pipeline's camera
+    /// calibration, where a view lost is information lost. A board the first
+    /// search finds keeps the corners it always had, so committed studies
+    /// reproduce.
+    Thorough,
+    /// OpenCV's calibration sample's search first (its default flags), then the
+    /// adaptive threshold alone, then `findChessboardCornersSB`: the
+    /// `calibrate-camera` command, whose views and corners are then OpenCV's own
+    /// (`cornerSubPix` stops within 0.1 px, so where it starts shows in the
+    /// result).
+    OpenCvSample,
+}
+
+/// Which search found a board.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Found {
+    AdaptiveThreshold,
+    OpenCvDefault,
+    SectorBased,
+}
+
+impl std::fmt::Display for Found {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Found::AdaptiveThreshold => "findChessboardCorners, adaptive threshold",
+            Found::OpenCvDefault => "findChessboardCorners, adaptive threshold and normalised image",
+            Found::SectorBased => "findChessboardCornersSB",
+        })
+    }
 }
 
 /// `cornerSubPix` on `image` from the given starting corners.
@@ -58,8 +127,18 @@ pub fn detect_chessboard(
     inner_corners: [u32; 2],
     subpix: SubPix,
 ) -> opencv::Result<Option<Vec<[f64; 2]>>> {
-    match find(image, inner_corners)? {
-        Some(corners) => refine(image, corners, subpix).map(Some),
+    Ok(search_chessboard(image, inner_corners, subpix, Search::Fast)?.map(|(c, _)| c))
+}
+
+/// Like [`detect_chessboard`], searched as `search` says; which search found it.
+pub fn search_chessboard(
+    image: &Mat,
+    inner_corners: [u32; 2],
+    subpix: SubPix,
+    search: Search,
+) -> opencv::Result<Option<(Vec<[f64; 2]>, Found)>> {
+    match find(image, inner_corners, search)? {
+        Some((corners, found)) => Ok(Some((refine(image, corners, subpix)?, found))),
         None => Ok(None),
     }
 }
@@ -74,15 +153,27 @@ pub fn detect_chessboard_reduced(
     subpix: SubPix,
     max_side_px: i32,
 ) -> opencv::Result<Option<Vec<[f64; 2]>>> {
+    Ok(search_chessboard_reduced(image, inner_corners, subpix, max_side_px, Search::Fast)?.map(|(c, _)| c))
+}
+
+/// Like [`detect_chessboard_reduced`], searched as `search` says; which search
+/// found it.
+pub fn search_chessboard_reduced(
+    image: &Mat,
+    inner_corners: [u32; 2],
+    subpix: SubPix,
+    max_side_px: i32,
+    search: Search,
+) -> opencv::Result<Option<(Vec<[f64; 2]>, Found)>> {
     let side = image.cols().max(image.rows());
     let factor = ((side + max_side_px - 1) / max_side_px).max(1);
     if factor == 1 {
-        return detect_chessboard(image, inner_corners, subpix);
+        return search_chessboard(image, inner_corners, subpix, search);
     }
     let mut reduced = Mat::default();
     let size = Size::new(image.cols() / factor, image.rows() / factor);
     imgproc::resize(image, &mut reduced, size, 0.0, 0.0, imgproc::INTER_AREA)?;
-    let Some(corners) = find(&reduced, inner_corners)? else {
+    let Some((corners, found)) = find(&reduced, inner_corners, search)? else {
         return Ok(None);
     };
     // Pixel centres: x_full = (x_reduced + 0.5) * factor - 0.5.
@@ -91,7 +182,7 @@ pub fn detect_chessboard_reduced(
         .iter()
         .map(|p| Point2f::new((p.x + 0.5) * f - 0.5, (p.y + 0.5) * f - 0.5))
         .collect();
-    refine(image, full, subpix).map(Some)
+    Ok(Some((refine(image, full, subpix)?, found)))
 }
 
 /// `Mat` of 3D object points for OpenCV calls.

@@ -205,6 +205,17 @@ impl CameraIntrinsics {
 
     /// Writes OpenCV FileStorage YAML with the keys of OpenCV's calibration sample.
     pub fn save(&self, path: &Path, board: Option<([u32; 2], f64)>) -> Result<(), IntrinsicsError> {
+        self.save_with_views(path, board, &[])
+    }
+
+    /// Like [`CameraIntrinsics::save`], with each view's fate under `views`: its
+    /// image, whether it was used, and how its board was found or why not.
+    pub fn save_with_views(
+        &self,
+        path: &Path,
+        board: Option<([u32; 2], f64)>,
+        views: &[ViewFate],
+    ) -> Result<(), IntrinsicsError> {
         let tmp = path.with_extension("tmp.yml");
         let write_err = |message: String| IntrinsicsError::Write {
             path: path.to_path_buf(),
@@ -240,11 +251,31 @@ impl CameraIntrinsics {
                     .try_clone()?;
                 fs.write_mat("per_view_reprojection_errors", &pv)?;
             }
+            if !views.is_empty() {
+                fs.start_write_struct("views", opencv::core::FileNode_SEQ, "")?;
+                for v in views {
+                    fs.start_write_struct("", opencv::core::FileNode_MAP, "")?;
+                    fs.write_str("image", &v.image)?;
+                    fs.write_i32("used", i32::from(v.used))?;
+                    fs.write_str("how", &v.how)?;
+                    fs.end_write_struct()?;
+                }
+                fs.end_write_struct()?;
+            }
             fs.release()?;
         }
         std::fs::rename(&tmp, path).map_err(|e| write_err(e.to_string()))?;
         Ok(())
     }
+}
+
+/// One calibration view's fate, as the intrinsics file records it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ViewFate {
+    pub image: String,
+    pub used: bool,
+    /// How its board was found (used), or why it was not used.
+    pub how: String,
 }
 
 #[cfg(test)]

@@ -135,7 +135,11 @@ pub fn tracked_run(run: &TrackedRun, summary: &TrackedSummary, folder: &std::pat
 pub fn camera_calibration(cal: &CameraCalibration) {
     for v in &cal.views {
         match (&v.reason, v.rms_px) {
-            (None, Some(rms)) => eprintln!("  {}: used, RMS {rms:.3} px", v.image.display()),
+            (None, Some(rms)) => eprintln!(
+                "  {}: used, RMS {rms:.3} px{}",
+                v.image.display(),
+                v.found_by.map(|f| format!(" (found by {f})")).unwrap_or_default()
+            ),
             (Some(r), _) => eprintln!("  {}: not used: {r}", v.image.display()),
             _ => {}
         }
@@ -162,11 +166,36 @@ pub fn calibrate_camera(images: &[PathBuf], board: [u32; 2], square_mm: f64, out
         eprintln!("error: --square-mm must be a positive number, got {square_mm}");
         return 2;
     }
-    let calibrated = crate::detect::camera_calibration::calibrate_from(images, board, square_mm);
+    // The folder is made before the work, so a finished calibration has somewhere to go.
+    if let Some(parent) = out.parent().filter(|p| !p.as_os_str().is_empty()) {
+        if let Err(e) = std::fs::create_dir_all(parent) {
+            eprintln!("error: {}: cannot create the output's folder: {e}", parent.display());
+            return 1;
+        }
+    }
+    let calibrated = crate::detect::camera_calibration::calibrate_from(
+        images,
+        board,
+        square_mm,
+        crate::detect::corners::Search::OpenCvSample,
+    );
     let saved = calibrated.map_err(|e| e.to_string()).and_then(|cal| {
         camera_calibration(&cal);
+        let views: Vec<crate::io::camera_model::ViewFate> = cal
+            .views
+            .iter()
+            .map(|v| crate::io::camera_model::ViewFate {
+                image: v.image.display().to_string(),
+                used: v.used,
+                how: match (&v.reason, v.found_by) {
+                    (Some(r), _) => r.clone(),
+                    (None, Some(f)) => format!("board found by {f}"),
+                    (None, None) => String::new(),
+                },
+            })
+            .collect();
         cal.intrinsics
-            .save(out, Some((board, square_mm)))
+            .save_with_views(out, Some((board, square_mm)), &views)
             .map_err(|e| e.to_string())
     });
     match saved {
