@@ -113,21 +113,7 @@ enum Command {
     },
     /// Segment the N-wire dots of a PLUS sequence on their own: segmentation.csv,
     /// summary.json and report.html in --out.
-    Segment {
-        /// A PLUS sequence file (.mha).
-        sequence: PathBuf,
-        /// The PLUS device set with the phantom (and its segmentation settings).
-        #[arg(long)]
-        config: PathBuf,
-        /// The output folder (written whole on success).
-        #[arg(long)]
-        out: PathBuf,
-        /// PLUS's segmentation of the same sequence (a segmentation test baseline
-        /// or a calibration result XML): recall, extra frames and point distances
-        /// on the page and in summary.json.
-        #[arg(long)]
-        plus_baseline: Option<PathBuf>,
-    },
+    Segment(probecal::report::segment::SegmentArgs),
     /// The tracker's lag behind the video from a probe moved over a flat reflector
     /// (PLUS's temporal calibration): summary.json, lines.csv, report.html in --out.
     Temporal {
@@ -232,12 +218,7 @@ fn main() -> ExitCode {
         } => probecal::report::check::run(&runs, &baselines, update, allow_drop),
         Command::Validate { manifests } => probecal::report::console::validate(&manifests),
         Command::Temporal { tracker, video, out } => probecal::report::temporal::command(&video, &tracker, &out),
-        Command::Segment {
-            sequence,
-            config,
-            out,
-            plus_baseline,
-        } => probecal::report::segment::command(&sequence, &config, &out, plus_baseline.as_deref()),
+        Command::Segment(args) => probecal::report::segment::command(&args),
         Command::Live {
             manifest,
             out,

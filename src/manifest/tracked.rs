@@ -253,7 +253,7 @@ impl Default for TrackedRegression {
 pub enum TimeOffset {
     Fixed(f64),
     /// Found from the calibration sweep's own motion
-    /// ([`crate::pipeline::sweep_lag`]): the wire dots' measured motion in the
+    /// (the pipeline's `sweep_lag` stage): the wire dots' measured motion in the
     /// images against the motion the tracker's poses predict, cross-correlated
     /// as PLUS's temporal calibration does; not applied when unresolved.
     Estimate,

@@ -129,21 +129,7 @@ pub fn estimate(frames: &[TrackedFrame], nwires: &[NWire], fit: &Fit) -> SweepLa
     if s.windows(2).any(|w| w[1].0 <= w[0].0) {
         return unresolved("the frames' timestamps repeat or run backwards".into(), 0.0, s.len());
     }
-    // The measured motion's principal axis.
-    let n = s.len() as f64;
-    let mean = s.iter().fold(Vector2::zeros(), |a, x| a + x.1) / n;
-    let cov = s.iter().fold(Matrix2::zeros(), |c, x| {
-        let d = x.1 - mean;
-        c + d * d.transpose()
-    }) / n;
-    let eigen = cov.symmetric_eigen();
-    let k = if eigen.eigenvalues[0] >= eigen.eigenvalues[1] {
-        0
-    } else {
-        1
-    };
-    let axis = eigen.eigenvectors.column(k).into_owned();
-    let motion_sd_px = eigen.eigenvalues[k].max(0.0).sqrt();
+    let (video, tracker, motion_sd_px) = on_principal_axis(&s);
     if motion_sd_px < MIN_MOTION_SD_PX {
         return unresolved(
             format!("the dots move {motion_sd_px:.1} px (SD), less than {MIN_MOTION_SD_PX} px: too little motion to tell the lag"),
@@ -151,8 +137,6 @@ pub fn estimate(frames: &[TrackedFrame], nwires: &[NWire], fit: &Fit) -> SweepLa
             s.len(),
         );
     }
-    let video: Vec<(f64, f64)> = s.iter().map(|x| (x.0, (x.1 - mean).dot(&axis))).collect();
-    let tracker: Vec<(f64, f64)> = s.iter().map(|x| (x.0, (x.2 - mean).dot(&axis))).collect();
     let max_k = (temporal::MAX_LAG_S / temporal::STEP_S).round() as i64;
     let lags: Vec<f64> = (-max_k..=max_k).map(|k| k as f64 * temporal::STEP_S).collect();
     // Per frame: its video value, and the tracker's at its time plus each lag.
@@ -188,7 +172,33 @@ pub fn estimate(frames: &[TrackedFrame], nwires: &[NWire], fit: &Fit) -> SweepLa
         resolution_limit_s,
         ..Default::default()
     };
-    match temporal::peak(full) {
+    decide(temporal::peak(full), base)
+}
+
+/// `(time s, value)` samples of one signal.
+type Signal = Vec<(f64, f64)>;
+
+/// The video and tracker signals (time, px) projected on the video signal's
+/// principal axis of motion, and its SD along that axis, px.
+fn on_principal_axis(s: &[(f64, Vector2<f64>, Vector2<f64>)]) -> (Signal, Signal, f64) {
+    let n = s.len() as f64;
+    let mean = s.iter().fold(Vector2::zeros(), |a, x| a + x.1) / n;
+    let cov = s.iter().fold(Matrix2::zeros(), |c, x| {
+        let d = x.1 - mean;
+        c + d * d.transpose()
+    }) / n;
+    let eigen = cov.symmetric_eigen();
+    let k = usize::from(eigen.eigenvalues[0] < eigen.eigenvalues[1]);
+    let axis = eigen.eigenvectors.column(k).into_owned();
+    let video = s.iter().map(|x| (x.0, (x.1 - mean).dot(&axis))).collect();
+    let tracker = s.iter().map(|x| (x.0, (x.2 - mean).dot(&axis))).collect();
+    (video, tracker, eigen.eigenvalues[k].max(0.0).sqrt())
+}
+
+/// The lag from the correlation's peak, unless the peak is unresolved (at the
+/// edge, weak, or spread over resamples wider than a frame period).
+fn decide(peak: Result<temporal::Correlation, temporal::TemporalError>, base: SweepLag) -> SweepLag {
+    match peak {
         Err(e) => SweepLag {
             unresolved: Some(e.to_string()),
             ..base
@@ -201,18 +211,18 @@ pub fn estimate(frames: &[TrackedFrame], nwires: &[NWire], fit: &Fit) -> SweepLa
             )),
             ..base
         },
-        Ok(c) => match bootstrap_lag_s {
-            Some(b) if b.p95 - b.p5 <= resolution_limit_s => SweepLag {
+        Ok(c) => match base.bootstrap_lag_s {
+            Some(b) if b.p95 - b.p5 <= base.resolution_limit_s => SweepLag {
                 lag_s: Some(c.lag_s),
                 peak_correlation: Some(c.peak_correlation),
                 ..base
             },
             _ => SweepLag {
                 peak_correlation: Some(c.peak_correlation),
-                unresolved: Some(match bootstrap_lag_s {
+                unresolved: Some(match base.bootstrap_lag_s {
                     Some(b) => format!(
                         "the peak at {:+.3} s is not resolved: over resamples of the sweep it moves from {:+.3} to {:+.3} s (90 %), wider than a frame period ({:.3} s)",
-                        c.lag_s, b.p5, b.p95, resolution_limit_s
+                        c.lag_s, b.p5, b.p95, base.resolution_limit_s
                     ),
                     None => format!("the peak at {:+.3} s could not be resampled to tell its spread", c.lag_s),
                 }),

@@ -333,9 +333,29 @@ fn outputs(run: &SegmentRun, baseline: Option<&Baseline>) -> Result<Vec<(String,
     Ok(files)
 }
 
+/// `probecal segment`'s arguments.
+#[derive(Debug, clap::Args)]
+pub struct SegmentArgs {
+    /// A PLUS sequence file (.mha).
+    pub sequence: std::path::PathBuf,
+    /// The PLUS device set with the phantom (and its segmentation settings).
+    #[arg(long)]
+    pub config: std::path::PathBuf,
+    /// The output folder (written whole on success).
+    #[arg(long)]
+    pub out: std::path::PathBuf,
+    /// PLUS's segmentation of the same sequence (a segmentation test baseline
+    /// or a calibration result XML): recall, extra frames and point distances
+    /// on the page and in summary.json.
+    #[arg(long)]
+    pub plus_baseline: Option<std::path::PathBuf>,
+}
+
 /// `probecal segment`: exit code 0 on success, 1 when the inputs cannot be read
 /// or the outputs written.
-pub fn command(sequence: &Path, config: &Path, out: &Path, plus_baseline: Option<&Path>) -> u8 {
+pub fn command(args: &SegmentArgs) -> u8 {
+    let (sequence, config, out) = (&args.sequence, &args.config, &args.out);
+    let plus_baseline = args.plus_baseline.as_deref();
     let run = match crate::pipeline::segment::run(sequence, config) {
         Ok(r) => r,
         Err(e) => {

@@ -149,55 +149,7 @@ impl PlusConfig {
                 }
                 clip_rectangle_px = Some(([o[0] as usize, o[1] as usize], [z[0] as usize, z[1] as usize]));
             }
-            let positive = |name: &str| -> Result<Option<f64>, ConfigError> {
-                if seg.attribute(name).is_none() {
-                    return Ok(None);
-                }
-                let v = x.numbers(seg, name, 1)?[0];
-                if !(v.is_finite() && v > 0.0) {
-                    return Err(x.fail(seg, format!("`{name}` must be a positive number, got {v}")));
-                }
-                Ok(Some(v))
-            };
-            segmentation = PlusSegmentation {
-                opening_radius_mm: positive("MorphologicalOpeningCircleRadiusMm")?,
-                threshold_percent: positive("ThresholdImagePercent")?.filter(|p| *p < 100.0),
-                collinear_tolerance_mm: positive("CollinearPointsMaxDistanceFromLineMm")?,
-                max_candidates: positive("NumberOfMaximumFiducialPointCandidates")?.map(|n| n.round() as usize),
-                row_gap_tolerance_percent: positive("MaxLinePairDistanceErrorPercent")?,
-                max_row_shift_mm: positive("MaxLineShiftMm")?,
-                angle_tolerance_deg: positive("AngleToleranceDegrees")?,
-                max_angle_difference_deg: positive("MaxAngleDifferenceDegrees")?,
-                theta_range_deg: theta_range(&x, seg)?,
-                opening_bar_size_mm: positive("MorphologicalOpeningBarSizeMm")?,
-                original_intensity_score: match seg.attribute("UseOriginalImageIntensityForDotIntensityScore") {
-                    None => None,
-                    Some(v) if v.eq_ignore_ascii_case("true") || v == "1" => Some(true),
-                    Some(v) if v.eq_ignore_ascii_case("false") || v == "0" => Some(false),
-                    Some(v) => {
-                        return Err(x.fail(
-                            seg,
-                            format!("`UseOriginalImageIntensityForDotIntensityScore` must be TRUE or FALSE, got `{v}`"),
-                        ))
-                    }
-                },
-            };
-            for (name, value, most) in [
-                (
-                    "MaxLinePairDistanceErrorPercent",
-                    segmentation.row_gap_tolerance_percent,
-                    100.0,
-                ),
-                ("AngleToleranceDegrees", segmentation.angle_tolerance_deg, 90.0),
-                ("MaxAngleDifferenceDegrees", segmentation.max_angle_difference_deg, 90.0),
-            ] {
-                if value.is_some_and(|v| v >= most) {
-                    return Err(x.fail(
-                        seg,
-                        format!("`{name}` must be below {most}, got {}", value.unwrap_or(0.0)),
-                    ));
-                }
-            }
+            segmentation = segmentation_settings(&x, seg)?;
         }
         Ok(PlusConfig {
             path: path.to_path_buf(),
@@ -228,6 +180,61 @@ impl PlusConfig {
             message: format!("CoordinateDefinitions has no transform {from}To{to} (nor its inverse)"),
         })
     }
+}
+
+/// The `Segmentation` element's settings of the dot segmentation, each a
+/// positive number where given, the tolerances below their ranges' ends.
+fn segmentation_settings(x: &Xml, seg: roxmltree::Node) -> Result<PlusSegmentation, ConfigError> {
+    let positive = |name: &str| -> Result<Option<f64>, ConfigError> {
+        if seg.attribute(name).is_none() {
+            return Ok(None);
+        }
+        let v = x.numbers(seg, name, 1)?[0];
+        if !(v.is_finite() && v > 0.0) {
+            return Err(x.fail(seg, format!("`{name}` must be a positive number, got {v}")));
+        }
+        Ok(Some(v))
+    };
+    let segmentation = PlusSegmentation {
+        opening_radius_mm: positive("MorphologicalOpeningCircleRadiusMm")?,
+        threshold_percent: positive("ThresholdImagePercent")?.filter(|p| *p < 100.0),
+        collinear_tolerance_mm: positive("CollinearPointsMaxDistanceFromLineMm")?,
+        max_candidates: positive("NumberOfMaximumFiducialPointCandidates")?.map(|n| n.round() as usize),
+        row_gap_tolerance_percent: positive("MaxLinePairDistanceErrorPercent")?,
+        max_row_shift_mm: positive("MaxLineShiftMm")?,
+        angle_tolerance_deg: positive("AngleToleranceDegrees")?,
+        max_angle_difference_deg: positive("MaxAngleDifferenceDegrees")?,
+        theta_range_deg: theta_range(x, seg)?,
+        opening_bar_size_mm: positive("MorphologicalOpeningBarSizeMm")?,
+        original_intensity_score: match seg.attribute("UseOriginalImageIntensityForDotIntensityScore") {
+            None => None,
+            Some(v) if v.eq_ignore_ascii_case("true") || v == "1" => Some(true),
+            Some(v) if v.eq_ignore_ascii_case("false") || v == "0" => Some(false),
+            Some(v) => {
+                return Err(x.fail(
+                    seg,
+                    format!("`UseOriginalImageIntensityForDotIntensityScore` must be TRUE or FALSE, got `{v}`"),
+                ))
+            }
+        },
+    };
+    for (name, value, most) in [
+        (
+            "MaxLinePairDistanceErrorPercent",
+            segmentation.row_gap_tolerance_percent,
+            100.0,
+        ),
+        ("AngleToleranceDegrees", segmentation.angle_tolerance_deg, 90.0),
+        ("MaxAngleDifferenceDegrees", segmentation.max_angle_difference_deg, 90.0),
+    ] {
+        if value.is_some_and(|v| v >= most) {
+            return Err(x.fail(
+                seg,
+                format!("`{name}` must be below {most}, got {}", value.unwrap_or(0.0)),
+            ));
+        }
+    }
+    Ok(segmentation)
 }
 
 /// `MinThetaDegrees` and `MaxThetaDegrees`, both or neither, each within ±90°
