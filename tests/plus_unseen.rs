@@ -126,6 +126,15 @@ fn a_scanner_showing_the_patterns_further_apart_is_segmented_as_plus_would() {
     let summary: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
     assert_eq!(summary["found"], 0);
+    // README quotes frame 0's reason.
+    assert!(
+        summary["not_found"][0]["reason"]
+            .as_str()
+            .unwrap()
+            .starts_with("segmentation: line pair distance 22.78 mm, limit 22.00 mm (MaxLinePairDistanceErrorPercent)"),
+        "{}",
+        summary["not_found"][0]
+    );
     for miss in summary["not_found"].as_array().unwrap() {
         let reason = miss["reason"].as_str().unwrap();
         assert!(
