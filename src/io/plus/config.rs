@@ -73,12 +73,7 @@ pub struct PlusSegmentation {
 
 impl PlusConfig {
     pub fn read(path: &Path) -> Result<PlusConfig, ConfigError> {
-        let text = std::fs::read_to_string(path).map_err(|e| ConfigError {
-            path: path.to_path_buf(),
-            line: None,
-            message: format!("cannot read: {e}"),
-        })?;
-        PlusConfig::parse(path, &text)
+        PlusConfig::parse(path, &read_text(path)?)
     }
 
     pub fn parse(path: &Path, text: &str) -> Result<PlusConfig, ConfigError> {
@@ -258,6 +253,15 @@ fn theta_range(x: &Xml, seg: roxmltree::Node) -> Result<Option<(f64, f64)>, Conf
             "give both `MinThetaDegrees` and `MaxThetaDegrees`, or neither".into(),
         )),
     }
+}
+
+/// A PLUS XML file's text, an error naming the file when it cannot be read.
+pub(crate) fn read_text(path: &Path) -> Result<String, ConfigError> {
+    std::fs::read_to_string(path).map_err(|e| ConfigError {
+        path: path.to_path_buf(),
+        line: None,
+        message: format!("cannot read: {e}"),
+    })
 }
 
 /// Parses XML, a syntax error naming the file and line.

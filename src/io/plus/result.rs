@@ -5,7 +5,7 @@ use std::path::Path;
 
 use nalgebra::Matrix4;
 
-use super::config::{parse_xml, ConfigError, Xml};
+use super::config::{parse_xml, read_text, ConfigError, Xml};
 
 #[derive(Debug, Clone, PartialEq)]
 pub struct PlusResult {
@@ -22,11 +22,7 @@ pub struct PlusResult {
 
 impl PlusResult {
     pub fn read(path: &Path) -> Result<PlusResult, ConfigError> {
-        let text = std::fs::read_to_string(path).map_err(|e| ConfigError {
-            path: path.to_path_buf(),
-            line: None,
-            message: format!("cannot read: {e}"),
-        })?;
+        let text = read_text(path)?;
         let doc = parse_xml(path, &text)?;
         let x = Xml { path, doc: &doc };
         let transform = doc
@@ -50,7 +46,7 @@ impl PlusResult {
                 .and_then(|n| n.attribute(name))
                 .and_then(|v| v.parse::<f64>().ok())
         };
-        let per_frame = super::segmentation::PlusSegmentation::read(path)?;
+        let per_frame = super::segmentation::PlusSegmentation::of_document(&x)?;
         let found = |name: &str| {
             per_frame
                 .section(name)

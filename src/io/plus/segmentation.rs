@@ -8,7 +8,7 @@
 use std::collections::BTreeMap;
 use std::path::Path;
 
-use super::config::{parse_xml, ConfigError, Xml};
+use super::config::{parse_xml, read_text, ConfigError, Xml};
 
 /// One sequence's frames as PLUS segmented them: frame index → its points in
 /// wire order (px), or `None` where PLUS's segmentation failed.
@@ -26,21 +26,21 @@ const MAX_FRAMES: usize = 1_000_000;
 
 impl PlusSegmentation {
     pub fn read(path: &Path) -> Result<PlusSegmentation, ConfigError> {
-        let text = std::fs::read_to_string(path).map_err(|e| ConfigError {
-            path: path.to_path_buf(),
-            line: None,
-            message: format!("cannot read: {e}"),
-        })?;
+        let text = read_text(path)?;
         let doc = parse_xml(path, &text)?;
-        let x = Xml { path, doc: &doc };
-        let root = doc.root_element();
+        PlusSegmentation::of_document(&Xml { path, doc: &doc })
+    }
+
+    /// The sections of a parsed file.
+    pub(crate) fn of_document(x: &Xml) -> Result<PlusSegmentation, ConfigError> {
+        let root = x.doc.root_element();
         let sections = match root.tag_name().name() {
-            "TestResults" => vec![("frames".to_string(), test_cases(&x, root)?)],
+            "TestResults" => vec![("frames".to_string(), test_cases(x, root)?)],
             "ProbeCalibrationResult" => {
                 let mut out = Vec::new();
                 for (tag, name) in [("CalibrationData", "calibration"), ("ValidationData", "validation")] {
                     if let Some(node) = root.descendants().find(|n| n.has_tag_name(tag)) {
-                        out.push((name.to_string(), calibration_frames(&x, node)?));
+                        out.push((name.to_string(), calibration_frames(x, node)?));
                     }
                 }
                 out
