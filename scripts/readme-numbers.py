@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Rewrites every tagged number in README.md from the committed output it names.
+"""Rewrites every tagged number in README.md and docs/**/*.md from the committed output it names.
 
 A tagged number is written `0.521<!-- plus_fcal2_nwire/fcal2_3nwires/summary.json#validation.pre3d_mm.mean -->`
 (the key syntax: fields, `[3]` indices, `[field=value]` selectors, a trailing
@@ -35,27 +35,36 @@ def lookup(data, key):
     return float(value) * scale
 
 
+def documents():
+    """README.md and every Markdown page below docs/, in a fixed order."""
+    return [ROOT / "README.md"] + sorted((ROOT / "docs").rglob("*.md"))
+
+
 def main():
-    readme = ROOT / "README.md"
-    text = readme.read_text()
     cache = {}
     failed = []
+    total = 0
+    for page in documents():
+        name = page.relative_to(ROOT)
+        text = page.read_text()
 
-    def fill(m):
-        written, file, key = m.group(1), m.group(2), m.group(3)
-        if file not in cache:
-            cache[file] = json.loads((ROOT / "reports" / file).read_text())
-        decimals = len(written.split(".")[1]) if "." in written else 0
-        try:
-            value = lookup(cache[file], key)
-        except (KeyError, IndexError, StopIteration, TypeError, ValueError) as e:
-            failed.append(f"README.md: reports/{file}#{key}: {type(e).__name__} {e}")
-            return m.group(0)
-        return f"{value:.{decimals}f}<!-- {file}#{key} -->"
+        def fill(m):
+            written, file, key = m.group(1), m.group(2), m.group(3)
+            if file not in cache:
+                cache[file] = json.loads((ROOT / "reports" / file).read_text())
+            decimals = len(written.split(".")[1]) if "." in written else 0
+            try:
+                value = lookup(cache[file], key)
+            except (KeyError, IndexError, StopIteration, TypeError, ValueError) as e:
+                failed.append(f"{name}: reports/{file}#{key}: {type(e).__name__} {e}")
+                return m.group(0)
+            return f"{value:.{decimals}f}<!-- {file}#{key} -->"
 
-    new, count = TAG.subn(fill, text)
-    readme.write_text(new)
-    print(f"{count - len(failed)} of {count} tagged numbers rewritten from reports/", file=sys.stderr)
+        new, count = TAG.subn(fill, text)
+        total += count
+        if new != text:
+            page.write_text(new)
+    print(f"{total - len(failed)} of {total} tagged numbers rewritten from reports/", file=sys.stderr)
     if failed:
         sys.exit("\n".join(failed))
 

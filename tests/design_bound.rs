@@ -2,7 +2,7 @@
 //! (a change of the bound, the candidates or the manifest fails here until
 //! `probecal design` and `probecal phantom` are run again and committed), and
 //! the experiment's layout is one of the table's candidates, at the rank the
-//! table gives it (README "Multi-sphere phantom" states that rank).
+//! table gives it (`docs/results/multi-sphere.md` states that rank).
 
 mod common;
 
@@ -43,15 +43,18 @@ fn the_committed_table_is_current_and_ranks_the_experiments_layout() {
     // Ranked: the bounds ascend.
     let bounds: Vec<f64> = layouts.iter().map(|r| bound_mm(&r["bound"])).collect();
     assert!(bounds.windows(2).all(|w| w[0] <= w[1]), "{bounds:?}");
-    // The experiment's phantom is one of the candidates, and README states its rank.
+    // The experiment's phantom is one of the candidates, and its page states its rank.
     let ours = serde_json::to_value(&manifest.phantom).unwrap();
     let rank = 1 + layouts
         .iter()
         .position(|r| r["phantom"] == ours)
         .expect("the experiment's domes are not a layout of reports/design/design.json");
-    let readme = std::fs::read_to_string(root().join("README.md")).unwrap();
+    let page = std::fs::read_to_string(root().join("docs/results/multi-sphere.md")).unwrap();
     let stated = format!("ranks {rank} of {}", layouts.len());
-    assert!(readme.contains(&stated), "README does not say the layout {stated}");
+    assert!(
+        page.contains(&stated),
+        "docs/results/multi-sphere.md does not say the layout {stated}"
+    );
     // Its bound, recomputed now, is the committed one.
     let fresh = design::bound_over_sweeps(&manifest, &manifest.phantom, &spec, DESIGN_SEEDS).unwrap();
     let stored = bound_mm(&committed["manifest_phantom"]);
@@ -114,7 +117,7 @@ fn the_normal_peaks_edge_noise_is_its_hemisphere_runs_median_arc_rms() {
         "median arc RMS {median_px} px = {} mm, the bound assumes {stated} mm",
         median_px * 0.2
     );
-    // README: the arcs' shared shape error falls to about 0.10 mm (0.178 mm with
+    // docs/results/multi-sphere.md: the arcs' shared shape error falls to about 0.10 mm (0.178 mm with
     // the column's peak), and the arcs spread more than that noise and 20
     // points per arc predict (1.1-1.2 times).
     let summary: serde_json::Value = serde_json::from_str(

@@ -201,7 +201,7 @@ fn experiment_on_plus_data_chooses_on_calibration_frames_and_compares_like_for_l
     assert_eq!(b["resamples"].as_u64().unwrap() + b["failed"].as_u64().unwrap(), 200);
     // Refits on resampled frames scatter about the fit on all of them.
     assert!(p5 < pre3d && pre3d < p95, "ours {pre3d} outside {p5}..{p95}");
-    // README: PLUS's matrix scores inside that spread (the recording cannot tell them apart).
+    // docs/guide/plus-recording.md: PLUS's matrix scores inside that spread (the recording cannot tell them apart).
     assert!(p5 < plus && plus < p95, "PLUS's {plus} outside {p5}..{p95}");
     let floor = r["own_fit_pre3d_mm"]["mean"].as_f64().unwrap();
     assert!(

@@ -126,7 +126,7 @@ fn a_scanner_showing_the_patterns_further_apart_is_segmented_as_plus_would() {
     let summary: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
     assert_eq!(summary["found"], 0);
-    // README quotes frame 0's reason.
+    // docs/guide/commands.md quotes frame 0's reason.
     assert!(
         summary["not_found"][0]["reason"]
             .as_str()

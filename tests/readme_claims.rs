@@ -1,4 +1,4 @@
-//! Every result number README states is tagged with the committed output it
+//! Every result number README and the pages of `docs/` state is tagged with the committed output it
 //! comes from, `0.521<!-- plus_fcal2_nwire/fcal2_3nwires/summary.json#validation.pre3d_mm.mean -->`,
 //! and must equal that value rounded to the digits written. `scripts/check-reports.sh`
 //! checks that `reports/` regenerates byte-identical from a fresh run, so a README
@@ -79,29 +79,86 @@ fn rounded_like(value: f64, written: &str) -> String {
     format!("{value:.decimals$}")
 }
 
-#[test]
-fn every_tagged_readme_number_is_its_committed_output() {
-    let root = common::root();
-    let readme = std::fs::read_to_string(root.join("README.md")).unwrap();
-    let found = claims(&readme);
-    assert!(found.len() >= 20, "only {} tagged numbers in README.md", found.len());
-    let mut wrong = Vec::new();
-    for (line, written, file, key) in &found {
-        let path = root.join("reports").join(file);
-        let check = std::fs::read_to_string(&path)
-            .map_err(|e| format!("{}: {e}", path.display()))
-            .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).map_err(|e| e.to_string()))
-            .and_then(|json| lookup(&json, key));
-        match check {
-            Ok(value) if !written.is_empty() && rounded_like(value, written) == *written => {}
-            Ok(value) => wrong.push(format!(
-                "README.md:{line}: `{written}` but reports/{file}#{key} is {}",
-                rounded_like(value, if written.is_empty() { "0.000" } else { written })
-            )),
-            Err(e) => wrong.push(format!("README.md:{line}: reports/{file}#{key}: {e}")),
+/// README.md and every Markdown page below `docs/`, sorted.
+fn documents() -> Vec<std::path::PathBuf> {
+    fn walk(dir: &std::path::Path, out: &mut Vec<std::path::PathBuf>) {
+        for entry in std::fs::read_dir(dir).unwrap().flatten() {
+            let path = entry.path();
+            if path.is_dir() {
+                walk(&path, out);
+            } else if path.extension().is_some_and(|e| e == "md") {
+                out.push(path);
+            }
         }
     }
+    let mut pages = Vec::new();
+    walk(&common::root().join("docs"), &mut pages);
+    pages.sort();
+    pages.insert(0, common::root().join("README.md"));
+    pages
+}
+
+#[test]
+fn every_tagged_number_in_readme_and_docs_is_its_committed_output() {
+    let root = common::root();
+    let mut wrong = Vec::new();
+    let mut total = 0;
+    for page in documents() {
+        let name = page.strip_prefix(root).unwrap().display().to_string();
+        let text = std::fs::read_to_string(&page).unwrap();
+        let found = claims(&text);
+        total += found.len();
+        for (line, written, file, key) in &found {
+            let path = root.join("reports").join(file);
+            let check = std::fs::read_to_string(&path)
+                .map_err(|e| format!("{}: {e}", path.display()))
+                .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).map_err(|e| e.to_string()))
+                .and_then(|json| lookup(&json, key));
+            match check {
+                Ok(value) if !written.is_empty() && rounded_like(value, written) == *written => {}
+                Ok(value) => wrong.push(format!(
+                    "{name}:{line}: `{written}` but reports/{file}#{key} is {}",
+                    rounded_like(value, if written.is_empty() { "0.000" } else { written })
+                )),
+                Err(e) => wrong.push(format!("{name}:{line}: reports/{file}#{key}: {e}")),
+            }
+        }
+    }
+    assert!(total >= 200, "only {total} tagged numbers in README.md and docs/");
     assert!(wrong.is_empty(), "{}", wrong.join("\n"));
+}
+
+/// The front door stays a front door: README at most 20 KB, and the section on
+/// one's own recording within its first 150 lines.
+#[test]
+fn readme_is_short_and_leads_to_ones_own_recording() {
+    let readme = std::fs::read_to_string(common::root().join("README.md")).unwrap();
+    assert!(readme.len() <= 20 * 1024, "README.md is {} bytes", readme.len());
+    let at = readme
+        .lines()
+        .position(|l| l.starts_with("## Calibrate your own recording"))
+        .expect("README has a section \"Calibrate your own recording\"");
+    assert!(at < 150, "\"Calibrate your own recording\" starts at line {}", at + 1);
+}
+
+/// Every relative link of README and `docs/` names a file or folder that exists.
+#[test]
+fn every_relative_link_of_readme_and_docs_resolves() {
+    let root = common::root();
+    let mut broken = Vec::new();
+    for page in documents() {
+        let text = std::fs::read_to_string(&page).unwrap();
+        let mut rest = text.as_str();
+        while let Some(at) = rest.find("](") {
+            rest = &rest[at + 2..];
+            let Some(end) = rest.find(')') else { break };
+            let target = rest[..end].split('#').next().unwrap_or("");
+            if !target.is_empty() && !target.contains("://") && !page.parent().unwrap().join(target).exists() {
+                broken.push(format!("{}: {target}", page.strip_prefix(root).unwrap().display()));
+            }
+        }
+    }
+    assert!(broken.is_empty(), "links to nothing:\n{}", broken.join("\n"));
 }
 
 #[test]

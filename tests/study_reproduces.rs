@@ -127,7 +127,7 @@ fn the_first_seed_of_every_committed_study_reproduces() {
     }
     assert!(
         differ.is_empty(),
-        "a committed study no longer reproduces; run it again (README: Studies) and commit it:\n{}",
+        "a committed study no longer reproduces; run it again (docs/results/estimators-and-studies.md) and commit it:\n{}",
         differ.join("\n")
     );
 }
