@@ -14,6 +14,7 @@
 //!
 //! | layer | modules | what |
 //! |---|---|---|
+//! | 8 | [`cli`] | the command line: arguments, dispatch, exit codes |
 //! | 7 | [`report`] | results into pages and files, the regression gate |
 //! | 6 | [`pipeline`] | the stages chained; the only reader of manifests' settings |
 //! | 5 | [`manifest`] | YAML in, a validated experiment out |
@@ -48,6 +49,7 @@
 //!   (sx·u, sy·v, 0)|` per axis of P, where `p` is the feature's known position.
 #![allow(non_snake_case)]
 
+pub mod cli;
 pub mod core;
 pub mod detect;
 pub mod estimate;

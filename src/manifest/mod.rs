@@ -7,6 +7,7 @@
 //! the line, and nothing is run before the whole manifest has passed.
 
 mod checker;
+pub mod init;
 pub mod locate;
 pub mod raw;
 mod realism;

@@ -112,9 +112,12 @@ pub fn markdown(a: &Ablation) -> String {
 /// `probecal ablate`'s arguments.
 #[derive(Debug, Clone, clap::Args)]
 pub struct AblateArgs {
+    /// A manifest of a rendered rig (its first dataset and `render.realism`).
     pub manifest: PathBuf,
+    /// Output folder: ablation.json, ablation.md, ablation.html.
     #[arg(long)]
     pub out: PathBuf,
+    /// Where rendered datasets are cached.
     #[arg(long, default_value = "datasets")]
     pub datasets: PathBuf,
     /// Keep the variants' rendered datasets.

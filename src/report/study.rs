@@ -181,6 +181,7 @@ pub fn sigma_table() -> Vec<SigmaRow> {
 pub struct StudyArgs {
     #[command(subcommand)]
     pub merge: Option<StudyMerge>,
+    /// A manifest of a rendered rig (its first dataset is rendered once per seed).
     #[arg(required = true)]
     pub manifest: Option<PathBuf>,
     /// Run every N-th seed from the K-th only (1-based), into
@@ -190,10 +191,13 @@ pub struct StudyArgs {
     /// Seeds rendered (0: the σ-table only).
     #[arg(long, default_value_t = 50)]
     pub seeds: u64,
+    /// The first seed rendered; the study renders seeds first_seed.. first_seed+seeds-1.
     #[arg(long, default_value_t = 1000)]
     pub first_seed: u64,
+    /// Output folder: study.json, study.md, study.html, the σ-table.
     #[arg(long, default_value = "reports/study")]
     pub out: PathBuf,
+    /// Where rendered datasets are cached.
     #[arg(long, default_value = "datasets")]
     pub datasets: PathBuf,
     /// Keep the rendered datasets (they are removed after each seed's run).
@@ -206,8 +210,10 @@ pub struct StudyArgs {
 pub enum StudyMerge {
     /// Join the shard files of one study into the study.json and pages one run writes.
     Merge {
+        /// The shard files (`shard_K_of_N.yaml`) of one study, every K once.
         #[arg(required = true)]
         shards: Vec<PathBuf>,
+        /// Output folder of the joined study.
         #[arg(long, default_value = "reports/study")]
         out: PathBuf,
     },

@@ -40,6 +40,27 @@ pub struct PlusConfig {
     pub wire_ids: Vec<String>,
     /// The device's own segmentation settings, where the file gives them.
     pub segmentation: PlusSegmentation,
+    /// The frames `vtkPlusProbeCalibrationAlgo` names (PLUS's defaults where absent).
+    pub calibration_frames: CalibrationFrames,
+}
+
+/// The coordinate frames of PLUS's probe calibration (`vtkPlusProbeCalibrationAlgo`'s
+/// `ProbeCoordinateFrame`, `ReferenceCoordinateFrame`, `PhantomCoordinateFrame`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct CalibrationFrames {
+    pub probe: String,
+    pub reference: String,
+    pub phantom: String,
+}
+
+impl Default for CalibrationFrames {
+    fn default() -> Self {
+        CalibrationFrames {
+            probe: "Probe".into(),
+            reference: "Reference".into(),
+            phantom: "Phantom".into(),
+        }
+    }
 }
 
 /// `Segmentation` attributes of a device set that size the dot segmentation.
@@ -146,6 +167,18 @@ impl PlusConfig {
             }
             segmentation = segmentation_settings(&x, seg)?;
         }
+        let mut calibration_frames = CalibrationFrames::default();
+        if let Some(algo) = doc
+            .descendants()
+            .find(|n| n.has_tag_name("vtkPlusProbeCalibrationAlgo"))
+        {
+            let frame = |name: &str, default: String| algo.attribute(name).map(str::to_string).unwrap_or(default);
+            calibration_frames = CalibrationFrames {
+                probe: frame("ProbeCoordinateFrame", calibration_frames.probe),
+                reference: frame("ReferenceCoordinateFrame", calibration_frames.reference),
+                phantom: frame("PhantomCoordinateFrame", calibration_frames.phantom),
+            };
+        }
         Ok(PlusConfig {
             path: path.to_path_buf(),
             transforms,
@@ -154,6 +187,7 @@ impl PlusConfig {
             clip_rectangle_px,
             wire_ids,
             segmentation,
+            calibration_frames,
         })
     }
 

@@ -1,0 +1,94 @@
+//! `probecal init`: a commented manifest for one's own recording.
+
+use std::path::PathBuf;
+
+use crate::manifest::init::{folder_manifest, folder_name, plus_manifest, InitError, PlusRecording};
+
+/// Write a commented manifest for a recording: a PLUS recording (`--plus-config`,
+/// `--calibration`), or a folder of frames (`--folder`).
+#[derive(clap::Args)]
+#[command(group(clap::ArgGroup::new("source").required(true).args(["plus_config", "folder"])))]
+pub struct InitArgs {
+    /// PLUS device-set configuration (.xml) the recording was made with: the
+    /// N-wire phantom, the pixel size and the segmentation settings.
+    #[arg(long, requires = "calibration", conflicts_with = "folder")]
+    pub plus_config: Option<PathBuf>,
+    /// PLUS sequence file (.igs.mha / .mha) of the calibration frames.
+    #[arg(long)]
+    pub calibration: Option<PathBuf>,
+    /// PLUS sequence file of held-out validation frames (PRE3D is reported on them).
+    #[arg(long, requires = "plus_config")]
+    pub validation: Option<PathBuf>,
+    /// The probe marker's transform in the sequence (e.g. ProbeToTracker), when
+    /// the device set's frames do not tell it.
+    #[arg(long, requires = "reference_transform")]
+    pub probe_transform: Option<String>,
+    /// The phantom's reference marker's transform (e.g. ReferenceToTracker).
+    #[arg(long, requires = "probe_transform")]
+    pub reference_transform: Option<String>,
+    /// A recorded folder: frames.csv, the photos and B-scans, and
+    /// camera_calibration/ or tracker_poses.csv.
+    #[arg(long)]
+    pub folder: Option<PathBuf>,
+    /// The experiment's name (names the run folder). Default: the manifest file's name.
+    #[arg(long)]
+    pub experiment: Option<String>,
+    /// The manifest to write (YAML); an existing file is replaced only with --force.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Replace an existing manifest at --out.
+    #[arg(long)]
+    pub force: bool,
+}
+
+/// Writes the manifest; 0 when written, 2 when an input or the manifest is wrong.
+pub fn command(args: &InitArgs) -> u8 {
+    match write(args) {
+        Ok(()) => {
+            eprintln!(
+                "wrote {}: check it with `probecal validate {0}`, run it with `probecal run {0} --out runs/{}`",
+                args.out.display(),
+                folder_name(&args.out, "experiment")
+            );
+            0
+        }
+        Err(e) => {
+            eprintln!("error: {e}");
+            2
+        }
+    }
+}
+
+fn write(args: &InitArgs) -> Result<(), InitError> {
+    if args.out.exists() && !args.force {
+        return Err(InitError::Input {
+            path: args.out.clone(),
+            message: "exists; pass --force to replace it".into(),
+        });
+    }
+    let experiment = args
+        .experiment
+        .clone()
+        .unwrap_or_else(|| folder_name(&args.out, "experiment"));
+    let text = match (&args.plus_config, &args.calibration, &args.folder) {
+        (Some(config), Some(calibration), None) => plus_manifest(
+            &PlusRecording {
+                config,
+                calibration,
+                validation: args.validation.as_deref(),
+                probe_transform: args.probe_transform.as_deref(),
+                reference_transform: args.reference_transform.as_deref(),
+            },
+            &args.out,
+            &experiment,
+        )?,
+        (None, None, Some(folder)) => folder_manifest(folder, &args.out, &experiment)?,
+        _ => {
+            return Err(InitError::Input {
+                path: args.out.clone(),
+                message: "give --plus-config with --calibration, or --folder".into(),
+            })
+        }
+    };
+    crate::io::fs::write_atomic(&args.out, text.as_bytes()).map_err(|e| InitError::Read(e.to_string()))
+}

@@ -1,0 +1,264 @@
+//! The command line: arguments (clap) and dispatch to the commands. The work is
+//! done by [`crate::pipeline`] (running) and [`crate::report`] (writing, checking);
+//! `docs/cli.md` is generated from these definitions (`tests/cli_help.rs`).
+
+pub mod docs;
+mod init;
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+
+use crate::manifest::Experiment;
+use crate::pipeline::experiment::{load_all, next_run_folder, run_all, Outcome, RunOptions};
+use crate::report::live::LiveSource;
+use crate::report::writer::ReportWriter;
+
+#[derive(Parser)]
+#[command(
+    name = "probecal",
+    version,
+    about = "Freehand ultrasound probe calibration from camera images and B-scans"
+)]
+pub struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+/// What `run` and `compare` share.
+#[derive(clap::Args)]
+struct RunArgs {
+    /// Experiment manifests (YAML).
+    #[arg(required = true)]
+    manifests: Vec<PathBuf>,
+    /// Output folder: a subfolder per experiment and dataset, index.html (and for
+    /// `compare`, compare.md and compare.html). Default: a new runs/run-NNN.
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Where rendered datasets are cached.
+    #[arg(long, default_value = "datasets")]
+    datasets: PathBuf,
+    /// Replace an experiment's earlier output in --out.
+    #[arg(long)]
+    force: bool,
+    /// Print only errors and gate failures; no progress bars.
+    #[arg(long)]
+    quiet: bool,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Write a commented manifest for one's own recording: a PLUS recording
+    /// (device set and sequence files) or a folder of frames.
+    Init(init::InitArgs),
+    /// Run experiments end to end: render or read each dataset, calibrate, evaluate, report.
+    Run {
+        #[command(flatten)]
+        args: RunArgs,
+        /// Worker threads (0: one per core; at most 256). Outputs do not depend on it.
+        #[arg(long, default_value_t = 0, value_parser = clap::value_parser!(u16).range(0..=crate::core::limits::MAX_THREADS as i64))]
+        threads: u16,
+    },
+    /// Run several experiments and lay them side by side (rigs as columns).
+    Compare {
+        #[command(flatten)]
+        args: RunArgs,
+    },
+    /// Compare runs with the committed accuracy baselines; fail on regressions.
+    Check {
+        /// Run folders (as written by `run --out`) or summary.json files.
+        #[arg(required = true)]
+        runs: Vec<PathBuf>,
+        /// Folder of baseline files, one `<experiment>.yaml` per experiment.
+        #[arg(long, default_value = "experiments/baselines")]
+        baselines: PathBuf,
+        /// Write the baselines from these runs instead of comparing.
+        #[arg(long)]
+        update: bool,
+        /// With --update: let a run that lacks a metric drop it from the baseline.
+        #[arg(long)]
+        allow_drop: bool,
+    },
+    /// Check manifests without running anything.
+    Validate {
+        /// Experiment manifests (YAML); every one is checked and every error printed.
+        #[arg(required = true)]
+        manifests: Vec<PathBuf>,
+    },
+    /// Render the datasets of experiments (camera images, B-scans, ground truth) only.
+    Synth {
+        /// Experiment manifests (YAML) whose rendered datasets to write.
+        #[arg(required = true)]
+        manifests: Vec<PathBuf>,
+        /// Where rendered datasets are cached.
+        #[arg(long, default_value = "datasets")]
+        datasets: PathBuf,
+    },
+    /// The thesis's σ-table and a Monte Carlo accuracy study of every estimator
+    /// (renders the manifest's first dataset once per seed).
+    Study(crate::report::study::StudyArgs),
+    /// Calibrate while a tracked manifest's calibration sequence is replayed at its
+    /// recorded rate: a line per frame (predicted error, running accuracy, work),
+    /// then the batch calibration of the whole recording; summary.json, live.csv.
+    Live {
+        /// A tracked manifest (its calibration sequence is replayed), or a camera
+        /// manifest with --watch.
+        manifest: PathBuf,
+        /// Output folder: summary.json, live.csv and the batch calibration's files.
+        #[arg(long)]
+        out: PathBuf,
+        /// Times the recorded rate (0: every frame at once).
+        #[arg(long, default_value_t = 1.0)]
+        speed: f64,
+        /// A camera manifest: take its frames from this folder as they are written.
+        #[arg(long)]
+        watch: Option<PathBuf>,
+        /// With --watch: no new frame for this long ends the acquisition, s.
+        #[arg(long, default_value_t = 10.0)]
+        idle_s: f64,
+    },
+    /// Solve a run again from its own folder (the frames' poses and feature pixels
+    /// in `solve_inputs.yaml`, the manifest it ran with) and compare with its summary.
+    Resolve {
+        /// A dataset's run folder (`<out>/<experiment>/<dataset>`).
+        run: PathBuf,
+    },
+    /// Segment the N-wire dots of a PLUS sequence on their own: segmentation.csv,
+    /// summary.json and report.html in --out.
+    Segment(crate::report::segment::SegmentArgs),
+    /// The tracker's lag behind the video from a probe moved over a flat reflector
+    /// (PLUS's temporal calibration): summary.json, lines.csv, report.html in --out.
+    Temporal {
+        /// PLUS sequence file of the tracker's poses (`*TrackerBuffer*.igs.mha`).
+        #[arg(long)]
+        tracker: PathBuf,
+        /// PLUS sequence file of the B-scans of the reflector (`*VideoBuffer*.igs.mha`).
+        #[arg(long)]
+        video: PathBuf,
+        /// Output folder: summary.json, lines.csv, report.html.
+        #[arg(long)]
+        out: PathBuf,
+    },
+    /// Error budget of a rendered rig: its dataset rendered with its error sources
+    /// (render.realism) all on, all off, each left out and each alone;
+    /// ablation.json, ablation.md and ablation.html in --out.
+    Ablate(crate::report::ablation::AblateArgs),
+    /// Dome-phantom layouts for the manifest's lab and sweep, ranked by the
+    /// Cramér–Rao bound of their calibration: design.json and design.md in --out.
+    Design {
+        /// A manifest with a dome (spheres) phantom: its lab and sweep.
+        manifest: PathBuf,
+        /// Output folder: design.json, design.md.
+        #[arg(long)]
+        out: PathBuf,
+    },
+    /// A dome phantom's printable model (plate, riser, domes, board seat) as a
+    /// binary STL in mm, and its sheet (sizes, domes, seat) as <name>.json.
+    Phantom {
+        /// A manifest with a dome (spheres) phantom.
+        manifest: PathBuf,
+        /// The STL file to write (binary, mm); its sheet goes beside it as <name>.json.
+        #[arg(long)]
+        stl: PathBuf,
+    },
+    /// Calibrate a camera from chessboard images; writes OpenCV FileStorage YAML.
+    CalibrateCamera {
+        /// Image files and/or folders of images.
+        #[arg(required = true)]
+        images: Vec<PathBuf>,
+        /// Inner corners, COLSxROWS (e.g. 9x6).
+        #[arg(long, value_parser = crate::detect::camera_calibration::parse_board)]
+        board: [u32; 2],
+        /// Square size in millimetres (or any unit: the translations come out in it).
+        #[arg(long)]
+        square_mm: f64,
+        /// Output file.
+        #[arg(long)]
+        out: PathBuf,
+    },
+}
+
+/// Every manifest, or `None` after printing all their errors.
+fn loaded(paths: &[PathBuf]) -> Option<Vec<Experiment>> {
+    load_all(paths).map_err(|e| eprintln!("error: {e}")).ok()
+}
+
+/// `run` and `compare`: every experiment into `--out`; `compare` lays them side by side.
+fn run(args: RunArgs, side_by_side: bool) -> u8 {
+    let Some(experiments) = loaded(&args.manifests) else {
+        return 2;
+    };
+    let out = args.out.unwrap_or_else(next_run_folder);
+    let quiet = args.quiet || side_by_side;
+    let mut writer = ReportWriter::new(quiet);
+    writer.index_later = side_by_side;
+    let mut log = |line: &str| {
+        if !quiet {
+            eprintln!("{line}");
+        }
+    };
+    let options = RunOptions {
+        out: &out,
+        datasets: &args.datasets,
+        force: args.force,
+    };
+    let Outcome { code, manifests, runs } = run_all(&experiments, &options, &mut writer, &mut log);
+    if !side_by_side {
+        return code;
+    }
+    if let Err(e) = writer.write_comparison(&out, &manifests, &runs, args.quiet) {
+        eprintln!("error: {e}");
+        return 1;
+    }
+    if runs.is_empty() {
+        return code.max(1);
+    }
+    code
+}
+
+/// Parses the command line, runs the command, and gives its exit code.
+pub fn main() -> ExitCode {
+    let cli = Cli::parse();
+    if let Command::Run { args, .. } | Command::Compare { args } = &cli.command {
+        crate::core::progress::set_quiet(args.quiet);
+    }
+    // Every command runs with the same thread setting (OpenCV's included).
+    crate::core::parallel::set_threads(match &cli.command {
+        Command::Run { threads, .. } => usize::from(*threads),
+        _ => 0,
+    });
+    ExitCode::from(match cli.command {
+        Command::Init(args) => init::command(&args),
+        Command::Run { args, .. } => run(args, false),
+        Command::Compare { args } => run(args, true),
+        Command::Check {
+            runs,
+            baselines,
+            update,
+            allow_drop,
+        } => crate::report::check::run(&runs, &baselines, update, allow_drop),
+        Command::Validate { manifests } => crate::report::console::validate(&manifests),
+        Command::Temporal { tracker, video, out } => crate::report::temporal::command(&video, &tracker, &out),
+        Command::Segment(args) => crate::report::segment::command(&args),
+        Command::Live {
+            manifest,
+            out,
+            speed,
+            watch,
+            idle_s,
+        } => crate::report::live::command(&manifest, &out, &LiveSource { speed, watch, idle_s }),
+        Command::Study(args) => crate::report::study::dispatch(args),
+        Command::Synth { manifests, datasets } => crate::report::console::synth(&manifests, &datasets),
+        Command::Resolve { run } => crate::report::resolve::command(&run),
+        Command::Ablate(args) => crate::report::ablation::command(&args),
+        Command::Design { manifest, out } => crate::report::design::command(&manifest, &out),
+        Command::Phantom { manifest, stl } => crate::report::phantom::command(&manifest, &stl),
+        Command::CalibrateCamera {
+            images,
+            board,
+            square_mm,
+            out,
+        } => crate::report::console::calibrate_camera(&images, board, square_mm, &out),
+    })
+}

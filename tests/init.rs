@@ -1,0 +1,258 @@
+//! `probecal init`: a manifest for a recording the project has not seen runs
+//! with no edit. The PLUS recording is fCal 2.0's with every transform and frame
+//! renamed (another lab's names: `TransducerHolderToOpticalCamera`, …), so the
+//! names must come from the files; the folders are rendered ones, read as
+//! recorded folders.
+
+mod common;
+
+use std::path::Path;
+
+use common::{probecal, root, scratch, shared_data};
+
+const SET: &str = "plus-fcal2.0-3nwires";
+
+/// `source` copied to `out` with each `(from, to)` replaced in its text part
+/// (a sequence's header, or the whole of a configuration).
+fn renamed_copy(source: &Path, out: &Path, names: &[(&str, &str)]) {
+    let bytes = std::fs::read(source).unwrap();
+    let marker = b"ElementDataFile = LOCAL\n";
+    let end = bytes
+        .windows(marker.len())
+        .position(|w| w == marker)
+        .unwrap_or(bytes.len());
+    let mut text = String::from_utf8(bytes[..end].to_vec()).unwrap();
+    for (from, to) in names {
+        text = text.replace(from, to);
+    }
+    let mut data = text.into_bytes();
+    data.extend_from_slice(&bytes[end..]);
+    std::fs::write(out, data).unwrap();
+}
+
+fn json(path: &Path) -> serde_json::Value {
+    serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
+}
+
+#[test]
+#[ignore = "needs ../shared/data (full tier scripts/test.sh)"]
+fn a_plus_recording_with_other_names_runs_from_its_init_manifest_unedited() {
+    let dir = scratch("init", "plus");
+    std::fs::create_dir_all(&dir).unwrap();
+    let sequence_names = [
+        ("ProbeToTracker", "TransducerHolderToOpticalCamera"),
+        ("ReferenceToTracker", "PhantomMarkerToOpticalCamera"),
+        ("StylusToTracker", "PointerToOpticalCamera"),
+    ];
+    let config_names = [
+        ("\"Probe\"", "\"TransducerHolder\""),
+        ("\"Reference\"", "\"PhantomMarker\""),
+    ];
+    let calibration = dir.join("session_cal.igs.mha");
+    let validation = dir.join("session_val.igs.mha");
+    let config = dir.join("DeviceSet.xml");
+    let shared_calibration = shared_data(SET, "fCal_Test_Calibration_3NWires_fCal2.0.igs.mha");
+    if !shared_calibration.exists() {
+        eprintln!("skipped: {} is absent", shared_calibration.display());
+        return;
+    }
+    renamed_copy(&shared_calibration, &calibration, &sequence_names);
+    renamed_copy(
+        &shared_data(SET, "fCal_Test_Validation_3NWires_fCal2.0.igs.mha"),
+        &validation,
+        &sequence_names,
+    );
+    renamed_copy(
+        &shared_data(SET, "PlusDeviceSet_fCal_Sim_SpatialCalibration_2.0.xml"),
+        &config,
+        &config_names,
+    );
+    let manifest = dir.join("mine.yaml");
+    let r = probecal()
+        .args(["init", "--plus-config"])
+        .arg(&config)
+        .arg("--calibration")
+        .arg(&calibration)
+        .arg("--validation")
+        .arg(&validation)
+        .arg("--out")
+        .arg(&manifest)
+        .output()
+        .unwrap();
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let text = std::fs::read_to_string(&manifest).unwrap();
+    assert!(
+        text.contains("probe_transform: TransducerHolderToOpticalCamera"),
+        "{text}"
+    );
+    assert!(text.contains("reference_frame: PhantomMarker"), "{text}");
+    assert!(
+        text.contains("calibration: session_cal.igs.mha"),
+        "paths relative to the manifest:\n{text}"
+    );
+    // A second init does not overwrite it.
+    let again = probecal()
+        .args(["init", "--plus-config"])
+        .arg(&config)
+        .arg("--calibration")
+        .arg(&calibration)
+        .arg("--out")
+        .arg(&manifest)
+        .output()
+        .unwrap();
+    assert_eq!(again.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&again.stderr).contains("--force"));
+
+    let out = dir.join("runs");
+    let r = probecal()
+        .arg("run")
+        .arg(&manifest)
+        .arg("--out")
+        .arg(&out)
+        .arg("--quiet")
+        .output()
+        .unwrap();
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    // The same recording under its own names gives the committed experiment's result.
+    let ours = json(&out.join("mine/session_cal/summary.json"));
+    let committed = json(&root().join("reports/plus_fcal2_nwire/fcal2_3nwires/summary.json"));
+    for key in ["mean", "std", "n"] {
+        assert_eq!(
+            ours["validation"]["pre3d_mm"][key], committed["validation"]["pre3d_mm"][key],
+            "validation PRE3D {key}"
+        );
+    }
+    assert!(out.join("mine/session_cal/ImageToProbe.tfm").is_file());
+}
+
+#[test]
+#[ignore = "needs ../shared/data (full tier scripts/test.sh)"]
+fn a_recording_without_a_reference_pose_is_refused_with_the_names_it_has() {
+    // PLUS's VLCUS segmentation data: a stepper's ToolToTracker, no phantom marker.
+    let set = "plus-segmentation-vlcus";
+    let sequence = shared_data(set, "SegmentationTest_VLCUS_RandomStepperMotionData2.igs.mha");
+    if !sequence.exists() {
+        eprintln!("skipped: {} is absent", sequence.display());
+        return;
+    }
+    let dir = scratch("init", "vlcus");
+    let manifest = dir.join("vlcus.yaml");
+    let r = probecal()
+        .args(["init", "--plus-config"])
+        .arg(shared_data(
+            set,
+            "PlusDeviceSet_iCal_CalibrationOnly_VLCUS_FrameGrabber.xml",
+        ))
+        .arg("--calibration")
+        .arg(&sequence)
+        .arg("--out")
+        .arg(&manifest)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&r.stderr);
+    assert_eq!(r.status.code(), Some(2), "{stderr}");
+    assert!(
+        stderr.contains("SegmentationTest_VLCUS_RandomStepperMotionData2.igs.mha")
+            && stderr.contains("ToolToTracker")
+            && stderr.contains("--probe-transform"),
+        "{stderr}"
+    );
+    assert!(!manifest.exists(), "nothing is written on an error");
+}
+
+/// Renders `experiment`'s dataset into `datasets`, then `init --folder` on it,
+/// `validate` and `run`; the run's summary.
+fn init_and_run_folder(name: &str, experiment: &str, dataset: &str, prepare: fn(&Path)) -> serde_json::Value {
+    let dir = scratch("init", name);
+    let datasets = dir.join("datasets");
+    let r = probecal()
+        .arg("synth")
+        .arg(root().join("experiments").join(format!("{experiment}.yaml")))
+        .arg("--datasets")
+        .arg(&datasets)
+        .output()
+        .unwrap();
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let folder = datasets.join(format!("{experiment}__{dataset}"));
+    prepare(&folder);
+    let manifest = dir.join("mine.yaml");
+    let r = probecal()
+        .args(["init", "--folder"])
+        .arg(&folder)
+        .arg("--out")
+        .arg(&manifest)
+        .output()
+        .unwrap();
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let text = std::fs::read_to_string(&manifest).unwrap();
+    assert!(text.contains("GUESS"), "the guesses are marked:\n{text}");
+    let r = probecal().arg("validate").arg(&manifest).output().unwrap();
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let out = dir.join("runs");
+    let r = probecal()
+        .arg("run")
+        .arg(&manifest)
+        .arg("--out")
+        .arg(&out)
+        .arg("--quiet")
+        .output()
+        .unwrap();
+    assert!(r.status.success(), "{}\n{text}", String::from_utf8_lossy(&r.stderr));
+    json(
+        &out.join("mine")
+            .join(format!("{experiment}__{dataset}"))
+            .join("summary.json"),
+    )
+}
+
+#[test]
+#[ignore = "renders a dataset and runs it (full tier scripts/test.sh)"]
+fn a_folder_of_photos_and_bscans_runs_from_its_init_manifest() {
+    let summary = init_and_run_folder("camera", "hemisphere_checkerboard", "dataset3", |_| {});
+    // The rendered rig is the source study's, which is what init guesses: the run
+    // finds the camera board's corner count itself and calibrates as the experiment does.
+    assert!(
+        summary["frames"]["used"].as_u64().unwrap() >= 40,
+        "{}",
+        summary["frames"]
+    );
+    assert!(summary["truth"]["corner_error_mm"]["mean"].as_f64().unwrap() < 1.0);
+    assert!(
+        summary["camera"]["views_used"].as_u64().unwrap() >= 10,
+        "{}",
+        summary["camera"]
+    );
+}
+
+#[test]
+#[ignore = "renders a dataset and runs it (full tier scripts/test.sh)"]
+fn a_folder_of_tracker_poses_and_bscans_runs_from_its_init_manifest() {
+    // A tracker's recording: no photos, no camera calibration, the poses in a CSV.
+    let summary = init_and_run_folder("tracker", "hemisphere_tracker_csv", "dataset3", |folder| {
+        std::fs::remove_dir_all(folder.join("camera_calibration")).unwrap();
+        let list = std::fs::read_to_string(folder.join("frames.csv")).unwrap();
+        let without_photos: Vec<String> = list
+            .lines()
+            .enumerate()
+            .map(|(i, line)| {
+                let cells: Vec<&str> = line.split(',').collect();
+                if i == 0 {
+                    line.to_string()
+                } else {
+                    format!("{},,{}", cells[0], cells[2])
+                }
+            })
+            .collect();
+        std::fs::write(folder.join("frames.csv"), without_photos.join("\n") + "\n").unwrap();
+    });
+    assert!(
+        summary["frames"]["used"].as_u64().unwrap() >= 40,
+        "{}",
+        summary["frames"]
+    );
+    assert!(
+        summary["camera"].is_null() || summary["camera"]["views_used"].is_null(),
+        "{}",
+        summary["camera"]
+    );
+}
