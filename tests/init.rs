@@ -123,6 +123,25 @@ fn a_plus_recording_with_other_names_runs_from_its_init_manifest_unedited() {
         );
     }
     assert!(out.join("mine/session_cal/ImageToProbe.tfm").is_file());
+
+    // A second experiment run into the same folder: the index links both runs.
+    let second = dir.join("second.yaml");
+    std::fs::write(&second, text.replace("experiment: mine", "experiment: second")).unwrap();
+    let r = probecal()
+        .arg("run")
+        .arg(&second)
+        .arg("--out")
+        .arg(&out)
+        .arg("--quiet")
+        .output()
+        .unwrap();
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let index = std::fs::read_to_string(out.join("index.html"))
+        .unwrap()
+        .replace("&#x2F;", "/");
+    for link in ["mine/session_cal/report.html", "second/session_cal/report.html"] {
+        assert!(index.contains(link), "index.html does not link {link}:\n{index}");
+    }
 }
 
 #[test]

@@ -5,6 +5,7 @@ use std::path::Path;
 use serde::{Deserialize, Serialize};
 
 use super::render::{error_chain, tera};
+use super::summary::RunSummary;
 use crate::io::fs::write_atomic;
 
 /// One line of the index page.
@@ -19,8 +20,48 @@ pub struct IndexEntry {
     pub passed: bool,
 }
 
+fn f3(v: Option<f64>) -> String {
+    v.map(|x| format!("{x:.3}")).unwrap_or_else(|| "—".into())
+}
+
+/// The index line of a run, from its summary.
+pub fn index_entry(summary: &RunSummary) -> IndexEntry {
+    let (experiment, dataset) = (summary.experiment(), summary.dataset());
+    let link = format!("{experiment}/{dataset}/report.html");
+    let passed = summary.gates().iter().all(|g| g.passed);
+    match summary {
+        RunSummary::Camera(s) => IndexEntry {
+            experiment: experiment.into(),
+            dataset: dataset.into(),
+            link,
+            frames: format!("{} / {}", s.frames.used, s.frames.total),
+            bre_mean: s
+                .bre_mm
+                .map(|b| format!("{:.3}", b.max_mean()))
+                .unwrap_or_else(|| "—".into()),
+            truth_corner: {
+                let reported = f3(s.truth.as_ref().map(|t| t.corner_error_mm.mean));
+                match s.gated_truth() {
+                    Some((name, t)) => format!("{reported}; {name} {:.3}", t.corner_error_mm.mean),
+                    None => reported,
+                }
+            },
+            passed,
+        },
+        RunSummary::Tracked(s) => IndexEntry {
+            experiment: experiment.into(),
+            dataset: dataset.into(),
+            link,
+            frames: format!("{} / {}", s.frames.calibration.segmented, s.frames.calibration.total),
+            bre_mean: format!("PRE3D {}", f3(s.validation.pre3d_mm.map(|p| p.mean))),
+            truth_corner: "—".into(),
+            passed,
+        },
+    }
+}
+
 /// The index page linking every dataset run, and `studies` (link, title) beside them.
-pub fn render_index(entries: &[IndexEntry], studies: &[(String, String)]) -> Result<String, String> {
+pub fn render_index(entries: &[&IndexEntry], studies: &[(String, String)]) -> Result<String, String> {
     let mut ctx = tera::Context::new();
     ctx.insert("entries", entries);
     ctx.insert("studies", studies);
@@ -167,10 +208,52 @@ fn nested_folders_with(dir: &Path, file: &str, depth: usize) -> Vec<String> {
     out
 }
 
-/// Writes `out/index.html` for `entries` and the pages beside them; the errors met.
+/// The runs already in `out` (`<experiment>/<dataset>/summary.json`) that are
+/// not among `entries`, sorted by experiment and dataset: an earlier run into
+/// the same folder stays linked. A summary that cannot be read is an error named.
+fn earlier_runs(out: &Path, entries: &[IndexEntry]) -> (Vec<IndexEntry>, Vec<String>) {
+    let (mut found, mut errors) = (Vec::new(), Vec::new());
+    let folders = |dir: &Path| -> Vec<(String, std::path::PathBuf)> {
+        let mut v: Vec<(String, std::path::PathBuf)> = std::fs::read_dir(dir)
+            .into_iter()
+            .flatten()
+            .flatten()
+            .filter(|e| e.file_type().is_ok_and(|t| t.is_dir()))
+            .filter_map(|e| e.file_name().to_str().map(|n| (n.to_string(), e.path())))
+            .collect();
+        v.sort();
+        v
+    };
+    for (experiment, dir) in folders(out) {
+        for (dataset, run) in folders(&dir) {
+            let summary = run.join("summary.json");
+            let listed = entries
+                .iter()
+                .any(|e| e.experiment == experiment && e.dataset == dataset);
+            if listed || !summary.is_file() {
+                continue;
+            }
+            match RunSummary::read(&summary) {
+                Ok(s) if s.experiment() == experiment && s.dataset() == dataset => found.push(index_entry(&s)),
+                Ok(_) => errors.push(format!(
+                    "{}: names another experiment or dataset than its folder; not linked",
+                    summary.display()
+                )),
+                Err(e) => errors.push(format!("{}: {e}; not linked", summary.display())),
+            }
+        }
+    }
+    (found, errors)
+}
+
+/// Writes `out/index.html` for `entries`, the runs already in `out` and the
+/// pages beside them; the errors met.
 pub fn write(out: &Path, entries: &[IndexEntry]) -> Vec<String> {
     let (studies, mut errors) = pages_beside(out);
-    match render_index(entries, &studies) {
+    let (earlier, unread) = earlier_runs(out, entries);
+    errors.extend(unread);
+    let all: Vec<&IndexEntry> = entries.iter().chain(&earlier).collect();
+    match render_index(&all, &studies) {
         Ok(html) => {
             if let Err(e) = write_atomic(&out.join("index.html"), html.as_bytes()) {
                 errors.push(e.to_string());

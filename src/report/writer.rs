@@ -4,7 +4,7 @@
 use std::path::Path;
 use std::time::SystemTime;
 
-use super::index::IndexEntry;
+use super::index::{index_entry, IndexEntry};
 use super::provenance::Provenance;
 use super::summary::RunSummary;
 use crate::io::plus::result::PlusResult;
@@ -61,46 +61,6 @@ impl ReportWriter {
         } else {
             Err(errors.join("\n"))
         }
-    }
-}
-
-fn f3(v: Option<f64>) -> String {
-    v.map(|x| format!("{x:.3}")).unwrap_or_else(|| "—".into())
-}
-
-/// The index line of a run, from its summary.
-pub fn index_entry(summary: &RunSummary) -> IndexEntry {
-    let (experiment, dataset) = (summary.experiment(), summary.dataset());
-    let link = format!("{experiment}/{dataset}/report.html");
-    let passed = summary.gates().iter().all(|g| g.passed);
-    match summary {
-        RunSummary::Camera(s) => IndexEntry {
-            experiment: experiment.into(),
-            dataset: dataset.into(),
-            link,
-            frames: format!("{} / {}", s.frames.used, s.frames.total),
-            bre_mean: s
-                .bre_mm
-                .map(|b| format!("{:.3}", b.max_mean()))
-                .unwrap_or_else(|| "—".into()),
-            truth_corner: {
-                let reported = f3(s.truth.as_ref().map(|t| t.corner_error_mm.mean));
-                match s.gated_truth() {
-                    Some((name, t)) => format!("{reported}; {name} {:.3}", t.corner_error_mm.mean),
-                    None => reported,
-                }
-            },
-            passed,
-        },
-        RunSummary::Tracked(s) => IndexEntry {
-            experiment: experiment.into(),
-            dataset: dataset.into(),
-            link,
-            frames: format!("{} / {}", s.frames.calibration.segmented, s.frames.calibration.total),
-            bre_mean: format!("PRE3D {}", f3(s.validation.pre3d_mm.map(|p| p.mean))),
-            truth_corner: "—".into(),
-            passed,
-        },
     }
 }
 
