@@ -41,7 +41,7 @@ fn run_folder() -> &'static PathBuf {
 }
 
 #[test]
-#[ignore = "needs pdflatex and Chromium, runs an experiment (full tier: scripts/test.sh)"]
+#[ignore = "needs pdflatex and Chromium, runs an experiment (long reproductions: scripts/reproduce.sh)"]
 fn latex_report_compiles_with_pdflatex() {
     let folder = run_folder();
     let tex = std::fs::read_to_string(folder.join("report.tex")).unwrap();
@@ -62,6 +62,48 @@ fn latex_report_compiles_with_pdflatex() {
     let pdf = std::fs::read(folder.join("report.pdf")).unwrap();
     assert!(pdf.starts_with(b"%PDF"));
     assert!(!log.contains("Missing character"), "{log}");
+}
+
+#[test]
+#[ignore = "needs pdflatex (long reproductions: scripts/reproduce.sh)"]
+fn every_committed_run_report_compiles_without_an_overfull_line() {
+    // Each run folder of reports/ (camera and tracked runs alike) copied and compiled:
+    // no table or path runs into the margin, no float is taller than its page.
+    let reports = Path::new(env!("CARGO_MANIFEST_DIR")).join("reports");
+    let work = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("committed_tex");
+    let _ = std::fs::remove_dir_all(&work);
+    let mut compiled = 0;
+    let mut overfull = Vec::new();
+    for experiment in std::fs::read_dir(&reports).unwrap().flatten() {
+        for run in std::fs::read_dir(experiment.path()).into_iter().flatten().flatten() {
+            if !run.path().join("report.tex").is_file() {
+                continue;
+            }
+            let copy = work.join(experiment.file_name()).join(run.file_name());
+            copy_folder(&run.path(), &copy);
+            let (pages, log) = compile_in(&copy, "report");
+            assert!(pages >= 1, "{}", copy.display());
+            let full = std::fs::read_to_string(copy.join("report.log")).unwrap_or(log);
+            for line in full.lines().filter(|l| l.starts_with("Overfull")) {
+                overfull.push(format!("{}: {line}", copy.display()));
+            }
+            compiled += 1;
+        }
+    }
+    assert!(compiled >= 15, "only {compiled} run reports in reports/");
+    assert!(overfull.is_empty(), "{}", overfull.join("\n"));
+}
+
+fn copy_folder(from: &Path, to: &Path) {
+    std::fs::create_dir_all(to).unwrap();
+    for entry in std::fs::read_dir(from).unwrap().flatten() {
+        let target = to.join(entry.file_name());
+        if entry.path().is_dir() {
+            copy_folder(&entry.path(), &target);
+        } else {
+            std::fs::copy(entry.path(), target).unwrap();
+        }
+    }
 }
 
 /// `pdflatex` on `<name>.tex` in `folder` (it must succeed); the number of pages and the log.
@@ -93,7 +135,7 @@ fn compile(name: &str, tex: &str) -> usize {
 }
 
 #[test]
-#[ignore = "needs pdflatex and Chromium, runs an experiment (full tier: scripts/test.sh)"]
+#[ignore = "needs pdflatex and Chromium, runs an experiment (long reproductions: scripts/reproduce.sh)"]
 fn comparison_page_compiles_with_pdflatex() {
     // As the main job wrote it from the default experiments.
     let tex = std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("reports/compare.tex")).unwrap();
@@ -102,7 +144,7 @@ fn comparison_page_compiles_with_pdflatex() {
 }
 
 #[test]
-#[ignore = "needs pdflatex and Chromium, runs an experiment (full tier: scripts/test.sh)"]
+#[ignore = "needs pdflatex and Chromium, runs an experiment (long reproductions: scripts/reproduce.sh)"]
 fn thesis_chapter_compiles_with_pdflatex() {
     // The chapter from the default experiments' runs.
     let reports = Path::new(env!("CARGO_MANIFEST_DIR")).join("reports");
@@ -132,7 +174,7 @@ fn chromium(args: &[&str], profile: &Path) -> std::process::Output {
 }
 
 #[test]
-#[ignore = "needs pdflatex and Chromium, runs an experiment (full tier: scripts/test.sh)"]
+#[ignore = "needs pdflatex and Chromium, runs an experiment (long reproductions: scripts/reproduce.sh)"]
 fn html_report_renders_in_headless_chromium() {
     let folder = run_folder();
     let page = format!("file://{}", folder.join("report.html").display());

@@ -32,7 +32,9 @@ pub struct Provenance {
     pub threads: usize,
     pub started_utc: String,
     pub elapsed_s: f64,
-    /// Seconds per stage of this dataset's run.
+    /// Seconds per stage of this dataset's run (camera runs; absent where the
+    /// run times no stages).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
     pub timings_s: Vec<(String, f64)>,
     /// Peak resident memory of the process so far (Linux VmHWM), MB.
     pub peak_memory_mb: Option<f64>,

@@ -319,12 +319,14 @@ pub fn write(
     write_atomic(&folder.join("ImageToProbe.xml"), plus_xml(&matrix).as_bytes())?;
     let tfm = itk_tfm(&matrix).ok_or_else(|| OutputError::Report("ImageToProbe is singular".into()))?;
     write_atomic(&folder.join("ImageToProbe.tfm"), tfm.as_bytes())?;
-    let html = render_page(run, manifest, &summary)?;
+    let (html, tex) = render_pages(run, manifest, &summary)?;
     write_atomic(&folder.join("report.html"), html.as_bytes())?;
+    write_atomic(&folder.join("report.tex"), tex.as_bytes())?;
     Ok(summary)
 }
 
 const TRACKED_TEMPLATE: &str = include_str!("../../templates/tracked.html.tera");
+const TRACKED_TEX_TEMPLATE: &str = include_str!("../../templates/tracked.tex.tera");
 
 /// The page's "what the validation score can tell" table; `null` when there is nothing in it.
 fn resolution_rows(r: &ValidationResolution) -> serde_json::Value {
@@ -347,7 +349,12 @@ fn resolution_rows(r: &ValidationResolution) -> serde_json::Value {
 }
 
 /// The page of a tracked (sequence-file) run, from its summary.
-fn render_page(run: &TrackedRun, manifest: &TrackedManifest, summary: &TrackedSummary) -> Result<String, OutputError> {
+/// The run's page in HTML and in LaTeX, from one context.
+fn render_pages(
+    run: &TrackedRun,
+    manifest: &TrackedManifest,
+    summary: &TrackedSummary,
+) -> Result<(String, String), OutputError> {
     let f3 = |v: Option<f64>| v.map(|x| format!("{x:.3}")).unwrap_or_else(|| "—".into());
     let mut ctx = tera::Context::new();
     ctx.insert("experiment", &manifest.experiment);
@@ -432,6 +439,10 @@ fn render_page(run: &TrackedRun, manifest: &TrackedManifest, summary: &TrackedSu
         .collect::<Vec<_>>()
         .join("\n");
     ctx.insert("matrix_text", &matrix_text);
+    let matrix: Vec<Vec<String>> = (0..4)
+        .map(|r| (0..4).map(|c| format!("{:.6}", m[(r, c)])).collect())
+        .collect();
+    ctx.insert("matrix", &matrix);
     let s = run.fit.image_to_probe.spacing_mm_per_px;
     ctx.insert("spacing_u", &format!("{:.5}", s[0]));
     ctx.insert("spacing_v", &format!("{:.5}", s[1]));
@@ -500,9 +511,13 @@ fn render_page(run: &TrackedRun, manifest: &TrackedManifest, summary: &TrackedSu
         .collect();
     ctx.insert("gates", &gates);
     let mut t = tera::Tera::default();
-    t.add_raw_template("tracked.html", TRACKED_TEMPLATE)
-        .and_then(|_| t.render("tracked.html", &ctx))
-        .map_err(|e| OutputError::Report(super::render::error_chain(&e)))
+    super::render::register_tex_filter(&mut t);
+    t.add_raw_templates(vec![
+        ("tracked.html", TRACKED_TEMPLATE),
+        ("tracked.tex", TRACKED_TEX_TEMPLATE),
+    ])
+    .and_then(|_| Ok((t.render("tracked.html", &ctx)?, t.render("tracked.tex", &ctx)?)))
+    .map_err(|e| OutputError::Report(super::render::error_chain(&e)))
 }
 
 #[cfg(test)]
