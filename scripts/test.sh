@@ -1,9 +1,22 @@
 #!/usr/bin/env bash
-# Sets up the machine, then runs the whole test suite: the fast tier (what a
-# plain `cargo test` runs) and the full tier (tests that need ../shared/data,
-# pdflatex or Chromium, or run whole experiments; `#[ignore]`d with their reason).
+# The README's test command. Sets up the machine, then runs the fast tier (what a
+# plain `cargo test` runs) and the full tier (tests that need ../shared/data or run
+# experiments; `#[ignore]`d with their reason), except the long reproductions of
+# scripts/long-tests, which scripts/reproduce.sh runs. A test whose input is
+# absent says so and skips. Extra arguments go to cargo test.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh
 source scripts/env.sh
-cargo test --no-fail-fast "$@" -- --include-ignored
+started=$(date +%s)
+cargo build --all-targets
+built=$(date +%s)
+mapfile -t long < <(grep -v '^#' scripts/long-tests | grep .)
+targets=(--lib --bins)
+for file in tests/*.rs; do
+  name=$(basename "$file" .rs)
+  [[ " ${long[*]} " == *" $name "* ]] || targets+=(--test "$name")
+done
+cargo test --no-fail-fast "${targets[@]}" "$@" -- --include-ignored
+cargo test --no-fail-fast --doc "$@"
+echo "tests: $(( $(date +%s) - built )) s after a $(( built - started )) s build"

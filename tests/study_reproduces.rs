@@ -86,7 +86,7 @@ fn first_seed(study: &serde_json::Value) -> &serde_json::Value {
 }
 
 #[test]
-#[ignore = "renders and runs one seed of each study (full tier: scripts/test.sh)"]
+#[ignore = "renders and runs one seed of each study (long reproductions: scripts/reproduce.sh)"]
 fn the_first_seed_of_every_committed_study_reproduces() {
     let mut differ = Vec::new();
     // Studies of one manifest from one seed share that seed's run: it is run once.

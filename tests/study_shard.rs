@@ -27,7 +27,7 @@ fn stderr(o: &Output) -> String {
 }
 
 #[test]
-#[ignore = "runs a study (full tier: scripts/test.sh)"]
+#[ignore = "runs a study (long reproductions: scripts/reproduce.sh)"]
 fn sharded_and_merged_gives_the_unsharded_study_byte_for_byte() {
     let dir = scratch("study_shard", "three_seeds");
     let whole = study(&[], &dir.join("whole"), &dir.join("datasets")).output().unwrap();

@@ -4,7 +4,9 @@
 //! Tiers: a plain `cargo test` runs the fast tests. Tests that need
 //! `../shared/data`, pdflatex or Chromium, or that run a whole experiment or a
 //! statistical check, are `#[ignore]`d with the reason; the README's test command
-//! (`scripts/test.sh`, which CI runs) includes them with `--include-ignored`.
+//! (`scripts/test.sh`, which CI runs) includes them with `--include-ignored`, except
+//! the test files of the long reproductions (`scripts/long-tests`), which
+//! `scripts/reproduce.sh` runs after it.
 #![allow(dead_code)]
 
 use std::path::{Path, PathBuf};
