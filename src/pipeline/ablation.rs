@@ -10,7 +10,8 @@ use serde::{Deserialize, Serialize};
 
 use crate::evaluate::cutoff_label;
 use crate::manifest::{Dataset, DatasetSource, Manifest};
-use crate::pipeline::run::{self, RunError};
+use crate::pipeline::error::RunError;
+use crate::pipeline::run;
 use crate::spec::realism::Realism;
 
 /// One rendering of the rig.

@@ -3,8 +3,8 @@
 
 use std::path::Path;
 
+use super::error::RunError;
 use super::record::{CameraStage, FrameRecord, Rejection, TrackerSource};
-use super::run::RunError;
 use crate::detect::board::PrintedBoard;
 use crate::detect::board_pose::{RigBoards, RigLayout};
 use crate::detect::camera_calibration;

@@ -4,8 +4,8 @@
 
 use opencv::prelude::MatTraitConst;
 
+use super::error::RunError;
 use super::record::{CameraStage, FrameRecord, Implausible, Rejection};
-use super::run::RunError;
 use crate::core::parallel::parallel_map;
 use crate::detect::arc::{self, ArcSettings};
 use crate::detect::board_pose::{self, RigBoards};
@@ -84,7 +84,7 @@ fn detect_frame(
                     return Ok(record);
                 }
             };
-            match board_pose::estimate(&photo, intrinsics, rig)? {
+            match crate::detect::rig_pose::estimate(&photo, intrinsics, rig)? {
                 Ok(poses) => record.poses = Some(poses),
                 Err(reason) => {
                     record.rejection = Some(Rejection::BoardPose(reason));

@@ -25,9 +25,9 @@ use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
+use super::error::RunError;
 use super::frames::{process_frame, Targets};
 use super::record::{DatasetRun, FrameRecord};
-use super::run::RunError;
 use super::settings;
 use super::solve::{self, PairingInputs};
 use crate::detect::board_pose::RigBoards;

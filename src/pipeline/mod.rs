@@ -3,6 +3,7 @@
 pub mod ablation;
 pub mod camera;
 pub mod design;
+pub mod error;
 pub mod experiment;
 pub mod frames;
 pub mod live;
@@ -14,6 +15,7 @@ pub mod run;
 pub mod segment;
 pub mod sequence_frames;
 pub mod settings;
+pub mod shard;
 pub mod solve;
 pub mod sphere_pose;
 pub mod study;

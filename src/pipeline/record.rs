@@ -18,7 +18,6 @@ use crate::io::camera_model::CameraIntrinsics;
 use crate::io::dataset::FrameFiles;
 use crate::io::image::ImageError;
 use crate::io::tracker_poses::{MissingPose, TrackedFrame, TrackerPoses};
-use crate::pipeline::solve::SolveSettings;
 
 /// Which stage rejected a frame.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
@@ -282,7 +281,7 @@ pub enum Method {
     SphereFitPosePrior {
         arcs: usize,
         rms_mm: f64,
-        noise: super::sphere_pose::PoseFitNoise,
+        noise: PoseFitNoise,
         /// The pixel size held at the sphere fit's fitted one.
         pixel_size_fitted: bool,
     },
@@ -376,13 +375,47 @@ impl DatasetRun {
     }
 }
 
+/// How a dataset's pairs are solved: everything the solve reads besides the pairs.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SolveSettings {
+    pub spacing_mm_per_px: [f64; 2],
+    pub variant: crate::estimate::horn::Variant,
+    /// Descending; infinity (all frames) first.
+    pub cutoffs_mm: Vec<f64>,
+    pub rule: crate::evaluate::CutoffRule,
+    /// The cut-off whose calibration is the result.
+    pub calibration_cutoff_mm: f64,
+    pub min_frames: usize,
+    /// Where line fits (wire phantoms) start.
+    pub initial_marker_T_image: Option<Rigid>,
+}
+
+/// The noise values the fit used, for its description.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PoseFitNoise {
+    pub edge_sd_mm: f64,
+    pub probe_corner_sd_px: f64,
+    pub phantom_corner_sd_px: f64,
+    pub tremor_sd_mm: f64,
+    pub tremor_sd_deg: f64,
+    /// With the intrinsics solved too: the focal length's SD the calibration
+    /// gives them, px.
+    pub intrinsics_fx_sd_px: Option<f64>,
+    /// The echo edge's offset terms solved with the calibration, and their
+    /// values `(a, b, c)`, mm (those not solved are 0).
+    pub edge_offset: crate::estimate::edge_offset::EdgeOffset,
+    pub edge_offset_mm: crate::estimate::edge_offset::EdgeTerms,
+    /// The growth of the edge noise with the cut the arcs were weighed by.
+    pub slice_blur: Option<crate::estimate::edge_blur::SliceBlur>,
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
 
     #[test]
     fn every_estimator_name_is_one_a_manifest_may_name() {
-        let noise = super::super::sphere_pose::PoseFitNoise {
+        let noise = super::PoseFitNoise {
             edge_sd_mm: 0.1,
             probe_corner_sd_px: 0.1,
             phantom_corner_sd_px: 0.1,

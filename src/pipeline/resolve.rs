@@ -11,7 +11,7 @@ use std::path::Path;
 use nalgebra::{Isometry3, Point3, Quaternion, Translation3, UnitQuaternion, Vector3};
 use serde::{Deserialize, Serialize};
 
-use super::run::RunError;
+use super::error::RunError;
 use super::solve::{self, Calibrations, SolveSettings};
 use crate::core::geometry::Rigid;
 use crate::estimate::correspondence::{Correspondence, Observed};

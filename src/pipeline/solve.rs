@@ -3,17 +3,18 @@
 
 use nalgebra::Point3;
 
+use super::error::RunError;
 use super::frames::Targets;
+pub use super::record::SolveSettings;
 use super::record::{FrameRecord, Rejection};
-use super::run::RunError;
 use crate::core::geometry::Rigid;
 use crate::estimate::correspondence::{self, Correspondence};
-use crate::estimate::horn::{HornFit, Variant};
+use crate::estimate::horn::HornFit;
 use crate::estimate::sphere_fit::KnownSphere;
 use crate::estimate::sphere_matching::{self, FrameArcs, NamedSphere, SeenArc};
 use crate::estimate::start_basin::{self, StartGuess};
 use crate::estimate::wire_matching::{self, FrameWireDots, WireAxis};
-use crate::evaluate::{self, CutoffRule, EvaluationInputs, ThresholdRow};
+use crate::evaluate::{self, EvaluationInputs, ThresholdRow};
 use crate::spec::phantom::Sphere;
 
 /// The basin's random starts: fixed, so a run is reproducible.
@@ -239,21 +240,6 @@ pub fn enough_frames(
         needed: min_frames,
         reasons,
     })
-}
-
-/// How a dataset's pairs are solved: everything the solve reads besides the pairs.
-#[derive(Debug, Clone, PartialEq)]
-pub struct SolveSettings {
-    pub spacing_mm_per_px: [f64; 2],
-    pub variant: Variant,
-    /// Descending; infinity (all frames) first.
-    pub cutoffs_mm: Vec<f64>,
-    pub rule: CutoffRule,
-    /// The cut-off whose calibration is the result.
-    pub calibration_cutoff_mm: f64,
-    pub min_frames: usize,
-    /// Where line fits (wire phantoms) start.
-    pub initial_marker_T_image: Option<Rigid>,
 }
 
 /// The calibrations of a dataset: on all frames, and at each cut-off.

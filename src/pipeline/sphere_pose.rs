@@ -21,12 +21,12 @@
 //!   ([`crate::estimate::edge_offset`]).
 
 use super::record::FrameRecord;
+pub use super::record::PoseFitNoise;
 use crate::core::geometry::Rigid;
 use crate::core::stats::median;
 use crate::detect::board::PrintedBoard;
 use crate::detect::camera_calibration::CameraCalibration;
 use crate::detect::camera_refinement::{calibration_information, intrinsics_sd};
-use crate::estimate::edge_offset::EdgeOffset;
 use crate::estimate::sphere_bundle::{self, PosePriors, SharedError};
 use crate::estimate::sphere_fit::{ArcFrame, SphereFit, SphereFitError, SphereSettings};
 use crate::evaluate::pose_noise::{frame_pose_noise, PhotoNoise, SweepPhoto};
@@ -41,25 +41,6 @@ pub struct PoseInputs<'a> {
     pub probe_board: &'a PrintedBoard,
     pub phantom_board: &'a PrintedBoard,
     pub prior: &'a PosePrior,
-}
-
-/// The noise values the fit used, for its description.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct PoseFitNoise {
-    pub edge_sd_mm: f64,
-    pub probe_corner_sd_px: f64,
-    pub phantom_corner_sd_px: f64,
-    pub tremor_sd_mm: f64,
-    pub tremor_sd_deg: f64,
-    /// With the intrinsics solved too: the focal length's SD the calibration
-    /// gives them, px.
-    pub intrinsics_fx_sd_px: Option<f64>,
-    /// The echo edge's offset terms solved with the calibration, and their
-    /// values `(a, b, c)`, mm (those not solved are 0).
-    pub edge_offset: EdgeOffset,
-    pub edge_offset_mm: crate::estimate::edge_offset::EdgeTerms,
-    /// The growth of the edge noise with the cut the arcs were weighed by.
-    pub slice_blur: Option<crate::estimate::edge_blur::SliceBlur>,
 }
 
 /// A board's corner SD from its reprojection RMS (the pose's 6 unknowns taken out).

@@ -33,8 +33,9 @@ use crate::core::stats::{mean_sd, percentile};
 use crate::estimate::correspondence::{self, Correspondence};
 use crate::estimate::horn::Variant;
 use crate::manifest::{Dataset, DatasetSource, Manifest};
+use crate::pipeline::error::RunError;
 use crate::pipeline::record::DatasetRun;
-use crate::pipeline::run::{self, RunError};
+use crate::pipeline::run;
 
 /// The thesis's published σ-table.
 pub const THESIS_SIGMA_TABLE: [(f64, f64); 4] = [(0.0, 0.0), (0.5, 0.272), (1.0, 0.504), (2.0, 1.127)];

@@ -1,0 +1,244 @@
+//! A Monte Carlo study spread over processes or machines: `probecal study
+//! --shard K/N` runs every N-th seed from the K-th (1-based) and writes
+//! `shard_K_of_N.yaml` (each seed's outcome, the manifest's SHA-256, the seed
+//! range); `probecal study merge` checks that the shards are the N slices of one
+//! study and writes the `study.json` and pages one unsharded run writes, byte for
+//! byte (the outcomes are YAML, whose numbers read back to the same bits).
+
+use std::path::{Path, PathBuf};
+use std::str::FromStr;
+
+use serde::{Deserialize, Serialize};
+
+use super::study::{BoundModel, SeedResult};
+use crate::core::limits::MAX_SEEDS;
+
+/// Slice `index` (1-based) of `count`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Shard {
+    pub index: u64,
+    pub count: u64,
+}
+
+impl FromStr for Shard {
+    type Err = String;
+
+    fn from_str(text: &str) -> Result<Shard, String> {
+        let fail = || format!("`{text}` is not K/N with 1 ≤ K ≤ N ≤ {MAX_SEEDS} (e.g. 2/5)");
+        let (k, n) = text.split_once('/').ok_or_else(fail)?;
+        let (index, count) = (
+            k.trim().parse::<u64>().map_err(|_| fail())?,
+            n.trim().parse::<u64>().map_err(|_| fail())?,
+        );
+        if index == 0 || index > count || count > MAX_SEEDS {
+            return Err(fail());
+        }
+        Ok(Shard { index, count })
+    }
+}
+
+impl Shard {
+    /// The seeds of this slice: every `count`-th from the `index`-th, so that
+    /// slices take about as long (a seed's time does not drift with its number).
+    pub fn seeds_of(&self, seeds: &[u64]) -> Vec<u64> {
+        seeds
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| *i as u64 % self.count == self.index - 1)
+            .map(|(_, s)| *s)
+            .collect()
+    }
+
+    /// `shard_K_of_N.yaml`.
+    pub fn file_name(&self) -> String {
+        format!("shard_{}_of_{}.yaml", self.index, self.count)
+    }
+}
+
+/// What one slice writes.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ShardFile {
+    pub experiment: String,
+    /// SHA-256 of the manifest file the slice ran.
+    pub manifest_sha256: String,
+    /// The whole study's seeds: `first_seed` and how many.
+    pub first_seed: u64,
+    pub seeds: u64,
+    pub shard: Shard,
+    /// The model of the seeds' bound (left out for point pairs).
+    #[serde(default, skip_serializing_if = "BoundModel::is_point_pairs")]
+    pub bound: BoundModel,
+    pub results: Vec<SeedResult>,
+}
+
+/// Writes `<out>/shard_K_of_N.yaml` (through a temporary name).
+pub fn write(out: &Path, file: &ShardFile) -> Result<PathBuf, String> {
+    let text = serde_yaml::to_string(file).map_err(|e| e.to_string())?;
+    let path = out.join(file.shard.file_name());
+    crate::io::fs::write_atomic(&path, text.as_bytes()).map_err(|e| e.to_string())?;
+    Ok(path)
+}
+
+/// Reads one shard file; an error names the file (and the line and field).
+pub fn read(path: &Path) -> Result<ShardFile, String> {
+    let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    serde_yaml::from_str(&text).map_err(|e| format!("{}: {e}", path.display()))
+}
+
+/// The outcomes of every seed, in seed order, from shards that are exactly the
+/// N slices of one study; otherwise what is wrong, naming the file.
+pub fn join(shards: &[(PathBuf, ShardFile)]) -> Result<(String, BoundModel, Vec<SeedResult>), String> {
+    let Some((first_path, first)) = shards.first() else {
+        return Err("no shard files given".into());
+    };
+    let count = first.shard.count;
+    let mut seen: Vec<Option<&Path>> = vec![None; count as usize];
+    for (path, s) in shards {
+        let differs = |what: &str| {
+            format!(
+                "{}: {what} differs from {}'s; the shards are not of one study",
+                path.display(),
+                first_path.display()
+            )
+        };
+        if s.manifest_sha256 != first.manifest_sha256 {
+            return Err(differs("the manifest (SHA-256)"));
+        }
+        if s.experiment != first.experiment {
+            return Err(differs("the experiment"));
+        }
+        if s.bound != first.bound {
+            return Err(differs("the bound's model"));
+        }
+        if (s.first_seed, s.seeds) != (first.first_seed, first.seeds) {
+            return Err(differs("the seed range"));
+        }
+        if s.shard.count != count {
+            return Err(differs("the number of shards"));
+        }
+        let slot = &mut seen[(s.shard.index - 1) as usize];
+        if let Some(other) = slot {
+            return Err(format!(
+                "{} and {} are both shard {}/{count}",
+                other.display(),
+                path.display(),
+                s.shard.index
+            ));
+        }
+        *slot = Some(path);
+        let all: Vec<u64> = (s.first_seed..s.first_seed.saturating_add(s.seeds)).collect();
+        let want = s.shard.seeds_of(&all);
+        let got: Vec<u64> = s.results.iter().map(|r| r.seed).collect();
+        if got != want {
+            return Err(format!(
+                "{}: holds seeds {:?}, shard {}/{count} of {} seeds from {} is {:?}",
+                path.display(),
+                got,
+                s.shard.index,
+                s.seeds,
+                s.first_seed,
+                want
+            ));
+        }
+    }
+    let missing: Vec<String> = (1..=count)
+        .filter(|k| seen[(*k - 1) as usize].is_none())
+        .map(|k| format!("{k}/{count}"))
+        .collect();
+    if !missing.is_empty() {
+        return Err(format!("shards {} are missing", missing.join(", ")));
+    }
+    let mut results: Vec<SeedResult> = shards.iter().flat_map(|(_, s)| s.results.iter().cloned()).collect();
+    results.sort_by_key(|r| r.seed);
+    Ok((first.experiment.clone(), first.bound, results))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn outcome(seed: u64) -> SeedResult {
+        SeedResult {
+            seed,
+            // Numbers whose shortest decimal has 17 digits read back to the same bits.
+            rms_error_mm: vec![
+                ("reported".into(), 0.1 + seed as f64 / 3.0),
+                ("lmeds".into(), 1.0 / 7.0),
+            ],
+            crlb_rms_mm: Some(2.0f64.sqrt() / 10.0),
+            frames_used: 40,
+        }
+    }
+
+    fn shard(index: u64, count: u64, seeds: u64) -> (PathBuf, ShardFile) {
+        let shard = Shard { index, count };
+        let all: Vec<u64> = (1000..1000 + seeds).collect();
+        (
+            PathBuf::from(shard.file_name()),
+            ShardFile {
+                experiment: "rig".into(),
+                manifest_sha256: "ab".into(),
+                first_seed: 1000,
+                seeds,
+                shard,
+                bound: BoundModel::PointPairs,
+                results: shard.seeds_of(&all).into_iter().map(outcome).collect(),
+            },
+        )
+    }
+
+    #[test]
+    fn k_of_n_is_parsed_and_bounded() {
+        assert_eq!("2/5".parse::<Shard>(), Ok(Shard { index: 2, count: 5 }));
+        for bad in ["0/5", "6/5", "5", "a/b", "1/0", "1/10001"] {
+            let e = bad.parse::<Shard>().unwrap_err();
+            assert!(e.contains("is not K/N"), "{bad}: {e}");
+        }
+    }
+
+    #[test]
+    fn the_slices_cover_every_seed_once() {
+        let seeds: Vec<u64> = (1000..1013).collect();
+        let mut all: Vec<u64> = (1..=5)
+            .flat_map(|k| Shard { index: k, count: 5 }.seeds_of(&seeds))
+            .collect();
+        all.sort();
+        assert_eq!(all, seeds);
+    }
+
+    #[test]
+    fn joined_shards_are_the_seeds_in_order_and_numbers_survive_the_file() {
+        let shards: Vec<(PathBuf, ShardFile)> = (1..=3)
+            .map(|k| shard(k, 3, 7))
+            .map(|(p, s)| {
+                let text = serde_yaml::to_string(&s).unwrap();
+                (p, serde_yaml::from_str(&text).unwrap())
+            })
+            .collect();
+        let (experiment, bound, results) = join(&shards).unwrap();
+        assert_eq!(experiment, "rig");
+        assert_eq!(bound, BoundModel::PointPairs);
+        assert_eq!(results, (1000..1007).map(outcome).collect::<Vec<_>>());
+    }
+
+    #[test]
+    fn shards_that_are_not_one_study_are_refused() {
+        let mut missing = vec![shard(1, 3, 7), shard(3, 3, 7)];
+        assert_eq!(join(&missing).unwrap_err(), "shards 2/3 are missing");
+        missing.push(shard(3, 3, 7));
+        assert!(join(&missing).unwrap_err().contains("are both shard 3/3"));
+        let mut other = vec![shard(1, 2, 7), shard(2, 2, 7)];
+        other[1].1.manifest_sha256 = "cd".into();
+        assert!(join(&other).unwrap_err().contains("the manifest (SHA-256) differs"));
+        let mut cut = vec![shard(1, 2, 7), shard(2, 2, 7)];
+        cut[1].1.results.pop();
+        assert!(join(&cut).unwrap_err().contains("holds seeds [1001, 1003]"));
+        let mut range = vec![shard(1, 2, 7), shard(2, 2, 8)];
+        range[1].1.results = shard(2, 2, 7).1.results;
+        assert!(join(&range).unwrap_err().contains("the seed range differs"));
+        let mut model = vec![shard(1, 2, 7), shard(2, 2, 7)];
+        model[1].1.bound = BoundModel::SphereFit;
+        assert!(join(&model).unwrap_err().contains("the bound's model differs"));
+    }
+}
