@@ -1,7 +1,7 @@
 //! A baseline file and what a run is judged on: the accuracy figures of each
 //! dataset of an experiment (`<experiment>.yaml` in the baselines folder), each
 //! with its value and the tolerance a later run may differ by, lower is better
-//! for all of them. `probecal check` ([`crate::report::check`]) compares runs
+//! for all of them. `probecal check` compares runs
 //! with them and writes them.
 
 use std::collections::BTreeMap;

@@ -271,10 +271,10 @@ fn render(columns: &[CompareColumn], template: &str) -> Result<String, String> {
         ("compare.html", COMPARE_TEMPLATE),
         ("compare.tex", COMPARE_TEX_TEMPLATE),
     ])
-    .map_err(|e| crate::report::render::error_chain(&e))?;
-    crate::report::render::register_tex_filter(&mut t);
+    .map_err(|e| crate::report::templating::error_chain(&e))?;
+    crate::report::templating::register_tex_filter(&mut t);
     t.render(template, &ctx)
-        .map_err(|e| crate::report::render::error_chain(&e))
+        .map_err(|e| crate::report::templating::error_chain(&e))
 }
 
 const COMPARE_TEX_TEMPLATE: &str = include_str!("../../templates/compare.tex.tera");

@@ -138,7 +138,7 @@ pub fn draw<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, chart: &Chart) ->
 
 /// The chart as SVG text (760 x 320).
 pub fn svg(chart: &Chart) -> Result<String, String> {
-    super::render::register_font()?;
+    super::templating::register_font()?;
     let mut text = String::new();
     {
         let root = SVGBackend::with_string(&mut text, (760, 320)).into_drawing_area();
@@ -149,7 +149,7 @@ pub fn svg(chart: &Chart) -> Result<String, String> {
 
 /// The chart as PNG bytes (1140 x 480).
 pub fn png(chart: &Chart) -> Result<Vec<u8>, String> {
-    super::render::register_font()?;
+    super::templating::register_font()?;
     let (w, h) = (1140u32, 480u32);
     let mut rgb = vec![0u8; (w * h * 3) as usize];
     {

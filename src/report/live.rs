@@ -10,15 +10,11 @@ use std::path::Path;
 
 use serde::Serialize;
 
-use crate::core::stats::{mean_sd, percentile};
+pub(crate) use super::live_timing::{number, timing, Timing};
 use crate::io::fs::write_all_atomic;
 use crate::manifest::Experiment;
 use crate::pipeline::live::{LiveFrame, LiveRun, Replay};
 use crate::pipeline::tracked::{Role, TrackedInputs};
-
-pub(crate) fn number(v: Option<f64>) -> String {
-    v.map(|v| format!("{v:.4}")).unwrap_or_default()
-}
 
 /// `live.csv`.
 pub fn frames_csv(run: &LiveRun) -> String {
@@ -40,26 +36,6 @@ pub fn frames_csv(run: &LiveRun) -> String {
         );
     }
     out
-}
-
-/// Mean, 95th percentile and largest of per-frame times, ms.
-#[derive(Serialize)]
-pub(crate) struct Timing {
-    pub(crate) mean: f64,
-    pub(crate) p95: f64,
-    pub(crate) max: f64,
-}
-
-pub(crate) fn timing(values: &[f64]) -> Timing {
-    Timing {
-        mean: mean_sd(values).mean,
-        p95: if values.is_empty() {
-            0.0
-        } else {
-            percentile(values, 0.95)
-        },
-        max: values.iter().copied().fold(0.0, f64::max),
-    }
 }
 
 #[derive(Serialize)]

@@ -15,7 +15,7 @@ use crate::estimate::horn::HornFit;
 use crate::io::fs::write_all_atomic;
 use crate::manifest::Manifest;
 use crate::pipeline::live_folder::{self, Ending, FolderFrame, FolderRun, Watch};
-use crate::report::live::{number, timing, Timing};
+use crate::report::live_timing::{number, timing, Timing};
 
 /// `live.csv`.
 pub fn frames_csv(run: &FolderRun) -> String {

@@ -5,8 +5,8 @@ use std::path::{Path, PathBuf};
 use serde::{Deserialize, Serialize};
 
 use crate::core::limits::MAX_SEEDS;
+use crate::pipeline::shard::{self, Shard, ShardFile};
 use crate::pipeline::study::{BoundModel, MonteCarlo, SigmaRow};
-use crate::report::shard::{Shard, ShardFile};
 use crate::report::summary::to_text;
 
 /// `study.json`: the σ-table and, when seeds were run, the Monte Carlo study.
@@ -222,7 +222,7 @@ pub enum StudyMerge {
 /// `probecal study` or `probecal study merge`; the exit code.
 pub fn dispatch(args: StudyArgs) -> u8 {
     match &args.merge {
-        Some(StudyMerge::Merge { shards, out }) => crate::report::shard::merge(shards, out),
+        Some(StudyMerge::Merge { shards, out }) => merge(shards, out),
         None => command(&args),
     }
 }
@@ -281,7 +281,7 @@ pub fn command(request: &StudyArgs) -> u8 {
             bound: BoundModel::of(&manifest),
             results,
         };
-        return match crate::report::shard::write(&request.out, &file) {
+        return match shard::write(&request.out, &file) {
             Ok(written) => {
                 eprintln!(
                     "shard {}/{}: {} seeds; written to {}",
@@ -317,6 +317,39 @@ pub fn command(request: &StudyArgs) -> u8 {
         }
         Err(e) => {
             eprintln!("error: {e}");
+            1
+        }
+    }
+}
+
+/// `probecal study merge`: the study from its shard files, written to `out`.
+pub fn merge(files: &[PathBuf], out: &Path) -> u8 {
+    let mut shards = Vec::new();
+    for path in files {
+        match shard::read(path) {
+            Ok(s) => shards.push((path.clone(), s)),
+            Err(e) => {
+                eprintln!("error: {e}");
+                return 2;
+            }
+        }
+    }
+    let (experiment, bound, results) = match shard::join(&shards) {
+        Ok(joined) => joined,
+        Err(e) => {
+            eprintln!("error: {e}");
+            return 2;
+        }
+    };
+    let monte_carlo = crate::pipeline::study::summarise(&experiment, bound, results);
+    let sigma = sigma_table();
+    match write(out, &sigma, Some(&monte_carlo)) {
+        Ok(()) => {
+            eprintln!("{} shards merged; written to {}", shards.len(), out.display());
+            0
+        }
+        Err(e) => {
+            eprintln!("error: {}: {e}", out.display());
             1
         }
     }

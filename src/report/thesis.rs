@@ -382,7 +382,7 @@ pub fn layout(chapter: &Chapter) -> String {
     out
 }
 
-use crate::report::render::error_chain;
+use crate::report::templating::error_chain;
 
 const HTML_TEMPLATE: &str = include_str!("../../templates/thesis.html.tera");
 const TEX_TEMPLATE: &str = include_str!("../../templates/thesis.tex.tera");
@@ -397,7 +397,7 @@ pub fn render(root: &Path) -> Result<Option<(Chapter, String, String)>, String> 
     let mut t = tera::Tera::default();
     t.add_raw_templates(vec![("thesis.html", HTML_TEMPLATE), ("thesis.tex", TEX_TEMPLATE)])
         .map_err(|e| error_chain(&e))?;
-    crate::report::render::register_tex_filter(&mut t);
+    crate::report::templating::register_tex_filter(&mut t);
     let mut ctx = tera::Context::from_serialize(&chapter).map_err(|e| e.to_string())?;
     ctx.insert("probecal_version", env!("CARGO_PKG_VERSION"));
     let html = t.render("thesis.html", &ctx).map_err(|e| error_chain(&e))?;

@@ -14,12 +14,12 @@ use crate::io::plus::result::PlusResult;
 use crate::manifest::tracked::TrackedManifest;
 use crate::pipeline::tracked::{Role, TrackedRun};
 use crate::pipeline::tracked_resolution::ValidationResolution;
+use crate::report::error::OutputError;
 use crate::report::summary::{
     to_text, CandidateScore, ConstraintCounts, FramesCompared, ImageToProbeSummary, ModelSelectionSummary, ParameterSd,
     PlusResultSummary, Pre3d, PublishedPre3d, Segmented, TrackedFrameCounts, TrackedSummary, TrackedTolerances,
     TRACKED_KIND,
 };
-use crate::report::write::OutputError;
 
 /// PRE3D of `image_to_probe` (PLUS's `Calibration` matrix) on `role`'s used
 /// dots and poses in the frames `keep` admits, with the phantom's registration
@@ -511,13 +511,13 @@ fn render_pages(
         .collect();
     ctx.insert("gates", &gates);
     let mut t = tera::Tera::default();
-    super::render::register_tex_filter(&mut t);
+    super::templating::register_tex_filter(&mut t);
     t.add_raw_templates(vec![
         ("tracked.html", TRACKED_TEMPLATE),
         ("tracked.tex", TRACKED_TEX_TEMPLATE),
     ])
     .and_then(|_| Ok((t.render("tracked.html", &ctx)?, t.render("tracked.tex", &ctx)?)))
-    .map_err(|e| OutputError::Report(super::render::error_chain(&e)))
+    .map_err(|e| OutputError::Report(super::templating::error_chain(&e)))
 }
 
 #[cfg(test)]

@@ -1,5 +1,5 @@
 //! `summary.json` of a tracked-sequence run (PLUS sequence files), typed: what
-//! [`crate::report::tracked`] writes and the regression gate reads back.
+//! the tracked run's writer writes and the regression gate reads back.
 
 use serde::{Deserialize, Serialize};
 

@@ -2,7 +2,7 @@
 //! `summary.json` (the stable machine-readable interface), the manifest as run,
 //! and the terminal tables. Files are written to a temporary name and renamed.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use polars::prelude::*;
 
@@ -14,15 +14,7 @@ use crate::report::summary::{to_text, Summary};
 use crate::io::fs::write_atomic;
 use crate::io::fs::{display_path, WriteError};
 
-#[derive(Debug, thiserror::Error)]
-pub enum OutputError {
-    #[error("{path}: {message}")]
-    Io { path: PathBuf, message: String },
-    #[error("polars: {0}")]
-    Polars(#[from] PolarsError),
-    #[error("report: {0}")]
-    Report(String),
-}
+pub use super::error::OutputError;
 
 /// The per-frame table: one row per frame, used or rejected with the stage and reason.
 pub fn frames_table(run: &DatasetRun) -> PolarsResult<DataFrame> {
