@@ -53,7 +53,7 @@ fn main() {
 
     let pose = median_s(15, || {
         black_box(
-            probecal::detect::board_pose::estimate(&photo, &camera, &rig)
+            probecal::detect::rig_pose::estimate(&photo, &camera, &rig)
                 .unwrap()
                 .unwrap(),
         );
@@ -139,11 +139,7 @@ fn all_frames(
         let photo = probecal::io::image::read_gray(&folder.join(frame.camera_image.as_ref().unwrap())).unwrap();
         stages[0].1.push(t.elapsed().as_secs_f64());
         let t = Instant::now();
-        black_box(
-            probecal::detect::board_pose::estimate(&photo, camera, rig)
-                .unwrap()
-                .ok(),
-        );
+        black_box(probecal::detect::rig_pose::estimate(&photo, camera, rig).unwrap().ok());
         stages[1].1.push(t.elapsed().as_secs_f64());
         let t = Instant::now();
         let bscan = probecal::io::image::read_gray(&folder.join(&frame.bscan_image)).unwrap();

@@ -342,40 +342,6 @@ pub fn solve_pose(
     pnp(camera, &object_points(&layout.corners_in_board_mm()), corners_px, None)
 }
 
-/// Finds and poses both boards of a rig. The inner `Err` is a frame rejection reason.
-pub fn estimate(
-    image: &Mat,
-    camera: &CameraIntrinsics,
-    rig: &RigBoards,
-) -> opencv::Result<Result<FramePoses, BoardRejection>> {
-    match (&rig.probe, &rig.phantom, &rig.detection) {
-        (PrintedBoard::Checkerboard(probe), PrintedBoard::Checkerboard(phantom), _) => estimate_checkerboards(
-            image,
-            camera,
-            &RigLayout {
-                probe: *probe,
-                phantom: *phantom,
-            },
-        ),
-        (
-            PrintedBoard::Aruco(probe),
-            PrintedBoard::Aruco(phantom),
-            Detection::Aruco {
-                subpixel_half_window_px,
-                min_markers,
-            },
-        ) => crate::detect::aruco_pose::estimate_aruco(
-            image,
-            camera,
-            probe,
-            phantom,
-            *subpixel_half_window_px,
-            *min_markers,
-        ),
-        _ => Ok(Err(BoardRejection::MixedRig)),
-    }
-}
-
 /// How a rig's boards are found.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Detection {

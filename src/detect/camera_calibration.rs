@@ -42,7 +42,7 @@ pub struct CameraCalibration {
     pub used_corners_px: Vec<Vec<[f64; 2]>>,
     /// Set when more board views (the frames' boards) refined these intrinsics.
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub refined: Option<super::camera_refinement::Refinement>,
+    pub refined: Option<Refinement>,
 }
 
 /// A view whose every corner lies within this many pixels of an earlier view's
@@ -442,6 +442,27 @@ pub fn parse_board(text: &str) -> Result<[u32; 2], String> {
         return Err(format!("a board needs at least 2x2 inner corners, got {c}x{r}"));
     }
     Ok([c, r])
+}
+
+/// What the added views changed.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct Refinement {
+    /// The intrinsics from the calibration views alone.
+    pub views_only: crate::io::camera_model::CameraIntrinsics,
+    /// Added views used.
+    pub boards_used: usize,
+    /// Added views left out, each with its reason.
+    pub boards_dropped: Vec<String>,
+    /// Added views left out as a repeat of an earlier one (`camera_refinement::repeats`).
+    pub boards_repeated: usize,
+    /// RMS reprojection error over the added views used, px.
+    pub boards_rms_px: f64,
+    /// The SD of each intrinsic (`fx, fy, cx, cy` px, `k1, k2, p1, p2, k3`)
+    /// from every view's corners, the noise their residuals show.
+    pub intrinsics_sd: Option<[f64; super::projection::INTRINSICS]>,
+    /// What every view (calibration and frames' boards) knows of the intrinsics.
+    #[serde(skip)]
+    pub intrinsics_information: Option<super::projection::KMatrix>,
 }
 
 #[cfg(test)]

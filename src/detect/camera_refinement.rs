@@ -26,7 +26,7 @@ use super::projection::{board_jacobians, intrinsics_vector, pose_at, projections
 use crate::core::geometry::Rigid;
 use crate::io::camera_model::CameraIntrinsics;
 
-pub type KMatrix = SMatrix<f64, INTRINSICS, INTRINSICS>;
+pub use super::projection::KMatrix;
 type KByPose = SMatrix<f64, INTRINSICS, 6>;
 type KVector = SMatrix<f64, INTRINSICS, 1>;
 
@@ -227,26 +227,7 @@ pub struct BoardView {
     pub corners_px: Vec<[f64; 2]>,
 }
 
-/// What the added views changed.
-#[derive(Debug, Clone, PartialEq, serde::Serialize)]
-pub struct Refinement {
-    /// The intrinsics from the calibration views alone.
-    pub views_only: CameraIntrinsics,
-    /// Added views used.
-    pub boards_used: usize,
-    /// Added views left out, each with its reason.
-    pub boards_dropped: Vec<String>,
-    /// Added views left out as a repeat of an earlier one ([`repeats`]).
-    pub boards_repeated: usize,
-    /// RMS reprojection error over the added views used, px.
-    pub boards_rms_px: f64,
-    /// The SD of each intrinsic (`fx, fy, cx, cy` px, `k1, k2, p1, p2, k3`)
-    /// from every view's corners, the noise their residuals show.
-    pub intrinsics_sd: Option<[f64; INTRINSICS]>,
-    /// What every view (calibration and frames' boards) knows of the intrinsics.
-    #[serde(skip)]
-    pub intrinsics_information: Option<KMatrix>,
-}
+pub use super::camera_calibration::Refinement;
 
 /// The calibration's own views, in the order solved.
 fn calibration_views(calibration: &CameraCalibration) -> Vec<BoardView> {

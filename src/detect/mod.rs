@@ -15,4 +15,5 @@ pub mod nwire;
 pub mod overlay;
 pub mod projection;
 pub mod ridge;
+pub mod rig_pose;
 pub mod spot;

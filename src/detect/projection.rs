@@ -12,6 +12,9 @@ use crate::io::camera_model::CameraIntrinsics;
 
 /// The number of intrinsics the camera calibration estimates.
 pub const INTRINSICS: usize = 9;
+
+/// A matrix over the intrinsics (their information, their covariance).
+pub type KMatrix = nalgebra::SMatrix<f64, INTRINSICS, INTRINSICS>;
 pub type IntrinsicsVector = SVector<f64, INTRINSICS>;
 
 pub fn intrinsics_vector(camera: &CameraIntrinsics) -> IntrinsicsVector {

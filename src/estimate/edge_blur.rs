@@ -1,5 +1,5 @@
 //! How much an arc's edge points are worth, by where the plane cuts its dome:
-//! the noise model the multi-sphere fit ([`super::sphere_bundle`]) weighs the
+//! the noise model the multi-sphere fit (`sphere_bundle`) weighs the
 //! arcs by and its Cramér–Rao bound assumes.
 //!
 //! A B-scan's slice has a thickness: the beam's elevation profile, SD `σ_e`.

@@ -1,5 +1,5 @@
 //! Where an arc's echo edge sits relative to its sphere: the model the
-//! multi-sphere fit ([`super::sphere_bundle`]) and its Cramér–Rao bound may
+//! multi-sphere fit (`sphere_bundle`) and its Cramér–Rao bound may
 //! solve with the calibration.
 //!
 //! A B-scan's slice has a thickness (the beam's elevation width). Cut
@@ -33,11 +33,7 @@ pub enum EdgeOffset {
     Slice,
 }
 
-/// How many terms the offset has: `(a, b, c)`.
-pub const TERMS: usize = 3;
-
-/// The offset's terms, mm: `(a, b, c)`.
-pub type EdgeTerms = [f64; TERMS];
+pub use super::sphere_fit::{EdgeTerms, TERMS};
 
 impl EdgeOffset {
     /// Every model, as a manifest names it.

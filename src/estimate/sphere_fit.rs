@@ -66,14 +66,20 @@ pub struct SphereSettings {
     pub fit_pixel_size: bool,
 }
 
+/// How many terms the offset has: `(a, b, c)`.
+pub const TERMS: usize = 3;
+
+/// The offset's terms, mm: `(a, b, c)`.
+pub type EdgeTerms = [f64; TERMS];
+
 #[derive(Debug, Clone)]
 pub struct SphereFit {
     pub marker_T_image: Rigid,
     /// Estimated offset of the edge points outside the sphere, mm (0 when not fitted).
     pub radius_offset_mm: f64,
     /// The edge offset's terms `(a, b, c)` solved with the calibration, mm
-    /// ([`super::edge_offset`]; 0 when not fitted).
-    pub edge_offset_mm: super::edge_offset::EdgeTerms,
+    /// (`edge_offset`; 0 when not fitted).
+    pub edge_offset_mm: EdgeTerms,
     /// The pixel size the fit maps edge pixels with: the settings' own, or the
     /// fitted one with `fit_pixel_size`, mm per pixel.
     pub spacing_mm_per_px: [f64; 2],
@@ -224,7 +230,7 @@ pub fn refine(start: &Rigid, frames: &[ArcFrame], settings: &SphereSettings) -> 
             .collect(),
         marker_T_image,
         radius_offset_mm,
-        edge_offset_mm: [0.0; super::edge_offset::TERMS],
+        edge_offset_mm: [0.0; TERMS],
         spacing_mm_per_px,
         rms_mm: (sum / count.max(1) as f64).sqrt(),
         iterations: out.iterations,
