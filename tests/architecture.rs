@@ -2,7 +2,9 @@
 //!
 //! Every `crate::<module>` path in a top-level module's files (its test modules
 //! left out) is an edge to that module. An edge to a module of the same or a
-//! higher layer fails the test, and so does any cycle; so do a `main.rs` above
+//! higher layer fails the test, and so does any cycle, among the top-level
+//! modules or among the files of one folder (`super::<file>` and
+//! `crate::<folder>::<file>` paths; a sub-folder counts as one file); so do a `main.rs` above
 //! 20 lines (it calls `probecal::cli::main`) and a source file above 600. The checks themselves are tested on
 //! planted graphs, so they can fail.
 
@@ -119,6 +121,88 @@ fn graph(src: &Path) -> Graph {
     g
 }
 
+/// The names a text reaches below `prefix` (`super::` or `crate::<folder>::`),
+/// also inside `prefix{a, b}`; a `super::` preceded by another path segment
+/// (`super::super::x`) is not the folder's.
+fn paths_below(src: &str, prefix: &str) -> BTreeSet<String> {
+    let mut out = BTreeSet::new();
+    let name = |s: &str| -> String {
+        s.trim()
+            .chars()
+            .take_while(|c| c.is_alphanumeric() || *c == '_')
+            .collect()
+    };
+    for (i, _) in src.match_indices(prefix) {
+        let before = src[..i].chars().next_back();
+        if before.is_some_and(|c| c == ':' || c.is_alphanumeric() || c == '_') {
+            continue;
+        }
+        let rest = &src[i + prefix.len()..];
+        match rest.strip_prefix('{') {
+            Some(group) => {
+                for item in group[..group.find('}').unwrap_or(group.len())].split(',') {
+                    out.insert(name(item));
+                }
+            }
+            None => {
+                out.insert(name(rest));
+            }
+        }
+    }
+    out.retain(|n| !n.is_empty() && n != "super" && n != "self");
+    out
+}
+
+/// The graph of the files of each top-level folder, as `folder/file`.
+fn file_graph(src: &Path) -> Graph {
+    let mut g = Graph::new();
+    for (folder, _) in LAYERS {
+        let dir = src.join(folder);
+        if !dir.is_dir() {
+            continue;
+        }
+        // Each file of the folder, and each sub-folder as one file: its name and sources.
+        let mut members: BTreeMap<String, Vec<std::path::PathBuf>> = BTreeMap::new();
+        for entry in std::fs::read_dir(&dir).unwrap().flatten() {
+            let path = entry.path();
+            let stem = path.file_stem().unwrap().to_string_lossy().to_string();
+            if path.is_dir() {
+                let mut files = Vec::new();
+                rust_files(&path, &mut files);
+                members.insert(stem, files);
+            } else if path.extension().is_some_and(|e| e == "rs") && stem != "mod" {
+                members.insert(stem, vec![path]);
+            }
+        }
+        for (name, files) in &members {
+            let key = format!("{folder}/{name}");
+            let edges = g.entry(key).or_default();
+            for f in files {
+                let text = without_tests(&std::fs::read_to_string(f).unwrap());
+                let reached = paths_below(&text, "super::")
+                    .into_iter()
+                    .chain(paths_below(&text, &format!("crate::{folder}::")));
+                for other in reached {
+                    if &other != name && members.contains_key(&other) {
+                        edges.insert(format!("{folder}/{other}"));
+                    }
+                }
+            }
+        }
+    }
+    g
+}
+
+#[test]
+fn no_file_imports_from_a_file_that_imports_it_back() {
+    let g = file_graph(&common::root().join("src"));
+    assert!(
+        g.get("pipeline/run").is_some_and(|e| e.contains("pipeline/frames")),
+        "the reader finds edges between files: {g:?}"
+    );
+    assert_eq!(cycle(&g), None, "files of one folder that import each other");
+}
+
 /// Edges that point to a module of the same or a higher layer.
 fn upward(g: &Graph, layers: &BTreeMap<String, usize>) -> Vec<String> {
     let mut out = Vec::new();
@@ -207,6 +291,11 @@ fn the_checks_catch_planted_faults() {
     let src =
         "use crate::core::geometry;\nuse crate::{io, spec::rig};\n#[cfg(test)]\nmod tests {\n use crate::report;\n}\n";
     let found = crate_paths(&without_tests(src));
+    let below = paths_below(
+        "use super::{a, b::C};\nuse super::super::x;\nlet y = crate::io::z::w;",
+        "super::",
+    );
+    assert_eq!(below, ["a", "b"].iter().map(|s| s.to_string()).collect());
     assert_eq!(found, ["core", "io", "spec"].iter().map(|s| s.to_string()).collect());
 }
 
