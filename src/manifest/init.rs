@@ -207,24 +207,7 @@ pub fn plus_manifest(recording: &PlusRecording, out: &Path, experiment: &str) ->
         None => None,
     };
     let rel = |p: &Path| relative_to_manifest(out, p);
-    let mut t = String::new();
-    let _ = writeln!(t, "# Written by `probecal init` from a PLUS recording:");
-    let _ = writeln!(t, "#   device set:  {}", recording.config.display());
-    let _ = writeln!(
-        t,
-        "#   calibration: {} ({} frames of {}x{} px)",
-        recording.calibration.display(),
-        sequence.frames.len(),
-        sequence.width,
-        sequence.height
-    );
-    if let Some((path, v)) = &validation {
-        let _ = writeln!(t, "#   validation:  {} ({} frames)", path.display(), v.frames.len());
-    }
-    let _ = writeln!(
-        t,
-        "# Every key: docs/manifest.md. Check: probecal validate; run: probecal run."
-    );
+    let mut t = plus_header(recording, &sequence, validation.as_ref());
     let _ = writeln!(t, "experiment: {experiment}");
     let _ = writeln!(t, "description: >-");
     let _ = writeln!(
@@ -292,6 +275,29 @@ pub fn plus_manifest(recording: &PlusRecording, out: &Path, experiment: &str) ->
     );
     TrackedManifest::from_text(out, &t).map_err(|e| invalid(out, e))?;
     Ok(t)
+}
+
+/// The manifest's opening comment: what it was written from.
+fn plus_header(recording: &PlusRecording, sequence: &Sequence, validation: Option<&(&Path, Sequence)>) -> String {
+    let mut t = String::new();
+    let _ = writeln!(t, "# Written by `probecal init` from a PLUS recording:");
+    let _ = writeln!(t, "#   device set:  {}", recording.config.display());
+    let _ = writeln!(
+        t,
+        "#   calibration: {} ({} frames of {}x{} px)",
+        recording.calibration.display(),
+        sequence.frames.len(),
+        sequence.width,
+        sequence.height
+    );
+    if let Some((path, v)) = validation {
+        let _ = writeln!(t, "#   validation:  {} ({} frames)", path.display(), v.frames.len());
+    }
+    let _ = writeln!(
+        t,
+        "# Every key: docs/manifest.md. Check: probecal validate; run: probecal run."
+    );
+    t
 }
 
 fn invalid(out: &Path, errors: super::ManifestErrors) -> InitError {
