@@ -349,6 +349,104 @@ fn resolution_rows(r: &ValidationResolution) -> serde_json::Value {
 }
 
 /// The page of a tracked (sequence-file) run, from its summary.
+/// The PRE3D table's rows: ours on validation and calibration frames, and with
+/// PLUS's result, ours and PLUS's matrix on the same frames and PLUS as published.
+fn pre3d_rows(summary: &TrackedSummary) -> Vec<serde_json::Value> {
+    let f3 = |v: Option<f64>| v.map(|x| format!("{x:.3}")).unwrap_or_else(|| "—".into());
+    let n = |v: Option<MeanSd>| v.map(|s| serde_json::json!(s.n)).unwrap_or(serde_json::Value::Null);
+    let row = |estimate: &str, frames: &str, best: Option<MeanSd>, all: Option<MeanSd>| {
+        serde_json::json!({
+            "estimate": estimate, "frames": frames,
+            "mean": f3(best.map(|s| s.mean)), "std": f3(best.map(|s| s.std)), "n": n(best),
+            "mean_all": f3(all.map(|s| s.mean)), "std_all": f3(all.map(|s| s.std)), "n_all": n(all),
+        })
+    };
+    let mut pre3d = vec![
+        row(
+            "probecal",
+            "validation",
+            summary.validation.pre3d_mm,
+            summary.validation.pre3d_all_mm,
+        ),
+        row(
+            "probecal",
+            "calibration",
+            summary.calibration.pre3d_mm,
+            summary.calibration.pre3d_all_mm,
+        ),
+    ];
+    if let Some(plus) = &summary.plus_result {
+        let both = summary
+            .validation
+            .frames_compared
+            .map(|c| format!("validation, the {} frames both segmented", c.both))
+            .unwrap_or_else(|| "validation".into());
+        pre3d.push(row(
+            "probecal, same frames as PLUS's matrix",
+            &both,
+            summary.validation.same_frames_pre3d_mm,
+            None,
+        ));
+        pre3d.push(row(
+            "PLUS's ImageToProbe, same dots, poses and frames",
+            &both,
+            summary.validation.plus_matrix_pre3d_mm,
+            summary.validation.plus_matrix_pre3d_all_mm,
+        ));
+        let published_frames = summary
+            .validation
+            .frames_compared
+            .and_then(|c| c.plus)
+            .map(|n| format!("validation, {n} frames PLUS segmented"))
+            .unwrap_or_else(|| "validation".into());
+        pre3d.push(serde_json::json!({
+            "estimate": "PLUS as published (its own dots)", "frames": published_frames,
+            "mean": f3(plus.published_validation_pre3d_mm.mean), "std": f3(plus.published_validation_pre3d_mm.std),
+            "n": "—", "mean_all": "—", "std_all": "—", "n_all": "—",
+        }));
+    }
+    pre3d
+}
+
+/// The matrix as fixed-width text, a row a line.
+fn matrix_text(m: &Matrix4<f64>) -> String {
+    (0..4)
+        .map(|r| {
+            (0..4)
+                .map(|c| format!("{:>13.6}", m[(r, c)]))
+                .collect::<Vec<_>>()
+                .join(" ")
+        })
+        .collect::<Vec<_>>()
+        .join("\n")
+}
+
+/// The matrix's cells, 6 decimals, for the LaTeX array.
+fn matrix_cells(m: &Matrix4<f64>) -> Vec<Vec<String>> {
+    (0..4)
+        .map(|r| (0..4).map(|c| format!("{:.6}", m[(r, c)])).collect())
+        .collect()
+}
+
+/// The rejected frames, each with its reason, and their count by check.
+fn insert_rejections(ctx: &mut tera::Context, run: &TrackedRun) {
+    let rejected: Vec<serde_json::Value> = run
+        .frames
+        .iter()
+        .filter_map(|f| {
+            f.rejected.as_ref().map(|r| {
+                serde_json::json!({"sequence": format!("{:?}", f.role).to_lowercase(), "frame": f.index, "reason": r})
+            })
+        })
+        .collect();
+    ctx.insert("rejected", &rejected);
+    let by_check: Vec<serde_json::Value> = crate::pipeline::sequence_frames::rejections_by_check(&run.frames)
+        .into_iter()
+        .map(|(check, frames)| serde_json::json!({"check": check, "frames": frames}))
+        .collect();
+    ctx.insert("rejected_by_check", &by_check);
+}
+
 /// The run's page in HTML and in LaTeX, from one context.
 fn render_pages(
     run: &TrackedRun,
@@ -413,36 +511,10 @@ fn render_pages(
     ctx.insert("cal_total", &ct);
     ctx.insert("val_segmented", &vs);
     ctx.insert("val_total", &vt);
-    let rejected: Vec<serde_json::Value> = run
-        .frames
-        .iter()
-        .filter_map(|f| {
-            f.rejected.as_ref().map(|r| {
-                serde_json::json!({"sequence": format!("{:?}", f.role).to_lowercase(), "frame": f.index, "reason": r})
-            })
-        })
-        .collect();
-    ctx.insert("rejected", &rejected);
-    let by_check: Vec<serde_json::Value> = crate::pipeline::sequence_frames::rejections_by_check(&run.frames)
-        .into_iter()
-        .map(|(check, frames)| serde_json::json!({"check": check, "frames": frames}))
-        .collect();
-    ctx.insert("rejected_by_check", &by_check);
+    insert_rejections(&mut ctx, run);
     let m = run.fit.image_to_probe.matrix();
-    let matrix_text = (0..4)
-        .map(|r| {
-            (0..4)
-                .map(|c| format!("{:>13.6}", m[(r, c)]))
-                .collect::<Vec<_>>()
-                .join(" ")
-        })
-        .collect::<Vec<_>>()
-        .join("\n");
-    ctx.insert("matrix_text", &matrix_text);
-    let matrix: Vec<Vec<String>> = (0..4)
-        .map(|r| (0..4).map(|c| format!("{:.6}", m[(r, c)])).collect())
-        .collect();
-    ctx.insert("matrix", &matrix);
+    ctx.insert("matrix_text", &matrix_text(&m));
+    ctx.insert("matrix", &matrix_cells(&m));
     let s = run.fit.image_to_probe.spacing_mm_per_px;
     ctx.insert("spacing_u", &format!("{:.5}", s[0]));
     ctx.insert("spacing_v", &format!("{:.5}", s[1]));
@@ -450,58 +522,7 @@ fn render_pages(
     ctx.insert("euler", &format!("[{:.2}, {:.2}, {:.2}]", e[0], e[1], e[2]));
     let t = run.fit.image_to_probe.marker_T_image.translation.vector;
     ctx.insert("translation", &format!("[{:.2}, {:.2}, {:.2}]", t.x, t.y, t.z));
-    let n = |v: Option<MeanSd>| v.map(|s| serde_json::json!(s.n)).unwrap_or(serde_json::Value::Null);
-    let row = |estimate: &str, frames: &str, best: Option<MeanSd>, all: Option<MeanSd>| {
-        serde_json::json!({
-            "estimate": estimate, "frames": frames,
-            "mean": f3(best.map(|s| s.mean)), "std": f3(best.map(|s| s.std)), "n": n(best),
-            "mean_all": f3(all.map(|s| s.mean)), "std_all": f3(all.map(|s| s.std)), "n_all": n(all),
-        })
-    };
-    let mut pre3d = vec![
-        row(
-            "probecal",
-            "validation",
-            summary.validation.pre3d_mm,
-            summary.validation.pre3d_all_mm,
-        ),
-        row(
-            "probecal",
-            "calibration",
-            summary.calibration.pre3d_mm,
-            summary.calibration.pre3d_all_mm,
-        ),
-    ];
-    if let Some(plus) = &summary.plus_result {
-        let both = summary
-            .validation
-            .frames_compared
-            .map(|c| format!("validation, the {} frames both segmented", c.both))
-            .unwrap_or_else(|| "validation".into());
-        pre3d.push(row(
-            "probecal, same frames as PLUS's matrix",
-            &both,
-            summary.validation.same_frames_pre3d_mm,
-            None,
-        ));
-        pre3d.push(row(
-            "PLUS's ImageToProbe, same dots, poses and frames",
-            &both,
-            summary.validation.plus_matrix_pre3d_mm,
-            summary.validation.plus_matrix_pre3d_all_mm,
-        ));
-        let published_frames = summary
-            .validation
-            .frames_compared
-            .and_then(|c| c.plus)
-            .map(|n| format!("validation, {n} frames PLUS segmented"))
-            .unwrap_or_else(|| "validation".into());
-        pre3d.push(serde_json::json!({
-            "estimate": "PLUS as published (its own dots)", "frames": published_frames,
-            "mean": f3(plus.published_validation_pre3d_mm.mean), "std": f3(plus.published_validation_pre3d_mm.std),
-            "n": "—", "mean_all": "—", "std_all": "—", "n_all": "—",
-        }));
-    }
+    let pre3d = pre3d_rows(summary);
     ctx.insert("pre3d", &pre3d);
     ctx.insert("resolution", &resolution_rows(&summary.resolution));
     let gates: Vec<serde_json::Value> = summary
