@@ -179,6 +179,19 @@ pub fn pages_beside(out: &Path) -> (Vec<(String, String)>, Vec<String>) {
 /// How deep below `study/` further studies are looked for (`study/<group>/<name>`).
 const STUDY_DEPTH: usize = 3;
 
+/// The folders directly in `dir` (name, path), sorted by name; none when it cannot be read.
+fn sub_folders(dir: &Path) -> Vec<(String, std::path::PathBuf)> {
+    let mut folders: Vec<(String, std::path::PathBuf)> = std::fs::read_dir(dir)
+        .into_iter()
+        .flatten()
+        .flatten()
+        .filter(|e| e.file_type().is_ok_and(|t| t.is_dir()))
+        .filter_map(|e| e.file_name().to_str().map(|n| (n.to_string(), e.path())))
+        .collect();
+    folders.sort();
+    folders
+}
+
 /// The folders below `dir`, at most `depth` levels down, that hold `file`, as
 /// `/`-joined paths relative to `dir`, sorted; a folder holding `file` is
 /// listed and also searched further (a group of studies may sit beside one).
@@ -187,15 +200,7 @@ fn nested_folders_with(dir: &Path, file: &str, depth: usize) -> Vec<String> {
     if depth == 0 {
         return out;
     }
-    let mut children: Vec<(String, std::path::PathBuf)> = std::fs::read_dir(dir)
-        .into_iter()
-        .flatten()
-        .flatten()
-        .filter(|e| e.file_type().is_ok_and(|t| t.is_dir()))
-        .filter_map(|e| e.file_name().to_str().map(|n| (n.to_string(), e.path())))
-        .collect();
-    children.sort();
-    for (name, path) in children {
+    for (name, path) in sub_folders(dir) {
         if path.join(file).is_file() {
             out.push(name.clone());
         }
@@ -213,19 +218,8 @@ fn nested_folders_with(dir: &Path, file: &str, depth: usize) -> Vec<String> {
 /// the same folder stays linked. A summary that cannot be read is an error named.
 fn earlier_runs(out: &Path, entries: &[IndexEntry]) -> (Vec<IndexEntry>, Vec<String>) {
     let (mut found, mut errors) = (Vec::new(), Vec::new());
-    let folders = |dir: &Path| -> Vec<(String, std::path::PathBuf)> {
-        let mut v: Vec<(String, std::path::PathBuf)> = std::fs::read_dir(dir)
-            .into_iter()
-            .flatten()
-            .flatten()
-            .filter(|e| e.file_type().is_ok_and(|t| t.is_dir()))
-            .filter_map(|e| e.file_name().to_str().map(|n| (n.to_string(), e.path())))
-            .collect();
-        v.sort();
-        v
-    };
-    for (experiment, dir) in folders(out) {
-        for (dataset, run) in folders(&dir) {
+    for (experiment, dir) in sub_folders(out) {
+        for (dataset, run) in sub_folders(&dir) {
             let summary = run.join("summary.json");
             let listed = entries
                 .iter()
