@@ -145,10 +145,10 @@ pub fn cross_validate(
     candidate: Candidate,
     folds: usize,
     settings: FitSettings,
-) -> Result<MeanSd, String> {
+) -> Result<MeanSd, CrossValidationError> {
     let n = frames.len();
     if n < 2 * folds {
-        return Err(format!("{n} frames are too few for {folds} folds"));
+        return Err(CrossValidationError::TooFewFrames { frames: n, folds });
     }
     let mut held_out = Vec::new();
     for fold in 0..folds {
@@ -157,7 +157,8 @@ pub fn cross_validate(
             .enumerate()
             .filter(|(k, _)| fold_of(*k, n, folds) != fold)
             .map(|(_, f)| f);
-        let trained = fit(training, candidate, settings).map_err(|e| format!("fold {}: {e}", fold + 1))?;
+        let trained = fit(training, candidate, settings)
+            .map_err(|source| CrossValidationError::Fold { fold: fold + 1, source })?;
         for (_, frame) in frames.iter().enumerate().filter(|(k, _)| fold_of(*k, n, folds) == fold) {
             held_out.extend(frame.points.iter().map(|c| {
                 c.residual_with(&trained.fit.image_to_probe, &trained.fit.phantom_correction)
@@ -165,7 +166,18 @@ pub fn cross_validate(
             }));
         }
     }
-    best_95(&held_out).ok_or_else(|| "no held-out point".to_string())
+    best_95(&held_out).ok_or(CrossValidationError::NoHeldOutPoint)
+}
+
+/// Why a candidate could not be cross-validated.
+#[derive(Debug, thiserror::Error)]
+pub enum CrossValidationError {
+    #[error("{frames} frames are too few for {folds} folds")]
+    TooFewFrames { frames: usize, folds: usize },
+    #[error("fold {fold}: {source}")]
+    Fold { fold: usize, source: FitError },
+    #[error("no held-out point")]
+    NoHeldOutPoint,
 }
 
 /// Scores every candidate and chooses by the one-standard-error rule; `None`
@@ -187,7 +199,7 @@ pub fn select(
             Err(e) => Scored {
                 candidate,
                 cv_pre3d_mm: None,
-                failure: Some(e),
+                failure: Some(e.to_string()),
             },
         })
         .collect();

@@ -24,10 +24,17 @@ pub fn split(text: &str) -> (&str, Vec<Record<'_>>) {
 }
 
 /// A frame number field.
-pub fn frame_number(field: &str) -> Result<usize, String> {
-    field
-        .parse()
-        .map_err(|_| format!("frame `{field}` is not a whole number"))
+pub fn frame_number(field: &str) -> Result<usize, FrameNumberError> {
+    field.parse().map_err(|_| FrameNumberError {
+        field: field.to_string(),
+    })
+}
+
+/// A frame field that is not a whole number.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("frame `{field}` is not a whole number")]
+pub struct FrameNumberError {
+    pub field: String,
 }
 
 #[cfg(test)]
@@ -53,6 +60,9 @@ mod tests {
         );
         assert_eq!(split("").0, "");
         assert_eq!(frame_number("7"), Ok(7));
-        assert_eq!(frame_number("x").unwrap_err(), "frame `x` is not a whole number");
+        assert_eq!(
+            frame_number("x").unwrap_err().to_string(),
+            "frame `x` is not a whole number"
+        );
     }
 }

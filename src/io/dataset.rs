@@ -68,7 +68,7 @@ pub fn parse_frame_list(folder: &Path, text: &str) -> Result<Vec<FrameFiles>, Da
                 fields.len()
             )));
         }
-        let frame = csv::frame_number(fields[0]).map_err(fail)?;
+        let frame = csv::frame_number(fields[0]).map_err(|e| fail(e.to_string()))?;
         if frames.len() >= MAX_FRAMES {
             return Err(fail(format!("more than {MAX_FRAMES} frames")));
         }

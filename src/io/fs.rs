@@ -201,22 +201,28 @@ pub struct Lock {
 
 impl Lock {
     /// Claims `path` or fails at once; an error names the process that holds it.
-    pub fn acquire(path: &Path) -> Result<Lock, String> {
+    pub fn acquire(path: &Path) -> Result<Lock, LockError> {
         Lock::claim(path, None)
     }
 
     /// Claims `path`, waiting while another process holds it (`waiting` is told
     /// whom it waits for, once).
-    pub fn acquire_waiting(path: &Path, waiting: &mut dyn FnMut(&str)) -> Result<Lock, String> {
+    pub fn acquire_waiting(path: &Path, waiting: &mut dyn FnMut(&str)) -> Result<Lock, LockError> {
         Lock::claim(path, Some(waiting))
     }
 
-    fn claim(path: &Path, waiting: Option<&mut dyn FnMut(&str)>) -> Result<Lock, String> {
+    fn claim(path: &Path, waiting: Option<&mut dyn FnMut(&str)>) -> Result<Lock, LockError> {
         use std::io::{Read, Seek, Write};
         if let Some(parent) = path.parent() {
-            std::fs::create_dir_all(parent).map_err(|e| format!("{}: {e}", parent.display()))?;
+            std::fs::create_dir_all(parent).map_err(|source| LockError::Io {
+                path: parent.to_path_buf(),
+                source,
+            })?;
         }
-        let fail = |e: std::io::Error| format!("{}: {e}", path.display());
+        let fail = |source: std::io::Error| LockError::Io {
+            path: path.to_path_buf(),
+            source,
+        };
         let mut file = std::fs::OpenOptions::new()
             .read(true)
             .write(true)
@@ -235,10 +241,10 @@ impl Lock {
                 };
                 match waiting {
                     None => {
-                        return Err(format!(
-                            "{}: {holder} is writing here; wait for it to finish",
-                            path.display()
-                        ))
+                        return Err(LockError::Held {
+                            path: path.to_path_buf(),
+                            holder,
+                        })
                     }
                     Some(waiting) => {
                         waiting(&format!("{}: waiting for {holder} to finish with it", path.display()));
@@ -253,6 +259,25 @@ impl Lock {
         writeln!(file, "{}", std::process::id()).map_err(fail)?;
         file.flush().map_err(fail)?;
         Ok(Lock { _file: file })
+    }
+}
+
+/// Why a lock file could not be claimed.
+#[derive(Debug, thiserror::Error)]
+pub enum LockError {
+    #[error("{}: {source}", path.display())]
+    Io { path: PathBuf, source: std::io::Error },
+    #[error("{}: {holder} is writing here; wait for it to finish", path.display())]
+    Held { path: PathBuf, holder: String },
+}
+
+impl LockError {
+    /// What went wrong, without the path.
+    pub fn reason(&self) -> String {
+        match self {
+            LockError::Io { source, .. } => source.to_string(),
+            LockError::Held { holder, .. } => format!("{holder} is writing here; wait for it to finish"),
+        }
     }
 }
 
@@ -389,7 +414,7 @@ mod tests {
         let dir = scratch("lock");
         let path = dir.join(".probecal.lock");
         let lock = Lock::acquire(&path).unwrap();
-        let again = Lock::acquire(&path).unwrap_err();
+        let again = Lock::acquire(&path).unwrap_err().to_string();
         assert!(
             again.contains(&format!("another probecal (process {})", std::process::id())),
             "{again}"

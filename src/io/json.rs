@@ -7,17 +7,26 @@ use serde::Serialize;
 /// A summary as written: pretty JSON, keys sorted, a final newline. A number
 /// that is not finite is an error naming its field: JSON has no NaN and would
 /// write `null`, which a reader takes for "not measured".
-pub fn to_text<T: Serialize>(summary: &T) -> Result<String, String> {
+pub fn to_text<T: Serialize>(summary: &T) -> Result<String, JsonError> {
     // YAML keeps NaN and infinity as numbers (JSON turns them into null, as it
     // does a `None`), so the search runs on the YAML tree.
-    let tree = serde_yaml::to_value(summary).map_err(|e| e.to_string())?;
+    let tree = serde_yaml::to_value(summary).map_err(|e| JsonError::Serialize(e.to_string()))?;
     if let Some(field) = non_finite_field(&tree, "") {
-        return Err(format!("field `{field}` is not a finite number"));
+        return Err(JsonError::NonFinite { field });
     }
-    let value = serde_json::to_value(summary).map_err(|e| e.to_string())?;
+    let value = serde_json::to_value(summary).map_err(|e| JsonError::Serialize(e.to_string()))?;
     serde_json::to_string_pretty(&value)
         .map(|text| text + "\n")
-        .map_err(|e| e.to_string())
+        .map_err(|e| JsonError::Serialize(e.to_string()))
+}
+
+/// Why a summary could not be written as JSON.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum JsonError {
+    #[error("field `{field}` is not a finite number")]
+    NonFinite { field: String },
+    #[error("{0}")]
+    Serialize(String),
 }
 
 /// The path of the first number in `tree` that is NaN or infinite.
@@ -78,15 +87,17 @@ mod tests {
     #[test]
     fn a_number_that_is_not_finite_is_an_error_naming_its_field() {
         assert_eq!(
-            to_text(&summary(f64::NAN, Some(0.1), 0.3)).unwrap_err(),
+            to_text(&summary(f64::NAN, Some(0.1), 0.3)).unwrap_err().to_string(),
             "field `bre.mean_mm` is not a finite number"
         );
         assert_eq!(
-            to_text(&summary(0.5, Some(f64::INFINITY), 0.3)).unwrap_err(),
+            to_text(&summary(0.5, Some(f64::INFINITY), 0.3))
+                .unwrap_err()
+                .to_string(),
             "field `bre.sd_mm` is not a finite number"
         );
         assert_eq!(
-            to_text(&summary(0.5, None, -f64::INFINITY)).unwrap_err(),
+            to_text(&summary(0.5, None, -f64::INFINITY)).unwrap_err().to_string(),
             "field `bre.per_axis_mm[2]` is not a finite number"
         );
     }

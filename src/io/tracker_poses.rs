@@ -90,7 +90,7 @@ impl TrackerPoses {
                     fields.len()
                 )));
             }
-            let frame = csv::frame_number(fields[0]).map_err(fail)?;
+            let frame = csv::frame_number(fields[0]).map_err(|e| fail(e.to_string()))?;
             let name = fields[1];
             if name.is_empty() {
                 return Err(fail("the transform name is empty".into()));
@@ -153,9 +153,22 @@ pub struct MissingPose {
     pub frame: usize,
 }
 
+/// Why a 4x4 matrix is not a rigid transform.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum RigidityError {
+    #[error("the matrix has a non-finite entry")]
+    NonFinite,
+    #[error("the last row must be 0 0 0 1, found {} {} {} {}", .0[0], .0[1], .0[2], .0[3])]
+    LastRow([f64; 4]),
+    #[error("the rotation part is not orthonormal (|RᵀR − I| = {off:.1e}, tolerance {tolerance:.0e}); is the matrix scaled or sheared?")]
+    NotOrthonormal { off: f64, tolerance: f64 },
+    #[error("the rotation part is a reflection (det R < 0)")]
+    Reflection,
+}
+
 /// A tracker's 4x4 matrix as a rigid transform: see [`check_near_rigid`]; the
 /// rotation is then made exactly orthonormal.
-fn rigid_from_tracker_rows(m: &[[f64; 4]; 4]) -> Result<Rigid, String> {
+fn rigid_from_tracker_rows(m: &[[f64; 4]; 4]) -> Result<Rigid, RigidityError> {
     check_near_rigid(m, ORTHONORMAL_TOLERANCE)?;
     let r = Matrix3::from_fn(|i, j| m[i][j]);
     let rotation = Rotation3::from_matrix_eps(&r, 1e-12, 100, Rotation3::identity());
@@ -167,26 +180,21 @@ fn rigid_from_tracker_rows(m: &[[f64; 4]; 4]) -> Result<Rigid, String> {
 
 /// Whether a 4x4 matrix written with a few decimals is a rigid transform: last row
 /// `[0 0 0 1]`, rotation orthonormal within `tolerance` and not a reflection.
-pub fn check_near_rigid(m: &[[f64; 4]; 4], tolerance: f64) -> Result<(), String> {
+pub fn check_near_rigid(m: &[[f64; 4]; 4], tolerance: f64) -> Result<(), RigidityError> {
     if m.iter().flatten().any(|v| !v.is_finite()) {
-        return Err("the matrix has a non-finite entry".into());
+        return Err(RigidityError::NonFinite);
     }
     let last = m[3];
     if last[0].abs() > 1e-9 || last[1].abs() > 1e-9 || last[2].abs() > 1e-9 || (last[3] - 1.0).abs() > 1e-9 {
-        return Err(format!(
-            "the last row must be 0 0 0 1, found {} {} {} {}",
-            last[0], last[1], last[2], last[3]
-        ));
+        return Err(RigidityError::LastRow(last));
     }
     let r = Matrix3::from_fn(|i, j| m[i][j]);
     let off = (r.transpose() * r - Matrix3::identity()).abs().max();
     if off > tolerance {
-        return Err(format!(
-            "the rotation part is not orthonormal (|RᵀR − I| = {off:.1e}, tolerance {tolerance:.0e}); is the matrix scaled or sheared?"
-        ));
+        return Err(RigidityError::NotOrthonormal { off, tolerance });
     }
     if r.determinant() < 0.0 {
-        return Err("the rotation part is a reflection (det R < 0)".into());
+        return Err(RigidityError::Reflection);
     }
     Ok(())
 }

@@ -420,13 +420,13 @@ impl TrackedManifest {
                     }
                     match NWire::new(segments) {
                         Ok(n) => nwires.push(n),
-                        Err(e) => c.fail(&format!("phantom.nwire.patterns[{i}].wires"), e),
+                        Err(e) => c.fail(&format!("phantom.nwire.patterns[{i}].wires"), e.to_string()),
                     }
                 }
                 match given_reference_T_phantom {
                     Some(rows) => match check_near_rigid(rows, ORTHONORMAL_TOLERANCE) {
                         Ok(()) => reference_T_phantom = Matrix4::from_fn(|r, k| rows[r][k]),
-                        Err(e) => c.fail("phantom.nwire.reference_T_phantom", e),
+                        Err(e) => c.fail("phantom.nwire.reference_T_phantom", e.to_string()),
                     },
                     None => c.fail(
                         "phantom.nwire.reference_T_phantom",

@@ -193,13 +193,15 @@ pub struct Bound {
 /// pixel column within ±55° of its top; the boards' poses from their corners
 /// in the scene's photos, with the intrinsics from the scene's calibration views.
 /// The noise is the manifest's [`noise`].
-pub fn bound_of(manifest: &Manifest, phantom: &Phantom, spec: &RenderSpec) -> Result<Bound, String> {
+pub fn bound_of(manifest: &Manifest, phantom: &Phantom, spec: &RenderSpec) -> Result<Bound, BoundError> {
     let noise = noise(manifest);
     let mut lab = super::settings::lab(manifest);
     lab.phantom = phantom;
-    let scene = crate::synth::scene_of(&lab, spec).map_err(|e| e.to_string())?;
+    let scene = crate::synth::scene_of(&lab, spec).map_err(|e| BoundError::Scene(e.to_string()))?;
     if lab.calibration_board.is_none() {
-        return Err("the bound models a camera calibrated from board views (`camera.calibrate`)".into());
+        return Err(BoundError::Unusable(
+            "the bound models a camera calibrated from board views (`camera.calibrate`)",
+        ));
     }
     let photo_noise = PhotoNoise {
         probe_corner_sd_px: noise.probe_corner_sd_px,
@@ -216,7 +218,7 @@ pub fn bound_of(manifest: &Manifest, phantom: &Phantom, spec: &RenderSpec) -> Re
         &scene.calibration_board.corners_in_board_mm(),
         noise.calibration_corner_sd_px,
     )
-    .ok_or("a camera-calibration view is behind the camera")?;
+    .ok_or(BoundError::Unusable("a camera-calibration view is behind the camera"))?;
     if refines_with_frames(manifest) {
         // Every photo's two boards are more calibration views (each with its own
         // pose): the information their corners hold on the intrinsics beyond
@@ -233,14 +235,15 @@ pub fn bound_of(manifest: &Manifest, phantom: &Phantom, spec: &RenderSpec) -> Re
             (&marker_views, &probe_corners, noise.probe_corner_sd_px),
             (&phantom_views, &phantom_corners, noise.phantom_corner_sd_px),
         ] {
-            let distinct =
-                distinct_views(&scene.camera, views, corners).ok_or("a frame's board is behind the camera")?;
-            intrinsics_information += pose_noise::calibration_information(&scene.camera, &distinct, corners, sd)
-                .ok_or("a frame's board is behind the camera")?;
+            let behind = BoundError::Unusable("a frame's board is behind the camera");
+            let distinct = distinct_views(&scene.camera, views, corners).ok_or(behind.clone())?;
+            intrinsics_information +=
+                pose_noise::calibration_information(&scene.camera, &distinct, corners, sd).ok_or(behind)?;
         }
     }
-    let spheres: Vec<KnownSphere> =
-        super::settings::known_spheres(phantom).ok_or("the bound is of dome phantoms (hemisphere, spheres)")?;
+    let spheres: Vec<KnownSphere> = super::settings::known_spheres(phantom).ok_or(BoundError::Unusable(
+        "the bound is of dome phantoms (hemisphere, spheres)",
+    ))?;
     let [sx, _] = manifest.bscan_spacing_mm_per_px;
     // The detector finds arcs down to this fraction of the radius.
     let min_fraction = manifest.arc_detection.radius_fraction[0];
@@ -280,7 +283,7 @@ pub fn bound_of(manifest: &Manifest, phantom: &Phantom, spec: &RenderSpec) -> Re
                 phantom_corners_mm: &phantom_corners,
             };
             let pose = pose_noise::frame_pose_noise(&scene.camera, &photo, &photo_noise)
-                .ok_or("a board's pose is not determined by its corners")?;
+                .ok_or(BoundError::Unusable("a board's pose is not determined by its corners"))?;
             arcs += frame_arcs.len();
             frames.push(BoundFrame {
                 phantom_T_marker,
@@ -304,7 +307,7 @@ pub fn bound_of(manifest: &Manifest, phantom: &Phantom, spec: &RenderSpec) -> Re
         edge_offset_model(manifest),
         &probes,
     )
-    .ok_or("the layout leaves the calibration unobserved")?;
+    .ok_or(BoundError::Unusable("the layout leaves the calibration unobserved"))?;
     Ok(Bound {
         rms_mm,
         frames: frames.len(),
@@ -363,13 +366,30 @@ pub fn refines_with_frames(manifest: &Manifest) -> bool {
     matches!(&manifest.camera, crate::manifest::CameraSource::Calibrate { board, .. } if board.refine_with_frames)
 }
 
+/// Why a layout has no bound.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum BoundError {
+    #[error("{0}")]
+    Scene(String),
+    #[error("{0}")]
+    Unusable(&'static str),
+    #[error("seed {seed}: {source}")]
+    Seed { seed: u64, source: Box<BoundError> },
+}
+
+/// A row's bound as the table's JSON gives it: `{"Ok": bound}` or `{"Err": reason}`.
+pub fn bound_or_reason<S: serde::Serializer>(bound: &Result<Bound, BoundError>, s: S) -> Result<S::Ok, S::Error> {
+    bound.as_ref().map_err(|e| e.to_string()).serialize(s)
+}
+
 /// One row of the design table.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct DesignRow {
     pub layout: Layout,
     pub phantom: Phantom,
     /// The bound, or why the layout is not usable (does not fit the sweep).
-    pub bound: Result<Bound, String>,
+    #[serde(serialize_with = "bound_or_reason")]
+    pub bound: Result<Bound, BoundError>,
 }
 
 /// Sweeps a layout is designed over: the render spec with these seeds (not
@@ -383,12 +403,15 @@ pub fn bound_over_sweeps(
     phantom: &Phantom,
     spec: &RenderSpec,
     seeds: std::ops::Range<u64>,
-) -> Result<Bound, String> {
+) -> Result<Bound, BoundError> {
     let mut bounds = Vec::new();
     for seed in seeds {
         let mut spec = spec.clone();
         spec.seed = seed;
-        bounds.push(bound_of(manifest, phantom, &spec).map_err(|e| format!("seed {seed}: {e}"))?);
+        bounds.push(bound_of(manifest, phantom, &spec).map_err(|e| BoundError::Seed {
+            seed,
+            source: Box::new(e),
+        })?);
     }
     let n = bounds.len().max(1) as f64;
     Ok(Bound {
@@ -401,8 +424,8 @@ pub fn bound_over_sweeps(
 /// Every candidate's bound in the manifest's lab, over the sweeps of
 /// [`DESIGN_SEEDS`] (the first rendered dataset's sweep settings), best first;
 /// layouts that do not fit come last.
-pub fn design(manifest: &Manifest, spec: &RenderSpec) -> Result<Vec<DesignRow>, String> {
-    let rig = RigBoards::from_rig(&manifest.rig).map_err(|e| e.to_string())?;
+pub fn design(manifest: &Manifest, spec: &RenderSpec) -> Result<Vec<DesignRow>, BoundError> {
+    let rig = RigBoards::from_rig(&manifest.rig).map_err(|e| BoundError::Scene(e.to_string()))?;
     let (_, world_T_phantom) = lab_layout(spec.board_distance_mm, &rig.phantom);
     let layouts = candidates();
     let mut rows: Vec<DesignRow> = crate::core::parallel::parallel_map(layouts.len(), |i| {

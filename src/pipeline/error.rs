@@ -58,3 +58,9 @@ pub enum RunError {
     #[error("polars: {0}")]
     Polars(#[from] polars::error::PolarsError),
 }
+
+/// Why a reporter could not write a finished run: the writer's own error, boxed
+/// (the writers live above the pipeline).
+#[derive(Debug, thiserror::Error)]
+#[error("{0}")]
+pub struct ReporterError(pub Box<dyn std::error::Error + Send + Sync>);

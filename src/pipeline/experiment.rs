@@ -5,13 +5,14 @@
 use std::path::{Path, PathBuf};
 use std::time::SystemTime;
 
+use super::error::ReporterError;
 use super::record::DatasetRun;
 use super::tracked::{self, TrackedInputs, TrackedRun};
 use super::tracked_resolution::{self, ValidationResolution};
 use crate::io::fs::{write_atomic, Lock, Staged};
 use crate::io::plus::result::PlusResult;
 use crate::manifest::tracked::TrackedManifest;
-use crate::manifest::{CameraSource, DatasetSource, Experiment, Manifest};
+use crate::manifest::{CameraSource, DatasetSource, Experiment, Manifest, ManifestErrors};
 
 /// Where a dataset's outputs are written now, and where they will be once its
 /// experiment's folder is swapped in.
@@ -34,7 +35,7 @@ pub trait Reporter {
         _run: &DatasetRun,
         _folder: &RunFolder<'_>,
         _started: SystemTime,
-    ) -> Result<(), String> {
+    ) -> Result<(), ReporterError> {
         Ok(())
     }
     /// A tracked experiment has run (with PLUS's result, when the manifest names it).
@@ -46,7 +47,7 @@ pub trait Reporter {
         _plus: Option<&PlusResult>,
         _folder: &RunFolder<'_>,
         _started: SystemTime,
-    ) -> Result<(), String> {
+    ) -> Result<(), ReporterError> {
         Ok(())
     }
     /// An accuracy gate failed (the line says which, its value and its limit).
@@ -56,7 +57,7 @@ pub trait Reporter {
         eprintln!("error: {message}");
     }
     /// Every experiment has run.
-    fn finished(&mut self, _out: &Path) -> Result<(), String> {
+    fn finished(&mut self, _out: &Path) -> Result<(), ReporterError> {
         Ok(())
     }
 }
@@ -81,19 +82,19 @@ impl Outcome {
 }
 
 /// Loads every manifest; all their errors together when any fails.
-pub fn load_all(paths: &[PathBuf]) -> Result<Vec<Experiment>, String> {
+pub fn load_all(paths: &[PathBuf]) -> Result<Vec<Experiment>, ManifestErrors> {
     let mut manifests = Vec::new();
     let mut errors = Vec::new();
     for p in paths {
         match Experiment::load(p) {
             Ok(m) => manifests.push(m),
-            Err(e) => errors.push(e.to_string()),
+            Err(e) => errors.extend(e.0),
         }
     }
     if errors.is_empty() {
         Ok(manifests)
     } else {
-        Err(errors.join("\n"))
+        Err(ManifestErrors(errors))
     }
 }
 
@@ -199,7 +200,7 @@ pub fn run_all(
     let _lock = match Lock::acquire(&out.join(OUT_LOCK)) {
         Ok(locks) => locks,
         Err(e) => {
-            reporter.error(&e);
+            reporter.error(&e.to_string());
             return Outcome::failed(2);
         }
     };
@@ -228,7 +229,7 @@ pub fn run_all(
                 match run_tracked(m, &folder, &target, reporter) {
                     Ok(passed) => gates_failed |= !passed,
                     Err(e) => {
-                        reporter.error(&e);
+                        reporter.error(&e.to_string());
                         written = false;
                     }
                 }
@@ -256,7 +257,7 @@ pub fn run_all(
                 final_path: &final_path,
             };
             if let Err(e) = reporter.dataset_done(m, &run, &run_folder, started) {
-                reporter.error(&e);
+                reporter.error(&e.to_string());
                 written = false;
                 continue;
             }
@@ -276,7 +277,7 @@ pub fn run_all(
         failed |= !swap_in(staged, written, reporter);
     }
     if let Err(e) = reporter.finished(out) {
-        reporter.error(&e);
+        reporter.error(&e.to_string());
         failed = true;
     }
     let code = if failed {
@@ -312,16 +313,38 @@ fn swap_in(staged: Staged, written: bool, reporter: &mut dyn Reporter) -> bool {
     false
 }
 
+/// Why a tracked experiment wrote no run.
+#[derive(Debug, thiserror::Error)]
+pub enum TrackedExperimentError {
+    #[error("{}: {source}", manifest.display())]
+    Run {
+        manifest: PathBuf,
+        source: tracked::TrackedError,
+    },
+    #[error("{0}")]
+    PlusResult(#[from] crate::io::plus::config::ConfigError),
+    #[error("{0}")]
+    Reporter(#[from] ReporterError),
+}
+
 /// Runs a tracked-sequence experiment into `folder`: whether its gates passed.
-fn run_tracked(m: &TrackedManifest, folder: &Path, target: &Path, reporter: &mut dyn Reporter) -> Result<bool, String> {
+fn run_tracked(
+    m: &TrackedManifest,
+    folder: &Path,
+    target: &Path,
+    reporter: &mut dyn Reporter,
+) -> Result<bool, TrackedExperimentError> {
     let started = SystemTime::now();
     reporter.dataset_started(&m.experiment, &m.dataset);
     let inputs = TrackedInputs::from_manifest(m);
-    let run = tracked::run(&inputs, m.min_frames).map_err(|e| format!("{}: {e}", m.path.display()))?;
+    let run = tracked::run(&inputs, m.min_frames).map_err(|source| TrackedExperimentError::Run {
+        manifest: m.path.clone(),
+        source,
+    })?;
     // After the calibration is fitted, and never feeding back into it.
     let resolution = tracked_resolution::evaluate(&run, &inputs);
     let plus = match &m.plus_result {
-        Some(p) => Some(PlusResult::read(p).map_err(|e| e.to_string())?),
+        Some(p) => Some(PlusResult::read(p)?),
         None => None,
     };
     let (write_to, final_path) = (folder.join(&m.dataset), target.join(&m.dataset));

@@ -42,14 +42,14 @@ impl From<&Rigid> for Pose {
 
 impl Pose {
     /// The transform; an error for a quaternion that is not of unit length.
-    pub fn rigid(&self) -> Result<Rigid, String> {
+    pub fn rigid(&self) -> Result<Rigid, PoseFault> {
         let [x, y, z, w] = self.rotation_xyzw;
         let q = Quaternion::new(w, x, y, z);
         if !(q.norm() - 1.0).abs().is_finite() || (q.norm() - 1.0).abs() > 1e-9 {
-            return Err(format!("rotation {:?} is not a unit quaternion", self.rotation_xyzw));
+            return Err(PoseFault::NotUnit(self.rotation_xyzw));
         }
         if self.translation_mm.iter().any(|v| !v.is_finite()) {
-            return Err(format!("translation {:?} is not finite", self.translation_mm));
+            return Err(PoseFault::NotFinite(self.translation_mm));
         }
         Ok(Isometry3::from_parts(
             Translation3::from(Vector3::from(self.translation_mm)),
@@ -150,37 +150,49 @@ impl SolveInputs {
     }
 
     /// The file's text.
-    pub fn to_yaml(&self) -> Result<String, String> {
-        serde_yaml::to_string(self).map_err(|e| e.to_string())
+    pub fn to_yaml(&self) -> Result<String, SolveInputsError> {
+        serde_yaml::to_string(self).map_err(|e| SolveInputsError::Yaml(e.to_string()))
     }
 
     /// Reads a run folder's `solve_inputs.yaml`; an error names the file and field.
-    pub fn read(run_folder: &Path) -> Result<SolveInputs, String> {
+    pub fn read(run_folder: &Path) -> Result<SolveInputs, SolveInputsError> {
         let path = run_folder.join(SOLVE_INPUTS_FILE);
-        let text = std::fs::read_to_string(&path).map_err(|e| format!("{}: {e}", path.display()))?;
+        let text = std::fs::read_to_string(&path).map_err(|e| SolveInputsError::Read {
+            path: path.clone(),
+            message: e.to_string(),
+        })?;
         let de = serde_yaml::Deserializer::from_str(&text);
         serde_path_to_error::deserialize(de).map_err(|e| {
             let field = e.path().to_string();
             let inner = e.into_inner();
             let line = inner.location().map(|l| format!(":{}", l.line())).unwrap_or_default();
-            format!("{}{line}: field `{field}`: {inner}", path.display())
+            SolveInputsError::Read {
+                path: path.clone(),
+                message: format!("{line}: field `{field}`: {inner}")
+                    .trim_start_matches(':')
+                    .to_string(),
+            }
         })
     }
 
     /// The pairs and settings back, checked.
-    pub fn pairs_and_settings(&self) -> Result<(Vec<Correspondence>, SolveSettings), String> {
+    pub fn pairs_and_settings(&self) -> Result<(Vec<Correspondence>, SolveSettings), SolveInputsError> {
         let variant = match self.variant.as_str() {
             "rigid" => Variant::Rigid,
             "similarity" => Variant::Similarity,
             other => {
-                return Err(format!(
-                    "field `variant`: `{other}` is neither `rigid` nor `similarity`"
-                ))
+                return Err(SolveInputsError::Field {
+                    field: "variant".into(),
+                    message: format!("`{other}` is neither `rigid` nor `similarity`"),
+                })
             }
         };
         let mut pairs = Vec::with_capacity(self.frames.len());
         for (i, f) in self.frames.iter().enumerate() {
-            let at = |what: &str, e: String| format!("field `frames[{i}].{what}` (frame {}): {e}", f.frame);
+            let at = |what: &str, e: PoseFault| SolveInputsError::Field {
+                field: format!("frames[{i}].{what}"),
+                message: format!("(frame {}) {e}", f.frame),
+            };
             let features = f
                 .features
                 .iter()
@@ -210,7 +222,10 @@ impl SolveInputs {
             calibration_cutoff_mm: self.calibration_cutoff_mm,
             min_frames: self.min_frames,
             initial_marker_T_image: match &self.initial_marker_T_image {
-                Some(p) => Some(p.rigid().map_err(|e| format!("field `initial_marker_T_image`: {e}"))?),
+                Some(p) => Some(p.rigid().map_err(|e| SolveInputsError::Field {
+                    field: "initial_marker_T_image".into(),
+                    message: e.to_string(),
+                })?),
                 None => None,
             },
         };
@@ -219,9 +234,32 @@ impl SolveInputs {
 }
 
 /// Solves a run's inputs again, as the run did (no truth: nothing is scored).
-pub fn solve_again(inputs: &SolveInputs) -> Result<Calibrations, String> {
+pub fn solve_again(inputs: &SolveInputs) -> Result<Calibrations, SolveInputsError> {
     let (pairs, settings) = inputs.pairs_and_settings()?;
-    solve::calibrate(&pairs, &settings, None, &inputs.dataset).map_err(|e: RunError| e.to_string())
+    solve::calibrate(&pairs, &settings, None, &inputs.dataset)
+        .map_err(|e: RunError| SolveInputsError::Solve(Box::new(e)))
+}
+
+/// Why a stored pose is not a rigid transform.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum PoseFault {
+    #[error("rotation {0:?} is not a unit quaternion")]
+    NotUnit([f64; 4]),
+    #[error("translation {0:?} is not finite")]
+    NotFinite([f64; 3]),
+}
+
+/// Why a run's solve inputs cannot be read back or solved again.
+#[derive(Debug, thiserror::Error)]
+pub enum SolveInputsError {
+    #[error("{}: {message}", path.display())]
+    Read { path: std::path::PathBuf, message: String },
+    #[error("field `{field}`: {message}")]
+    Field { field: String, message: String },
+    #[error("{0}")]
+    Yaml(String),
+    #[error("{0}")]
+    Solve(Box<RunError>),
 }
 
 fn is_zero(v: &f64) -> bool {

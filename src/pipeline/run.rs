@@ -60,13 +60,10 @@ fn dataset_folder(
 /// process rendering or reading the same dataset is waited for (others run on).
 fn claim_rendered(folder: &Path, dataset: &str, log: &mut dyn FnMut(&str)) -> Result<Lock, RunError> {
     let path = claim_file(folder);
-    Lock::acquire_waiting(&path, &mut |m| log(m)).map_err(|message| RunError::Synth {
+    Lock::acquire_waiting(&path, &mut |m| log(m)).map_err(|e| RunError::Synth {
         dataset: dataset.to_string(),
         source: synth::SynthError::Io {
-            message: message
-                .strip_prefix(&format!("{}: ", path.display()))
-                .unwrap_or(&message)
-                .to_string(),
+            message: e.reason(),
             path: path.clone(),
         },
     })

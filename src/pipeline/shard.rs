@@ -21,10 +21,10 @@ pub struct Shard {
 }
 
 impl FromStr for Shard {
-    type Err = String;
+    type Err = ShardError;
 
-    fn from_str(text: &str) -> Result<Shard, String> {
-        let fail = || format!("`{text}` is not K/N with 1 ≤ K ≤ N ≤ {MAX_SEEDS} (e.g. 2/5)");
+    fn from_str(text: &str) -> Result<Shard, ShardError> {
+        let fail = || ShardError::NotASlice(text.to_string());
         let (k, n) = text.split_once('/').ok_or_else(fail)?;
         let (index, count) = (
             k.trim().parse::<u64>().map_err(|_| fail())?,
@@ -73,34 +73,76 @@ pub struct ShardFile {
 }
 
 /// Writes `<out>/shard_K_of_N.yaml` (through a temporary name).
-pub fn write(out: &Path, file: &ShardFile) -> Result<PathBuf, String> {
-    let text = serde_yaml::to_string(file).map_err(|e| e.to_string())?;
+pub fn write(out: &Path, file: &ShardFile) -> Result<PathBuf, ShardError> {
     let path = out.join(file.shard.file_name());
-    crate::io::fs::write_atomic(&path, text.as_bytes()).map_err(|e| e.to_string())?;
+    let file_error = |e: &dyn std::fmt::Display| ShardError::File {
+        path: path.clone(),
+        message: e.to_string(),
+    };
+    let text = serde_yaml::to_string(file).map_err(|e| file_error(&e))?;
+    crate::io::fs::write_atomic(&path, text.as_bytes()).map_err(|e| file_error(&e.message))?;
     Ok(path)
 }
 
 /// Reads one shard file; an error names the file (and the line and field).
-pub fn read(path: &Path) -> Result<ShardFile, String> {
-    let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
-    serde_yaml::from_str(&text).map_err(|e| format!("{}: {e}", path.display()))
+pub fn read(path: &Path) -> Result<ShardFile, ShardError> {
+    let file_error = |e: &dyn std::fmt::Display| ShardError::File {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    };
+    let text = std::fs::read_to_string(path).map_err(|e| file_error(&e))?;
+    serde_yaml::from_str(&text).map_err(|e| file_error(&e))
+}
+
+/// Why shards cannot be read, written or joined into one study.
+#[derive(Debug, thiserror::Error)]
+pub enum ShardError {
+    #[error("`{0}` is not K/N with 1 ≤ K ≤ N ≤ {MAX_SEEDS} (e.g. 2/5)")]
+    NotASlice(String),
+    #[error("{}: {message}", path.display())]
+    File { path: PathBuf, message: String },
+    #[error("no shard files given")]
+    NoShards,
+    #[error("{}: {what} differs from {}'s; the shards are not of one study", path.display(), first.display())]
+    Differs {
+        path: PathBuf,
+        first: PathBuf,
+        what: &'static str,
+    },
+    #[error("{} and {} are both shard {index}/{count}", first.display(), second.display())]
+    Twice {
+        first: PathBuf,
+        second: PathBuf,
+        index: u64,
+        count: u64,
+    },
+    #[error("{}: holds seeds {got:?}, shard {index}/{count} of {seeds} seeds from {first_seed} is {want:?}", path.display())]
+    WrongSeeds {
+        path: PathBuf,
+        got: Vec<u64>,
+        index: u64,
+        count: u64,
+        seeds: u64,
+        first_seed: u64,
+        want: Vec<u64>,
+    },
+    #[error("shards {} are missing", .0.join(", "))]
+    Missing(Vec<String>),
 }
 
 /// The outcomes of every seed, in seed order, from shards that are exactly the
 /// N slices of one study; otherwise what is wrong, naming the file.
-pub fn join(shards: &[(PathBuf, ShardFile)]) -> Result<(String, BoundModel, Vec<SeedResult>), String> {
+pub fn join(shards: &[(PathBuf, ShardFile)]) -> Result<(String, BoundModel, Vec<SeedResult>), ShardError> {
     let Some((first_path, first)) = shards.first() else {
-        return Err("no shard files given".into());
+        return Err(ShardError::NoShards);
     };
     let count = first.shard.count;
     let mut seen: Vec<Option<&Path>> = vec![None; count as usize];
     for (path, s) in shards {
-        let differs = |what: &str| {
-            format!(
-                "{}: {what} differs from {}'s; the shards are not of one study",
-                path.display(),
-                first_path.display()
-            )
+        let differs = |what: &'static str| ShardError::Differs {
+            path: path.clone(),
+            first: first_path.clone(),
+            what,
         };
         if s.manifest_sha256 != first.manifest_sha256 {
             return Err(differs("the manifest (SHA-256)"));
@@ -119,27 +161,27 @@ pub fn join(shards: &[(PathBuf, ShardFile)]) -> Result<(String, BoundModel, Vec<
         }
         let slot = &mut seen[(s.shard.index - 1) as usize];
         if let Some(other) = slot {
-            return Err(format!(
-                "{} and {} are both shard {}/{count}",
-                other.display(),
-                path.display(),
-                s.shard.index
-            ));
+            return Err(ShardError::Twice {
+                first: other.to_path_buf(),
+                second: path.clone(),
+                index: s.shard.index,
+                count,
+            });
         }
         *slot = Some(path);
         let all: Vec<u64> = (s.first_seed..s.first_seed.saturating_add(s.seeds)).collect();
         let want = s.shard.seeds_of(&all);
         let got: Vec<u64> = s.results.iter().map(|r| r.seed).collect();
         if got != want {
-            return Err(format!(
-                "{}: holds seeds {:?}, shard {}/{count} of {} seeds from {} is {:?}",
-                path.display(),
+            return Err(ShardError::WrongSeeds {
+                path: path.clone(),
                 got,
-                s.shard.index,
-                s.seeds,
-                s.first_seed,
-                want
-            ));
+                index: s.shard.index,
+                count,
+                seeds: s.seeds,
+                first_seed: s.first_seed,
+                want,
+            });
         }
     }
     let missing: Vec<String> = (1..=count)
@@ -147,7 +189,7 @@ pub fn join(shards: &[(PathBuf, ShardFile)]) -> Result<(String, BoundModel, Vec<
         .map(|k| format!("{k}/{count}"))
         .collect();
     if !missing.is_empty() {
-        return Err(format!("shards {} are missing", missing.join(", ")));
+        return Err(ShardError::Missing(missing));
     }
     let mut results: Vec<SeedResult> = shards.iter().flat_map(|(_, s)| s.results.iter().cloned()).collect();
     results.sort_by_key(|r| r.seed);
@@ -190,10 +232,10 @@ mod tests {
 
     #[test]
     fn k_of_n_is_parsed_and_bounded() {
-        assert_eq!("2/5".parse::<Shard>(), Ok(Shard { index: 2, count: 5 }));
+        assert_eq!("2/5".parse::<Shard>().ok(), Some(Shard { index: 2, count: 5 }));
         for bad in ["0/5", "6/5", "5", "a/b", "1/0", "1/10001"] {
             let e = bad.parse::<Shard>().unwrap_err();
-            assert!(e.contains("is not K/N"), "{bad}: {e}");
+            assert!(e.to_string().contains("is not K/N"), "{bad}: {e}");
         }
     }
 
@@ -225,20 +267,26 @@ mod tests {
     #[test]
     fn shards_that_are_not_one_study_are_refused() {
         let mut missing = vec![shard(1, 3, 7), shard(3, 3, 7)];
-        assert_eq!(join(&missing).unwrap_err(), "shards 2/3 are missing");
+        assert_eq!(join(&missing).unwrap_err().to_string(), "shards 2/3 are missing");
         missing.push(shard(3, 3, 7));
-        assert!(join(&missing).unwrap_err().contains("are both shard 3/3"));
+        assert!(join(&missing).unwrap_err().to_string().contains("are both shard 3/3"));
         let mut other = vec![shard(1, 2, 7), shard(2, 2, 7)];
         other[1].1.manifest_sha256 = "cd".into();
-        assert!(join(&other).unwrap_err().contains("the manifest (SHA-256) differs"));
+        assert!(join(&other)
+            .unwrap_err()
+            .to_string()
+            .contains("the manifest (SHA-256) differs"));
         let mut cut = vec![shard(1, 2, 7), shard(2, 2, 7)];
         cut[1].1.results.pop();
-        assert!(join(&cut).unwrap_err().contains("holds seeds [1001, 1003]"));
+        assert!(join(&cut).unwrap_err().to_string().contains("holds seeds [1001, 1003]"));
         let mut range = vec![shard(1, 2, 7), shard(2, 2, 8)];
         range[1].1.results = shard(2, 2, 7).1.results;
-        assert!(join(&range).unwrap_err().contains("the seed range differs"));
+        assert!(join(&range).unwrap_err().to_string().contains("the seed range differs"));
         let mut model = vec![shard(1, 2, 7), shard(2, 2, 7)];
         model[1].1.bound = BoundModel::SphereFit;
-        assert!(join(&model).unwrap_err().contains("the bound's model differs"));
+        assert!(join(&model)
+            .unwrap_err()
+            .to_string()
+            .contains("the bound's model differs"));
     }
 }

@@ -52,6 +52,21 @@ fn corner_sd(rms_px: &mut [f64], corners: usize) -> Option<f64> {
     Some(median(rms_px) * scale)
 }
 
+/// Why the pose-prior sphere fit could not run.
+#[derive(Debug, thiserror::Error)]
+pub enum PoseFitError {
+    #[error("no {0}-board poses")]
+    NoPoses(&'static str),
+    #[error("no arcs")]
+    NoArcs,
+    #[error("the arcs' edge noise {0} mm is not positive")]
+    EdgeNoise(f64),
+    #[error("frame {0}: a board's pose is not determined by its corners")]
+    Undetermined(usize),
+    #[error("{0}")]
+    Fit(SphereFitError),
+}
+
 /// The pose-prior sphere fit of `arcs` from `start` (the plain sphere fit), or
 /// why it could not run.
 pub fn fit(
@@ -60,7 +75,7 @@ pub fn fit(
     records: &[FrameRecord],
     settings: &SphereSettings,
     inputs: &PoseInputs<'_>,
-) -> Result<(SphereFit, PoseFitNoise), String> {
+) -> Result<(SphereFit, PoseFitNoise), PoseFitError> {
     let frames: Vec<&FrameRecord> = records
         .iter()
         .filter(|r| arcs.iter().any(|a| a.frame == r.files.frame))
@@ -80,17 +95,18 @@ pub fn fit(
     let phantom_corners = inputs.phantom_board.feature_points_mm();
     let (tremor_sd_mm, tremor_sd_deg) = inputs.prior.tremor_sd();
     let noise = PhotoNoise {
-        probe_corner_sd_px: corner_sd(&mut probe_rms, probe_corners.len()).ok_or("no probe-board poses")?,
-        phantom_corner_sd_px: corner_sd(&mut phantom_rms, phantom_corners.len()).ok_or("no phantom-board poses")?,
+        probe_corner_sd_px: corner_sd(&mut probe_rms, probe_corners.len()).ok_or(PoseFitError::NoPoses("probe"))?,
+        phantom_corner_sd_px: corner_sd(&mut phantom_rms, phantom_corners.len())
+            .ok_or(PoseFitError::NoPoses("phantom"))?,
         tremor_sd_mm,
         tremor_sd_deg,
     };
     if edge_mm.is_empty() {
-        return Err("no arcs".into());
+        return Err(PoseFitError::NoArcs);
     }
     let edge_sd_mm = median(&mut edge_mm);
     if !(edge_sd_mm > 0.0 && edge_sd_mm.is_finite()) {
-        return Err(format!("the arcs' edge noise {edge_sd_mm} mm is not positive"));
+        return Err(PoseFitError::EdgeNoise(edge_sd_mm));
     }
     let intrinsics_information = inputs.calibration.and_then(calibration_information);
     let mut priors = Vec::new();
@@ -111,12 +127,7 @@ pub fn fit(
                     nalgebra::DMatrix::from_iterator(6, n.from_intrinsics.ncols(), n.from_intrinsics.iter().copied()),
                 ));
             }
-            None => {
-                return Err(format!(
-                    "frame {}: a board's pose is not determined by its corners",
-                    r.files.frame
-                ))
-            }
+            None => return Err(PoseFitError::Undetermined(r.files.frame)),
         }
     }
     let fitted = sphere_bundle::refine(
@@ -134,7 +145,7 @@ pub fn fit(
             slice_blur: inputs.prior.slice_blur,
         },
     )
-    .map_err(|e: SphereFitError| e.to_string())?;
+    .map_err(PoseFitError::Fit)?;
     let edge_offset_mm = fitted.edge_offset_mm;
     Ok((
         fitted,

@@ -143,9 +143,9 @@ pub fn find_summaries(inputs: &[PathBuf]) -> Result<Vec<FoundSummary>, CheckErro
     files
         .into_iter()
         .map(|path| {
-            let summary = RunSummary::read(&path).map_err(|message| CheckError::Read {
+            let summary = RunSummary::read(&path).map_err(|e| CheckError::Read {
                 path: path.clone(),
-                message,
+                message: e.message,
             })?;
             // The experiment's name picks its baseline file: it must be a plain name.
             if let Some(fault) = crate::manifest::name_fault(summary.experiment()) {

@@ -2,6 +2,7 @@
 //! ArUco on the same probe motion), with the rigs as columns, and where each rig's
 //! error comes from, measured from the run.
 
+use crate::report::error::OutputError;
 use serde::Serialize;
 
 use crate::core::geometry::pixel_to_image_mm;
@@ -231,16 +232,16 @@ pub fn markdown(columns: &[CompareColumn]) -> String {
 const COMPARE_TEMPLATE: &str = include_str!("../../templates/compare.html.tera");
 
 /// The comparison page.
-pub fn render_html(columns: &[CompareColumn]) -> Result<String, String> {
+pub fn render_html(columns: &[CompareColumn]) -> Result<String, OutputError> {
     render(columns, "compare.html")
 }
 
 /// The comparison as LaTeX (landscape, one column per experiment).
-pub fn render_tex(columns: &[CompareColumn]) -> Result<String, String> {
+pub fn render_tex(columns: &[CompareColumn]) -> Result<String, OutputError> {
     render(columns, "compare.tex")
 }
 
-fn render(columns: &[CompareColumn], template: &str) -> Result<String, String> {
+fn render(columns: &[CompareColumn], template: &str) -> Result<String, OutputError> {
     let rows: Vec<String> = columns
         .first()
         .map(|c| c.values.iter().map(|v| v.0.clone()).collect())
@@ -270,11 +271,9 @@ fn render(columns: &[CompareColumn], template: &str) -> Result<String, String> {
     t.add_raw_templates(vec![
         ("compare.html", COMPARE_TEMPLATE),
         ("compare.tex", COMPARE_TEX_TEMPLATE),
-    ])
-    .map_err(|e| crate::report::templating::error_chain(&e))?;
+    ])?;
     crate::report::templating::register_tex_filter(&mut t);
-    t.render(template, &ctx)
-        .map_err(|e| crate::report::templating::error_chain(&e))
+    Ok(t.render(template, &ctx)?)
 }
 
 const COMPARE_TEX_TEMPLATE: &str = include_str!("../../templates/compare.tex.tera");
@@ -286,16 +285,16 @@ pub fn write(
     manifests: &[Manifest],
     runs: &[(usize, DatasetRun)],
     quiet: bool,
-) -> Result<(), String> {
+) -> Result<(), OutputError> {
     use crate::io::fs::write_atomic;
     let columns: Vec<CompareColumn> = runs.iter().map(|(i, r)| column(&manifests[*i], r)).collect();
     let markdown = markdown(&columns);
     if !quiet {
         println!("{markdown}");
     }
-    write_atomic(&out.join("compare.md"), markdown.as_bytes()).map_err(|e| e.to_string())?;
+    write_atomic(&out.join("compare.md"), markdown.as_bytes())?;
     let html = render_html(&columns)?;
-    write_atomic(&out.join("compare.html"), html.as_bytes()).map_err(|e| e.to_string())?;
+    write_atomic(&out.join("compare.html"), html.as_bytes())?;
     let tex = render_tex(&columns)?;
-    write_atomic(&out.join("compare.tex"), tex.as_bytes()).map_err(|e| e.to_string())
+    Ok(write_atomic(&out.join("compare.tex"), tex.as_bytes())?)
 }

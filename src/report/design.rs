@@ -8,7 +8,7 @@ use serde::Serialize;
 
 use crate::estimate::edge_blur::SliceBlur;
 use crate::estimate::edge_offset::EdgeOffset;
-use crate::pipeline::design::{self, Bound, BoundNoise, DesignRow, DESIGN_SEEDS};
+use crate::pipeline::design::{self, Bound, BoundError, BoundNoise, DesignRow, DESIGN_SEEDS};
 use crate::spec::phantom::Phantom;
 
 #[derive(Serialize)]
@@ -27,9 +27,11 @@ struct DesignFile<'a> {
     #[serde(skip_serializing_if = "Option::is_none")]
     slice_blur: Option<SliceBlur>,
     /// The manifest's own phantom.
-    manifest_phantom: Result<Bound, String>,
+    #[serde(serialize_with = "design::bound_or_reason")]
+    manifest_phantom: Result<Bound, BoundError>,
     /// The thesis's hemisphere (R = 15 mm) at the lab's feature point.
-    hemisphere: Result<Bound, String>,
+    #[serde(serialize_with = "design::bound_or_reason")]
+    hemisphere: Result<Bound, BoundError>,
     layouts: &'a [DesignRow],
 }
 
@@ -37,7 +39,7 @@ fn is_no_offset(o: &EdgeOffset) -> bool {
     *o == EdgeOffset::None
 }
 
-fn bound_cell(b: &Result<Bound, String>) -> String {
+fn bound_cell(b: &Result<Bound, BoundError>) -> String {
     match b {
         Ok(b) => format!("{:.3}", b.rms_mm),
         Err(e) => format!("— ({e})"),
@@ -163,7 +165,7 @@ pub fn command(manifest: &Path, out: &Path) -> u8 {
                 DESIGN_SEEDS,
             )
         }
-        Err(e) => Err(e.to_string()),
+        Err(e) => Err(BoundError::Scene(e.to_string())),
     };
     let file = DesignFile {
         experiment: &manifest.experiment,

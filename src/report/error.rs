@@ -1,5 +1,5 @@
-//! Why a run's files could not be written: the one error of the writers, a leaf
-//! every writer imports.
+//! Why a run's files could not be written: the one error of the writers and
+//! renderers, a leaf every page and writer imports.
 
 use std::path::PathBuf;
 
@@ -7,10 +7,73 @@ use polars::error::PolarsError;
 
 #[derive(Debug, thiserror::Error)]
 pub enum OutputError {
-    #[error("{path}: {message}")]
+    #[error("{}: {message}", path.display())]
     Io { path: PathBuf, message: String },
+    #[error("{0}")]
+    Read(#[from] ReadError),
     #[error("polars: {0}")]
     Polars(#[from] PolarsError),
+    #[error("{0}")]
+    Json(#[from] crate::io::json::JsonError),
+    #[error("{0}")]
+    Config(#[from] crate::io::plus::config::ConfigError),
+    #[error("template: {0}")]
+    Template(String),
+    #[error("figure: {0}")]
+    Figure(String),
     #[error("report: {0}")]
     Report(String),
+    #[error("{}", .0.join("\n"))]
+    Index(Vec<String>),
+}
+
+impl From<OutputError> for crate::pipeline::error::ReporterError {
+    fn from(e: OutputError) -> Self {
+        crate::pipeline::error::ReporterError(Box::new(e))
+    }
+}
+
+/// A file that could not be read or is not what it should be: the path and
+/// what is wrong (with the field and line where the format has them).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("{}: {message}", path.display())]
+pub struct ReadError {
+    pub path: PathBuf,
+    pub message: String,
+}
+
+impl ReadError {
+    pub fn new(path: &std::path::Path, message: impl std::fmt::Display) -> ReadError {
+        ReadError {
+            path: path.to_path_buf(),
+            message: message.to_string(),
+        }
+    }
+}
+
+impl OutputError {
+    /// An I/O failure at `path`.
+    pub fn io(path: impl Into<PathBuf>, e: impl std::fmt::Display) -> OutputError {
+        OutputError::Io {
+            path: path.into(),
+            message: e.to_string(),
+        }
+    }
+
+    /// A plotters failure while drawing a figure.
+    pub fn figure(e: impl std::fmt::Display) -> OutputError {
+        OutputError::Figure(e.to_string())
+    }
+}
+
+impl From<tera::Error> for OutputError {
+    fn from(e: tera::Error) -> OutputError {
+        OutputError::Template(super::templating::error_chain(&e))
+    }
+}
+
+impl From<serde_json::Error> for OutputError {
+    fn from(e: serde_json::Error) -> OutputError {
+        OutputError::Report(format!("JSON: {e}"))
+    }
 }

@@ -4,6 +4,7 @@
 //! once by plotters on any backend: SVG inline in the HTML page, PNG beside the
 //! LaTeX report.
 
+use super::error::OutputError;
 use plotters::coord::Shift;
 use plotters::prelude::*;
 
@@ -60,12 +61,12 @@ fn range(values: impl Iterator<Item = f64>, from_zero: bool) -> (f64, f64) {
 
 /// Draws a chart on any plotters backend; sizes scale with the area's width
 /// (760 px is the reference).
-pub fn draw<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, chart: &Chart) -> Result<(), String> {
+pub fn draw<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, chart: &Chart) -> Result<(), OutputError> {
     let (width, height) = root.dim_in_pixel();
     let scale = width as f64 / 760.0;
     let px = |v: f64| (v * scale).round() as u32;
     let font = ("sans-serif", 13.0 * scale);
-    root.fill(&WHITE).map_err(|e| e.to_string())?;
+    root.fill(&WHITE).map_err(OutputError::figure)?;
     let all = || chart.series.iter().flat_map(|s| s.points.iter());
     let bars = matches!(chart.style, Style::Bars { .. });
     let (mut x0, mut x1) = range(all().map(|p| p.0), false);
@@ -88,7 +89,7 @@ pub fn draw<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, chart: &Chart) ->
         .x_label_area_size(px(36.0))
         .y_label_area_size(px(58.0))
         .build_cartesian_2d(x0..x1, y0..y1)
-        .map_err(|e| e.to_string())?;
+        .map_err(OutputError::figure)?;
     c.configure_mesh()
         .x_desc(chart.x_desc.as_str())
         .y_desc(chart.y_desc.as_str())
@@ -96,7 +97,7 @@ pub fn draw<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, chart: &Chart) ->
         .axis_desc_style(font)
         .light_line_style(RGBColor(235, 235, 235))
         .draw()
-        .map_err(|e| e.to_string())?;
+        .map_err(OutputError::figure)?;
     let n = chart.series.len().max(1) as f64;
     for (k, s) in chart.series.iter().enumerate() {
         let colour = s.colour;
@@ -105,13 +106,13 @@ pub fn draw<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, chart: &Chart) ->
         let anno = match chart.style {
             Style::Lines => {
                 c.draw_series(s.points.iter().map(|p| Circle::new(*p, px(3.0), colour.filled())))
-                    .map_err(|e| e.to_string())?;
+                    .map_err(OutputError::figure)?;
                 c.draw_series(LineSeries::new(s.points.clone(), colour.stroke_width(px(1.0))))
-                    .map_err(|e| e.to_string())?
+                    .map_err(OutputError::figure)?
             }
             Style::Points => c
                 .draw_series(s.points.iter().map(|p| Circle::new(*p, px(3.0), colour.filled())))
-                .map_err(|e| e.to_string())?,
+                .map_err(OutputError::figure)?,
             Style::Bars { width } => {
                 // Series side by side within each bin.
                 let w = width / n;
@@ -119,7 +120,7 @@ pub fn draw<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, chart: &Chart) ->
                     let left = x - width / 2.0 + k as f64 * w;
                     Rectangle::new([(left, 0.0), (left + w, *y)], colour.mix(0.8).filled())
                 }))
-                .map_err(|e| e.to_string())?
+                .map_err(OutputError::figure)?
             }
         };
         anno.label(s.name.clone()).legend(move |(x, y)| {
@@ -131,13 +132,13 @@ pub fn draw<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, chart: &Chart) ->
         .border_style(BLACK)
         .background_style(WHITE.mix(0.9))
         .draw()
-        .map_err(|e| e.to_string())?;
-    root.present().map_err(|e| e.to_string())?;
+        .map_err(OutputError::figure)?;
+    root.present().map_err(OutputError::figure)?;
     Ok(())
 }
 
 /// The chart as SVG text (760 x 320).
-pub fn svg(chart: &Chart) -> Result<String, String> {
+pub fn svg(chart: &Chart) -> Result<String, OutputError> {
     super::templating::register_font()?;
     let mut text = String::new();
     {
@@ -148,7 +149,7 @@ pub fn svg(chart: &Chart) -> Result<String, String> {
 }
 
 /// The chart as PNG bytes (1140 x 480).
-pub fn png(chart: &Chart) -> Result<Vec<u8>, String> {
+pub fn png(chart: &Chart) -> Result<Vec<u8>, OutputError> {
     super::templating::register_font()?;
     let (w, h) = (1140u32, 480u32);
     let mut rgb = vec![0u8; (w * h * 3) as usize];
@@ -159,7 +160,7 @@ pub fn png(chart: &Chart) -> Result<Vec<u8>, String> {
     for px in rgb.chunks_exact_mut(3) {
         px.swap(0, 2);
     }
-    crate::io::image::encode_png_bgr(&rgb, w as usize, h as usize).map_err(|e| e.to_string())
+    crate::io::image::encode_png_bgr(&rgb, w as usize, h as usize).map_err(OutputError::figure)
 }
 
 /// Histograms of the per-frame BRE per axis (all-frames calibration), 0.25 mm bins.
@@ -388,11 +389,11 @@ fn bre_chart(run: &DatasetRun) -> Chart {
     }
 }
 
-pub fn bre_figure(run: &DatasetRun) -> Result<String, String> {
+pub fn bre_figure(run: &DatasetRun) -> Result<String, OutputError> {
     svg(&bre_chart(run))
 }
 
 /// The per-frame BRE plot as a PNG (for LaTeX, which cannot include SVG).
-pub fn bre_figure_png(run: &DatasetRun) -> Result<Vec<u8>, String> {
+pub fn bre_figure_png(run: &DatasetRun) -> Result<Vec<u8>, OutputError> {
     png(&bre_chart(run))
 }

@@ -4,7 +4,8 @@ use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 
-use super::render::{error_chain, tera};
+use super::error::OutputError;
+use super::render::tera;
 use super::summary::RunSummary;
 use crate::io::fs::write_atomic;
 
@@ -61,14 +62,12 @@ pub fn index_entry(summary: &RunSummary) -> IndexEntry {
 }
 
 /// The index page linking every dataset run, and `studies` (link, title) beside them.
-pub fn render_index(entries: &[&IndexEntry], studies: &[(String, String)]) -> Result<String, String> {
+pub fn render_index(entries: &[&IndexEntry], studies: &[(String, String)]) -> Result<String, OutputError> {
     let mut ctx = tera::Context::new();
     ctx.insert("entries", entries);
     ctx.insert("studies", studies);
     ctx.insert("probecal_version", env!("CARGO_PKG_VERSION"));
-    tera()
-        .and_then(|t| t.render("index.html", &ctx))
-        .map_err(|e| error_chain(&e))
+    Ok(tera()?.render("index.html", &ctx)?)
 }
 
 /// What the index reads of a `study.json`: the Monte Carlo study's experiment and seeds.

@@ -4,6 +4,7 @@
 //! frames used) and `summary.json` (the recorded rate, the latency, whether it
 //! kept up, and the final calibration, the batch run's).
 
+use crate::report::error::OutputError;
 use std::fmt::Write as _;
 use std::io::{IsTerminal, Write as _};
 use std::path::Path;
@@ -164,13 +165,15 @@ pub fn command(manifest: &Path, out: &Path, source: &LiveSource) -> u8 {
         eprintln!();
     }
     let s = summary(&run, replay);
-    let written = crate::report::summary::to_text(&s).and_then(|text| {
-        let files = [
-            ("summary.json".to_string(), text.into_bytes()),
-            ("live.csv".to_string(), frames_csv(&run).into_bytes()),
-        ];
-        write_all_atomic(out, &files).map_err(|e| e.to_string())
-    });
+    let written = crate::report::summary::to_text(&s)
+        .map_err(OutputError::from)
+        .and_then(|text| {
+            let files = [
+                ("summary.json".to_string(), text.into_bytes()),
+                ("live.csv".to_string(), frames_csv(&run).into_bytes()),
+            ];
+            Ok(write_all_atomic(out, &files)?)
+        });
     match written {
         Ok(()) => {
             println!(

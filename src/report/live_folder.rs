@@ -5,6 +5,7 @@
 //! ended, the live all-frames fit beside the batch run's, and the batch run's
 //! reported calibration).
 
+use crate::report::error::OutputError;
 use std::fmt::Write as _;
 use std::io::{IsTerminal, Write as _};
 use std::path::Path;
@@ -150,13 +151,15 @@ pub fn command(manifest: &Manifest, watch: &Watch, out: &Path) -> u8 {
         eprintln!();
     }
     let s = summary(&run);
-    let written = crate::report::summary::to_text(&s).and_then(|text| {
-        let files = [
-            ("summary.json".to_string(), text.into_bytes()),
-            ("live.csv".to_string(), frames_csv(&run).into_bytes()),
-        ];
-        write_all_atomic(out, &files).map_err(|e| e.to_string())
-    });
+    let written = crate::report::summary::to_text(&s)
+        .map_err(OutputError::from)
+        .and_then(|text| {
+            let files = [
+                ("summary.json".to_string(), text.into_bytes()),
+                ("live.csv".to_string(), frames_csv(&run).into_bytes()),
+            ];
+            Ok(write_all_atomic(out, &files)?)
+        });
     match written {
         Ok(()) => {
             println!(

@@ -7,19 +7,20 @@ use crate::manifest::{DatasetSource, Experiment, Manifest};
 use nalgebra::Point3;
 use serde::Serialize;
 
+use crate::report::error::ReadError;
 use crate::spec::render::RenderSpec;
 use crate::synth::{board_seat, printable};
 
 /// A camera experiment and the render spec of its first rendered dataset (the
 /// lab its phantom stands in and the sweep over it), or why there is none.
-pub fn rendered_lab(path: &Path) -> Result<(Box<Manifest>, RenderSpec), String> {
-    let manifest = match Experiment::load(path).map_err(|e| e.to_string())? {
+pub fn rendered_lab(path: &Path) -> Result<(Box<Manifest>, RenderSpec), LabError> {
+    let manifest = match Experiment::load(path)? {
         Experiment::Camera(m) => m,
         Experiment::Tracked(_) => {
-            return Err(format!(
-                "{}: a tracked experiment has no rendered lab or sweep",
-                path.display()
-            ))
+            return Err(LabError::Missing(ReadError::new(
+                path,
+                "a tracked experiment has no rendered lab or sweep",
+            )))
         }
     };
     let spec = manifest
@@ -30,12 +31,21 @@ pub fn rendered_lab(path: &Path) -> Result<(Box<Manifest>, RenderSpec), String> 
             DatasetSource::Folder(_) => None,
         })
         .ok_or_else(|| {
-            format!(
-                "{}: field `datasets`: no rendered dataset gives the lab the phantom stands in",
-                path.display()
-            )
+            LabError::Missing(ReadError::new(
+                path,
+                "field `datasets`: no rendered dataset gives the lab the phantom stands in",
+            ))
         })?;
     Ok((manifest, spec))
+}
+
+/// Why a manifest gives no rendered lab.
+#[derive(Debug, thiserror::Error)]
+pub enum LabError {
+    #[error("{0}")]
+    Manifest(#[from] crate::manifest::ManifestErrors),
+    #[error("{0}")]
+    Missing(ReadError),
 }
 
 /// The model's sheet, written beside its STL (`<name>.json`): its size, its

@@ -77,8 +77,7 @@ impl Provenance {
 
     /// Writes `provenance.json` into `folder`.
     pub fn write(&self, folder: &Path) -> Result<(), crate::report::error::OutputError> {
-        let text =
-            serde_json::to_string_pretty(self).map_err(|e| crate::report::error::OutputError::Report(e.to_string()))?;
+        let text = serde_json::to_string_pretty(self)?;
         crate::io::fs::write_atomic(&folder.join("provenance.json"), text.as_bytes()).map_err(Into::into)
     }
 }

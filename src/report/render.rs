@@ -2,6 +2,7 @@
 //! and the HTML and LaTeX run pages.
 
 use super::context::RunContext;
+use super::error::OutputError;
 pub use super::templating::{error_chain, register_font, register_tex_filter, tex_escape, FIGURE_FONT};
 
 const RUN_TEMPLATE: &str = include_str!("../../templates/run.html.tera");
@@ -21,23 +22,23 @@ pub(super) fn tera() -> Result<tera::Tera, tera::Error> {
 const RUN_TEX_TEMPLATE: &str = include_str!("../../templates/run.tex.tera");
 
 /// The run's report as LaTeX (its figure, `bre_per_frame.png`, is written beside it).
-pub fn render_tex(context: &RunContext) -> Result<String, String> {
-    let ctx = tera::Context::from_serialize(context).map_err(|e| error_chain(&e))?;
-    tera()
-        .and_then(|t| t.render("run.tex", &ctx))
-        .map_err(|e| error_chain(&e))
+pub fn render_tex(context: &RunContext) -> Result<String, OutputError> {
+    let ctx = tera::Context::from_serialize(context)?;
+    Ok(tera()?.render("run.tex", &ctx)?)
 }
 
 /// The dataset run's HTML page.
 /// The page; `gallery_uris` and `figure_svgs` follow `context.gallery` and
 /// `context.figures` (kept out of the context's JSON).
-pub fn render_html(context: &RunContext, gallery_uris: &[String], figure_svgs: &[String]) -> Result<String, String> {
-    let mut ctx = tera::Context::from_serialize(context).map_err(|e| error_chain(&e))?;
+pub fn render_html(
+    context: &RunContext,
+    gallery_uris: &[String],
+    figure_svgs: &[String],
+) -> Result<String, OutputError> {
+    let mut ctx = tera::Context::from_serialize(context)?;
     ctx.insert("gallery_uris", gallery_uris);
     ctx.insert("figure_svgs", figure_svgs);
-    tera()
-        .and_then(|t| t.render("run.html", &ctx))
-        .map_err(|e| error_chain(&e))
+    Ok(tera()?.render("run.html", &ctx)?)
 }
 
 #[cfg(test)]

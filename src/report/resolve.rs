@@ -1,6 +1,7 @@
 //! `probecal resolve <run folder>`: the run's calibration solved again from its
 //! own folder, compared with the `marker_T_image` its `summary.json` reports.
 
+use crate::report::error::ReadError;
 use std::path::Path;
 
 use super::summary::RunSummary;
@@ -13,14 +14,14 @@ pub const SAME_CALIBRATION: f64 = 1e-9;
 
 /// The largest entry-wise difference between the re-solved and the reported
 /// `marker_T_image`, and the re-solved matrix.
-pub fn resolve(run_folder: &Path) -> Result<(f64, [[f64; 4]; 4]), String> {
+pub fn resolve(run_folder: &Path) -> Result<(f64, [[f64; 4]; 4]), ResolveError> {
     let summary = match RunSummary::read(&run_folder.join("summary.json"))? {
         RunSummary::Camera(s) => s,
         RunSummary::Tracked(_) => {
-            return Err(format!(
-                "{}: a tracked-sequence run; its inputs are its sequence files: run its manifest again",
-                run_folder.display()
-            ))
+            return Err(ResolveError::Summary(ReadError::new(
+                run_folder,
+                "a tracked-sequence run; its inputs are its sequence files: run its manifest again",
+            )))
         }
     };
     let inputs = SolveInputs::read(run_folder)?;
@@ -32,6 +33,15 @@ pub fn resolve(run_folder: &Path) -> Result<(f64, [[f64; 4]; 4]), String> {
         .map(|(r, c)| (again[r][c] - reported[r][c]).abs())
         .fold(0.0, f64::max);
     Ok((difference, again))
+}
+
+/// Why a run folder cannot be solved again.
+#[derive(Debug, thiserror::Error)]
+pub enum ResolveError {
+    #[error("{0}")]
+    Summary(#[from] ReadError),
+    #[error("{0}")]
+    Inputs(#[from] crate::pipeline::resolve::SolveInputsError),
 }
 
 /// The command: prints the re-solved matrix and the difference; exit 0 when it is

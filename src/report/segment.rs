@@ -15,6 +15,7 @@ use opencv::prelude::*;
 use crate::io::fs::write_all_atomic;
 use crate::io::plus::segmentation::{score, FrameResults, PlusSegmentation, SegmentationScore};
 use crate::pipeline::segment::SegmentRun;
+use crate::report::error::{OutputError, ReadError};
 
 /// PLUS's segmentation of the same sequence, and how probecal's compares.
 pub struct Baseline {
@@ -29,7 +30,7 @@ fn baseline_section<'a>(
     file: &'a PlusSegmentation,
     frames: usize,
     path: &Path,
-) -> Result<(&'a str, &'a FrameResults), String> {
+) -> Result<(&'a str, &'a FrameResults), OutputError> {
     let fits: Vec<&(String, FrameResults)> = if file.sections.len() == 1 {
         file.sections.iter().collect()
     } else {
@@ -37,21 +38,23 @@ fn baseline_section<'a>(
     };
     match fits.as_slice() {
         [(name, f)] => Ok((name.as_str(), f)),
-        _ => Err(format!(
-            "{}: no single section lists the sequence's {frames} frames (sections: {})",
-            path.display(),
-            file.sections
-                .iter()
-                .map(|(n, f)| format!("{n} with {} frames", f.len()))
-                .collect::<Vec<_>>()
-                .join(", ")
-        )),
+        _ => Err(OutputError::Read(ReadError::new(
+            path,
+            format!(
+                "no single section lists the sequence's {frames} frames (sections: {})",
+                file.sections
+                    .iter()
+                    .map(|(n, f)| format!("{n} with {} frames", f.len()))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ),
+        ))),
     }
 }
 
 /// Scores `run` against PLUS's segmentation in `path`.
-pub fn against_plus(run: &SegmentRun, path: &Path) -> Result<Baseline, String> {
-    let file = PlusSegmentation::read(path).map_err(|e| e.to_string())?;
+pub fn against_plus(run: &SegmentRun, path: &Path) -> Result<Baseline, OutputError> {
+    let file = PlusSegmentation::read(path)?;
     let (section, plus) = baseline_section(&file, run.frames.len(), path)?;
     let ours = run
         .frames
@@ -320,13 +323,13 @@ fn gallery_html(run: &SegmentRun) -> String {
 }
 
 /// Every output file: the gallery's pictures, then the tables and the page.
-fn outputs(run: &SegmentRun, baseline: Option<&Baseline>) -> Result<Vec<(String, Vec<u8>)>, String> {
+fn outputs(run: &SegmentRun, baseline: Option<&Baseline>) -> Result<Vec<(String, Vec<u8>)>, OutputError> {
     let mut files = Vec::with_capacity(run.frames.len() + 3);
     for (k, f) in run.frames.iter().enumerate() {
-        let jpeg = picture(run, k).map_err(|e| format!("frame {}: drawing: {e}", f.index))?;
+        let jpeg = picture(run, k).map_err(|e| OutputError::figure(format!("frame {}: {e}", f.index)))?;
         files.push((gallery_name(f.index), jpeg));
     }
-    let text = crate::report::summary::to_text(&summary(run, baseline)).map_err(|e| e.to_string())?;
+    let text = crate::report::summary::to_text(&summary(run, baseline))?;
     files.push(("segmentation.csv".into(), csv(run).into_bytes()));
     files.push(("summary.json".into(), text.into_bytes()));
     files.push(("report.html".into(), html(run, baseline).into_bytes()));
@@ -370,8 +373,7 @@ pub fn command(args: &SegmentArgs) -> u8 {
             return 1;
         }
     };
-    let written =
-        outputs(&run, baseline.as_ref()).and_then(|files| write_all_atomic(out, &files).map_err(|e| e.to_string()));
+    let written = outputs(&run, baseline.as_ref()).and_then(|files| Ok(write_all_atomic(out, &files)?));
     match written {
         Ok(()) => {
             let found = run.frames.iter().filter(|f| f.rejected.is_none()).count();

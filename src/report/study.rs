@@ -18,9 +18,10 @@ pub struct StudyFile {
 
 impl StudyFile {
     /// Reads a `study.json`.
-    pub fn read(path: &Path) -> Result<StudyFile, String> {
-        let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
-        serde_json::from_str(&text).map_err(|e| format!("{}: {e}", path.display()))
+    pub fn read(path: &Path) -> Result<StudyFile, crate::report::error::ReadError> {
+        let fail = |e: &dyn std::fmt::Display| crate::report::error::ReadError::new(path, e);
+        let text = std::fs::read_to_string(path).map_err(|e| fail(&e))?;
+        serde_json::from_str(&text).map_err(|e| fail(&e))
     }
 }
 

@@ -6,6 +6,7 @@
 //! Millimetres and degrees throughout; a cut-off of infinity is written `"inf"`.
 //! Objects are written with their keys sorted, so the file is stable.
 
+use crate::report::error::ReadError;
 use std::collections::BTreeMap;
 use std::path::Path;
 
@@ -487,19 +488,23 @@ impl RunSummary {
     }
 
     /// Reads a `summary.json`; an error names the file, the field and the line.
-    pub fn read(path: &Path) -> Result<RunSummary, String> {
-        let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
-        RunSummary::parse(&text).map_err(|e| format!("{}: {e}", path.display()))
+    pub fn read(path: &Path) -> Result<RunSummary, ReadError> {
+        let text = std::fs::read_to_string(path).map_err(|e| ReadError::new(path, e))?;
+        RunSummary::parse(&text, path)
     }
 
-    /// Parses a summary's text (the kind from its `kind` field).
-    pub fn parse(text: &str) -> Result<RunSummary, String> {
-        let value: serde_json::Value = serde_json::from_str(text).map_err(|e| e.to_string())?;
+    /// Parses a summary's text read from `path` (the kind from its `kind` field).
+    pub fn parse(text: &str, path: &Path) -> Result<RunSummary, ReadError> {
+        let value: serde_json::Value = serde_json::from_str(text).map_err(|e| ReadError::new(path, e))?;
         let tracked = value.get("kind").and_then(|k| k.as_str()) == Some(TRACKED_KIND);
         let described = |e: serde_path_to_error::Error<serde_json::Error>| {
-            let path = e.path().to_string();
+            let field = e.path().to_string();
             let inner = e.into_inner();
-            format!("line {}: field `{path}`: {inner}: not a probecal summary", inner.line())
+            let message = format!(
+                "line {}: field `{field}`: {inner}: not a probecal summary",
+                inner.line()
+            );
+            ReadError::new(path, message)
         };
         let de = &mut serde_json::Deserializer::from_str(text);
         if tracked {

@@ -1,21 +1,23 @@
 //! What every page's rendering shares, below the pages themselves: the LaTeX
 //! escape filter, the figures' font, and tera's errors with their causes.
 
+use super::error::OutputError;
+
 /// Where the bitmap figures' font is read from.
 pub const FIGURE_FONT: &str = "/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf";
 
 /// Registers the figures' font once (plotters lays text out with it, SVG included).
-pub fn register_font() -> Result<(), String> {
+pub fn register_font() -> Result<(), OutputError> {
     static FONT: std::sync::OnceLock<Result<(), String>> = std::sync::OnceLock::new();
     FONT.get_or_init(|| {
-        let bytes =
-            std::fs::read(FIGURE_FONT).map_err(|e| format!("{FIGURE_FONT}: {e} (install fonts-dejavu-core)"))?;
+        let bytes = std::fs::read(FIGURE_FONT).map_err(|e| format!("{e} (install fonts-dejavu-core)"))?;
         // The font lives as long as the program: figures are drawn until it ends.
         let bytes: &'static [u8] = Box::leak(bytes.into_boxed_slice());
         plotters::style::register_font("sans-serif", plotters::style::FontStyle::Normal, bytes)
-            .map_err(|_| format!("{FIGURE_FONT}: not a TrueType font"))
+            .map_err(|_| "not a TrueType font".to_string())
     })
     .clone()
+    .map_err(|message| OutputError::Read(super::error::ReadError::new(FIGURE_FONT.as_ref(), message)))
 }
 
 /// Adds the `tex` filter ([`tex_escape`]) to a template set.

@@ -382,36 +382,35 @@ pub fn layout(chapter: &Chapter) -> String {
     out
 }
 
-use crate::report::templating::error_chain;
+use crate::report::error::OutputError;
 
 const HTML_TEMPLATE: &str = include_str!("../../templates/thesis.html.tera");
 const TEX_TEMPLATE: &str = include_str!("../../templates/thesis.tex.tera");
 
 /// The chapter and its pages (HTML, LaTeX) from the runs under `root`; `None`
 /// when none of the chapter's experiments has a run there.
-pub fn render(root: &Path) -> Result<Option<(Chapter, String, String)>, String> {
+pub fn render(root: &Path) -> Result<Option<(Chapter, String, String)>, OutputError> {
     let chapter = chapter(root);
     if chapter.missing.len() == AXIS_TABLES.len() + 1 {
         return Ok(None);
     }
     let mut t = tera::Tera::default();
-    t.add_raw_templates(vec![("thesis.html", HTML_TEMPLATE), ("thesis.tex", TEX_TEMPLATE)])
-        .map_err(|e| error_chain(&e))?;
+    t.add_raw_templates(vec![("thesis.html", HTML_TEMPLATE), ("thesis.tex", TEX_TEMPLATE)])?;
     crate::report::templating::register_tex_filter(&mut t);
-    let mut ctx = tera::Context::from_serialize(&chapter).map_err(|e| e.to_string())?;
+    let mut ctx = tera::Context::from_serialize(&chapter)?;
     ctx.insert("probecal_version", env!("CARGO_PKG_VERSION"));
-    let html = t.render("thesis.html", &ctx).map_err(|e| error_chain(&e))?;
-    let tex = t.render("thesis.tex", &ctx).map_err(|e| error_chain(&e))?;
+    let html = t.render("thesis.html", &ctx)?;
+    let tex = t.render("thesis.tex", &ctx)?;
     Ok(Some((chapter, html, tex)))
 }
 
 /// Writes `thesis.html` and `thesis.tex` into `root` (see [`render`]).
-pub fn write(root: &Path) -> Result<Option<Chapter>, String> {
+pub fn write(root: &Path) -> Result<Option<Chapter>, OutputError> {
     let Some((chapter, html, tex)) = render(root)? else {
         return Ok(None);
     };
     for (file, text) in [("thesis.html", html), ("thesis.tex", tex)] {
-        std::fs::write(root.join(file), text).map_err(|e| format!("{}: {e}", root.join(file).display()))?;
+        std::fs::write(root.join(file), text).map_err(|e| OutputError::io(root.join(file), e))?;
     }
     Ok(Some(chapter))
 }

@@ -313,7 +313,7 @@ pub fn write(
     })?;
     super::write::write_frames_table(folder, &mut frames_table(run, manifest.nwires.len())?)?;
     let summary = summary(run, resolution, manifest, plus);
-    let text = to_text(&summary).map_err(|e| OutputError::Report(e.to_string()))?;
+    let text = to_text(&summary)?;
     write_atomic(&folder.join("summary.json"), text.as_bytes())?;
     let matrix = run.fit.image_to_probe.matrix();
     write_atomic(&folder.join("ImageToProbe.xml"), plus_xml(&matrix).as_bytes())?;
@@ -538,7 +538,7 @@ fn render_pages(
         ("tracked.tex", TRACKED_TEX_TEMPLATE),
     ])
     .and_then(|_| Ok((t.render("tracked.html", &ctx)?, t.render("tracked.tex", &ctx)?)))
-    .map_err(|e| OutputError::Report(super::templating::error_chain(&e)))
+    .map_err(OutputError::from)
 }
 
 #[cfg(test)]

@@ -160,10 +160,10 @@ pub fn write_dataset_run(
     std::fs::create_dir_all(folder).map_err(io(folder))?;
     write_frames_table(folder, &mut frames_table(run)?)?;
     let inputs = SolveInputs::of(&run.experiment, &run.dataset, &run.pairs, &run.solve);
-    let inputs = inputs.to_yaml().map_err(OutputError::Report)?;
+    let inputs = inputs.to_yaml().map_err(|e| OutputError::Report(e.to_string()))?;
     write_atomic(&folder.join(SOLVE_INPUTS_FILE), inputs.as_bytes())?;
     let summary = Summary::of(run, manifest);
-    let text = to_text(&summary).map_err(|e| OutputError::Report(e.to_string()))?;
+    let text = to_text(&summary)?;
     write_atomic(&folder.join("summary.json"), text.as_bytes())?;
     let mut context = crate::report::context::context(run, manifest);
     let gallery = crate::report::gallery::gallery(run).map_err(|e| OutputError::Report(e.to_string()))?;
@@ -192,10 +192,10 @@ pub fn write_dataset_run(
     // Each chart is drawn (PNG and SVG) on a core of its own, in chart order.
     let drawn = crate::core::parallel::parallel_map(charts.len(), |i| {
         let chart = &charts[i];
-        Ok::<_, String>((crate::report::figures::png(chart)?, crate::report::figures::svg(chart)?))
+        Ok::<_, OutputError>((crate::report::figures::png(chart)?, crate::report::figures::svg(chart)?))
     });
     for (chart, drawn) in charts.iter().zip(drawn) {
-        let (png, svg) = drawn.map_err(OutputError::Report)?;
+        let (png, svg) = drawn?;
         let file = format!("figures/{}.png", chart.id);
         write_atomic(&folder.join(&file), &png)?;
         svgs.push(svg);
@@ -204,14 +204,13 @@ pub fn write_dataset_run(
             caption: chart.caption.clone(),
         });
     }
-    let context_json = serde_json::to_string_pretty(&context).map_err(|e| OutputError::Report(e.to_string()))? + "\n";
+    let context_json = serde_json::to_string_pretty(&context)? + "\n";
     write_atomic(&folder.join("report_context.json"), context_json.as_bytes())?;
-    let html =
-        crate::report::render::render_html(&context, &uris, &svgs).map_err(|e| OutputError::Report(e.to_string()))?;
+    let html = crate::report::render::render_html(&context, &uris, &svgs)?;
     write_atomic(&folder.join("report.html"), html.as_bytes())?;
-    let tex = crate::report::render::render_tex(&context).map_err(OutputError::Report)?;
+    let tex = crate::report::render::render_tex(&context)?;
     write_atomic(&folder.join("report.tex"), tex.as_bytes())?;
-    let png = crate::report::figures::bre_figure_png(run).map_err(OutputError::Report)?;
+    let png = crate::report::figures::bre_figure_png(run)?;
     write_atomic(&folder.join("bre_per_frame.png"), &png)?;
     if let Some(cal) = &run.camera.calibration {
         let path = folder.join("camera_intrinsics.yml");

@@ -4,12 +4,14 @@
 use std::path::Path;
 use std::time::SystemTime;
 
+use super::error::OutputError;
 use super::index::{index_entry, IndexEntry};
 use super::provenance::Provenance;
 use super::summary::RunSummary;
 use crate::io::plus::result::PlusResult;
 use crate::manifest::tracked::TrackedManifest;
 use crate::manifest::Manifest;
+use crate::pipeline::error::ReporterError;
 use crate::pipeline::experiment::{Reporter, RunFolder};
 use crate::pipeline::record::DatasetRun;
 use crate::pipeline::tracked::TrackedRun;
@@ -42,7 +44,7 @@ impl ReportWriter {
         manifests: &[crate::manifest::Manifest],
         runs: &[(usize, crate::pipeline::record::DatasetRun)],
         quiet: bool,
-    ) -> Result<(), String> {
+    ) -> Result<(), OutputError> {
         let compared = match runs {
             [] => Ok(()),
             _ => super::compare::write(out, manifests, runs, quiet).map(|()| {
@@ -54,12 +56,12 @@ impl ReportWriter {
     }
 
     /// Writes `out/index.html` for the runs reported so far and the pages beside them.
-    pub fn write_index(&self, out: &Path) -> Result<(), String> {
+    pub fn write_index(&self, out: &Path) -> Result<(), OutputError> {
         let errors = super::index::write(out, &self.entries);
         if errors.is_empty() {
             Ok(())
         } else {
-            Err(errors.join("\n"))
+            Err(OutputError::Index(errors))
         }
     }
 }
@@ -77,9 +79,9 @@ impl Reporter for ReportWriter {
         run: &DatasetRun,
         folder: &RunFolder<'_>,
         started: SystemTime,
-    ) -> Result<(), String> {
+    ) -> Result<(), ReporterError> {
         let (shown, folder) = (folder.final_path, folder.write_to);
-        let summary = super::write::write_dataset_run(run, manifest, folder).map_err(|e| e.to_string())?;
+        let summary = super::write::write_dataset_run(run, manifest, folder)?;
         let mut provenance = Provenance::new(
             &manifest.path,
             &manifest.sha256,
@@ -90,7 +92,7 @@ impl Reporter for ReportWriter {
         );
         provenance.seed = run.seed;
         provenance.timings_s = run.timings_s.iter().map(|(k, v)| (k.to_string(), *v)).collect();
-        let written = provenance.write(folder).map_err(|e| e.to_string());
+        let written = provenance.write(folder).map_err(ReporterError::from);
         if !self.quiet {
             super::console::dataset_run(run, &summary, shown);
         }
@@ -106,9 +108,9 @@ impl Reporter for ReportWriter {
         plus: Option<&PlusResult>,
         folder: &RunFolder<'_>,
         started: SystemTime,
-    ) -> Result<(), String> {
+    ) -> Result<(), ReporterError> {
         let (shown, folder) = (folder.final_path, folder.write_to);
-        let summary = super::tracked::write(run, resolution, manifest, plus, folder).map_err(|e| e.to_string())?;
+        let summary = super::tracked::write(run, resolution, manifest, plus, folder)?;
         Provenance::new(
             &manifest.path,
             &manifest.sha256,
@@ -117,8 +119,7 @@ impl Reporter for ReportWriter {
             &manifest.input_files(),
             started,
         )
-        .write(folder)
-        .map_err(|e| e.to_string())?;
+        .write(folder)?;
         if !self.quiet {
             super::console::tracked_run(run, &summary, shown);
         }
@@ -130,11 +131,11 @@ impl Reporter for ReportWriter {
         eprintln!("GATE FAILED: {line}");
     }
 
-    fn finished(&mut self, out: &Path) -> Result<(), String> {
+    fn finished(&mut self, out: &Path) -> Result<(), ReporterError> {
         if self.index_later {
             return Ok(());
         }
-        self.write_index(out)
+        Ok(self.write_index(out)?)
     }
 }
 

@@ -49,30 +49,50 @@ fn crossing(a: &WireSegment, b: &WireSegment) -> Option<(Point3<f64>, f64)> {
     Some((Point3::from((on_a.coords + on_b.coords) / 2.0), (on_a - on_b).norm()))
 }
 
+/// Why three wires do not form an N.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum NWireError {
+    #[error("wire `{wire}` has equal end points")]
+    EqualEnds { wire: String },
+    #[error("wires `{first}` and `{third}` (the N's sides) are not parallel")]
+    SidesNotParallel { first: String, third: String },
+    #[error("wire `{diagonal}` is parallel to `{side}`: not an N")]
+    DiagonalParallel { diagonal: String, side: String },
+    #[error("the diagonal wire `{diagonal}` does not lie in the plane of the side wires ({first_off_mm:.3} / {third_off_mm:.3} mm off)")]
+    OutOfPlane {
+        diagonal: String,
+        first_off_mm: f64,
+        third_off_mm: f64,
+    },
+}
+
 impl NWire {
     /// Checks the wires form an N: 1 and 3 parallel, 2 crossing both in one plane.
-    pub fn new(wires: [WireSegment; 3]) -> Result<NWire, String> {
+    pub fn new(wires: [WireSegment; 3]) -> Result<NWire, NWireError> {
         for w in &wires {
             if w.direction().norm() < 1e-9 {
-                return Err(format!("wire `{}` has equal end points", w.name));
+                return Err(NWireError::EqualEnds { wire: w.name.clone() });
             }
         }
         let (d1, d3) = (wires[0].direction().normalize(), wires[2].direction().normalize());
         if d1.cross(&d3).norm() > 1e-3 {
-            return Err(format!(
-                "wires `{}` and `{}` (the N's sides) are not parallel",
-                wires[0].name, wires[2].name
-            ));
+            return Err(NWireError::SidesNotParallel {
+                first: wires[0].name.clone(),
+                third: wires[2].name.clone(),
+            });
         }
-        let (w12, gap12) = crossing(&wires[0], &wires[1])
-            .ok_or_else(|| format!("wire `{}` is parallel to `{}`: not an N", wires[1].name, wires[0].name))?;
-        let (w32, gap32) = crossing(&wires[2], &wires[1])
-            .ok_or_else(|| format!("wire `{}` is parallel to `{}`: not an N", wires[1].name, wires[2].name))?;
+        let parallel = |side: &WireSegment| NWireError::DiagonalParallel {
+            diagonal: wires[1].name.clone(),
+            side: side.name.clone(),
+        };
+        let (w12, gap12) = crossing(&wires[0], &wires[1]).ok_or_else(|| parallel(&wires[0]))?;
+        let (w32, gap32) = crossing(&wires[2], &wires[1]).ok_or_else(|| parallel(&wires[2]))?;
         if gap12 > 1e-3 || gap32 > 1e-3 {
-            return Err(format!(
-                "the diagonal wire `{}` does not lie in the plane of the side wires ({:.3} / {:.3} mm off)",
-                wires[1].name, gap12, gap32
-            ));
+            return Err(NWireError::OutOfPlane {
+                diagonal: wires[1].name.clone(),
+                first_off_mm: gap12,
+                third_off_mm: gap32,
+            });
         }
         Ok(NWire {
             wires,

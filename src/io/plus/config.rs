@@ -141,7 +141,7 @@ impl PlusConfig {
             let [w1, w2, w3]: [WireSegment; 3] = wires.try_into().map_err(|w: Vec<WireSegment>| {
                 x.fail(pattern, format!("an N-wire needs 3 wires, this one has {}", w.len()))
             })?;
-            let nwire = NWire::new([w1, w2, w3]).map_err(|e| x.fail(pattern, e))?;
+            let nwire = NWire::new([w1, w2, w3]).map_err(|e| x.fail(pattern, e.to_string()))?;
             nwires.push(nwire);
         }
 
