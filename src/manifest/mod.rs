@@ -13,6 +13,7 @@ pub mod raw;
 mod realism;
 mod spheres;
 pub mod tracked;
+mod tracked_raw;
 mod validate;
 
 pub(crate) use checker::{deserialize_located, sha256_hex, Checker};

@@ -30,223 +30,18 @@
 use std::path::{Path, PathBuf};
 
 use nalgebra::Matrix4;
-use serde::{Deserialize, Serialize};
 
+use super::tracked_raw::{OffsetSetting, PlusSequence, RawTrackedManifest, TrackedPhantom, Tracking};
+pub use super::tracked_raw::{TrackedGates, TrackedRegression};
 use super::{deserialize_located, sha256_hex, Checker, ManifestErrors};
 use nalgebra::Point3;
 
 use crate::core::limits::MAX_FOLDS;
-use crate::detect::nwire::{Segmentation, SegmentationOverrides};
+use crate::detect::nwire::Segmentation;
 use crate::estimate::image_to_probe::{ConstraintModel, PixelModel};
 use crate::io::plus::config::PlusConfig;
 use crate::io::tracker_poses::{check_near_rigid, ORTHONORMAL_TOLERANCE};
 use crate::spec::nwire::{NWire, WireSegment};
-
-#[derive(Debug, Clone, Deserialize)]
-#[serde(deny_unknown_fields)]
-struct RawTrackedManifest {
-    experiment: String,
-    #[serde(default)]
-    description: String,
-    #[serde(with = "serde_yaml::with::singleton_map")]
-    tracking: Tracking,
-    #[serde(with = "serde_yaml::with::singleton_map")]
-    phantom: TrackedPhantom,
-    #[serde(default)]
-    bscan: TrackedBscan,
-    #[serde(default)]
-    solve: TrackedSolve,
-    #[serde(default)]
-    thresholds: TrackedThresholds,
-    /// PLUS's own result file (`ProbeCalibrationResult` XML), for comparison only.
-    #[serde(default)]
-    compare_with_plus_result: Option<String>,
-}
-
-#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
-#[serde(rename_all = "snake_case", deny_unknown_fields)]
-enum Tracking {
-    PlusSequence(PlusSequence),
-}
-
-#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
-#[serde(deny_unknown_fields)]
-struct PlusSequence {
-    /// Names the run's subfolder.
-    dataset: String,
-    /// Sequence file (`.mha` / `.igs.mha`) of the calibration frames.
-    calibration: String,
-    /// Sequence file of held-out validation frames (PRE3D is reported on them).
-    #[serde(default)]
-    validation: Option<String>,
-    #[serde(default = "default_probe")]
-    probe_transform: String,
-    #[serde(default = "default_reference")]
-    reference_transform: String,
-    /// The tracker's lag behind the images: seconds, or `estimate` (from the calibration frames).
-    #[serde(default = "default_offset")]
-    time_offset_s: OffsetSetting,
-}
-
-#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
-#[serde(untagged)]
-enum OffsetSetting {
-    Seconds(f64),
-    Word(String),
-    /// `{temporal: {tracker: ..., video: ...}}`: a recording of the probe moved
-    /// over a flat reflector (`probecal temporal`'s inputs).
-    Temporal {
-        temporal: TemporalRecording,
-    },
-}
-
-#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
-#[serde(deny_unknown_fields)]
-struct TemporalRecording {
-    tracker: String,
-    video: String,
-}
-
-fn default_probe() -> String {
-    "ProbeToTracker".into()
-}
-fn default_reference() -> String {
-    "ReferenceToTracker".into()
-}
-fn default_offset() -> OffsetSetting {
-    OffsetSetting::Word("estimate".into())
-}
-
-#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
-#[serde(rename_all = "snake_case", deny_unknown_fields)]
-enum TrackedPhantom {
-    /// N-wire patterns and `PhantomToReference` from a PLUS device-set
-    /// configuration (`plus_config`), or written out here (`patterns` and
-    /// `reference_T_phantom`).
-    Nwire {
-        #[serde(default)]
-        plus_config: Option<String>,
-        /// Each N: three wires (side, diagonal, side) in the phantom frame, mm.
-        #[serde(default)]
-        patterns: Option<Vec<RawNWirePattern>>,
-        /// `reference_T_phantom` (PLUS's `PhantomToReference`), a 4x4 row-major matrix.
-        #[serde(default)]
-        reference_T_phantom: Option<[[f64; 4]; 4]>,
-        /// Approximate pixel size the segmentation starts from.
-        #[serde(default)]
-        approximate_spacing_mm_per_px: Option<f64>,
-        /// Name of the phantom frame and the reference (the tracked marker on the phantom).
-        #[serde(default = "default_phantom_frame")]
-        phantom_frame: String,
-        #[serde(default = "default_reference_frame")]
-        reference_frame: String,
-    },
-}
-
-#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
-#[serde(deny_unknown_fields)]
-struct RawNWirePattern {
-    wires: [RawNWireWire; 3],
-}
-
-#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
-#[serde(deny_unknown_fields)]
-struct RawNWireWire {
-    name: String,
-    front_in_phantom_mm: [f64; 3],
-    back_in_phantom_mm: [f64; 3],
-}
-
-fn default_phantom_frame() -> String {
-    "Phantom".into()
-}
-fn default_reference_frame() -> String {
-    "Reference".into()
-}
-
-#[derive(Debug, Clone, Default, PartialEq, Deserialize, Serialize)]
-#[serde(deny_unknown_fields, default)]
-struct TrackedBscan {
-    /// Approximate pixel size for the segmentation; absent: the configuration's
-    /// `ApproximateSpacingMmPerPixel`.
-    approximate_spacing_mm_per_px: Option<f64>,
-    /// Each key replaces the device set's setting (PLUS's default where it gives
-    /// none); absent: the device set's.
-    segmentation: SegmentationOverrides,
-}
-
-#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
-#[serde(deny_unknown_fields, default)]
-struct TrackedSolve {
-    /// Which constraints the dots give; absent: chosen by cross-validation on
-    /// the calibration frames.
-    constraints: Option<ConstraintModel>,
-    /// How pixels map onto the image plane; absent: chosen by cross-validation
-    /// on the calibration frames.
-    pixel_model: Option<PixelModel>,
-    /// Folds of the calibration frames' cross-validation (contiguous blocks).
-    folds: usize,
-    /// Drop constraints above mean + k SD and refit; absent: keep all.
-    reject_sd: Option<f64>,
-    /// Also correct the phantom's registration from the calibration frames.
-    refine_phantom_registration: bool,
-}
-
-impl Default for TrackedSolve {
-    fn default() -> Self {
-        // PLUS's outlier rule (mean + 3 SD); the model chosen on the calibration frames.
-        TrackedSolve {
-            constraints: None,
-            pixel_model: None,
-            folds: 5,
-            reject_sd: Some(3.0),
-            refine_phantom_registration: false,
-        }
-    }
-}
-
-#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
-#[serde(deny_unknown_fields, default)]
-struct TrackedThresholds {
-    min_frames: usize,
-    gates: TrackedGates,
-    regression: TrackedRegression,
-}
-
-impl Default for TrackedThresholds {
-    fn default() -> Self {
-        TrackedThresholds {
-            min_frames: 10,
-            gates: TrackedGates::default(),
-            regression: TrackedRegression::default(),
-        }
-    }
-}
-
-/// Accuracy gates of a tracked run.
-#[derive(Debug, Clone, Default, PartialEq, Deserialize, Serialize)]
-#[serde(deny_unknown_fields)]
-pub struct TrackedGates {
-    /// Validation PRE3D (PLUS convention: mean of the best 95 %), mm.
-    pub pre3d_mm: Option<f64>,
-}
-
-#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct TrackedRegression {
-    pub pre3d_mm: f64,
-    pub frames_rejected: f64,
-}
-
-impl Default for TrackedRegression {
-    fn default() -> Self {
-        // Runs are deterministic; 0.02 mm is well below what a worse segmentation does.
-        TrackedRegression {
-            pre3d_mm: 0.02,
-            frames_rejected: 2.0,
-        }
-    }
-}
 
 /// The tracker's time offset: fixed (s), or estimated from the calibration frames.
 #[derive(Debug, Clone, PartialEq)]
@@ -317,128 +112,15 @@ impl TrackedManifest {
             .validation
             .as_ref()
             .map(|v| c.existing(&format!("{f}.validation"), &base, v, false));
-        let time_offset = match &seq.time_offset_s {
-            OffsetSetting::Seconds(s) if s.is_finite() && s.abs() <= 1.0 => TimeOffset::Fixed(*s),
-            OffsetSetting::Word(w) if w == "estimate" => TimeOffset::Estimate,
-            OffsetSetting::Temporal { temporal } => TimeOffset::Temporal {
-                tracker: c.existing(
-                    &format!("{f}.time_offset_s.temporal.tracker"),
-                    &base,
-                    &temporal.tracker,
-                    false,
-                ),
-                video: c.existing(
-                    &format!("{f}.time_offset_s.temporal.video"),
-                    &base,
-                    &temporal.video,
-                    false,
-                ),
-            },
-            other => {
-                c.fail(
-                    &format!("{f}.time_offset_s"),
-                    format!(
-                        "must be `estimate`, seconds between -1 and 1, or `{{temporal: {{tracker, video}}}}`, got {other:?}"
-                    ),
-                );
-                TimeOffset::Fixed(0.0)
-            }
-        };
-        let TrackedPhantom::Nwire {
-            plus_config,
-            patterns,
-            reference_T_phantom: given_reference_T_phantom,
-            approximate_spacing_mm_per_px: phantom_spacing,
-            phantom_frame,
-            reference_frame,
-        } = &raw.phantom;
-        let mut nwires = Vec::new();
-        let mut reference_T_phantom = Matrix4::identity();
-        let mut config_spacing = *phantom_spacing;
-        let mut clip_rectangle_px = None;
-        let mut config_file = None;
-        let mut base_segmentation = Segmentation::default();
-        match (plus_config, patterns) {
-            (Some(plus_config), None) => {
-                let config_field = "phantom.nwire.plus_config";
-                for (given, name) in [
-                    (given_reference_T_phantom.is_some(), "reference_T_phantom"),
-                    (phantom_spacing.is_some(), "approximate_spacing_mm_per_px"),
-                ] {
-                    if given {
-                        c.fail(
-                            &format!("phantom.nwire.{name}"),
-                            "comes from plus_config; give it only with `patterns`",
-                        );
-                    }
-                }
-                let plus_config = c.existing(config_field, &base, plus_config, false);
-                if plus_config.is_file() {
-                    match PlusConfig::read(&plus_config) {
-                        Ok(config) => {
-                            if config.nwires.is_empty() {
-                                c.fail(
-                                    config_field,
-                                    format!("{}: no N-wire `Pattern` in `PhantomDefinition`", plus_config.display()),
-                                );
-                            }
-                            nwires = config.nwires.clone();
-                            match config.transform(phantom_frame, reference_frame) {
-                                Ok(m) => reference_T_phantom = m,
-                                Err(e) => c.fail(config_field, e.to_string()),
-                            }
-                            config_spacing = config.approximate_spacing_mm_per_px;
-                            clip_rectangle_px = config.clip_rectangle_px.map(|(o, s)| [o[0], o[1], s[0], s[1]]);
-                            base_segmentation = Segmentation::from_device_set(&config);
-                        }
-                        Err(e) => c.fail(config_field, e.to_string()),
-                    }
-                }
-                config_file = Some(plus_config);
-            }
-            (None, Some(patterns)) => {
-                if patterns.is_empty() {
-                    c.fail("phantom.nwire.patterns", "lists no N-wire");
-                }
-                for (i, p) in patterns.iter().enumerate() {
-                    let segments = p.wires.clone().map(|w| WireSegment {
-                        name: w.name,
-                        front_in_phantom_mm: Point3::from(w.front_in_phantom_mm),
-                        back_in_phantom_mm: Point3::from(w.back_in_phantom_mm),
-                    });
-                    if segments.iter().any(|w| {
-                        w.front_in_phantom_mm
-                            .iter()
-                            .chain(w.back_in_phantom_mm.iter())
-                            .any(|v| !v.is_finite())
-                    }) {
-                        c.fail(
-                            &format!("phantom.nwire.patterns[{i}].wires"),
-                            "has a non-finite end point",
-                        );
-                        continue;
-                    }
-                    match NWire::new(segments) {
-                        Ok(n) => nwires.push(n),
-                        Err(e) => c.fail(&format!("phantom.nwire.patterns[{i}].wires"), e.to_string()),
-                    }
-                }
-                match given_reference_T_phantom {
-                    Some(rows) => match check_near_rigid(rows, ORTHONORMAL_TOLERANCE) {
-                        Ok(()) => reference_T_phantom = Matrix4::from_fn(|r, k| rows[r][k]),
-                        Err(e) => c.fail("phantom.nwire.reference_T_phantom", e.to_string()),
-                    },
-                    None => c.fail(
-                        "phantom.nwire.reference_T_phantom",
-                        "is needed with `patterns`: the phantom's pose on its reference marker (PLUS's PhantomToReference)",
-                    ),
-                }
-            }
-            _ => c.fail(
-                "phantom.nwire",
-                "give exactly one of `plus_config` (a PLUS device set) or `patterns` with `reference_T_phantom`",
-            ),
-        }
+        let time_offset = time_offset(&mut c, &base, seq);
+        let PhantomParts {
+            nwires,
+            reference_T_phantom,
+            config_spacing,
+            clip_rectangle_px: config_clip_px,
+            config_file,
+            base_segmentation,
+        } = phantom_parts(&mut c, &base, &raw.phantom);
         let spacing_guess_mm_per_px = match raw.bscan.approximate_spacing_mm_per_px.or(config_spacing) {
             Some(s) => {
                 c.positive("bscan.approximate_spacing_mm_per_px", s);
@@ -453,94 +135,9 @@ impl TrackedManifest {
             }
         };
         let seg = &raw.bscan.segmentation.apply(&base_segmentation);
-        let sf = "bscan.segmentation";
-        c.positive(&format!("{sf}.collinear_tolerance_mm"), seg.collinear_tolerance_mm);
-        if !(seg.threshold_percent > 0.0 && seg.threshold_percent < 100.0) {
-            c.fail(
-                &format!("{sf}.threshold_percent"),
-                format!("must be a percentage between 0 and 100, got {}", seg.threshold_percent),
-            );
-        }
-        c.at_least(&format!("{sf}.opening_radius_mm"), seg.opening_radius_mm, 0.0);
-        if seg.opening_radius_px.is_some_and(|r| r > 50) {
-            c.fail(&format!("{sf}.opening_radius_px"), "must be at most 50 px");
-        }
-        if !(0.0..1.0).contains(&seg.core_fraction) {
-            c.fail(
-                &format!("{sf}.core_fraction"),
-                format!("must be a fraction in [0, 1), got {}", seg.core_fraction),
-            );
-        }
-        if !(-90.0..=90.0).contains(&seg.min_row_angle_deg)
-            || !(-90.0..=90.0).contains(&seg.max_row_angle_deg)
-            || seg.min_row_angle_deg >= seg.max_row_angle_deg
-        {
-            c.fail(
-                &format!("{sf}.max_row_angle_deg"),
-                format!(
-                    "the row angles {}..{} must lie within ±90 degrees, the first below the second",
-                    seg.min_row_angle_deg, seg.max_row_angle_deg
-                ),
-            );
-        }
-        if !(seg.row_gap_tolerance_percent > 0.0 && seg.row_gap_tolerance_percent < 100.0) {
-            c.fail(
-                &format!("{sf}.row_gap_tolerance_percent"),
-                format!(
-                    "must be a percentage between 0 and 100, got {}",
-                    seg.row_gap_tolerance_percent
-                ),
-            );
-        }
-        c.at_least(
-            &format!("{sf}.max_row_angle_difference_deg"),
-            seg.max_row_angle_difference_deg,
-            0.0,
-        );
-        if seg.max_candidates < 3 * nwires.len().max(1) || seg.max_candidates > 50 {
-            c.fail(
-                &format!("{sf}.max_candidates"),
-                format!(
-                    "must be between {} (3 per N-wire) and 50, got {}",
-                    3 * nwires.len().max(1),
-                    seg.max_candidates
-                ),
-            );
-        }
-        if let Some(r) = seg.clip_rectangle_px {
-            if r[2] == 0 || r[3] == 0 {
-                c.fail(&format!("{sf}.clip_rectangle_px"), "has zero width or height");
-            }
-            clip_rectangle_px = Some(r);
-        }
-        if let Some(k) = raw.solve.reject_sd {
-            c.positive("solve.reject_sd", k);
-        }
-        if !(2..=MAX_FOLDS).contains(&raw.solve.folds) {
-            c.fail(
-                "solve.folds",
-                format!("must be between 2 and {MAX_FOLDS}, got {}", raw.solve.folds),
-            );
-        }
-        if raw.thresholds.min_frames < 3 {
-            c.fail(
-                "thresholds.min_frames",
-                format!("at least 3 frames are needed, got {}", raw.thresholds.min_frames),
-            );
-        }
-        if let Some(g) = raw.thresholds.gates.pre3d_mm {
-            c.positive("thresholds.gates.pre3d_mm", g);
-        }
-        c.at_least(
-            "thresholds.regression.pre3d_mm",
-            raw.thresholds.regression.pre3d_mm,
-            0.0,
-        );
-        c.at_least(
-            "thresholds.regression.frames_rejected",
-            raw.thresholds.regression.frames_rejected,
-            0.0,
-        );
+        check_segmentation(&mut c, seg, nwires.len());
+        let clip_rectangle_px = seg.clip_rectangle_px.or(config_clip_px);
+        check_solve_and_thresholds(&mut c, &raw);
         let plus_result = raw
             .compare_with_plus_result
             .as_ref()
@@ -589,4 +186,245 @@ impl TrackedManifest {
         }
         files
     }
+}
+
+/// The tracker's time offset the manifest gives (a fixed value, `estimate`, or a
+/// temporal-calibration recording).
+fn time_offset(c: &mut Checker<'_>, base: &Path, seq: &PlusSequence) -> TimeOffset {
+    let f = "tracking.plus_sequence";
+    match &seq.time_offset_s {
+        OffsetSetting::Seconds(s) if s.is_finite() && s.abs() <= 1.0 => TimeOffset::Fixed(*s),
+        OffsetSetting::Word(w) if w == "estimate" => TimeOffset::Estimate,
+        OffsetSetting::Temporal { temporal } => TimeOffset::Temporal {
+            tracker: c.existing(
+                &format!("{f}.time_offset_s.temporal.tracker"),
+                &base,
+                &temporal.tracker,
+                false,
+            ),
+            video: c.existing(
+                &format!("{f}.time_offset_s.temporal.video"),
+                &base,
+                &temporal.video,
+                false,
+            ),
+        },
+        other => {
+            c.fail(
+                &format!("{f}.time_offset_s"),
+                format!(
+                    "must be `estimate`, seconds between -1 and 1, or `{{temporal: {{tracker, video}}}}`, got {other:?}"
+                ),
+            );
+            TimeOffset::Fixed(0.0)
+        }
+    }
+}
+
+/// The phantom as the manifest gives it, from a device set or written out.
+struct PhantomParts {
+    nwires: Vec<NWire>,
+    reference_T_phantom: Matrix4<f64>,
+    config_spacing: Option<f64>,
+    clip_rectangle_px: Option<[usize; 4]>,
+    config_file: Option<PathBuf>,
+    base_segmentation: Segmentation,
+}
+
+/// The N-wires, their pose on the reference and the segmentation's starting
+/// settings: from `plus_config`, or from `patterns` and `reference_T_phantom`.
+fn phantom_parts(c: &mut Checker<'_>, base: &Path, phantom: &TrackedPhantom) -> PhantomParts {
+    let TrackedPhantom::Nwire {
+        plus_config,
+        patterns,
+        reference_T_phantom: given_reference_T_phantom,
+        approximate_spacing_mm_per_px: phantom_spacing,
+        phantom_frame,
+        reference_frame,
+    } = phantom;
+    let mut parts = PhantomParts {
+        nwires: Vec::new(),
+        reference_T_phantom: Matrix4::identity(),
+        config_spacing: *phantom_spacing,
+        clip_rectangle_px: None,
+        config_file: None,
+        base_segmentation: Segmentation::default(),
+    };
+    match (plus_config, patterns) {
+        (Some(plus_config), None) => {
+            let config_field = "phantom.nwire.plus_config";
+            for (given, name) in [
+                (given_reference_T_phantom.is_some(), "reference_T_phantom"),
+                (phantom_spacing.is_some(), "approximate_spacing_mm_per_px"),
+            ] {
+                if given {
+                    c.fail(
+                        &format!("phantom.nwire.{name}"),
+                        "comes from plus_config; give it only with `patterns`",
+                    );
+                }
+            }
+            let plus_config = c.existing(config_field, &base, plus_config, false);
+            if plus_config.is_file() {
+                match PlusConfig::read(&plus_config) {
+                    Ok(config) => {
+                        if config.nwires.is_empty() {
+                            c.fail(
+                                config_field,
+                                format!("{}: no N-wire `Pattern` in `PhantomDefinition`", plus_config.display()),
+                            );
+                        }
+                        parts.nwires = config.nwires.clone();
+                        match config.transform(phantom_frame, reference_frame) {
+                            Ok(m) => parts.reference_T_phantom = m,
+                            Err(e) => c.fail(config_field, e.to_string()),
+                        }
+                        parts.config_spacing = config.approximate_spacing_mm_per_px;
+                        parts.clip_rectangle_px = config.clip_rectangle_px.map(|(o, s)| [o[0], o[1], s[0], s[1]]);
+                        parts.base_segmentation = Segmentation::from_device_set(&config);
+                    }
+                    Err(e) => c.fail(config_field, e.to_string()),
+                }
+            }
+            parts.config_file = Some(plus_config);
+        }
+        (None, Some(patterns)) => {
+            if patterns.is_empty() {
+                c.fail("phantom.nwire.patterns", "lists no N-wire");
+            }
+            for (i, p) in patterns.iter().enumerate() {
+                let segments = p.wires.clone().map(|w| WireSegment {
+                    name: w.name,
+                    front_in_phantom_mm: Point3::from(w.front_in_phantom_mm),
+                    back_in_phantom_mm: Point3::from(w.back_in_phantom_mm),
+                });
+                if segments.iter().any(|w| {
+                    w.front_in_phantom_mm
+                        .iter()
+                        .chain(w.back_in_phantom_mm.iter())
+                        .any(|v| !v.is_finite())
+                }) {
+                    c.fail(
+                        &format!("phantom.nwire.patterns[{i}].wires"),
+                        "has a non-finite end point",
+                    );
+                    continue;
+                }
+                match NWire::new(segments) {
+                    Ok(n) => parts.nwires.push(n),
+                    Err(e) => c.fail(&format!("phantom.nwire.patterns[{i}].wires"), e.to_string()),
+                }
+            }
+            match given_reference_T_phantom {
+                Some(rows) => match check_near_rigid(rows, ORTHONORMAL_TOLERANCE) {
+                    Ok(()) => parts.reference_T_phantom = Matrix4::from_fn(|r, k| rows[r][k]),
+                    Err(e) => c.fail("phantom.nwire.reference_T_phantom", e.to_string()),
+                },
+                None => c.fail(
+                    "phantom.nwire.reference_T_phantom",
+                    "is needed with `patterns`: the phantom's pose on its reference marker (PLUS's PhantomToReference)",
+                ),
+            }
+        }
+        _ => c.fail(
+            "phantom.nwire",
+            "give exactly one of `plus_config` (a PLUS device set) or `patterns` with `reference_T_phantom`",
+        ),
+    }
+    parts
+}
+
+/// The segmentation's settings within their ranges.
+fn check_segmentation(c: &mut Checker<'_>, seg: &Segmentation, nwires: usize) {
+    let sf = "bscan.segmentation";
+    c.positive(&format!("{sf}.collinear_tolerance_mm"), seg.collinear_tolerance_mm);
+    if !(seg.threshold_percent > 0.0 && seg.threshold_percent < 100.0) {
+        c.fail(
+            &format!("{sf}.threshold_percent"),
+            format!("must be a percentage between 0 and 100, got {}", seg.threshold_percent),
+        );
+    }
+    c.at_least(&format!("{sf}.opening_radius_mm"), seg.opening_radius_mm, 0.0);
+    if seg.opening_radius_px.is_some_and(|r| r > 50) {
+        c.fail(&format!("{sf}.opening_radius_px"), "must be at most 50 px");
+    }
+    if !(0.0..1.0).contains(&seg.core_fraction) {
+        c.fail(
+            &format!("{sf}.core_fraction"),
+            format!("must be a fraction in [0, 1), got {}", seg.core_fraction),
+        );
+    }
+    if !(-90.0..=90.0).contains(&seg.min_row_angle_deg)
+        || !(-90.0..=90.0).contains(&seg.max_row_angle_deg)
+        || seg.min_row_angle_deg >= seg.max_row_angle_deg
+    {
+        c.fail(
+            &format!("{sf}.max_row_angle_deg"),
+            format!(
+                "the row angles {}..{} must lie within ±90 degrees, the first below the second",
+                seg.min_row_angle_deg, seg.max_row_angle_deg
+            ),
+        );
+    }
+    if !(seg.row_gap_tolerance_percent > 0.0 && seg.row_gap_tolerance_percent < 100.0) {
+        c.fail(
+            &format!("{sf}.row_gap_tolerance_percent"),
+            format!(
+                "must be a percentage between 0 and 100, got {}",
+                seg.row_gap_tolerance_percent
+            ),
+        );
+    }
+    c.at_least(
+        &format!("{sf}.max_row_angle_difference_deg"),
+        seg.max_row_angle_difference_deg,
+        0.0,
+    );
+    if seg.max_candidates < 3 * nwires.max(1) || seg.max_candidates > 50 {
+        c.fail(
+            &format!("{sf}.max_candidates"),
+            format!(
+                "must be between {} (3 per N-wire) and 50, got {}",
+                3 * nwires.max(1),
+                seg.max_candidates
+            ),
+        );
+    }
+    if let Some(r) = seg.clip_rectangle_px {
+        if r[2] == 0 || r[3] == 0 {
+            c.fail(&format!("{sf}.clip_rectangle_px"), "has zero width or height");
+        }
+    }
+}
+
+/// The solve's settings and the thresholds within their ranges.
+fn check_solve_and_thresholds(c: &mut Checker<'_>, raw: &RawTrackedManifest) {
+    if let Some(k) = raw.solve.reject_sd {
+        c.positive("solve.reject_sd", k);
+    }
+    if !(2..=MAX_FOLDS).contains(&raw.solve.folds) {
+        c.fail(
+            "solve.folds",
+            format!("must be between 2 and {MAX_FOLDS}, got {}", raw.solve.folds),
+        );
+    }
+    if raw.thresholds.min_frames < 3 {
+        c.fail(
+            "thresholds.min_frames",
+            format!("at least 3 frames are needed, got {}", raw.thresholds.min_frames),
+        );
+    }
+    if let Some(g) = raw.thresholds.gates.pre3d_mm {
+        c.positive("thresholds.gates.pre3d_mm", g);
+    }
+    c.at_least(
+        "thresholds.regression.pre3d_mm",
+        raw.thresholds.regression.pre3d_mm,
+        0.0,
+    );
+    c.at_least(
+        "thresholds.regression.frames_rejected",
+        raw.thresholds.regression.frames_rejected,
+        0.0,
+    );
 }

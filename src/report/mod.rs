@@ -9,6 +9,7 @@ pub mod check;
 pub mod compare;
 pub mod console;
 pub mod context;
+mod context_rows;
 pub mod design;
 pub mod error;
 pub mod figures;

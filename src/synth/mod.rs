@@ -10,6 +10,7 @@ pub mod board_seat;
 pub mod bscan_geometry;
 pub mod bscan_render;
 pub mod camera_render;
+pub mod placement;
 pub mod printable;
 pub mod realism;
 pub mod scene;
@@ -280,7 +281,7 @@ fn realised(lab: &Lab<'_>, spec: &RenderSpec) -> Result<Realised, SynthError> {
     let spec = realism::effective_spec(spec);
     let systematic = realism::systematic(&spec, lab.phantom);
     let Boards { rig, calibration } = boards(lab)?;
-    let mut scene = scene::build(&SceneInputs {
+    let mut scene = placement::build(&SceneInputs {
         spec: &spec,
         probe_board: rig.probe,
         phantom_board: rig.phantom,

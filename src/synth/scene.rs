@@ -7,7 +7,7 @@
 //! about the image's X (lateral) and Y (beam) axes and a small rotation about Z.
 
 pub use super::bscan_geometry::BscanGeometry;
-use super::shape::{segment_in_plane, Shape};
+use super::shape::Shape;
 use nalgebra::{Matrix3, Point3, Rotation3, Translation3, UnitQuaternion, Vector3};
 
 use crate::core::geometry::Rigid;
@@ -83,7 +83,7 @@ pub const PLATE_HALF_MM: f64 = 90.0;
 /// How far below the probe board's centre the transducer face is, mm.
 pub const MOUNT_DROP_MM: f64 = 100.0;
 
-fn plate_bounds(board: &PrintedBoard) -> [f64; 4] {
+pub(super) fn plate_bounds(board: &PrintedBoard) -> [f64; 4] {
     let c = board.centre_mm();
     [
         c.x - PLATE_HALF_MM,
@@ -113,11 +113,11 @@ pub struct Scene {
     pub camera_T_calibration_board: Vec<Rigid>,
 }
 
-fn rotation_from_columns(x: Vector3<f64>, y: Vector3<f64>, z: Vector3<f64>) -> UnitQuaternion<f64> {
+pub(super) fn rotation_from_columns(x: Vector3<f64>, y: Vector3<f64>, z: Vector3<f64>) -> UnitQuaternion<f64> {
     UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(Matrix3::from_columns(&[x, y, z])))
 }
 
-fn euler_deg(rx: f64, ry: f64, rz: f64) -> UnitQuaternion<f64> {
+pub(super) fn euler_deg(rx: f64, ry: f64, rz: f64) -> UnitQuaternion<f64> {
     UnitQuaternion::from_euler_angles(rx.to_radians(), ry.to_radians(), rz.to_radians())
 }
 
@@ -140,7 +140,7 @@ pub fn nominal_marker_T_image(board: &PrintedBoard, bscan: &BscanGeometry) -> Ri
 }
 
 /// A small random rigid motion.
-fn jitter(rng: &mut Rng, sigma_mm: f64, sigma_deg: f64) -> Rigid {
+pub(super) fn jitter(rng: &mut Rng, sigma_mm: f64, sigma_deg: f64) -> Rigid {
     let axis_angle =
         Vector3::new(rng.normal(0.0, 1.0), rng.normal(0.0, 1.0), rng.normal(0.0, 1.0)) * sigma_deg.to_radians();
     let shift = Vector3::new(rng.normal(0.0, 1.0), rng.normal(0.0, 1.0), rng.normal(0.0, 1.0)) * sigma_mm;
@@ -177,7 +177,7 @@ pub fn board_in_view(
     Some(bbox)
 }
 
-fn boxes_apart(a: [f64; 4], b: [f64; 4], gap: f64) -> bool {
+pub(super) fn boxes_apart(a: [f64; 4], b: [f64; 4], gap: f64) -> bool {
     a[2] + gap < b[0] || b[2] + gap < a[0] || a[3] + gap < b[1] || b[3] + gap < a[1]
 }
 
@@ -247,7 +247,11 @@ pub fn lab_layout(board_distance_mm: [f64; 2], phantom_board: &PrintedBoard) -> 
 }
 
 /// Every dome the plane cuts has its whole arc inside the fan, away from its edges.
-fn domes_inside_fan(bscan: &BscanGeometry, world_T_image: &Rigid, domes_world: &[(Point3<f64>, f64)]) -> bool {
+pub(super) fn domes_inside_fan(
+    bscan: &BscanGeometry,
+    world_T_image: &Rigid,
+    domes_world: &[(Point3<f64>, f64)],
+) -> bool {
     let image_T_world = world_T_image.inverse();
     domes_world.iter().all(|(centre, radius)| {
         let p = image_T_world * centre;
@@ -260,288 +264,5 @@ fn domes_inside_fan(bscan: &BscanGeometry, world_T_image: &Rigid, domes_world: &
         angle.abs() + half_width < bscan.half_fan_rad - 4f64.to_radians()
             && r - arc > bscan.convex_radius_mm + 8.0
             && r < bscan.convex_radius_mm + bscan.depth_mm - 8.0
-    })
-}
-
-pub fn build(inputs: &SceneInputs<'_>) -> Result<Scene, SceneError> {
-    let spec = inputs.spec;
-    let cam = &spec.camera;
-    let [w, h] = cam.image_size_px;
-    let camera = CameraIntrinsics {
-        image_size_px: [w, h],
-        camera_matrix: [
-            [cam.focal_px, 0.0, (w as f64 - 1.0) / 2.0 + cam.principal_offset_px[0]],
-            [0.0, cam.focal_px, (h as f64 - 1.0) / 2.0 + cam.principal_offset_px[1]],
-            [0.0, 0.0, 1.0],
-        ],
-        distortion: cam.distortion,
-        rms_px: None,
-        per_view_rms_px: Vec::new(),
-    };
-    let bscan = BscanGeometry::new(
-        inputs.spacing_mm_per_px,
-        spec.bscan.depth_mm,
-        spec.bscan.fan_deg,
-        spec.bscan.convex_radius_mm,
-    );
-
-    let (world_T_camera, world_T_phantom) = lab_layout(spec.board_distance_mm, &inputs.phantom_board);
-    let camera_T_world = world_T_camera.inverse();
-    let [near, far] = spec.board_distance_mm;
-    // The lab is laid out around the feature at the world origin; the manifest says
-    // where the feature is relative to the phantom board, and must agree.
-    let (shape, feature_in_phantom) = Shape::from_phantom(inputs.phantom, &world_T_phantom);
-    let feature_centre_world = world_T_phantom * Point3::from(Vector3::from(feature_in_phantom));
-    if feature_centre_world.coords.norm() > 3.0 {
-        let expected = world_T_phantom.inverse() * Point3::origin();
-        return Err(SceneError::FeatureMisplaced {
-            what: match shape {
-                Shape::Hemisphere { .. } => "sphere centre",
-                Shape::Point { .. } => "pin head",
-                Shape::Wires { .. } => "centre of the wires (mean of their midpoints)",
-                Shape::Spheres { .. } => "centre of the spheres (mean of their centres)",
-            },
-            off_mm: feature_centre_world.coords.norm(),
-            expected: [expected.x, expected.y, expected.z].map(|v| (v * 10.0).round() / 10.0),
-        });
-    }
-    let c = feature_centre_world.coords;
-    let nominal_centre = Vector3::zeros();
-    // How far the feature's echoes reach from its centre in the image.
-    let radius = match &shape {
-        Shape::Hemisphere { radius_mm } => *radius_mm,
-        Shape::Point { head_radius_mm } => head_radius_mm + 6.0,
-        Shape::Wires { .. } => 0.0,
-        Shape::Spheres { domes_world } => domes_world.iter().map(|(_, r)| *r).fold(0.0, f64::max),
-    };
-    let tank = Tank {
-        floor_z_mm: -30.0,
-        wall_x_mm: 75.0,
-        wall_y_mm: 60.0,
-    };
-    for (board, name) in [(&inputs.probe_board, "probe"), (&inputs.phantom_board, "phantom")] {
-        let [x0, y0, x1, y1] = board.paper_bounds_mm();
-        let [p0, q0, p1, q1] = plate_bounds(board);
-        if x0 < p0 || y0 < q0 || x1 > p1 || y1 > q1 {
-            return Err(SceneError::BoardTooLarge {
-                board: name,
-                plate_mm: 2.0 * PLATE_HALF_MM,
-            });
-        }
-    }
-
-    let marker_T_image = match &spec.marker_T_image {
-        Some(t) => true_transform(t),
-        None => nominal_marker_T_image(&inputs.probe_board, &bscan),
-    };
-    let image_T_marker = marker_T_image.inverse();
-    let camera_T_phantom = camera_T_world * world_T_phantom;
-    let phantom_box = board_in_view(&camera, &camera_T_phantom, plate_bounds(&inputs.phantom_board), 12.0);
-    let probe_plate = plate_bounds(&inputs.probe_board);
-
-    let mut rng = Rng::fork(spec.seed, 1);
-    let r_nominal = rotation_from_columns(Vector3::x(), -Vector3::z(), Vector3::y());
-    let sweep = &spec.sweep;
-    let mut frames = Vec::with_capacity(spec.frames);
-    for frame in 0..spec.frames {
-        let kind = if rng.chance(spec.bscan.missing_rate) {
-            FrameKind::Missing
-        } else if rng.chance(spec.bscan.outlier_rate) {
-            [FrameKind::OffCentre, FrameKind::Jerk, FrameKind::DomeBubbles][rng.below(3)]
-        } else {
-            FrameKind::Normal
-        };
-        let tries = 400;
-        let mut placed = None;
-        let (mut out_of_view, mut phantom_out, mut overlapping, mut too_far, mut fan) = (0, 0, 0, 0, 0);
-        for _ in 0..tries {
-            let lateral_mm = if matches!(shape, Shape::Wires { .. } | Shape::Spheres { .. }) {
-                10.0
-            } else {
-                30.0
-            };
-            let u_c = bscan.width_mm() / 2.0 + rng.uniform(-lateral_mm, lateral_mm);
-            let v_c = rng.uniform(35.0, 90.0);
-            let (r_polar, angle) = bscan.polar(u_c, v_c);
-            if angle.abs() > bscan.half_fan_rad - 10f64.to_radians()
-                || r_polar + radius > bscan.convex_radius_mm + bscan.depth_mm
-            {
-                fan += 1;
-                continue;
-            }
-            let sign = if rng.chance(0.5) { 1.0 } else { -1.0 };
-            let elevation = match (&shape, kind) {
-                (Shape::Hemisphere { .. }, FrameKind::OffCentre) => sign * rng.uniform(7.0, 11.0),
-                (Shape::Hemisphere { radius_mm }, FrameKind::Missing) => {
-                    sign * rng.uniform(radius_mm + 1.5, radius_mm + 6.0)
-                }
-                // Still in the beam's slice, but beside the head.
-                (Shape::Point { head_radius_mm }, FrameKind::OffCentre) => {
-                    sign * rng.uniform(0.6, 1.0) * (head_radius_mm + spec.bscan.slice_thickness_mm / 2.0)
-                }
-                (Shape::Point { head_radius_mm }, FrameKind::Missing) => {
-                    sign * rng.uniform(head_radius_mm + 3.0, head_radius_mm + 8.0)
-                }
-                // Along the wires: anywhere over the middle of the phantom, or past their ends.
-                (Shape::Wires { .. }, FrameKind::Missing) => sign * rng.uniform(45.0, 60.0),
-                (Shape::Wires { .. }, _) => rng.uniform(-sweep.wire_travel_mm, sweep.wire_travel_mm),
-                // Past every dome.
-                (Shape::Spheres { domes_world }, FrameKind::Missing) => {
-                    let reach = domes_world
-                        .iter()
-                        .map(|(centre, r)| centre.y.abs() + r)
-                        .fold(0.0, f64::max);
-                    sign * rng.uniform(reach + 1.5, reach + 6.0)
-                }
-                _ => rng.normal(0.0, sweep.elevation_offset_sd_mm),
-            };
-            let rotation = r_nominal
-                * UnitQuaternion::from_axis_angle(
-                    &Vector3::x_axis(),
-                    rng.uniform(-sweep.tilt_x_deg, sweep.tilt_x_deg).to_radians(),
-                )
-                * UnitQuaternion::from_axis_angle(
-                    &Vector3::y_axis(),
-                    rng.uniform(-sweep.tilt_y_deg, sweep.tilt_y_deg).to_radians(),
-                )
-                * UnitQuaternion::from_axis_angle(
-                    &Vector3::z_axis(),
-                    rng.uniform(-sweep.rotation_z_deg, sweep.rotation_z_deg).to_radians(),
-                );
-            let centre_in_image = Vector3::new(u_c, v_c, elevation);
-            let world_T_image = Rigid::from_parts(
-                Translation3::from(nominal_centre - rotation * centre_in_image),
-                rotation,
-            );
-            if let (Shape::Wires { wires_world, .. }, false) = (&shape, kind == FrameKind::Missing) {
-                // Every wire must cross the plane inside the fan, away from its edges.
-                let all_inside = wires_world.iter().all(|(a, b)| {
-                    segment_in_plane(&world_T_image, a, b).is_some_and(|p| {
-                        let (r, angle) = bscan.polar(p.x, p.y);
-                        angle.abs() < bscan.half_fan_rad - 5f64.to_radians()
-                            && r > bscan.convex_radius_mm + 10.0
-                            && r < bscan.convex_radius_mm + bscan.depth_mm - 10.0
-                    })
-                });
-                if !all_inside {
-                    fan += 1;
-                    continue;
-                }
-            }
-            if let (Shape::Spheres { domes_world }, false) = (&shape, kind == FrameKind::Missing) {
-                if !domes_inside_fan(&bscan, &world_T_image, domes_world) {
-                    fan += 1;
-                    continue;
-                }
-            }
-            let world_T_marker_bscan = world_T_image * image_T_marker;
-            let (tremor_mm, tremor_deg) = if kind == FrameKind::Jerk {
-                (rng.uniform(2.0, 4.0) / 1.7, rng.uniform(1.0, 2.0) / 1.7)
-            } else {
-                (sweep.tremor_mm, sweep.tremor_deg)
-            };
-            let world_T_marker_photo = world_T_marker_bscan * jitter(&mut rng, tremor_mm, tremor_deg);
-            let camera_T_marker = camera_T_world * world_T_marker_photo;
-            let Some(probe_box) = board_in_view(&camera, &camera_T_marker, probe_plate, 12.0) else {
-                out_of_view += 1;
-                continue;
-            };
-            let Some(phantom_box) = phantom_box else {
-                phantom_out += 1;
-                continue;
-            };
-            if !boxes_apart(probe_box, phantom_box, 15.0) {
-                overlapping += 1;
-                continue;
-            }
-            let distance = camera_T_marker.translation.vector.norm();
-            if distance < near || distance > far + 150.0 {
-                too_far += 1;
-                continue;
-            }
-            let occluder = rng.chance(spec.occlusion_rate).then(|| {
-                let angle = rng.uniform(0.0, std::f64::consts::PI);
-                let (cx, cy) = (rng.uniform(-40.0, 40.0), rng.uniform(-40.0, 40.0));
-                let half = rng.uniform(35.0, 60.0);
-                Occluder {
-                    from_centre_mm: [cx - half * angle.cos(), cy - half * angle.sin()],
-                    to_centre_mm: [cx + half * angle.cos(), cy + half * angle.sin()],
-                    width_mm: rng.uniform(8.0, 14.0),
-                }
-            });
-            // Where the actual sphere is relative to this plane (the manifest's centre
-            // may sit a fraction of a millimetre from the nominal one).
-            let actual = world_T_image.inverse() * Point3::from(c);
-            placed = Some(FramePlan {
-                kind,
-                world_T_marker_photo,
-                world_T_marker_bscan,
-                elevation_offset_mm: actual.z,
-                centre_projection_px: [
-                    actual.x / bscan.spacing_mm_per_px[0],
-                    actual.y / bscan.spacing_mm_per_px[1],
-                ],
-                occluder,
-            });
-            break;
-        }
-        frames.push(placed.ok_or(SceneError::FrameDoesNotFit {
-            frame,
-            tries,
-            out_of_view,
-            phantom_out,
-            overlapping,
-            distance: too_far,
-            fan,
-        })?);
-    }
-
-    // Camera-calibration views: a plain board over the whole field of view.
-    let mut calib_rng = Rng::fork(spec.seed, 2);
-    let cb = inputs.calibration_board;
-    let cb_centre = Vector3::new(
-        (cb.inner_corners[0] as f64 - 1.0) * cb.square_mm / 2.0,
-        (cb.inner_corners[1] as f64 - 1.0) * cb.square_mm / 2.0,
-        0.0,
-    );
-    let mut camera_T_calibration_board = Vec::new();
-    for view in 0..spec.calibration_views {
-        let tries = 2000;
-        let mut placed = None;
-        for _ in 0..tries {
-            let depth = calib_rng.uniform(near, far + 100.0);
-            let (fx, fy) = (camera.fx(), camera.fy());
-            // Aim the board centre anywhere in the central 70% of the image.
-            let px = calib_rng.uniform(0.15, 0.85) * w as f64;
-            let py = calib_rng.uniform(0.15, 0.85) * h as f64;
-            let centre = Vector3::new((px - camera.cx()) / fx * depth, (py - camera.cy()) / fy * depth, depth);
-            let rotation = euler_deg(
-                calib_rng.uniform(-35.0, 35.0),
-                calib_rng.uniform(-35.0, 35.0),
-                calib_rng.uniform(-20.0, 20.0),
-            );
-            let pose = Rigid::from_parts(Translation3::from(centre - rotation * cb_centre), rotation);
-            if board_in_view(&camera, &pose, cb.paper_bounds_mm(), 15.0).is_some() {
-                placed = Some(pose);
-                break;
-            }
-        }
-        camera_T_calibration_board.push(placed.ok_or(SceneError::CalibrationViewDoesNotFit { view, tries })?);
-    }
-
-    Ok(Scene {
-        camera,
-        camera_T_world,
-        world_T_phantom,
-        marker_T_image,
-        feature_centre_world,
-        shape,
-        tank,
-        probe_board: inputs.probe_board.clone(),
-        phantom_board: inputs.phantom_board.clone(),
-        bscan,
-        frames,
-        calibration_board: cb,
-        camera_T_calibration_board,
     })
 }
