@@ -7,3 +7,4 @@ pub mod parallel;
 pub mod progress;
 pub mod rng;
 pub mod stats;
+pub mod timing;

@@ -1,5 +1,5 @@
 //! The YAML of a tracker-sequence manifest as written: the serde types that
-//! [`super::tracked::TrackedManifest::from_text`] reads and checks.
+//! the tracked manifest's `from_text` reads and checks.
 
 use serde::{Deserialize, Serialize};
 

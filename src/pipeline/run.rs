@@ -11,6 +11,8 @@
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
+use crate::core::timing::StageClock;
+
 pub use super::error::RunError;
 use super::frames::{self, Targets};
 use super::methods::{self, MethodInputs};
@@ -86,83 +88,56 @@ pub fn run_dataset(
     log: &mut dyn FnMut(&str),
 ) -> Result<DatasetRun, RunError> {
     let name = dataset.name.clone();
-    let mut timings = Vec::new();
-    let clock = Instant::now();
-    let (folder, claim) = dataset_folder(manifest, dataset, datasets_root, log)?;
+    let mut clock = StageClock::default();
+    let (folder, claim) = clock.time("dataset", || dataset_folder(manifest, dataset, datasets_root, log))?;
     let rendered = claim.is_some();
-    timings.push(("dataset", clock.elapsed().as_secs_f64()));
     let files = dataset::load_frame_list(&folder).map_err(|source| RunError::Dataset {
         dataset: name.clone(),
         source,
     })?;
-
-    let clock = Instant::now();
-    let mut camera = camera::camera_stage(manifest, &name, &folder)?;
-    timings.push(("camera calibration", clock.elapsed().as_secs_f64()));
-    if let Some((k, rms)) = camera.intrinsics.as_ref().and_then(|k| Some((k, k.rms_px?))) {
-        log(&format!(
-            "camera: fx {:.2} fy {:.2} cx {:.2} cy {:.2} px, RMS {rms:.3} px",
-            k.fx(),
-            k.fy(),
-            k.cx(),
-            k.cy()
-        ));
+    let mut camera = clock.time("camera calibration", || camera::camera_stage(manifest, &name, &folder))?;
+    if let Some(k) = &camera.intrinsics {
+        if let Some(rms) = k.rms_px {
+            log(&format!("camera: {}, RMS {rms:.3} px", intrinsics_line(k)));
+        }
     }
-
-    let clock = Instant::now();
     let rig = RigBoards::from_rig(&manifest.rig).map_err(|e| RunError::Unsupported(e.to_string()))?;
     let spacing = manifest.bscan_spacing_mm_per_px;
     let (detector, targets) = settings::detector(manifest);
-    let mut frames = frames::process_all(&files, &camera, &rig, &detector)?;
-    timings.push(("frames (board poses and arcs)", clock.elapsed().as_secs_f64()));
-    let clock = Instant::now();
+    let mut frames = clock.time("frames (board poses and arcs)", || {
+        frames::process_all(&files, &camera, &rig, &detector)
+    })?;
+    let started = Instant::now();
     if camera::refine_with_frames(manifest, &mut camera, &mut frames, &rig, &name)? {
-        timings.push(("camera refined with the frames' boards", clock.elapsed().as_secs_f64()));
+        clock.record("camera refined with the frames' boards", started);
         if let Some((k, r)) = camera
             .intrinsics
             .as_ref()
             .zip(camera.calibration.as_ref().and_then(|c| c.refined.as_ref()))
         {
             log(&format!(
-                "camera refined with {} boards of the frames: fx {:.2} fy {:.2} cx {:.2} cy {:.2} px",
+                "camera refined with {} boards of the frames: {}",
                 r.boards_used,
-                k.fx(),
-                k.fy(),
-                k.cx(),
-                k.cy()
+                intrinsics_line(k)
             ));
         }
     }
-
-    let clock = Instant::now();
-    let min_frames = manifest.thresholds.min_frames;
-    let variant = settings::variant(manifest);
-    let pairing = PairingInputs {
-        dataset: &name,
-        spacing_mm_per_px: spacing,
-        initial_marker_T_image: manifest.initial_marker_T_image,
-        min_frames,
-        fit_pixel_size: manifest.sphere_fit.fit_pixel_size,
-    };
-    let (correspondences, start_guess) = solve::point_pairs(&mut frames, targets, &pairing, log)?;
-    solve::enough_frames(&frames, &correspondences, min_frames, &name)?;
-    // Ground truth (rendered data) is read only to score the estimates.
-    let truth = GroundTruth::load(&folder).map_err(|source| RunError::Truth {
-        dataset: name.clone(),
-        source,
+    let Calibrated {
+        correspondences,
+        start_guess,
+        truth,
+        solve_settings,
+        solved,
+    } = clock.time("calibration and evaluation", || {
+        calibrate(manifest, &name, &folder, &mut frames, targets, log)
     })?;
-    let truth_transform = truth.as_ref().map(true_calibration);
-    let solve_settings = settings::solve(manifest);
-    let solved = solve::calibrate(&correspondences, &solve_settings, truth_transform, &name)?;
-    solve::record_bre(&mut frames, &correspondences, &solved.all_frames_fit, spacing);
     let solve::Calibrations {
         all_frames_fit,
         start,
         thresholds,
         primary,
     } = solved;
-    timings.push(("calibration and evaluation", clock.elapsed().as_secs_f64()));
-
+    let truth_transform = truth.as_ref().map(true_calibration);
     // A dome phantom's arcs are checked against the noise model the bound assumes.
     let arcs_against = truth::ArcCheck {
         spacing_mm_per_px: spacing,
@@ -173,77 +148,32 @@ pub fn run_dataset(
         .as_ref()
         .zip(thresholds[primary].truth)
         .map(|(t, calibration)| truth::score(&mut frames, t, &camera, calibration, &arcs_against));
-
-    let clock = Instant::now();
     let image_size_px = truth_transform
         .map(|t| t.image_size_px)
         .or_else(|| frames.iter().find_map(|f| f.bscan_size_px))
         .unwrap_or([0, 0]);
     let fit_inputs = FitInputs {
         spacing,
-        variant,
+        variant: settings::variant(manifest),
         start: start.as_ref(),
         image_size_px,
     };
-    let primary_frames: Vec<Correspondence> = correspondences
-        .iter()
-        .filter(|c| thresholds[primary].frames.contains(&c.frame))
-        .cloned()
-        .collect();
-    let validation = match methods::resampling_stage(manifest, &primary_frames, &thresholds[primary], &fit_inputs) {
-        Ok(v) => Some(v),
-        Err(e) => {
-            log(&format!("validation metrics skipped: {e}"));
-            None
-        }
+    let estimators = Estimators {
+        manifest,
+        camera: &camera,
+        rig: &rig,
+        targets,
+        inputs: MethodInputs {
+            records: &frames,
+            frames: &correspondences,
+            reported: &thresholds[primary],
+            fit: &fit_inputs,
+            feature_in_phantom_mm: [0.0; 3],
+            sphere_radius_mm: None,
+            truth: truth_transform,
+        },
     };
-    let pose_inputs = match (&manifest.sphere_fit.pose_prior, &camera.intrinsics) {
-        (Some(prior), Some(intrinsics)) => Some(super::sphere_pose::PoseInputs {
-            camera: intrinsics,
-            calibration: camera.calibration.as_ref(),
-            probe_board: &rig.probe,
-            phantom_board: &rig.phantom,
-            prior,
-        }),
-        (Some(_), None) => {
-            log("sphere fit with pose priors skipped: the poses come from a tracker, not the boards");
-            None
-        }
-        (None, _) => None,
-    };
-    let methods = match targets {
-        Targets::Point(feature) => methods::methods_stage(
-            manifest,
-            &MethodInputs {
-                records: &frames,
-                frames: &correspondences,
-                reported: &thresholds[primary],
-                fit: &fit_inputs,
-                feature_in_phantom_mm: feature,
-                sphere_radius_mm: settings::sphere_radius_mm(manifest),
-                truth: truth_transform,
-            },
-            log,
-        ),
-        Targets::Spheres(spheres) => methods::spheres_methods(
-            &MethodInputs {
-                records: &frames,
-                frames: &correspondences,
-                reported: &thresholds[primary],
-                fit: &fit_inputs,
-                feature_in_phantom_mm: crate::spec::phantom::spheres_centre(spheres),
-                sphere_radius_mm: None,
-                truth: truth_transform,
-            },
-            spheres,
-            manifest.sphere_fit.fit_pixel_size,
-            pose_inputs.as_ref(),
-            log,
-        ),
-        Targets::Wires(_) => Vec::new(),
-    };
-    timings.push(("methods and validation metrics", clock.elapsed().as_secs_f64()));
-
+    let (validation, methods) = clock.time("methods and validation metrics", || estimators.run(log));
     let gates = evaluate_gates(manifest, &thresholds[primary], truth_summary.as_ref(), &methods);
     let input_files = input_files(manifest, &folder, &files, &camera);
     let seed = match &dataset.source {
@@ -272,10 +202,143 @@ pub fn run_dataset(
         methods,
         start_guess,
         validation,
-        timings_s: timings,
+        timings_s: clock.into_timings(),
         input_files,
         seed,
     })
+}
+
+/// `fx … fy … cx … cy … px` of a camera.
+fn intrinsics_line(k: &crate::io::camera_model::CameraIntrinsics) -> String {
+    format!("fx {:.2} fy {:.2} cx {:.2} cy {:.2} px", k.fx(), k.fy(), k.cx(), k.cy())
+}
+
+/// The point pairs, the calibration at every cut-off and the ground truth (read
+/// only to score the estimates).
+struct Calibrated {
+    correspondences: Vec<Correspondence>,
+    start_guess: Option<crate::estimate::start_basin::StartGuess>,
+    truth: Option<GroundTruth>,
+    solve_settings: super::record::SolveSettings,
+    solved: solve::Calibrations,
+}
+
+/// Stage 4 and 5: point pairs, Horn at every cut-off, each frame's BRE.
+fn calibrate(
+    manifest: &Manifest,
+    name: &str,
+    folder: &Path,
+    frames: &mut [super::record::FrameRecord],
+    targets: Targets<'_>,
+    log: &mut dyn FnMut(&str),
+) -> Result<Calibrated, RunError> {
+    let spacing = manifest.bscan_spacing_mm_per_px;
+    let min_frames = manifest.thresholds.min_frames;
+    let pairing = PairingInputs {
+        dataset: name,
+        spacing_mm_per_px: spacing,
+        initial_marker_T_image: manifest.initial_marker_T_image,
+        min_frames,
+        fit_pixel_size: manifest.sphere_fit.fit_pixel_size,
+    };
+    let (correspondences, start_guess) = solve::point_pairs(frames, targets, &pairing, log)?;
+    solve::enough_frames(frames, &correspondences, min_frames, name)?;
+    // Ground truth (rendered data) is read only to score the estimates.
+    let truth = GroundTruth::load(folder).map_err(|source| RunError::Truth {
+        dataset: name.to_string(),
+        source,
+    })?;
+    let solve_settings = settings::solve(manifest);
+    let solved = solve::calibrate(
+        &correspondences,
+        &solve_settings,
+        truth.as_ref().map(true_calibration),
+        name,
+    )?;
+    solve::record_bre(frames, &correspondences, &solved.all_frames_fit, spacing);
+    Ok(Calibrated {
+        correspondences,
+        start_guess,
+        truth,
+        solve_settings,
+        solved,
+    })
+}
+
+/// The other estimators and the resampling metrics, after the reported calibration.
+struct Estimators<'a> {
+    manifest: &'a Manifest,
+    camera: &'a super::record::CameraStage,
+    rig: &'a RigBoards,
+    targets: Targets<'a>,
+    /// The feature and radius are filled per phantom.
+    inputs: MethodInputs<'a>,
+}
+
+impl Estimators<'_> {
+    fn run(
+        &self,
+        log: &mut dyn FnMut(&str),
+    ) -> (
+        Option<super::record::ResamplingSummary>,
+        Vec<super::record::MethodResult>,
+    ) {
+        let manifest = self.manifest;
+        let reported = self.inputs.reported;
+        let primary_frames: Vec<Correspondence> = self
+            .inputs
+            .frames
+            .iter()
+            .filter(|c| reported.frames.contains(&c.frame))
+            .cloned()
+            .collect();
+        let validation = match methods::resampling_stage(manifest, &primary_frames, reported, self.inputs.fit) {
+            Ok(v) => Some(v),
+            Err(e) => {
+                log(&format!("validation metrics skipped: {e}"));
+                None
+            }
+        };
+        let camera = self.camera;
+        let pose_inputs = match (&manifest.sphere_fit.pose_prior, &camera.intrinsics) {
+            (Some(prior), Some(intrinsics)) => Some(super::sphere_pose::PoseInputs {
+                camera: intrinsics,
+                calibration: camera.calibration.as_ref(),
+                probe_board: &self.rig.probe,
+                phantom_board: &self.rig.phantom,
+                prior,
+            }),
+            (Some(_), None) => {
+                log("sphere fit with pose priors skipped: the poses come from a tracker, not the boards");
+                None
+            }
+            (None, _) => None,
+        };
+        let methods = match self.targets {
+            Targets::Point(feature) => methods::methods_stage(
+                manifest,
+                &MethodInputs {
+                    feature_in_phantom_mm: feature,
+                    sphere_radius_mm: settings::sphere_radius_mm(manifest),
+                    ..self.inputs
+                },
+                log,
+            ),
+            Targets::Spheres(spheres) => methods::spheres_methods(
+                &MethodInputs {
+                    feature_in_phantom_mm: crate::spec::phantom::spheres_centre(spheres),
+                    sphere_radius_mm: None,
+                    ..self.inputs
+                },
+                spheres,
+                manifest.sphere_fit.fit_pixel_size,
+                pose_inputs.as_ref(),
+                log,
+            ),
+            Targets::Wires(_) => Vec::new(),
+        };
+        (validation, methods)
+    }
 }
 
 /// Every file the run read, for provenance.

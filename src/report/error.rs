@@ -68,7 +68,7 @@ impl OutputError {
 
 impl From<tera::Error> for OutputError {
     fn from(e: tera::Error) -> OutputError {
-        OutputError::Template(super::templating::error_chain(&e))
+        OutputError::Template(error_chain(&e))
     }
 }
 
@@ -76,4 +76,15 @@ impl From<serde_json::Error> for OutputError {
     fn from(e: serde_json::Error) -> OutputError {
         OutputError::Report(format!("JSON: {e}"))
     }
+}
+
+/// A tera error with its causes, joined.
+pub fn error_chain(e: &tera::Error) -> String {
+    let mut text = e.to_string();
+    let mut source = std::error::Error::source(e);
+    while let Some(s) = source {
+        text.push_str(&format!(": {s}"));
+        source = s.source();
+    }
+    text
 }

@@ -1,6 +1,7 @@
 //! What every page's rendering shares, below the pages themselves: the LaTeX
 //! escape filter, the figures' font, and tera's errors with their causes.
 
+pub use super::error::error_chain;
 use super::error::OutputError;
 
 /// Where the bitmap figures' font is read from.
@@ -88,15 +89,4 @@ fn tex_filter(value: &tera::Value, _: &std::collections::HashMap<String, tera::V
         other => other.to_string(),
     };
     Ok(tera::Value::String(tex_escape(&text)))
-}
-
-/// A tera error with its causes, joined.
-pub fn error_chain(e: &tera::Error) -> String {
-    let mut text = e.to_string();
-    let mut source = std::error::Error::source(e);
-    while let Some(s) = source {
-        text.push_str(&format!(": {s}"));
-        source = s.source();
-    }
-    text
 }

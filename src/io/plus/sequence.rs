@@ -77,6 +77,183 @@ pub struct Sequence {
     pixels: Vec<u8>,
 }
 
+/// The header's fields (per-frame ones apart) and where the pixel data starts.
+struct Header {
+    fields: BTreeMap<String, Field>,
+    per_frame: BTreeMap<usize, BTreeMap<String, Field>>,
+    data_start: usize,
+}
+
+/// Reads `Key = value` lines up to `ElementDataFile = LOCAL`.
+fn read_header(bytes: &[u8], fail: &dyn Fn(Option<usize>, String) -> SequenceError) -> Result<Header, SequenceError> {
+    let mut header: BTreeMap<String, Field> = BTreeMap::new();
+    let mut per_frame: BTreeMap<usize, BTreeMap<String, Field>> = BTreeMap::new();
+    let mut offset = 0usize;
+    let mut line_no = 0usize;
+    while offset < bytes.len() {
+        let end = bytes[offset..]
+            .iter()
+            .position(|&b| b == b'\n')
+            .map(|p| offset + p)
+            .unwrap_or(bytes.len());
+        line_no += 1;
+        let raw = &bytes[offset..end];
+        offset = (end + 1).min(bytes.len());
+        let text = std::str::from_utf8(raw)
+            .map_err(|_| {
+                fail(
+                    Some(line_no),
+                    "header line is not text (data before `ElementDataFile`?)".into(),
+                )
+            })?
+            .trim_end_matches('\r');
+        if text.trim().is_empty() {
+            continue;
+        }
+        let Some((key, value)) = text.split_once('=') else {
+            return Err(fail(
+                Some(line_no),
+                format!("expected `Key = value`, got `{}`", clip(text)),
+            ));
+        };
+        let key = key.trim().to_string();
+        let value = value.trim().to_string();
+        if key == "ElementDataFile" {
+            if value != "LOCAL" {
+                return Err(fail(
+                    Some(line_no),
+                    format!("`ElementDataFile = {value}`: only LOCAL (data in the same file) is supported"),
+                ));
+            }
+            header.insert(key, Field { value, line: line_no });
+            return Ok(Header {
+                fields: header,
+                per_frame,
+                data_start: offset,
+            });
+        }
+        let field = Field { value, line: line_no };
+        if let Some(rest) = key.strip_prefix("Seq_Frame") {
+            let digits: String = rest.chars().take_while(|c| c.is_ascii_digit()).collect();
+            let name = rest[digits.len()..].strip_prefix('_');
+            match (digits.parse::<usize>(), name) {
+                (Ok(index), Some(name)) if !name.is_empty() => {
+                    per_frame.entry(index).or_default().insert(name.to_string(), field);
+                }
+                _ => return Err(fail(Some(line_no), format!("`{key}`: expected `Seq_FrameNNNN_<Name>`"))),
+            }
+        } else {
+            header.insert(key, field);
+        }
+    }
+    Err(fail(
+        Some(line_no),
+        "no `ElementDataFile = LOCAL` line: the header never ends (file cut off?)".into(),
+    ))
+}
+
+/// `DimSize`: width, height and frames (`0 0 N` for a tracker-only sequence).
+fn dimensions(
+    dims: &Field,
+    fail: &dyn Fn(Option<usize>, String) -> SequenceError,
+) -> Result<(usize, usize, usize), SequenceError> {
+    let numbers: Vec<usize> = dims
+        .value
+        .split_whitespace()
+        .map(|s| s.parse::<usize>())
+        .collect::<Result<_, _>>()
+        .map_err(|_| {
+            fail(
+                Some(dims.line),
+                format!("`DimSize = {}`: not whole numbers", dims.value),
+            )
+        })?;
+    let (width, height, count) = match numbers.as_slice() {
+        [w, h, n] => (*w, *h, *n),
+        [w, h] => (*w, *h, 1),
+        _ => {
+            return Err(fail(
+                Some(dims.line),
+                format!("`DimSize = {}`: expected width height frames", dims.value),
+            ))
+        }
+    };
+    if (width == 0) != (height == 0) {
+        return Err(fail(Some(dims.line), "`DimSize`: an image of zero size".into()));
+    }
+    Ok((width, height, count))
+}
+
+/// Only 8-bit grey pixels are read.
+fn check_element(
+    element: &Field,
+    channels: Option<&Field>,
+    fail: &dyn Fn(Option<usize>, String) -> SequenceError,
+) -> Result<(), SequenceError> {
+    if element.value != "MET_UCHAR" {
+        return Err(fail(
+            Some(element.line),
+            format!(
+                "`ElementType = {}`: only MET_UCHAR (8-bit B-scans) is supported",
+                element.value
+            ),
+        ));
+    }
+    match channels {
+        Some(channels) if channels.value != "1" => Err(fail(
+            Some(channels.line),
+            format!(
+                "`ElementNumberOfChannels = {}`: only grey (1) is supported",
+                channels.value
+            ),
+        )),
+        _ => Ok(()),
+    }
+}
+
+/// The pixel bytes after the header: as they are, or inflated (`compressed_size`
+/// is `Some` for compressed data, holding `CompressedDataSize` when given), at
+/// most one byte past `expected`.
+fn pixel_bytes(
+    data: &[u8],
+    compressed_size: Option<Option<&Field>>,
+    expected: usize,
+    fail: &dyn Fn(Option<usize>, String) -> SequenceError,
+) -> Result<Vec<u8>, SequenceError> {
+    let Some(size) = compressed_size else {
+        return Ok(data.to_vec());
+    };
+    if let Some(size) = size {
+        let declared: usize = size.value.parse().map_err(|_| {
+            fail(
+                Some(size.line),
+                format!("`CompressedDataSize = {}`: not a whole number", size.value),
+            )
+        })?;
+        if declared > data.len() {
+            return Err(fail(
+                Some(size.line),
+                format!(
+                    "data truncated: `CompressedDataSize` says {declared} bytes, the file has {} after the header",
+                    data.len()
+                ),
+            ));
+        }
+    }
+    let mut out = Vec::with_capacity(expected);
+    let mut decoder = flate2::read::ZlibDecoder::new(data).take(expected as u64 + 1);
+    decoder.read_to_end(&mut out).map_err(|e| {
+        fail(
+            None,
+            format!(
+                "compressed data is corrupt or truncated after {} of {expected} bytes: {e}",
+                out.len()
+            ),
+        )
+    })?;
+    Ok(out)
+}
+
 /// Largest frame count and image size accepted (guards the allocation against a
 /// corrupt header).
 const MAX_PIXELS: usize = 1 << 32;
@@ -99,102 +276,18 @@ impl Sequence {
             line,
             message,
         };
-        let mut header: BTreeMap<String, Field> = BTreeMap::new();
-        let mut per_frame: BTreeMap<usize, BTreeMap<String, Field>> = BTreeMap::new();
-        let mut offset = 0usize;
-        let mut line_no = 0usize;
-        let mut data_start = None;
-        while offset < bytes.len() {
-            let end = bytes[offset..]
-                .iter()
-                .position(|&b| b == b'\n')
-                .map(|p| offset + p)
-                .unwrap_or(bytes.len());
-            line_no += 1;
-            let raw = &bytes[offset..end];
-            offset = (end + 1).min(bytes.len());
-            let text = std::str::from_utf8(raw)
-                .map_err(|_| {
-                    fail(
-                        Some(line_no),
-                        "header line is not text (data before `ElementDataFile`?)".into(),
-                    )
-                })?
-                .trim_end_matches('\r');
-            if text.trim().is_empty() {
-                continue;
-            }
-            let Some((key, value)) = text.split_once('=') else {
-                return Err(fail(
-                    Some(line_no),
-                    format!("expected `Key = value`, got `{}`", clip(text)),
-                ));
-            };
-            let key = key.trim().to_string();
-            let value = value.trim().to_string();
-            if key == "ElementDataFile" {
-                if value != "LOCAL" {
-                    return Err(fail(
-                        Some(line_no),
-                        format!("`ElementDataFile = {value}`: only LOCAL (data in the same file) is supported"),
-                    ));
-                }
-                data_start = Some(offset);
-                header.insert(key, Field { value, line: line_no });
-                break;
-            }
-            let field = Field { value, line: line_no };
-            if let Some(rest) = key.strip_prefix("Seq_Frame") {
-                let digits: String = rest.chars().take_while(|c| c.is_ascii_digit()).collect();
-                let name = rest[digits.len()..].strip_prefix('_');
-                match (digits.parse::<usize>(), name) {
-                    (Ok(index), Some(name)) if !name.is_empty() => {
-                        per_frame.entry(index).or_default().insert(name.to_string(), field);
-                    }
-                    _ => return Err(fail(Some(line_no), format!("`{key}`: expected `Seq_FrameNNNN_<Name>`"))),
-                }
-            } else {
-                header.insert(key, field);
-            }
-        }
-        let data_start = data_start.ok_or_else(|| {
-            fail(
-                Some(line_no),
-                "no `ElementDataFile = LOCAL` line: the header never ends (file cut off?)".into(),
-            )
-        })?;
-
+        let Header {
+            fields: header,
+            per_frame,
+            data_start,
+        } = read_header(bytes, &fail)?;
         let get = |key: &str| {
             header
                 .get(key)
                 .ok_or_else(|| fail(None, format!("header field `{key}` is missing")))
         };
         let dims = get("DimSize")?;
-        let numbers: Vec<usize> = dims
-            .value
-            .split_whitespace()
-            .map(|s| s.parse::<usize>())
-            .collect::<Result<_, _>>()
-            .map_err(|_| {
-                fail(
-                    Some(dims.line),
-                    format!("`DimSize = {}`: not whole numbers", dims.value),
-                )
-            })?;
-        let (width, height, count) = match numbers.as_slice() {
-            [w, h, n] => (*w, *h, *n),
-            [w, h] => (*w, *h, 1),
-            _ => {
-                return Err(fail(
-                    Some(dims.line),
-                    format!("`DimSize = {}`: expected width height frames", dims.value),
-                ))
-            }
-        };
-        // `0 0 N`: a tracker-only sequence (poses, no images), as PLUS writes one.
-        if (width == 0) != (height == 0) {
-            return Err(fail(Some(dims.line), "`DimSize`: an image of zero size".into()));
-        }
+        let (width, height, count) = dimensions(dims, &fail)?;
         let expected = width
             .checked_mul(height)
             .and_then(|p| p.checked_mul(count))
@@ -205,27 +298,7 @@ impl Sequence {
                     format!("`DimSize = {}` is implausibly large", dims.value),
                 )
             })?;
-        let element = get("ElementType")?;
-        if element.value != "MET_UCHAR" {
-            return Err(fail(
-                Some(element.line),
-                format!(
-                    "`ElementType = {}`: only MET_UCHAR (8-bit B-scans) is supported",
-                    element.value
-                ),
-            ));
-        }
-        if let Some(channels) = header.get("ElementNumberOfChannels") {
-            if channels.value != "1" {
-                return Err(fail(
-                    Some(channels.line),
-                    format!(
-                        "`ElementNumberOfChannels = {}`: only grey (1) is supported",
-                        channels.value
-                    ),
-                ));
-            }
-        }
+        check_element(get("ElementType")?, header.get("ElementNumberOfChannels"), &fail)?;
         let compressed = match header.get("CompressedData") {
             None => false,
             Some(f) => match f.value.to_ascii_lowercase().as_str() {
@@ -251,39 +324,12 @@ impl Sequence {
             ));
         }
         let data = &bytes[data_start..];
-        let pixels = if compressed {
-            if let Some(size) = header.get("CompressedDataSize") {
-                let declared: usize = size.value.parse().map_err(|_| {
-                    fail(
-                        Some(size.line),
-                        format!("`CompressedDataSize = {}`: not a whole number", size.value),
-                    )
-                })?;
-                if declared > data.len() {
-                    return Err(fail(
-                        Some(size.line),
-                        format!(
-                            "data truncated: `CompressedDataSize` says {declared} bytes, the file has {} after the header",
-                            data.len()
-                        ),
-                    ));
-                }
-            }
-            let mut out = Vec::with_capacity(expected);
-            let mut decoder = flate2::read::ZlibDecoder::new(data).take(expected as u64 + 1);
-            decoder.read_to_end(&mut out).map_err(|e| {
-                fail(
-                    None,
-                    format!(
-                        "compressed data is corrupt or truncated after {} of {expected} bytes: {e}",
-                        out.len()
-                    ),
-                )
-            })?;
-            out
+        let compressed_size = if compressed {
+            Some(header.get("CompressedDataSize"))
         } else {
-            data.to_vec()
+            None
         };
+        let pixels = pixel_bytes(data, compressed_size, expected, &fail)?;
         if pixels.len() < expected {
             return Err(fail(
                 None,
