@@ -157,7 +157,12 @@ pub fn corner_rms_bound(
         let reduced = &ck * kk.try_inverse()? * ck.transpose();
         own - Matrix6::from_iterator(reduced.iter().copied())
     };
-    let cov = info.try_inverse()?;
+    probe_rms(marker_T_image, &info.try_inverse()?, probes)
+}
+
+/// The RMS over `probes` of the position error a calibration covariance `cov`
+/// gives them (image frame, mm), or `None` when it is not finite.
+fn probe_rms(marker_T_image: &Rigid, cov: &Matrix6<f64>, probes: &[Point3<f64>]) -> Option<f64> {
     let mut sum = 0.0;
     for q in probes {
         let q0 = marker_T_image * q;

@@ -163,6 +163,18 @@ fn validate_render(c: &mut Checker<'_>, field: &str, spec: &RenderSpec) {
     ] {
         c.at_least(&format!("{field}.sweep.{name}"), v, 0.0);
     }
+    validate_bscan(c, field, spec);
+    if let Some(t) = &spec.marker_T_image {
+        c.finite(&format!("{field}.marker_T_image.rotation_deg"), &t.rotation_deg);
+        c.finite(&format!("{field}.marker_T_image.translation_mm"), &t.translation_mm);
+    }
+    if let Some(r) = &spec.realism {
+        super::realism::check(c, &format!("{field}.realism"), r);
+    }
+}
+
+/// The rendered B-scans' geometry and the rates of their faults.
+fn validate_bscan(c: &mut Checker<'_>, field: &str, spec: &RenderSpec) {
     let b = &spec.bscan;
     c.positive(&format!("{field}.bscan.depth_mm"), b.depth_mm);
     if !(b.fan_deg > 0.0 && b.fan_deg < 170.0) {
@@ -190,13 +202,6 @@ fn validate_render(c: &mut Checker<'_>, field: &str, spec: &RenderSpec) {
                 format!("must be a fraction between 0 and 1, got {v}"),
             );
         }
-    }
-    if let Some(t) = &spec.marker_T_image {
-        c.finite(&format!("{field}.marker_T_image.rotation_deg"), &t.rotation_deg);
-        c.finite(&format!("{field}.marker_T_image.translation_mm"), &t.translation_mm);
-    }
-    if let Some(r) = &spec.realism {
-        super::realism::check(c, &format!("{field}.realism"), r);
     }
 }
 

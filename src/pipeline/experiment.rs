@@ -263,14 +263,7 @@ pub fn run_all(
             }
             for g in run.gates.iter().filter(|g| !g.passed) {
                 gates_failed = true;
-                reporter.gate_failed(&format!(
-                    "{} / {}: {} = {} exceeds {}",
-                    m.experiment,
-                    d.name,
-                    g.name,
-                    g.value.map(|v| format!("{v:.3}")).unwrap_or_else(|| "missing".into()),
-                    g.limit
-                ));
+                reporter.gate_failed(&failed_gate(&m.experiment, &d.name, g));
             }
             runs.push((index, run));
         }
@@ -288,6 +281,16 @@ pub fn run_all(
         0
     };
     Outcome { code, manifests, runs }
+}
+
+/// A failed gate in words: which, its value and its limit.
+fn failed_gate(experiment: &str, dataset: &str, g: &super::record::GateResult) -> String {
+    format!(
+        "{experiment} / {dataset}: {} = {} exceeds {}",
+        g.name,
+        g.value.map(|v| format!("{v:.3}")).unwrap_or_else(|| "missing".into()),
+        g.limit
+    )
 }
 
 /// Swaps a written experiment in, or keeps the old folder when any of its
@@ -355,14 +358,7 @@ fn run_tracked(
     reporter.tracked_done(m, &run, &resolution, plus.as_ref(), &run_folder, started)?;
     let gates = tracked::gates(&run, m);
     for g in gates.iter().filter(|g| !g.passed) {
-        reporter.gate_failed(&format!(
-            "{} / {}: {} = {} exceeds {}",
-            m.experiment,
-            m.dataset,
-            g.name,
-            g.value.map(|v| format!("{v:.3}")).unwrap_or_else(|| "missing".into()),
-            g.limit
-        ));
+        reporter.gate_failed(&failed_gate(&m.experiment, &m.dataset, g));
     }
     Ok(gates.iter().all(|g| g.passed))
 }

@@ -90,17 +90,12 @@ pub fn run_dataset(
     let name = dataset.name.clone();
     let mut clock = StageClock::default();
     let (folder, claim) = clock.time("dataset", || dataset_folder(manifest, dataset, datasets_root, log))?;
-    let rendered = claim.is_some();
     let files = dataset::load_frame_list(&folder).map_err(|source| RunError::Dataset {
         dataset: name.clone(),
         source,
     })?;
     let mut camera = clock.time("camera calibration", || camera::camera_stage(manifest, &name, &folder))?;
-    if let Some(k) = &camera.intrinsics {
-        if let Some(rms) = k.rms_px {
-            log(&format!("camera: {}, RMS {rms:.3} px", intrinsics_line(k)));
-        }
-    }
+    log_camera(&camera, false, log);
     let rig = RigBoards::from_rig(&manifest.rig).map_err(|e| RunError::Unsupported(e.to_string()))?;
     let spacing = manifest.bscan_spacing_mm_per_px;
     let (detector, targets) = settings::detector(manifest);
@@ -110,53 +105,33 @@ pub fn run_dataset(
     let started = Instant::now();
     if camera::refine_with_frames(manifest, &mut camera, &mut frames, &rig, &name)? {
         clock.record("camera refined with the frames' boards", started);
-        if let Some((k, r)) = camera
-            .intrinsics
-            .as_ref()
-            .zip(camera.calibration.as_ref().and_then(|c| c.refined.as_ref()))
-        {
-            log(&format!(
-                "camera refined with {} boards of the frames: {}",
-                r.boards_used,
-                intrinsics_line(k)
-            ));
-        }
+        log_camera(&camera, true, log);
     }
     let Calibrated {
         correspondences,
         start_guess,
         truth,
         solve_settings,
-        solved,
+        solved:
+            solve::Calibrations {
+                all_frames_fit,
+                start,
+                thresholds,
+                primary,
+            },
     } = clock.time("calibration and evaluation", || {
         calibrate(manifest, &name, &folder, &mut frames, targets, log)
     })?;
-    let solve::Calibrations {
-        all_frames_fit,
-        start,
-        thresholds,
-        primary,
-    } = solved;
     let truth_transform = truth.as_ref().map(true_calibration);
-    // A dome phantom's arcs are checked against the noise model the bound assumes.
-    let arcs_against = truth::ArcCheck {
-        spacing_mm_per_px: spacing,
-        noise: super::design::edge_noise(manifest),
-    };
-    // The calibration's truth comparison exists whenever truth was given (its fit succeeded above).
-    let truth_summary = truth
-        .as_ref()
-        .zip(thresholds[primary].truth)
-        .map(|(t, calibration)| truth::score(&mut frames, t, &camera, calibration, &arcs_against));
-    let image_size_px = truth_transform
-        .map(|t| t.image_size_px)
-        .or_else(|| frames.iter().find_map(|f| f.bscan_size_px))
-        .unwrap_or([0, 0]);
+    let truth_summary = score_truth(manifest, truth.as_ref(), &thresholds[primary], &mut frames, &camera);
     let fit_inputs = FitInputs {
         spacing,
         variant: settings::variant(manifest),
         start: start.as_ref(),
-        image_size_px,
+        image_size_px: truth_transform
+            .map(|t| t.image_size_px)
+            .or_else(|| frames.iter().find_map(|f| f.bscan_size_px))
+            .unwrap_or([0, 0]),
     };
     let estimators = Estimators {
         manifest,
@@ -174,17 +149,13 @@ pub fn run_dataset(
         },
     };
     let (validation, methods) = clock.time("methods and validation metrics", || estimators.run(log));
-    let gates = evaluate_gates(manifest, &thresholds[primary], truth_summary.as_ref(), &methods);
-    let input_files = input_files(manifest, &folder, &files, &camera);
-    let seed = match &dataset.source {
-        DatasetSource::Render(spec) => Some(spec.seed),
-        DatasetSource::Folder(_) => None,
-    };
     Ok(DatasetRun {
+        gates: evaluate_gates(manifest, &thresholds[primary], truth_summary.as_ref(), &methods),
+        input_files: input_files(manifest, &folder, &files, &camera),
         experiment: manifest.experiment.clone(),
         dataset: name,
         dataset_folder: folder,
-        rendered,
+        rendered: claim.is_some(),
         camera,
         frames,
         all_frames_fit,
@@ -193,7 +164,6 @@ pub fn run_dataset(
         thresholds,
         primary,
         truth: truth_summary,
-        gates,
         spacing_mm_per_px: spacing,
         feature_in_phantom_mm: match targets {
             Targets::Point(p) => Some(p),
@@ -203,14 +173,47 @@ pub fn run_dataset(
         start_guess,
         validation,
         timings_s: clock.into_timings(),
-        input_files,
-        seed,
+        seed: match &dataset.source {
+            DatasetSource::Render(spec) => Some(spec.seed),
+            DatasetSource::Folder(_) => None,
+        },
     })
 }
 
-/// `fx … fy … cx … cy … px` of a camera.
-fn intrinsics_line(k: &crate::io::camera_model::CameraIntrinsics) -> String {
-    format!("fx {:.2} fy {:.2} cx {:.2} cy {:.2} px", k.fx(), k.fy(), k.cx(), k.cy())
+/// The calibration's comparison with the ground truth, whenever truth was given
+/// (and the reported calibration's fit succeeded); a dome phantom's arcs are
+/// checked against the noise model the bound assumes.
+fn score_truth(
+    manifest: &Manifest,
+    truth: Option<&GroundTruth>,
+    reported: &ThresholdRow,
+    frames: &mut [super::record::FrameRecord],
+    camera: &super::record::CameraStage,
+) -> Option<TruthSummary> {
+    let arcs_against = truth::ArcCheck {
+        spacing_mm_per_px: manifest.bscan_spacing_mm_per_px,
+        noise: super::design::edge_noise(manifest),
+    };
+    truth
+        .zip(reported.truth)
+        .map(|(t, calibration)| truth::score(frames, t, camera, calibration, &arcs_against))
+}
+
+/// Logs the camera's intrinsics: as calibrated (with its RMS), or as refined
+/// with the frames' boards.
+fn log_camera(camera: &super::record::CameraStage, refined: bool, log: &mut dyn FnMut(&str)) {
+    let Some(k) = &camera.intrinsics else { return };
+    let line = format!("fx {:.2} fy {:.2} cx {:.2} cy {:.2} px", k.fx(), k.fy(), k.cx(), k.cy());
+    if !refined {
+        if let Some(rms) = k.rms_px {
+            log(&format!("camera: {line}, RMS {rms:.3} px"));
+        }
+    } else if let Some(r) = camera.calibration.as_ref().and_then(|c| c.refined.as_ref()) {
+        log(&format!(
+            "camera refined with {} boards of the frames: {line}",
+            r.boards_used
+        ));
+    }
 }
 
 /// The point pairs, the calibration at every cut-off and the ground truth (read

@@ -308,6 +308,31 @@ pub fn fit_settings(inputs: &TrackedInputs) -> FitSettings {
     }
 }
 
+/// The tracker's lag from the calibration sweep's own motion: poses with no lag
+/// map the wires into the images through a calibration of the family's first
+/// constraints and its most flexible pixel model; the lag is when the two
+/// motions line up.
+fn lag_from_sweep(
+    calibration: &Sequence,
+    frames: &mut [TrackedFrame],
+    inputs: &TrackedInputs,
+) -> crate::pipeline::sweep_lag::SweepLag {
+    let family = Candidate::family(inputs.model, inputs.pixel_model);
+    let candidate = Candidate {
+        pixel_model: family[family.len() - 1].pixel_model,
+        ..family[0]
+    };
+    attach_poses(calibration, frames, inputs, 0.0);
+    let usable = usable_constraints(frames, &inputs.nwires, Role::Calibration);
+    match model_selection::fit(usable.iter(), candidate, fit_settings(inputs)) {
+        Ok(trained) => crate::pipeline::sweep_lag::estimate(frames, &inputs.nwires, &trained.fit),
+        Err(e) => crate::pipeline::sweep_lag::SweepLag {
+            unresolved: Some(format!("no calibration to map the poses with: {e}")),
+            ..Default::default()
+        },
+    }
+}
+
 /// Runs the tracked pipeline.
 pub fn run(inputs: &TrackedInputs, min_frames: usize) -> Result<TrackedRun, TrackedError> {
     let calibration = Sequence::read(&inputs.calibration_sequence)?;
@@ -322,23 +347,7 @@ pub fn run(inputs: &TrackedInputs, min_frames: usize) -> Result<TrackedRun, Trac
                 .tracker_lag_s
         }
         TimeOffset::Estimate => {
-            // Poses with no lag map the wires into the images through a
-            // calibration of the family's first constraints and its most flexible
-            // pixel model; the lag is when the two motions line up.
-            let family = Candidate::family(inputs.model, inputs.pixel_model);
-            let candidate = Candidate {
-                pixel_model: family[family.len() - 1].pixel_model,
-                ..family[0]
-            };
-            attach_poses(&calibration, &mut frames, inputs, 0.0);
-            let usable = usable_constraints(&frames, &inputs.nwires, Role::Calibration);
-            let found = match model_selection::fit(usable.iter(), candidate, fit_settings(inputs)) {
-                Ok(trained) => crate::pipeline::sweep_lag::estimate(&frames, &inputs.nwires, &trained.fit),
-                Err(e) => crate::pipeline::sweep_lag::SweepLag {
-                    unresolved: Some(format!("no calibration to map the poses with: {e}")),
-                    ..Default::default()
-                },
-            };
+            let found = lag_from_sweep(&calibration, &mut frames, inputs);
             let lag = found.lag_s.unwrap_or(0.0);
             sweep_lag = Some(found);
             lag

@@ -350,6 +350,27 @@ pub fn describe(m: &MethodResult) -> String {
     }
 }
 
+impl CameraSummary {
+    /// The camera stage's intrinsics and views.
+    fn of(camera: &crate::pipeline::record::CameraStage) -> CameraSummary {
+        let k = camera.intrinsics.as_ref();
+        CameraSummary {
+            source: camera.source.clone(),
+            fx_px: k.map(|k| k.fx()),
+            fy_px: k.map(|k| k.fy()),
+            cx_px: k.map(|k| k.cx()),
+            cy_px: k.map(|k| k.cy()),
+            distortion: k.map(|k| k.distortion),
+            rms_px: k.and_then(|k| k.rms_px),
+            views_used: camera
+                .calibration
+                .as_ref()
+                .map(|c| c.views.iter().filter(|v| v.used).count()),
+            views_total: camera.calibration.as_ref().map(|c| c.views.len()),
+        }
+    }
+}
+
 impl Summary {
     /// The summary of a dataset's run.
     pub fn of(run: &DatasetRun, manifest: &Manifest) -> Summary {
@@ -362,7 +383,6 @@ impl Summary {
                 *rejected_by_stage.entry(r.stage().label().to_string()).or_insert(0) += 1;
             }
         }
-        let k = run.camera.intrinsics.as_ref();
         let t = fit.target_T_source.translation.vector;
         Summary {
             experiment: run.experiment.clone(),
@@ -376,21 +396,7 @@ impl Summary {
                 rejected: run.frames.len() - used,
                 rejected_by_stage,
             },
-            camera: CameraSummary {
-                source: run.camera.source.clone(),
-                fx_px: k.map(|k| k.fx()),
-                fy_px: k.map(|k| k.fy()),
-                cx_px: k.map(|k| k.cx()),
-                cy_px: k.map(|k| k.cy()),
-                distortion: k.map(|k| k.distortion),
-                rms_px: k.and_then(|k| k.rms_px),
-                views_used: run
-                    .camera
-                    .calibration
-                    .as_ref()
-                    .map(|c| c.views.iter().filter(|v| v.used).count()),
-                views_total: run.camera.calibration.as_ref().map(|c| c.views.len()),
-            },
+            camera: CameraSummary::of(&run.camera),
             calibration: CalibrationSummary {
                 marker_T_image: to_rows(&fit.target_T_source),
                 scale_mm_per_px: [

@@ -184,6 +184,24 @@ fn dimensions(
     Ok((width, height, count))
 }
 
+/// `CompressedData`: True or False (absent: False).
+fn compressed_flag(
+    field: Option<&Field>,
+    fail: &dyn Fn(Option<usize>, String) -> SequenceError,
+) -> Result<bool, SequenceError> {
+    match field {
+        None => Ok(false),
+        Some(f) => match f.value.to_ascii_lowercase().as_str() {
+            "true" => Ok(true),
+            "false" => Ok(false),
+            other => Err(fail(
+                Some(f.line),
+                format!("`CompressedData = {other}`: expected True or False"),
+            )),
+        },
+    }
+}
+
 /// Only 8-bit grey pixels are read.
 fn check_element(
     element: &Field,
@@ -299,19 +317,7 @@ impl Sequence {
                 )
             })?;
         check_element(get("ElementType")?, header.get("ElementNumberOfChannels"), &fail)?;
-        let compressed = match header.get("CompressedData") {
-            None => false,
-            Some(f) => match f.value.to_ascii_lowercase().as_str() {
-                "true" => true,
-                "false" => false,
-                other => {
-                    return Err(fail(
-                        Some(f.line),
-                        format!("`CompressedData = {other}`: expected True or False"),
-                    ))
-                }
-            },
-        };
+        let compressed = compressed_flag(header.get("CompressedData"), &fail)?;
         if per_frame.len() != count || per_frame.keys().next_back().is_some_and(|&last| last + 1 != count) {
             let last = per_frame.keys().next_back().map(|l| l + 1).unwrap_or(0);
             return Err(fail(
