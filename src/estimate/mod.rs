@@ -1,5 +1,6 @@
 //! Solving for `marker_T_image`: Horn's closed form, robust estimators over
 //! frames, wire matching, Levenberg–Marquardt with pixel scales, the sphere fit.
+mod bundle_frame;
 pub mod correspondence;
 pub mod edge_blur;
 pub mod edge_offset;

@@ -23,19 +23,16 @@
 //! solved with the calibration under its prior (what the camera calibration
 //! knows of it). This is the model of the design's bound in full.
 
-use nalgebra::{DMatrix, DVector, Matrix6, Point3, Vector3, Vector6};
+use nalgebra::{DMatrix, DVector, Matrix6, Point3, Vector6};
 
+use super::bundle_frame::{at, split, FrameArcs};
 use super::edge_blur::{variance_factor, SliceBlur};
-use super::edge_offset::{offset_mm, EdgeOffset, EdgeTerms};
-use super::sphere_fit::{ArcFrame, KnownSphere, SphereFit, SphereFitError, SphereSettings};
-use crate::core::geometry::{perturbed, pixel_to_image_mm, Rigid};
+use super::edge_offset::{offset_mm, EdgeOffset};
+use super::sphere_fit::{ArcFrame, SphereFit, SphereFitError, SphereSettings};
+use crate::core::geometry::{pixel_to_image_mm, Rigid};
 
 /// The most Levenberg–Marquardt iterations.
 pub const MAX_ITERATIONS: usize = 100;
-
-/// Finite-difference steps: rotations (rad), translations (mm).
-const ROTATION_STEP: f64 = 1e-7;
-const TRANSLATION_STEP: f64 = 1e-6;
 
 /// What the fit needs beyond the plain sphere fit's settings.
 #[derive(Debug, Clone)]
@@ -65,97 +62,6 @@ pub struct SharedError {
     pub frames: Vec<(usize, DMatrix<f64>)>,
 }
 
-fn at(base: &Rigid, d: &Vector6<f64>) -> Rigid {
-    perturbed(base, Vector3::new(d[0], d[1], d[2]), Vector3::new(d[3], d[4], d[5]))
-}
-
-fn step_of(c: usize) -> f64 {
-    if c < 3 {
-        ROTATION_STEP
-    } else {
-        TRANSLATION_STEP
-    }
-}
-
-/// One frame's arcs: the poses, and each arc's sphere, weight and points (image, mm).
-struct FrameArcs {
-    frame: usize,
-    phantom_T_marker: Rigid,
-    arcs: Vec<(KnownSphere, f64, Vec<Point3<f64>>)>,
-    /// Whitens the frame's own pose error: `L⁻¹` with `Σ = L Lᵀ`.
-    whiten: Matrix6<f64>,
-    information: Matrix6<f64>,
-    /// `F_f` (6 × m; m = 0 without a shared error).
-    from_shared: DMatrix<f64>,
-}
-
-impl FrameArcs {
-    /// The frame's pose correction: its share of `k` and its own `e`.
-    fn correction(&self, k: &DVector<f64>, e: &Vector6<f64>) -> Vector6<f64> {
-        if k.is_empty() {
-            return *e;
-        }
-        e + Vector6::from_iterator((&self.from_shared * k).iter().copied())
-    }
-
-    /// Whitened point residuals under the calibration `c` (from `start`), pose
-    /// correction `d` and edge offsets `o`.
-    fn residuals(
-        &self,
-        start: &Rigid,
-        c: &Vector6<f64>,
-        d: &Vector6<f64>,
-        o: &EdgeTerms,
-        edge_sd_mm: f64,
-    ) -> DVector<f64> {
-        let phantom_T_image = at(&self.phantom_T_marker, d) * at(start, c);
-        // Only a solved offset needs the plane's distance from each centre.
-        let image_T_phantom = o.iter().any(|t| *t != 0.0).then(|| phantom_T_image.inverse());
-        let mut out = Vec::new();
-        for (sphere, weight, points) in &self.arcs {
-            let offset = image_T_phantom.map_or(0.0, |image_T_phantom| {
-                offset_mm(o, sphere, (image_T_phantom * sphere.centre_in_phantom_mm).z)
-            });
-            for p in points {
-                let distance = (phantom_T_image * p - sphere.centre_in_phantom_mm).norm() - sphere.radius_mm - offset;
-                out.push(weight * distance / edge_sd_mm);
-            }
-        }
-        DVector::from_vec(out)
-    }
-
-    fn cost(
-        &self,
-        start: &Rigid,
-        x: &DVector<f64>,
-        m: usize,
-        model: EdgeOffset,
-        e: &Vector6<f64>,
-        edge_sd_mm: f64,
-    ) -> f64 {
-        let (c, k, o) = split(x, m);
-        self.residuals(
-            start,
-            &c,
-            &self.correction(&k, e),
-            &model.expand(o.as_slice()),
-            edge_sd_mm,
-        )
-        .norm_squared()
-            + (self.whiten * e).norm_squared()
-    }
-}
-
-/// The calibration's correction, the shared error (`m` values) and the edge
-/// offsets, from the unknowns `x`.
-fn split(x: &DVector<f64>, m: usize) -> (Vector6<f64>, DVector<f64>, DVector<f64>) {
-    (
-        Vector6::from_iterator(x.rows(0, 6).iter().copied()),
-        x.rows(6, m).into_owned(),
-        x.rows(6 + m, x.len() - 6 - m).into_owned(),
-    )
-}
-
 /// `m` scaled to unit diagonal: `(D m D, D)`, so that unknowns of different
 /// units (mm, rad, px, unitless distortion) solve alike.
 fn equilibrated(m: &DMatrix<f64>) -> (DMatrix<f64>, DMatrix<f64>) {
@@ -163,14 +69,16 @@ fn equilibrated(m: &DMatrix<f64>) -> (DMatrix<f64>, DMatrix<f64>) {
     (&d * m * &d, d)
 }
 
-/// Refines `start` (the plain sphere fit) with every frame's pose free under its prior.
-pub fn refine(
+/// Each frame's arcs with its pose prior (whitened) and its pose's dependence
+/// on the shared unknowns; an arc with too few points, no prior or a weight that
+/// is not a positive number is left out.
+fn frame_arcs(
     start: &Rigid,
     arcs: &[ArcFrame],
     settings: &SphereSettings,
     priors: &PosePriors,
-) -> Result<SphereFit, SphereFitError> {
-    let m = priors.shared.as_ref().map_or(0, |s| s.information.nrows());
+    m: usize,
+) -> Vec<FrameArcs> {
     let mut frames: Vec<FrameArcs> = Vec::new();
     for a in arcs
         .iter()
@@ -219,6 +127,68 @@ pub fn refine(
             }
         }
     }
+    frames
+}
+
+/// The fit at the solution: the calibration, the edge offsets, and the arcs'
+/// residual RMS overall and per frame.
+#[allow(clippy::too_many_arguments)]
+fn fitted(
+    start: &Rigid,
+    frames: &[FrameArcs],
+    x: &DVector<f64>,
+    deltas: &[Vector6<f64>],
+    m: usize,
+    model: EdgeOffset,
+    settings: &SphereSettings,
+    iterations: usize,
+) -> SphereFit {
+    let (c, k, free) = split(&x, m);
+    let o = model.expand(free.as_slice());
+    let marker_T_image = at(start, &c);
+    let mut sum = 0.0;
+    let mut count = 0usize;
+    let mut frame_rms_mm = Vec::new();
+    let mut elevation_mm = Vec::new();
+    for (f, e) in frames.iter().zip(deltas) {
+        let phantom_T_marker = at(&f.phantom_T_marker, &f.correction(&k, e));
+        let phantom_T_image = phantom_T_marker * marker_T_image;
+        let image_T_phantom = phantom_T_image.inverse();
+        let (mut s, mut n) = (0.0, 0usize);
+        for (sphere, _, points) in &f.arcs {
+            let elevation = (image_T_phantom * sphere.centre_in_phantom_mm).z;
+            let offset = offset_mm(&o, sphere, elevation);
+            for p in points {
+                s += ((phantom_T_image * p - sphere.centre_in_phantom_mm).norm() - sphere.radius_mm - offset).powi(2);
+                n += 1;
+            }
+            elevation_mm.push((f.frame, elevation));
+        }
+        sum += s;
+        count += n;
+        frame_rms_mm.push((f.frame, (s / n.max(1) as f64).sqrt()));
+    }
+    SphereFit {
+        marker_T_image,
+        radius_offset_mm: o[0],
+        edge_offset_mm: o,
+        spacing_mm_per_px: settings.spacing_mm_per_px,
+        rms_mm: (sum / count.max(1) as f64).sqrt(),
+        elevation_mm,
+        frame_rms_mm,
+        iterations,
+    }
+}
+
+/// Refines `start` (the plain sphere fit) with every frame's pose free under its prior.
+pub fn refine(
+    start: &Rigid,
+    arcs: &[ArcFrame],
+    settings: &SphereSettings,
+    priors: &PosePriors,
+) -> Result<SphereFit, SphereFitError> {
+    let m = priors.shared.as_ref().map_or(0, |s| s.information.nrows());
+    let frames = frame_arcs(start, arcs, settings, priors, m);
     let arc_count: usize = frames.iter().map(|f| f.arcs.len()).sum();
     if arc_count < 3 {
         return Err(SphereFitError::TooFewFrames(arc_count));
@@ -255,30 +225,8 @@ pub fn refine(
         g.rows_mut(6, m).copy_from(&(&shared_information * x.rows(6, m)));
         let mut blocks = Vec::with_capacity(frames.len());
         let (c, k, free) = split(&x, m);
-        let o = model.expand(free.as_slice());
         for (f, e) in frames.iter().zip(&deltas) {
-            let d = f.correction(&k, e);
-            let r = f.residuals(start, &c, &d, &o, sd);
-            let mut jc = DMatrix::zeros(r.len(), 6);
-            let mut jd = DMatrix::zeros(r.len(), 6);
-            for j in 0..6 {
-                let mut s = Vector6::zeros();
-                s[j] = step_of(j);
-                jc.set_column(j, &((f.residuals(start, &(c + s), &d, &o, sd) - &r) / s[j]));
-                jd.set_column(j, &((f.residuals(start, &c, &(d + s), &o, sd) - &r) / s[j]));
-            }
-            let mut jx = DMatrix::zeros(r.len(), n);
-            jx.columns_mut(0, 6).copy_from(&jc);
-            if m > 0 {
-                jx.columns_mut(6, m).copy_from(&(&jd * &f.from_shared));
-            }
-            for j in 0..q {
-                let mut stepped = free.clone();
-                stepped[j] += TRANSLATION_STEP;
-                let column =
-                    (f.residuals(start, &c, &d, &model.expand(stepped.as_slice()), sd) - &r) / TRANSLATION_STEP;
-                jx.set_column(6 + m + j, &column);
-            }
+            let (r, jx, jd) = f.linearised(start, (&c, &k, &free), e, model, sd);
             u += jx.transpose() * &jx;
             g += jx.transpose() * &r;
             let v = Matrix6::from_iterator((jd.transpose() * &jd).iter().copied()) + f.information;
@@ -337,46 +285,14 @@ pub fn refine(
             break;
         }
     }
-    let (c, k, free) = split(&x, m);
-    let o = model.expand(free.as_slice());
-    let marker_T_image = at(start, &c);
-    let mut sum = 0.0;
-    let mut count = 0usize;
-    let mut frame_rms_mm = Vec::new();
-    let mut elevation_mm = Vec::new();
-    for (f, e) in frames.iter().zip(&deltas) {
-        let phantom_T_marker = at(&f.phantom_T_marker, &f.correction(&k, e));
-        let phantom_T_image = phantom_T_marker * marker_T_image;
-        let image_T_phantom = phantom_T_image.inverse();
-        let (mut s, mut n) = (0.0, 0usize);
-        for (sphere, _, points) in &f.arcs {
-            let elevation = (image_T_phantom * sphere.centre_in_phantom_mm).z;
-            let offset = offset_mm(&o, sphere, elevation);
-            for p in points {
-                s += ((phantom_T_image * p - sphere.centre_in_phantom_mm).norm() - sphere.radius_mm - offset).powi(2);
-                n += 1;
-            }
-            elevation_mm.push((f.frame, elevation));
-        }
-        sum += s;
-        count += n;
-        frame_rms_mm.push((f.frame, (s / n.max(1) as f64).sqrt()));
-    }
-    Ok(SphereFit {
-        marker_T_image,
-        radius_offset_mm: o[0],
-        edge_offset_mm: o,
-        spacing_mm_per_px: settings.spacing_mm_per_px,
-        rms_mm: (sum / count.max(1) as f64).sqrt(),
-        elevation_mm,
-        frame_rms_mm,
-        iterations,
-    })
+    Ok(fitted(start, &frames, &x, &deltas, m, model, settings, iterations))
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::estimate::sphere_fit::KnownSphere;
+    use nalgebra::Vector3;
     use crate::core::geometry::rigid_from_axis_angle;
     use crate::core::rng::Rng;
     use crate::estimate::sphere_fit;
