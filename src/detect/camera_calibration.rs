@@ -128,6 +128,101 @@ pub fn collect_images(inputs: &[PathBuf]) -> Result<Vec<PathBuf>, CalibrationErr
     Ok(out)
 }
 
+/// The views used so far: the board's points and each view's corners, and
+/// where each view sits in the list of all views.
+#[derive(Default)]
+struct UsedViews {
+    object: Vector<Vector<opencv::core::Point3f>>,
+    imagep: Vector<Vector<opencv::core::Point2f>>,
+    index: Vec<usize>,
+    corners: Vec<Vec<[f64; 2]>>,
+}
+
+impl UsedViews {
+    /// Uses a view's corners, unless an earlier view is the same view.
+    fn add(
+        &mut self,
+        views: &mut Vec<CalibrationView>,
+        path: &Path,
+        corners: Vec<[f64; 2]>,
+        found_by: Found,
+        board_points: &Vector<opencv::core::Point3f>,
+    ) {
+        if let Some(same) = duplicate_of(&corners, &self.corners) {
+            let shift_px = max_shift_px(&corners, &self.corners[same]);
+            let earlier = views[self.index[same]].image.display().to_string();
+            let reason = format!("the same view as {earlier} (every corner within {shift_px:.2} px): it adds nothing");
+            views.push(CalibrationView::unused(path, reason, Some(found_by)));
+            return;
+        }
+        self.object.push(board_points.clone());
+        self.imagep.push(image_points(&corners));
+        self.corners.push(corners);
+        self.index.push(views.len());
+        views.push(CalibrationView {
+            image: path.to_path_buf(),
+            used: true,
+            reason: None,
+            rms_px: None,
+            found_by: Some(found_by),
+        });
+    }
+
+    /// A view whose corners disagree with the others (a corner pulled off by
+    /// glare or the image edge) is dropped, once, and the camera solved again.
+    fn without_outliers(
+        &mut self,
+        views: &mut [CalibrationView],
+        solved: Solved,
+        image_size: Size,
+    ) -> Result<Solved, CalibrationError> {
+        let mut sorted = solved.per_view.clone();
+        sorted.sort_by(f64::total_cmp);
+        let median = sorted[sorted.len() / 2];
+        let limit = (OUTLIER_VIEW_RATIO * median).max(OUTLIER_VIEW_FLOOR_PX);
+        let outliers: Vec<usize> = (0..solved.per_view.len())
+            .filter(|&i| solved.per_view[i] > limit)
+            .collect();
+        if !outliers.is_empty() && self.index.len() - outliers.len() >= MIN_VIEWS {
+            for &i in &outliers {
+                let view = &mut views[self.index[i]];
+                view.used = false;
+                view.reason = Some(format!(
+                "per-view RMS {:.3} px is above {limit:.3} px ({OUTLIER_VIEW_RATIO} times the median {median:.3} px): dropped and solved again",
+                solved.per_view[i]
+            ));
+                view.rms_px = Some(solved.per_view[i]);
+            }
+            let keep: Vec<usize> = (0..self.index.len()).filter(|i| !outliers.contains(i)).collect();
+            self.object = keep
+                .iter()
+                .map(|&i| self.object.get(i))
+                .collect::<opencv::Result<_>>()?;
+            self.imagep = keep
+                .iter()
+                .map(|&i| self.imagep.get(i))
+                .collect::<opencv::Result<_>>()?;
+            self.index = keep.iter().map(|&i| self.index[i]).collect();
+            self.corners = keep.iter().map(|&i| self.corners[i].clone()).collect();
+            return Ok(solve(&self.object, &self.imagep, image_size)?);
+        }
+        Ok(solved)
+    }
+}
+
+impl CalibrationView {
+    /// A view not used, and why.
+    fn unused(path: &Path, reason: String, found_by: Option<Found>) -> CalibrationView {
+        CalibrationView {
+            image: path.to_path_buf(),
+            used: false,
+            reason: Some(reason),
+            rms_px: None,
+            found_by,
+        }
+    }
+}
+
 /// Calibrates from the given image files.
 pub fn calibrate(
     images: &[PathBuf],
@@ -143,11 +238,8 @@ pub fn calibrate(
     };
     let board_points = object_points(&layout.corners_in_board_mm());
     let mut views = Vec::new();
-    let mut object = Vector::<Vector<opencv::core::Point3f>>::new();
-    let mut imagep = Vector::<Vector<opencv::core::Point2f>>::new();
+    let mut used = UsedViews::default();
     let mut size: Option<(PathBuf, Size)> = None;
-    let mut used_index: Vec<usize> = Vec::new();
-    let mut used_corners: Vec<Vec<[f64; 2]>> = Vec::new();
     // The views are decoded and searched on every core; what follows reads them in order.
     let searched = crate::core::parallel::parallel_map(images.len(), |i| {
         read_gray(&images[i]).map(|image| {
@@ -162,13 +254,7 @@ pub fn calibrate(
         let (this, found) = match searched {
             Ok(s) => s,
             Err(e) => {
-                views.push(CalibrationView {
-                    image: path.clone(),
-                    used: false,
-                    reason: Some(e.to_string()),
-                    rms_px: None,
-                    found_by: None,
-                });
+                views.push(CalibrationView::unused(path, e.to_string(), None));
                 continue;
             }
         };
@@ -187,47 +273,18 @@ pub fn calibrate(
             _ => {}
         }
         match found? {
-            Some((corners, found_by)) => match duplicate_of(&corners, &used_corners) {
-                Some(same) => {
-                    let shift_px = max_shift_px(&corners, &used_corners[same]);
-                    let earlier = views[used_index[same]].image.display().to_string();
-                    views.push(CalibrationView {
-                        image: path.clone(),
-                        used: false,
-                        reason: Some(format!(
-                            "the same view as {earlier} (every corner within {shift_px:.2} px): it adds nothing"
-                        )),
-                        rms_px: None,
-                        found_by: Some(found_by),
-                    });
-                }
-                None => {
-                    used_corners.push(corners.clone());
-                    object.push(board_points.clone());
-                    imagep.push(image_points(&corners));
-                    used_index.push(views.len());
-                    views.push(CalibrationView {
-                        image: path.clone(),
-                        used: true,
-                        reason: None,
-                        rms_px: None,
-                        found_by: Some(found_by),
-                    });
-                }
-            },
-            None => views.push(CalibrationView {
-                image: path.clone(),
-                used: false,
-                reason: Some(format!(
+            Some((corners, found_by)) => used.add(&mut views, path, corners, found_by, &board_points),
+            None => views.push(CalibrationView::unused(
+                path,
+                format!(
                     "no {}x{} chessboard found (adaptive threshold, OpenCV's default flags, findChessboardCornersSB)",
                     inner_corners[0], inner_corners[1]
-                )),
-                rms_px: None,
-                found_by: None,
-            }),
+                ),
+                None,
+            )),
         }
     }
-    if object.len() < MIN_VIEWS {
+    if used.object.len() < MIN_VIEWS {
         let details = views
             .iter()
             .filter_map(|v| v.reason.as_ref().map(|r| format!("  {}: {r}", v.image.display())))
@@ -236,42 +293,16 @@ pub fn calibrate(
         return Err(CalibrationError::TooFewViews {
             cols: inner_corners[0],
             rows: inner_corners[1],
-            found: object.len(),
+            found: used.object.len(),
             total: images.len(),
             needed: MIN_VIEWS,
             details,
         });
     }
     let image_size = size.map(|s| s.1).unwrap_or_default();
-    let mut solved = solve(&object, &imagep, image_size)?;
-    // A view whose corners disagree with the others (a corner pulled off by glare
-    // or the image edge) is dropped, once, and the camera solved again.
-    let mut sorted = solved.per_view.clone();
-    sorted.sort_by(f64::total_cmp);
-    let median = sorted[sorted.len() / 2];
-    let limit = (OUTLIER_VIEW_RATIO * median).max(OUTLIER_VIEW_FLOOR_PX);
-    let outliers: Vec<usize> = (0..solved.per_view.len())
-        .filter(|&i| solved.per_view[i] > limit)
-        .collect();
-    if !outliers.is_empty() && used_index.len() - outliers.len() >= MIN_VIEWS {
-        for &i in &outliers {
-            let view = &mut views[used_index[i]];
-            view.used = false;
-            view.reason = Some(format!(
-                "per-view RMS {:.3} px is above {limit:.3} px ({OUTLIER_VIEW_RATIO} times the median {median:.3} px): dropped and solved again",
-                solved.per_view[i]
-            ));
-            view.rms_px = Some(solved.per_view[i]);
-        }
-        let keep: Vec<usize> = (0..used_index.len()).filter(|i| !outliers.contains(i)).collect();
-        let object: Vector<Vector<opencv::core::Point3f>> =
-            keep.iter().map(|&i| object.get(i)).collect::<opencv::Result<_>>()?;
-        let imagep: Vector<Vector<opencv::core::Point2f>> =
-            keep.iter().map(|&i| imagep.get(i)).collect::<opencv::Result<_>>()?;
-        used_index = keep.iter().map(|&i| used_index[i]).collect();
-        used_corners = keep.iter().map(|&i| used_corners[i].clone()).collect();
-        solved = solve(&object, &imagep, image_size)?;
-    }
+    let solved = solve(&used.object, &used.imagep, image_size)?;
+    let solved = used.without_outliers(&mut views, solved, image_size)?;
+    let (used_index, used_corners) = (used.index, used.corners);
     for (i, view_index) in used_index.iter().enumerate() {
         views[*view_index].rms_px = Some(solved.per_view[i]);
     }

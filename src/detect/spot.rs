@@ -173,6 +173,171 @@ fn split_across(
     whole
 }
 
+/// Connected pixels (8-neighbourhood) where `above` holds.
+fn components(w: usize, h: usize, above: &dyn Fn(usize) -> bool) -> Vec<Component> {
+    let mut seen = vec![false; w * h];
+    let mut components = Vec::new();
+    let mut stack = Vec::new();
+    for start in 0..w * h {
+        if seen[start] || !above(start) {
+            continue;
+        }
+        seen[start] = true;
+        stack.push(start);
+        let mut pixels = Vec::new();
+        while let Some(i) = stack.pop() {
+            pixels.push(i);
+            let (x, y) = ((i % w) as i64, (i / w) as i64);
+            for dy in -1..=1 {
+                for dx in -1..=1 {
+                    let (nx, ny) = (x + dx, y + dy);
+                    if nx < 0 || ny < 0 || nx >= w as i64 || ny >= h as i64 {
+                        continue;
+                    }
+                    let j = ny as usize * w + nx as usize;
+                    if !seen[j] && above(j) {
+                        seen[j] = true;
+                        stack.push(j);
+                    }
+                }
+            }
+        }
+        components.push(Component { pixels });
+    }
+    components
+}
+
+/// Beam coordinates (mm): distance from the apex and angle across the beam (a
+/// linear array without an apex: depth and lateral position).
+struct BeamFrame {
+    apex_mm: Option<[f64; 2]>,
+    spacing_mm_per_px: [f64; 2],
+}
+
+impl BeamFrame {
+    fn beam(&self, x: f64, y: f64) -> (f64, f64) {
+        let [sx, sy] = self.spacing_mm_per_px;
+        let (u, v) = (x * sx, y * sy);
+        match self.apex_mm {
+            Some([ax, ay]) => {
+                let (dx, dy) = (u - ax, v - ay);
+                ((dx * dx + dy * dy).sqrt(), dx.atan2(dy))
+            }
+            None => (v, u),
+        }
+    }
+
+    /// The offset across the beam from `reference_angle` at range `r`, mm.
+    fn across(&self, r: f64, angle: f64, reference_angle: f64) -> f64 {
+        match self.apex_mm {
+            Some(_) => (angle - reference_angle) * r,
+            None => angle - reference_angle,
+        }
+    }
+}
+
+/// One echo of a component: its front and back range, angle, width, the
+/// centroid of its first lobe and its strength.
+struct Echo {
+    r_front: f64,
+    r_back: f64,
+    angle: f64,
+    width_mm: f64,
+    echo_px: [f64; 2],
+    strength: f64,
+}
+
+/// The echo of the pixels of `c` whose offset across the beam lies in `part`.
+fn part_echo(
+    c: &Component,
+    coords: &[(f64, f64, f64)],
+    part: (f64, f64),
+    mean_angle: f64,
+    frame: &BeamFrame,
+    w: usize,
+) -> Option<Echo> {
+    let across = |r: f64, angle: f64, reference_angle: f64| frame.across(r, angle, reference_angle);
+    let members: Vec<(usize, &(f64, f64, f64))> = c
+        .pixels
+        .iter()
+        .zip(coords)
+        .filter(|(_, p)| {
+            let a = across(p.0, p.1, mean_angle);
+            a >= part.0 && a < part.1
+        })
+        .map(|(i, p)| (*i, p))
+        .collect();
+    if members.is_empty() {
+        return None;
+    }
+    let total: f64 = members.iter().map(|(_, p)| p.2).sum();
+    let angle = members.iter().map(|(_, p)| p.1 * p.2).sum::<f64>() / total;
+    let r_front = members.iter().map(|(_, p)| p.0).fold(f64::MAX, f64::min);
+    let r_back = members.iter().map(|(_, p)| p.0).fold(f64::MIN, f64::max);
+    // The first lobe: the front echo, before any tail or ringing echo.
+    let (mut sw, mut su, mut sv) = (0.0, 0.0, 0.0);
+    for (i, p) in &members {
+        if p.0 <= r_front + FRONT_LOBE_MM {
+            sw += p.2;
+            su += p.2 * (i % w) as f64;
+            sv += p.2 * (i / w) as f64;
+        }
+    }
+    let (lo, hi) = members.iter().fold((f64::MAX, f64::MIN), |(lo, hi), (_, p)| {
+        let a = across(p.0, p.1, angle);
+        (lo.min(a), hi.max(a))
+    });
+    Some(Echo {
+        r_front,
+        r_back,
+        angle,
+        width_mm: hi - lo,
+        echo_px: [su / sw, sv / sw],
+        strength: total,
+    })
+}
+
+/// Echoes behind one another along a beam grouped: the first is the object's
+/// front (its centre one radius behind the echo).
+fn grouped(mut echoes: Vec<Echo>, frame: &BeamFrame, object_radius_mm: f64) -> Vec<(Spot, f64, f64)> {
+    let [sx, sy] = frame.spacing_mm_per_px;
+    echoes.sort_by(|a, b| a.r_front.total_cmp(&b.r_front));
+    let mut spots: Vec<(Spot, f64, f64)> = Vec::new();
+    for e in echoes {
+        let behind = spots.iter_mut().find(|(_, r, angle)| {
+            frame.across(e.r_front, e.angle, *angle).abs() < SAME_BEAM_MM
+                && e.r_front > *r
+                && e.r_front - *r < TAIL_LENGTH_MM
+        });
+        if let Some((spot, r, _)) = behind {
+            spot.echoes += 1;
+            spot.length_mm = spot.length_mm.max(e.r_back - *r);
+            continue;
+        }
+        let (r_echo, angle) = frame.beam(e.echo_px[0], e.echo_px[1]);
+        let centre_mm = match frame.apex_mm {
+            Some([ax, ay]) => {
+                let r = r_echo + object_radius_mm;
+                [ax + r * angle.sin(), ay + r * angle.cos()]
+            }
+            None => [e.echo_px[0] * sx, e.echo_px[1] * sy + object_radius_mm],
+        };
+        spots.push((
+            Spot {
+                centre_px: [centre_mm[0] / sx, centre_mm[1] / sy],
+                echo_px: e.echo_px,
+                strength: e.strength,
+                width_mm: e.width_mm,
+                echoes: 1,
+                length_mm: e.r_back - e.r_front,
+            },
+            e.r_front,
+            e.angle,
+        ));
+    }
+    spots
+}
+
 /// Detects compact objects in a B-scan.
 pub fn detect(image: &Mat, settings: &SpotSettings) -> Result<Spots, ImageError> {
     let gray = mat_to_gray8(image)?;
@@ -203,62 +368,14 @@ pub fn detect(image: &Mat, settings: &SpotSettings) -> Result<Spots, ImageError>
     let threshold = median + 0.45 * (high - median).max(10.0);
     let above = |i: usize| smooth[i] >= threshold && usable(i % w, i / w);
 
-    // Connected echoes (8-neighbourhood).
-    let mut seen = vec![false; w * h];
-    let mut components = Vec::new();
-    let mut stack = Vec::new();
-    for start in 0..w * h {
-        if seen[start] || !above(start) {
-            continue;
-        }
-        seen[start] = true;
-        stack.push(start);
-        let mut pixels = Vec::new();
-        while let Some(i) = stack.pop() {
-            pixels.push(i);
-            let (x, y) = ((i % w) as i64, (i / w) as i64);
-            for dy in -1..=1 {
-                for dx in -1..=1 {
-                    let (nx, ny) = (x + dx, y + dy);
-                    if nx < 0 || ny < 0 || nx >= w as i64 || ny >= h as i64 {
-                        continue;
-                    }
-                    let j = ny as usize * w + nx as usize;
-                    if !seen[j] && above(j) {
-                        seen[j] = true;
-                        stack.push(j);
-                    }
-                }
-            }
-        }
-        components.push(Component { pixels });
-    }
+    let components = components(w, h, &above);
 
-    // Beam coordinates (mm): distance from the apex and offset across the beam.
-    let apex_mm = apex_px.map(|a| [a[0] * sx, a[1] * sy]);
-    let beam = |x: f64, y: f64| -> (f64, f64) {
-        let (u, v) = (x * sx, y * sy);
-        match apex_mm {
-            Some([ax, ay]) => {
-                let (dx, dy) = (u - ax, v - ay);
-                ((dx * dx + dy * dy).sqrt(), dx.atan2(dy))
-            }
-            None => (v, u),
-        }
+    let frame = BeamFrame {
+        apex_mm: apex_px.map(|a| [a[0] * sx, a[1] * sy]),
+        spacing_mm_per_px: [sx, sy],
     };
-    let across = |r: f64, angle: f64, reference_angle: f64| match apex_mm {
-        Some(_) => (angle - reference_angle) * r,
-        None => angle - reference_angle,
-    };
-
-    struct Echo {
-        r_front: f64,
-        r_back: f64,
-        angle: f64,
-        width_mm: f64,
-        echo_px: [f64; 2],
-        strength: f64,
-    }
+    let beam = |x: f64, y: f64| frame.beam(x, y);
+    let across = |r: f64, angle: f64, reference_angle: f64| frame.across(r, angle, reference_angle);
     let max_width = 4.0 * settings.object_radius_mm + SURFACE_EXTRA_WIDTH_MM;
     let mut surfaces = 0;
     let mut echoes: Vec<Echo> = Vec::new();
@@ -289,79 +406,10 @@ pub fn detect(image: &Mat, settings: &SpotSettings) -> Result<Spots, ImageError>
         // two peaks across the beam: split it at the dip between them.
         let parts = split_across(&coords, mean_angle, &across, settings.object_radius_mm);
         for part in parts {
-            let members: Vec<(usize, &(f64, f64, f64))> = c
-                .pixels
-                .iter()
-                .zip(&coords)
-                .filter(|(_, p)| {
-                    let a = across(p.0, p.1, mean_angle);
-                    a >= part.0 && a < part.1
-                })
-                .map(|(i, p)| (*i, p))
-                .collect();
-            if members.is_empty() {
-                continue;
-            }
-            let total: f64 = members.iter().map(|(_, p)| p.2).sum();
-            let angle = members.iter().map(|(_, p)| p.1 * p.2).sum::<f64>() / total;
-            let r_front = members.iter().map(|(_, p)| p.0).fold(f64::MAX, f64::min);
-            let r_back = members.iter().map(|(_, p)| p.0).fold(f64::MIN, f64::max);
-            // The first lobe: the front echo, before any tail or ringing echo.
-            let (mut sw, mut su, mut sv) = (0.0, 0.0, 0.0);
-            for (i, p) in &members {
-                if p.0 <= r_front + FRONT_LOBE_MM {
-                    sw += p.2;
-                    su += p.2 * (i % w) as f64;
-                    sv += p.2 * (i / w) as f64;
-                }
-            }
-            let (lo, hi) = members.iter().fold((f64::MAX, f64::MIN), |(lo, hi), (_, p)| {
-                let a = across(p.0, p.1, angle);
-                (lo.min(a), hi.max(a))
-            });
-            echoes.push(Echo {
-                r_front,
-                r_back,
-                angle,
-                width_mm: hi - lo,
-                echo_px: [su / sw, sv / sw],
-                strength: total,
-            });
+            echoes.extend(part_echo(c, &coords, part, mean_angle, &frame, w));
         }
     }
-    echoes.sort_by(|a, b| a.r_front.total_cmp(&b.r_front));
-    // Group echoes behind one another along a beam: the first is the object's front.
-    let mut spots: Vec<(Spot, f64, f64)> = Vec::new();
-    for e in echoes {
-        let behind = spots.iter_mut().find(|(_, r, angle)| {
-            across(e.r_front, e.angle, *angle).abs() < SAME_BEAM_MM && e.r_front > *r && e.r_front - *r < TAIL_LENGTH_MM
-        });
-        if let Some((spot, r, _)) = behind {
-            spot.echoes += 1;
-            spot.length_mm = spot.length_mm.max(e.r_back - *r);
-            continue;
-        }
-        let (r_echo, angle) = beam(e.echo_px[0], e.echo_px[1]);
-        let centre_mm = match apex_mm {
-            Some([ax, ay]) => {
-                let r = r_echo + settings.object_radius_mm;
-                [ax + r * angle.sin(), ay + r * angle.cos()]
-            }
-            None => [e.echo_px[0] * sx, e.echo_px[1] * sy + settings.object_radius_mm],
-        };
-        spots.push((
-            Spot {
-                centre_px: [centre_mm[0] / sx, centre_mm[1] / sy],
-                echo_px: e.echo_px,
-                strength: e.strength,
-                width_mm: e.width_mm,
-                echoes: 1,
-                length_mm: e.r_back - e.r_front,
-            },
-            e.r_front,
-            e.angle,
-        ));
-    }
+    let spots = grouped(echoes, &frame, settings.object_radius_mm);
     let mut spots: Vec<Spot> = spots.into_iter().map(|(s, _, _)| s).collect();
     spots.sort_by(|a, b| {
         b.strength

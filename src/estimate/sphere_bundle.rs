@@ -291,11 +291,11 @@ pub fn refine(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::estimate::sphere_fit::KnownSphere;
-    use nalgebra::Vector3;
     use crate::core::geometry::rigid_from_axis_angle;
     use crate::core::rng::Rng;
     use crate::estimate::sphere_fit;
+    use crate::estimate::sphere_fit::KnownSphere;
+    use nalgebra::Vector3;
 
     const SPACING: [f64; 2] = [0.2, 0.2];
 

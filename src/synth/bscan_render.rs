@@ -10,7 +10,8 @@
 
 use nalgebra::{Point3, Vector3};
 
-use super::scene::{FrameKind, Scene};
+use super::bscan_geometry::BscanGeometry;
+use super::scene::{FrameKind, Scene, Tank};
 use super::shape::Shape;
 use crate::core::geometry::Rigid;
 use crate::core::rng::Rng;
@@ -285,6 +286,144 @@ fn phantom_echo(scene: &Scene, origin: &Vector3<f64>, dir: &Vector3<f64>, r: f64
     (echo, blocked_at)
 }
 
+/// The beam's elevation profile: sample offsets across the slice (mm, within
+/// ±`half`) with their Gaussian weights.
+fn elevation_profile(half: f64) -> Vec<(f64, f64)> {
+    (0..ELEVATION_SAMPLES)
+        .map(|j| {
+            let e = if ELEVATION_SAMPLES > 1 {
+                -half + 2.0 * half * j as f64 / (ELEVATION_SAMPLES - 1) as f64
+            } else {
+                0.0
+            };
+            let weight = if half > 0.0 {
+                (-(e / (half / 1.5)).powi(2) / 2.0).exp()
+            } else {
+                1.0
+            };
+            (e, weight)
+        })
+        .collect()
+}
+
+/// Bubbles: bright spots with a reverberation tail down the beam.
+fn add_bubbles(
+    scene: &Scene,
+    world_T_image: &Rigid,
+    bubbles: &[Bubble],
+    model: EchoModel,
+    half: f64,
+    inside: &[bool],
+    echo: &mut [f32],
+) {
+    let g = &scene.bscan;
+    let (w, h) = (g.width_px, g.height_px);
+    let [sx, sy] = g.spacing_mm_per_px;
+    let image_T_world = world_T_image.inverse();
+    for bubble in bubbles {
+        let centre = image_T_world * Point3::from(Vector3::from(bubble.centre_world_mm));
+        if centre.z.abs() > half + bubble.radius_mm {
+            continue;
+        }
+        let (rb, ab) = g.polar(centre.x, centre.y);
+        let rb = if model.range_scale == 1.0 {
+            rb
+        } else {
+            g.convex_radius_mm + (rb - g.convex_radius_mm) / model.range_scale
+        };
+        let size = bubble.radius_mm.max(0.35);
+        let x0 = ((centre.x - 4.0) / sx).floor().max(0.0) as usize;
+        let x1 = (((centre.x + 4.0) / sx).ceil() as usize).min(w);
+        let y0 = ((centre.y - 3.0) / sy).floor().max(0.0) as usize;
+        for y in y0..h {
+            for x in x0..x1 {
+                let i = y * w + x;
+                if !inside[i] {
+                    continue;
+                }
+                let (u_mm, v_mm) = (x as f64 * sx, y as f64 * sy);
+                let (r, a) = g.polar(u_mm, v_mm);
+                let lateral = (a - ab) * rb;
+                let along = r - rb;
+                let spot = (-(lateral * lateral + along * along) / (2.0 * size * size)).exp();
+                let tail = if along > 0.0 {
+                    0.45 * (-along / 4.0).exp()
+                        * (std::f64::consts::PI * along / 0.9).cos().powi(2)
+                        * (-(lateral / size).powi(2) / 2.0).exp()
+                } else {
+                    0.0
+                };
+                echo[i] += (1.4 * spot + tail) as f32;
+            }
+        }
+    }
+}
+
+/// The grey levels: echo and base under speckle (the magnitude of a blurred
+/// complex Gaussian field, mean 1), attenuated, log-compressed, with noise.
+fn speckled_levels(
+    g: &BscanGeometry,
+    base: &[f32],
+    echo: &[f32],
+    inside: &[bool],
+    rng: &mut Rng,
+) -> Result<Vec<f32>, ImageError> {
+    let (w, h) = (g.width_px, g.height_px);
+    let [sx, sy] = g.spacing_mm_per_px;
+    let mut re: Vec<f32> = (0..w * h).map(|_| rng.normal(0.0, 1.0) as f32).collect();
+    let mut im: Vec<f32> = (0..w * h).map(|_| rng.normal(0.0, 1.0) as f32).collect();
+    gaussian_blur_f32(w, h, &mut re, 0.35 / sx, 0.15 / sy)?;
+    gaussian_blur_f32(w, h, &mut im, 0.35 / sx, 0.15 / sy)?;
+    let mut speckle: Vec<f32> = re.iter().zip(&im).map(|(a, b)| (a * a + b * b).sqrt()).collect();
+    let mean = speckle.iter().map(|v| *v as f64).sum::<f64>() / speckle.len() as f64;
+    for v in speckle.iter_mut() {
+        *v /= mean as f32;
+    }
+
+    let mut levels = vec![0f32; w * h];
+    for y in 0..h {
+        for x in 0..w {
+            let i = y * w + x;
+            if !inside[i] {
+                continue;
+            }
+            let (r, _) = g.polar(x as f64 * sx, y as f64 * sy);
+            let attenuation = (-0.004 * (r - g.convex_radius_mm)).exp() as f32;
+            let intensity = ((base[i] + echo[i]) * speckle[i] * attenuation).max(0.0);
+            let compressed = (1.0 + 60.0 * intensity).log10() / 61f32.log10();
+            let noisy = 235.0 * compressed + rng.normal(0.0, 2.0) as f32;
+            levels[i] = noisy.clamp(1.0, 255.0);
+        }
+    }
+    Ok(levels)
+}
+
+/// The tank floor's echo and its reverberation for a beam going down, added to
+/// `e_sum` with `weight`; the range past which the beam is now blocked.
+#[allow(clippy::too_many_arguments)]
+fn add_floor_echo(
+    tank: &Tank,
+    g: &BscanGeometry,
+    origin: &Vector3<f64>,
+    dir: &Vector3<f64>,
+    r: f64,
+    weight: f64,
+    e_sum: &mut f64,
+    blocked_at: f64,
+) -> f64 {
+    let lambda_floor = (tank.floor_z_mm - origin.z) / dir.z;
+    let floor_hit = origin + dir * lambda_floor;
+    let inside_walls = floor_hit.x.abs() < tank.wall_x_mm && floor_hit.y.abs() < tank.wall_y_mm;
+    if lambda_floor < blocked_at && inside_walls {
+        let strength = 0.3 + 0.7 * dir.z.powi(2);
+        *e_sum += weight * 0.9 * strength * (-((r - lambda_floor) / (AXIAL_SIGMA_MM * 1.5)).powi(2) / 2.0).exp();
+        let reverb = g.convex_radius_mm + 2.0 * (lambda_floor - g.convex_radius_mm);
+        *e_sum += weight * 0.25 * strength * (-((r - reverb) / (AXIAL_SIGMA_MM * 2.0)).powi(2) / 2.0).exp();
+        return blocked_at.min(lambda_floor + 2.0 * AXIAL_SIGMA_MM);
+    }
+    blocked_at
+}
+
 /// Renders one B-scan.
 pub fn render_bscan(
     scene: &Scene,
@@ -307,23 +446,8 @@ pub fn render_bscan(
     let normal = rotation * Vector3::z();
     let apex_world = world_T_image * Point3::new(g.apex_mm[0], g.apex_mm[1], 0.0);
 
-    // Elevation profile of the beam: Gaussian across the slice.
     let half = model.slice_thickness_mm / 2.0;
-    let offsets: Vec<(f64, f64)> = (0..ELEVATION_SAMPLES)
-        .map(|j| {
-            let e = if ELEVATION_SAMPLES > 1 {
-                -half + 2.0 * half * j as f64 / (ELEVATION_SAMPLES - 1) as f64
-            } else {
-                0.0
-            };
-            let weight = if half > 0.0 {
-                (-(e / (half / 1.5)).powi(2) / 2.0).exp()
-            } else {
-                1.0
-            };
-            (e, weight)
-        })
-        .collect();
+    let offsets = elevation_profile(half);
     let weight_sum: f64 = offsets.iter().map(|o| o.1).sum();
 
     let mut echo = vec![0f32; w * h];
@@ -375,20 +499,7 @@ pub fn render_bscan(
                     blocked_at = blocked;
                 }
                 if dir.z < -1e-6 {
-                    let lambda_floor = (tank.floor_z_mm - origin.z) / dir.z;
-                    let floor_hit = origin + dir * lambda_floor;
-                    let inside_walls = floor_hit.x.abs() < tank.wall_x_mm && floor_hit.y.abs() < tank.wall_y_mm;
-                    if lambda_floor < blocked_at && inside_walls {
-                        let strength = 0.3 + 0.7 * dir.z.powi(2);
-                        e_sum += weight
-                            * 0.9
-                            * strength
-                            * (-((r - lambda_floor) / (AXIAL_SIGMA_MM * 1.5)).powi(2) / 2.0).exp();
-                        let reverb = g.convex_radius_mm + 2.0 * (lambda_floor - g.convex_radius_mm);
-                        e_sum +=
-                            weight * 0.25 * strength * (-((r - reverb) / (AXIAL_SIGMA_MM * 2.0)).powi(2) / 2.0).exp();
-                        blocked_at = blocked_at.min(lambda_floor + 2.0 * AXIAL_SIGMA_MM);
-                    }
+                    blocked_at = add_floor_echo(&tank, g, &origin, &dir, r, weight, &mut e_sum, blocked_at);
                 }
                 if r > blocked_at {
                     shadow += weight;
@@ -417,73 +528,10 @@ pub fn render_bscan(
         }
     }
 
-    // Bubbles: bright spots with a reverberation tail down the beam.
-    let image_T_world = world_T_image.inverse();
-    for bubble in bubbles {
-        let centre = image_T_world * Point3::from(Vector3::from(bubble.centre_world_mm));
-        if centre.z.abs() > half + bubble.radius_mm {
-            continue;
-        }
-        let (rb, ab) = g.polar(centre.x, centre.y);
-        let rb = if model.range_scale == 1.0 {
-            rb
-        } else {
-            g.convex_radius_mm + (rb - g.convex_radius_mm) / model.range_scale
-        };
-        let size = bubble.radius_mm.max(0.35);
-        let x0 = ((centre.x - 4.0) / sx).floor().max(0.0) as usize;
-        let x1 = (((centre.x + 4.0) / sx).ceil() as usize).min(w);
-        let y0 = ((centre.y - 3.0) / sy).floor().max(0.0) as usize;
-        for y in y0..h {
-            for x in x0..x1 {
-                let i = y * w + x;
-                if !inside[i] {
-                    continue;
-                }
-                let (u_mm, v_mm) = (x as f64 * sx, y as f64 * sy);
-                let (r, a) = g.polar(u_mm, v_mm);
-                let lateral = (a - ab) * rb;
-                let along = r - rb;
-                let spot = (-(lateral * lateral + along * along) / (2.0 * size * size)).exp();
-                let tail = if along > 0.0 {
-                    0.45 * (-along / 4.0).exp()
-                        * (std::f64::consts::PI * along / 0.9).cos().powi(2)
-                        * (-(lateral / size).powi(2) / 2.0).exp()
-                } else {
-                    0.0
-                };
-                echo[i] += (1.4 * spot + tail) as f32;
-            }
-        }
-    }
+    add_bubbles(scene, world_T_image, bubbles, model, half, &inside, &mut echo);
 
     // Lateral and axial resolution of the beam.
     gaussian_blur_f32(w, h, &mut echo, 0.45 / sx, 0.2 / sy)?;
-    // Speckle: magnitude of a blurred complex Gaussian field, mean 1.
-    let mut re: Vec<f32> = (0..w * h).map(|_| rng.normal(0.0, 1.0) as f32).collect();
-    let mut im: Vec<f32> = (0..w * h).map(|_| rng.normal(0.0, 1.0) as f32).collect();
-    gaussian_blur_f32(w, h, &mut re, 0.35 / sx, 0.15 / sy)?;
-    gaussian_blur_f32(w, h, &mut im, 0.35 / sx, 0.15 / sy)?;
-    let mut speckle: Vec<f32> = re.iter().zip(&im).map(|(a, b)| (a * a + b * b).sqrt()).collect();
-    let mean = speckle.iter().map(|v| *v as f64).sum::<f64>() / speckle.len() as f64;
-    for v in speckle.iter_mut() {
-        *v /= mean as f32;
-    }
-
-    let mut levels = vec![0f32; w * h];
-    for y in 0..h {
-        for x in 0..w {
-            let i = y * w + x;
-            if !inside[i] {
-                continue;
-            }
-            let (r, _) = g.polar(x as f64 * sx, y as f64 * sy);
-            let attenuation = (-0.004 * (r - g.convex_radius_mm)).exp() as f32;
-            let intensity = ((base[i] + echo[i]) * speckle[i] * attenuation).max(0.0);
-            let compressed = (1.0 + 60.0 * intensity).log10() / 61f32.log10();
-            let noisy = 235.0 * compressed + rng.normal(0.0, 2.0) as f32;
-            levels[i] = noisy.clamp(1.0, 255.0);
-        }
-    }
+    let levels = speckled_levels(g, &base, &echo, &inside, rng)?;
     Ok(Gray8::from_levels(w, h, &levels))
 }
