@@ -16,8 +16,9 @@
 //!    is narrowed twice. The frame is rejected, with the reason, when the arc is
 //!    too short, has too few points, is not circular, or has an implausible radius.
 
+use super::circle::{angular_fill, fit_circle, hough_centre, line_rms, radius_peak};
 use super::fan::{FAN_EDGE_MM, NEAR_FIELD_MM};
-use super::ridge::{locate, RidgePeak, RidgeSample};
+use super::ridge::{locate, ridge_sample, RidgePeak};
 use crate::core::stats::median_and_quantile_nearest;
 use opencv::core::Mat;
 
@@ -62,9 +63,6 @@ pub struct ArcFeature {
     pub arc_points_px: Vec<[f64; 2]>,
 }
 
-const CELL_MM: f64 = 0.25;
-/// Angular bins for the arc's coverage check.
-const FILL_BIN_DEG: f64 = 5.0;
 /// Smallest fraction of the arc's span that must hold echo points.
 const MIN_FILL: f64 = 0.75;
 
@@ -97,93 +95,6 @@ pub enum ArcRejection {
     },
     #[error("arc is not circular: RMS {rms_px:.2} px from the fitted circle (limit {limit_px:.2} px)")]
     NotCircular { rms_px: f64, limit_px: f64 },
-}
-
-/// The accumulator's first strongest cell `(column, row, votes)`, or `None`
-/// when no cell has a vote. The maximum is found over all cells first and then
-/// its first cell, so the loops vectorise.
-fn accumulator_peak(accumulator: &[f32], width: usize) -> Option<(usize, usize, f32)> {
-    let votes = accumulator.iter().copied().fold(0f32, f32::max);
-    if votes <= 0.0 {
-        return None;
-    }
-    let best = accumulator.iter().position(|v| *v == votes)?;
-    Some((best % width, best / width, votes))
-}
-
-/// The strongest accumulator cell more than `exclusion` cells from `peak` in
-/// column or in row (0 when there is none): whole rows away from the peak's
-/// rows, and the parts left and right of the peak's columns in its rows.
-fn strongest_outside(accumulator: &[f32], width: usize, peak: [usize; 2], exclusion: usize) -> f32 {
-    let [bx, by] = peak;
-    let row_max = |row: &[f32]| row.iter().copied().fold(0f32, f32::max);
-    accumulator
-        .chunks(width.max(1))
-        .enumerate()
-        .map(|(y, row)| {
-            if y.abs_diff(by) > exclusion {
-                row_max(row)
-            } else {
-                let left = row_max(&row[..bx.saturating_sub(exclusion)]);
-                let right = row_max(row.get(bx + exclusion + 1..).unwrap_or(&[]));
-                left.max(right)
-            }
-        })
-        .fold(0f32, f32::max)
-}
-
-/// Geometric circle fit (Gauss–Newton) from a start; returns centre, radius, RMS (mm).
-/// With `fixed_radius` the radius stays at the start's value.
-fn fit_circle(points: &[[f64; 2]], start: ([f64; 2], f64), fixed_radius: bool) -> Option<([f64; 2], f64, f64)> {
-    let ([mut a, mut b], mut r) = start;
-    for _ in 0..30 {
-        let mut jtj = nalgebra::Matrix3::<f64>::zeros();
-        let mut jtr = nalgebra::Vector3::<f64>::zeros();
-        for p in points {
-            let (dx, dy) = (p[0] - a, p[1] - b);
-            let d = (dx * dx + dy * dy).sqrt().max(1e-9);
-            let j = nalgebra::Vector3::new(-dx / d, -dy / d, if fixed_radius { 0.0 } else { -1.0 });
-            let res = d - r;
-            jtj += j * j.transpose();
-            jtr += j * res;
-        }
-        if fixed_radius {
-            jtj[(2, 2)] = 1.0;
-        }
-        let step = jtj.lu().solve(&(-jtr))?;
-        a += step[0];
-        b += step[1];
-        r += step[2];
-        if step.norm() < 1e-7 {
-            break;
-        }
-    }
-    let sum: f64 = points
-        .iter()
-        .map(|p| (((p[0] - a).powi(2) + (p[1] - b).powi(2)).sqrt() - r).powi(2))
-        .sum();
-    let rms = (sum / points.len().max(1) as f64).sqrt();
-    (a.is_finite() && b.is_finite() && r.is_finite()).then_some(([a, b], r, rms))
-}
-
-/// RMS distance of points to their total-least-squares line (mm).
-fn line_rms(points: &[[f64; 2]]) -> f64 {
-    let n = points.len().max(1) as f64;
-    let (mx, my) = (
-        points.iter().map(|p| p[0]).sum::<f64>() / n,
-        points.iter().map(|p| p[1]).sum::<f64>() / n,
-    );
-    let (mut sxx, mut syy, mut sxy) = (0.0, 0.0, 0.0);
-    for p in points {
-        let (dx, dy) = (p[0] - mx, p[1] - my);
-        sxx += dx * dx;
-        syy += dy * dy;
-        sxy += dx * dy;
-    }
-    // Smallest eigenvalue of the scatter matrix = sum of squared line distances.
-    let half_trace = (sxx + syy) / 2.0;
-    let smallest = half_trace - (((sxx - syy) / 2.0).powi(2) + sxy * sxy).sqrt();
-    (smallest.max(0.0) / n).sqrt()
 }
 
 /// A circle must fit the arc points at least this many times better than a line.
@@ -288,7 +199,6 @@ pub fn echo_points(image: &Mat, settings: &ArcSettings) -> Result<Result<EchoPoi
     //    The image is read row by row, in memory order; the points are then put
     //    in column order (top to bottom within a column).
     let mut found: Vec<(usize, [f64; 2], [f64; 2])> = Vec::new();
-    let at = |x: usize, y: usize| iso[y * w + x] as f64;
     for y in 2..h.saturating_sub(2) {
         for x in 2..w.saturating_sub(2) {
             if top[x].is_none_or(|t| y < (t + near_rows).max(2)) {
@@ -298,47 +208,11 @@ pub fn echo_points(image: &Mat, settings: &ArcSettings) -> Result<Result<EchoPoi
             if v < threshold || !interior[y * w + x] {
                 continue;
             }
-            let up = smooth[(y - 1) * w + x];
-            let down = smooth[(y + 1) * w + x];
-            if !(v >= up && v > down && v >= smooth[(y - 2) * w + x] && v >= smooth[(y + 2) * w + x]) {
+            let Some(sample) = ridge_sample(&smooth, &iso, w, [x, y], [sx, sy]) else {
                 continue;
-            }
-            // Hessian in mm units, over a 2-pixel baseline to average out speckle.
-            let ixx = (at(x + 2, y) - 2.0 * at(x, y) + at(x - 2, y)) / (4.0 * sx * sx);
-            let iyy = (at(x, y + 2) - 2.0 * at(x, y) + at(x, y - 2)) / (4.0 * sy * sy);
-            let ixy = (at(x + 2, y + 2) - at(x + 2, y - 2) - at(x - 2, y + 2) + at(x - 2, y - 2)) / (16.0 * sx * sy);
-            let half_trace = (ixx + iyy) / 2.0;
-            let root = (((ixx - iyy) / 2.0).powi(2) + ixy * ixy).sqrt();
-            let (l_min, l_other) = (half_trace - root, half_trace + root);
-            if l_min >= 0.0 || l_min.abs() < 2.0 * l_other.abs() {
-                continue;
-            }
-            // Eigenvector of l_min.
-            let (mut nx, mut ny) = if ixy.abs() > 1e-12 {
-                (ixy, l_min - ixx)
-            } else if ixx < iyy {
-                (1.0, 0.0)
-            } else {
-                (0.0, 1.0)
-            };
-            let norm = (nx * nx + ny * ny).sqrt();
-            nx /= norm;
-            ny /= norm;
-            if ny < 0.0 {
-                nx = -nx;
-                ny = -ny;
-            }
-            let sample = RidgeSample {
-                column: [up, v, down],
-                gradient: [
-                    (at(x + 2, y) - at(x - 2, y)) / (4.0 * sx),
-                    (at(x, y + 2) - at(x, y - 2)) / (4.0 * sy),
-                ],
-                hessian: [ixx, ixy, iyy],
-                normal: [nx, ny],
             };
             if let Some(point) = locate(settings.peak, x, y, &sample, [sx, sy]) {
-                found.push((x, point, [nx, ny]));
+                found.push((x, point, sample.normal));
             }
         }
     }
@@ -369,75 +243,13 @@ fn arc_from_points(echo: &EchoPoints, settings: &ArcSettings) -> Result<Result<A
         }));
     }
 
-    // 2. Hough accumulator: each point votes along its normal, towards the centre
-    //    below it (the dome faces the probe), at every radius of the range.
     let [r_min, r_max] = settings.radius_mm;
-    let (gw, gh) = (
-        ((w as f64 * sx) / CELL_MM).ceil() as usize + 1,
-        ((h as f64 * sy) / CELL_MM).ceil() as usize + 1,
-    );
-    let mut accumulator = vec![0f32; gw * gh];
-    let radii: Vec<f64> = (0..)
-        .map(|i| r_min + i as f64 * CELL_MM)
-        .take_while(|r| *r <= r_max)
-        .collect();
-    for (p, n) in points_mm.iter().zip(normals) {
-        if n[1] < (70f64).to_radians().cos() {
-            continue; // the centre lies within 70° of straight below an arc point
-        }
-        for spread in [-6.0f64, -3.0, 0.0, 3.0, 6.0] {
-            let (sin, cos) = spread.to_radians().sin_cos();
-            let d = [n[0] * cos - n[1] * sin, n[0] * sin + n[1] * cos];
-            for &r in &radii {
-                let (gx, gy) = (
-                    ((p[0] + r * d[0]) / CELL_MM).round(),
-                    ((p[1] + r * d[1]) / CELL_MM).round(),
-                );
-                if gx < 0.0 || gy < 0.0 || gx >= gw as f64 || gy >= gh as f64 {
-                    continue;
-                }
-                accumulator[gy as usize * gw + gx as usize] += 1.0;
-            }
-        }
-    }
-    gaussian_blur_f32(gw, gh, &mut accumulator, 2.0, 2.0)?;
-    let Some((bx, by, best_votes)) = accumulator_peak(&accumulator, gw) else {
+    let size_mm = [w as f64 * sx, h as f64 * sy];
+    let Some((centre, peak_ratio)) = hough_centre(points_mm, normals, size_mm, [r_min, r_max])? else {
         return Ok(Err(ArcRejection::NoHoughPeak));
     };
-    let competing = strongest_outside(&accumulator, gw, [bx, by], (3.0 / CELL_MM) as usize);
-    let peak_ratio = if competing > 0.0 {
-        (best_votes / competing) as f64
-    } else {
-        f64::INFINITY
-    };
-    let centre = [bx as f64 * CELL_MM, by as f64 * CELL_MM];
 
-    // 3. Radius histogram around the centre (points above the centre only).
-    let bin = 0.1;
-    let bins = ((r_max - r_min) / bin).ceil() as usize + 1;
-    let mut histogram = vec![0f64; bins];
-    for p in points_mm {
-        if p[1] >= centre[1] {
-            continue;
-        }
-        let d = ((p[0] - centre[0]).powi(2) + (p[1] - centre[1]).powi(2)).sqrt();
-        if d >= r_min && d <= r_max {
-            histogram[((d - r_min) / bin) as usize] += 1.0;
-        }
-    }
-    let smoothed: Vec<f64> = (0..bins)
-        .map(|i| {
-            [(-2i64, 1.0), (-1, 2.0), (0, 3.0), (1, 2.0), (2, 1.0)]
-                .iter()
-                .filter_map(|(o, wgt)| histogram.get((i as i64 + o) as usize).map(|v| v * wgt))
-                .sum()
-        })
-        .collect();
-    let (peak_bin, _) = smoothed
-        .iter()
-        .enumerate()
-        .fold((0, 0.0), |acc, (i, v)| if *v > acc.1 { (i, *v) } else { acc });
-    let mut radius = r_min + (peak_bin as f64 + 0.5) * bin;
+    let mut radius = radius_peak(points_mm, centre, [r_min, r_max]);
 
     // 4. Inlier band, geometric fit, narrowed twice.
     let pixel_mm = (sx + sy) / 2.0;
@@ -475,14 +287,7 @@ fn arc_from_points(echo: &EchoPoints, settings: &ArcSettings) -> Result<Result<A
         .collect();
     let first = angles.iter().cloned().fold(f64::MAX, f64::min);
     let span = angles.iter().cloned().fold(f64::MIN, f64::max) - first;
-    // How continuously the points cover the span: a dome's echo is one unbroken
-    // arc; pieces of other structures that happen to lie on a circle are not.
-    let bins = ((span / FILL_BIN_DEG).ceil() as usize).max(1);
-    let mut occupied = vec![false; bins];
-    for a in &angles {
-        occupied[(((a - first) / FILL_BIN_DEG) as usize).min(bins - 1)] = true;
-    }
-    let fill = occupied.iter().filter(|o| **o).count() as f64 / bins as f64;
+    let fill = angular_fill(&angles, first, span);
     let rms_px = rms_mm / pixel_mm;
     let feature = ArcFeature {
         centre_px: [centre_fit[0] / sx, centre_fit[1] / sy],

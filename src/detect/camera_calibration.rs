@@ -223,6 +223,23 @@ impl CalibrationView {
     }
 }
 
+/// Too few views with a board: each image's fate listed.
+fn too_few_views(views: &[CalibrationView], inner_corners: [u32; 2], found: usize) -> CalibrationError {
+    let details = views
+        .iter()
+        .filter_map(|v| v.reason.as_ref().map(|r| format!("  {}: {r}", v.image.display())))
+        .collect::<Vec<_>>()
+        .join("\n");
+    CalibrationError::TooFewViews {
+        cols: inner_corners[0],
+        rows: inner_corners[1],
+        found,
+        total: views.len(),
+        needed: MIN_VIEWS,
+        details,
+    }
+}
+
 /// Calibrates from the given image files.
 pub fn calibrate(
     images: &[PathBuf],
@@ -285,19 +302,7 @@ pub fn calibrate(
         }
     }
     if used.object.len() < MIN_VIEWS {
-        let details = views
-            .iter()
-            .filter_map(|v| v.reason.as_ref().map(|r| format!("  {}: {r}", v.image.display())))
-            .collect::<Vec<_>>()
-            .join("\n");
-        return Err(CalibrationError::TooFewViews {
-            cols: inner_corners[0],
-            rows: inner_corners[1],
-            found: used.object.len(),
-            total: images.len(),
-            needed: MIN_VIEWS,
-            details,
-        });
+        return Err(too_few_views(&views, inner_corners, used.object.len()));
     }
     let image_size = size.map(|s| s.1).unwrap_or_default();
     let solved = solve(&used.object, &used.imagep, image_size)?;
@@ -306,14 +311,16 @@ pub fn calibrate(
     for (i, view_index) in used_index.iter().enumerate() {
         views[*view_index].rms_px = Some(solved.per_view[i]);
     }
-    let mut warnings = Vec::new();
-    if solved.orientation_spread_deg < MIN_ORIENTATION_SPREAD_DEG {
-        warnings.push(format!(
-            "the boards of the {} views used face the camera within {:.1}° of each other (less than {MIN_ORIENTATION_SPREAD_DEG}°): the focal length is poorly constrained; add views with the board tilted",
-            used_index.len(),
-            solved.orientation_spread_deg
-        ));
-    }
+    let warnings: Vec<String> = (solved.orientation_spread_deg < MIN_ORIENTATION_SPREAD_DEG)
+        .then(|| {
+            format!(
+                "the boards of the {} views used face the camera within {:.1}° of each other (less than {MIN_ORIENTATION_SPREAD_DEG}°): the focal length is poorly constrained; add views with the board tilted",
+                used_index.len(),
+                solved.orientation_spread_deg
+            )
+        })
+        .into_iter()
+        .collect();
     let Solved {
         camera_matrix: k,
         distortion: d,

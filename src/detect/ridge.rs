@@ -69,6 +69,61 @@ pub fn locate(
     }
 }
 
+/// The ridge sample of pixel `[x, y]` (at least 2 px from the image's edges):
+/// `None` unless the smoothed column peaks there and the structure is
+/// line-like rather than a speckle blob. The Hessian is taken in mm on the
+/// isotropically smoothed image over a 2-pixel baseline, to average out speckle;
+/// the normal is the eigenvector of the most negative curvature, pointing down.
+pub fn ridge_sample(
+    smooth: &[f32],
+    iso: &[f32],
+    w: usize,
+    [x, y]: [usize; 2],
+    [sx, sy]: [f64; 2],
+) -> Option<RidgeSample> {
+    let at = |x: usize, y: usize| iso[y * w + x] as f64;
+    let v = smooth[y * w + x];
+    let up = smooth[(y - 1) * w + x];
+    let down = smooth[(y + 1) * w + x];
+    if !(v >= up && v > down && v >= smooth[(y - 2) * w + x] && v >= smooth[(y + 2) * w + x]) {
+        return None;
+    }
+    // Hessian in mm units, over a 2-pixel baseline to average out speckle.
+    let ixx = (at(x + 2, y) - 2.0 * at(x, y) + at(x - 2, y)) / (4.0 * sx * sx);
+    let iyy = (at(x, y + 2) - 2.0 * at(x, y) + at(x, y - 2)) / (4.0 * sy * sy);
+    let ixy = (at(x + 2, y + 2) - at(x + 2, y - 2) - at(x - 2, y + 2) + at(x - 2, y - 2)) / (16.0 * sx * sy);
+    let half_trace = (ixx + iyy) / 2.0;
+    let root = (((ixx - iyy) / 2.0).powi(2) + ixy * ixy).sqrt();
+    let (l_min, l_other) = (half_trace - root, half_trace + root);
+    if l_min >= 0.0 || l_min.abs() < 2.0 * l_other.abs() {
+        return None;
+    }
+    // Eigenvector of l_min.
+    let (mut nx, mut ny) = if ixy.abs() > 1e-12 {
+        (ixy, l_min - ixx)
+    } else if ixx < iyy {
+        (1.0, 0.0)
+    } else {
+        (0.0, 1.0)
+    };
+    let norm = (nx * nx + ny * ny).sqrt();
+    nx /= norm;
+    ny /= norm;
+    if ny < 0.0 {
+        nx = -nx;
+        ny = -ny;
+    }
+    Some(RidgeSample {
+        column: [up, v, down],
+        gradient: [
+            (at(x + 2, y) - at(x - 2, y)) / (4.0 * sx),
+            (at(x, y + 2) - at(x, y - 2)) / (4.0 * sy),
+        ],
+        hessian: [ixx, ixy, iyy],
+        normal: [nx, ny],
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

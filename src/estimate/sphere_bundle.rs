@@ -180,6 +180,42 @@ fn fitted(
     }
 }
 
+/// The normal equations of one step: the unknowns all frames share (U, g) and
+/// each frame's own (V, W, g_e).
+#[allow(clippy::type_complexity)]
+fn normal_equations(
+    start: &Rigid,
+    frames: &[FrameArcs],
+    x: &DVector<f64>,
+    deltas: &[Vector6<f64>],
+    shared_information: &DMatrix<f64>,
+    model: EdgeOffset,
+    sd: f64,
+) -> (
+    DMatrix<f64>,
+    DVector<f64>,
+    Vec<(Matrix6<f64>, DMatrix<f64>, Vector6<f64>)>,
+) {
+    let m = shared_information.nrows();
+    let n = x.len();
+    let mut u = DMatrix::zeros(n, n);
+    let mut g = DVector::zeros(n);
+    u.view_mut((6, 6), (m, m)).copy_from(shared_information);
+    g.rows_mut(6, m).copy_from(&(shared_information * x.rows(6, m)));
+    let mut blocks = Vec::with_capacity(frames.len());
+    let (c, k, free) = split(x, m);
+    for (f, e) in frames.iter().zip(deltas) {
+        let (r, jx, jd) = f.linearised(start, (&c, &k, &free), e, model, sd);
+        u += jx.transpose() * &jx;
+        g += jx.transpose() * &r;
+        let v = Matrix6::from_iterator((jd.transpose() * &jd).iter().copied()) + f.information;
+        let w = jx.transpose() * &jd;
+        let ge = Vector6::from_iterator((jd.transpose() * &r).iter().copied()) + f.information * e;
+        blocks.push((v, w, ge));
+    }
+    (u, g, blocks)
+}
+
 /// Refines `start` (the plain sphere fit) with every frame's pose free under its prior.
 pub fn refine(
     start: &Rigid,
@@ -218,22 +254,7 @@ pub fn refine(
     let mut iterations = 0;
     while iterations < MAX_ITERATIONS && current.is_finite() {
         iterations += 1;
-        // Normal equations: the unknowns all frames share (U, g), each frame's own (V, W, g_e).
-        let mut u = DMatrix::zeros(n, n);
-        let mut g = DVector::zeros(n);
-        u.view_mut((6, 6), (m, m)).copy_from(&shared_information);
-        g.rows_mut(6, m).copy_from(&(&shared_information * x.rows(6, m)));
-        let mut blocks = Vec::with_capacity(frames.len());
-        let (c, k, free) = split(&x, m);
-        for (f, e) in frames.iter().zip(&deltas) {
-            let (r, jx, jd) = f.linearised(start, (&c, &k, &free), e, model, sd);
-            u += jx.transpose() * &jx;
-            g += jx.transpose() * &r;
-            let v = Matrix6::from_iterator((jd.transpose() * &jd).iter().copied()) + f.information;
-            let w = jx.transpose() * &jd;
-            let ge = Vector6::from_iterator((jd.transpose() * &r).iter().copied()) + f.information * e;
-            blocks.push((v, w, ge));
-        }
+        let (u, g, blocks) = normal_equations(start, &frames, &x, &deltas, &shared_information, model, sd);
         let accepted = loop {
             let mut s = &u + DMatrix::from_diagonal(&(u.diagonal() * lambda));
             let mut b = g.clone();

@@ -424,6 +424,34 @@ fn add_floor_echo(
     blocked_at
 }
 
+/// The echo of the nearest dome the beam meets on its upper half, added to
+/// `e_sum` with `weight`; the range past which the dome blocks the beam.
+fn add_dome_echo(
+    domes: &[(Vector3<f64>, f64)],
+    origin: &Vector3<f64>,
+    dir: &Vector3<f64>,
+    r: f64,
+    convex_radius_mm: f64,
+    weight: f64,
+    e_sum: &mut f64,
+) -> Option<f64> {
+    // The nearest dome the beam meets on its upper half.
+    let dome_hit = domes
+        .iter()
+        .filter_map(|(centre, radius)| {
+            let lambda = ray_sphere(origin, dir, centre, *radius)?;
+            let hit = origin + dir * lambda;
+            (lambda > convex_radius_mm && hit.z >= centre.z - 0.5).then_some((centre, *radius, lambda, hit))
+        })
+        .min_by(|a, b| a.2.total_cmp(&b.2));
+    let (centre, radius, lambda, hit) = dome_hit?;
+    let n = (hit - centre) / radius;
+    let incidence = dir.dot(&n).abs();
+    let strength = 0.15 + 0.85 * incidence.powi(4);
+    *e_sum += weight * 1.6 * strength * (-((r - lambda) / AXIAL_SIGMA_MM).powi(2) / 2.0).exp();
+    Some(lambda + 2.0 * AXIAL_SIGMA_MM)
+}
+
 /// Renders one B-scan.
 pub fn render_bscan(
     scene: &Scene,
@@ -474,24 +502,8 @@ pub fn render_bscan(
             for &(e, weight) in &offsets {
                 let origin = apex_world.coords + normal * e;
                 let mut blocked_at = f64::INFINITY;
-                // The nearest dome the beam meets on its upper half.
-                let dome_hit = domes
-                    .iter()
-                    .filter_map(|(centre, radius)| {
-                        let lambda = ray_sphere(&origin, &dir, centre, *radius)?;
-                        let hit = origin + dir * lambda;
-                        (lambda > g.convex_radius_mm && hit.z >= centre.z - 0.5)
-                            .then_some((centre, *radius, lambda, hit))
-                    })
-                    .min_by(|a, b| a.2.total_cmp(&b.2));
-                if let Some((centre, radius, lambda, hit)) = dome_hit {
-                    {
-                        let n = (hit - centre) / radius;
-                        let incidence = dir.dot(&n).abs();
-                        let strength = 0.15 + 0.85 * incidence.powi(4);
-                        e_sum += weight * 1.6 * strength * (-((r - lambda) / AXIAL_SIGMA_MM).powi(2) / 2.0).exp();
-                        blocked_at = lambda + 2.0 * AXIAL_SIGMA_MM;
-                    }
+                if let Some(blocked) = add_dome_echo(&domes, &origin, &dir, r, g.convex_radius_mm, weight, &mut e_sum) {
+                    blocked_at = blocked;
                 }
                 if domes.is_empty() {
                     let (echo, blocked) = phantom_echo(scene, &origin, &dir, r, g.convex_radius_mm);
