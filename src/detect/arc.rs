@@ -231,6 +231,51 @@ pub fn echo_points(image: &Mat, settings: &ArcSettings) -> Result<Result<EchoPoi
     }))
 }
 
+/// Step 5: the arc's checks (radius in range, span, a circle and not a line,
+/// coverage, roundness); the first failed one is the rejection.
+fn checked(
+    feature: ArcFeature,
+    inliers: &[[f64; 2]],
+    rms_mm: f64,
+    settings: &ArcSettings,
+) -> Result<ArcFeature, ArcRejection> {
+    let [r_min, r_max] = settings.radius_mm;
+    if !(r_min..=r_max).contains(&feature.radius_mm) {
+        return Err(ArcRejection::RadiusOutside {
+            radius_mm: feature.radius_mm,
+            min_mm: r_min,
+            max_mm: r_max,
+        });
+    }
+    if feature.span_deg < settings.min_span_deg {
+        return Err(ArcRejection::ShortSpan {
+            span_deg: feature.span_deg,
+            needed_deg: settings.min_span_deg,
+        });
+    }
+    let straightness = line_rms(inliers) / rms_mm.max(1e-9);
+    if straightness < MIN_LINE_TO_CIRCLE_RMS {
+        return Err(ArcRejection::Straight {
+            line_to_circle: straightness,
+            needed: MIN_LINE_TO_CIRCLE_RMS,
+        });
+    }
+    if feature.fill < MIN_FILL {
+        return Err(ArcRejection::Patchy {
+            covered_percent: 100.0 * feature.fill,
+            span_deg: feature.span_deg,
+            needed_percent: 100.0 * MIN_FILL,
+        });
+    }
+    if feature.rms_px > settings.max_rms_px {
+        return Err(ArcRejection::NotCircular {
+            rms_px: feature.rms_px,
+            limit_px: settings.max_rms_px,
+        });
+    }
+    Ok(feature)
+}
+
 /// Steps 2 to 4: the strongest arc among echo points.
 fn arc_from_points(echo: &EchoPoints, settings: &ArcSettings) -> Result<Result<ArcFeature, ArcRejection>, ImageError> {
     let [sx, sy] = settings.spacing_mm_per_px;
@@ -303,40 +348,7 @@ fn arc_from_points(echo: &EchoPoints, settings: &ArcSettings) -> Result<Result<A
         .cbrt(),
         arc_points_px: inliers.iter().map(|p| [p[0] / sx, p[1] / sy]).collect(),
     };
-    if !(r_min..=r_max).contains(&radius) {
-        return Ok(Err(ArcRejection::RadiusOutside {
-            radius_mm: radius,
-            min_mm: r_min,
-            max_mm: r_max,
-        }));
-    }
-    if span < settings.min_span_deg {
-        return Ok(Err(ArcRejection::ShortSpan {
-            span_deg: span,
-            needed_deg: settings.min_span_deg,
-        }));
-    }
-    let straightness = line_rms(&inliers) / rms_mm.max(1e-9);
-    if straightness < MIN_LINE_TO_CIRCLE_RMS {
-        return Ok(Err(ArcRejection::Straight {
-            line_to_circle: straightness,
-            needed: MIN_LINE_TO_CIRCLE_RMS,
-        }));
-    }
-    if fill < MIN_FILL {
-        return Ok(Err(ArcRejection::Patchy {
-            covered_percent: 100.0 * fill,
-            span_deg: span,
-            needed_percent: 100.0 * MIN_FILL,
-        }));
-    }
-    if rms_px > settings.max_rms_px {
-        return Ok(Err(ArcRejection::NotCircular {
-            rms_px,
-            limit_px: settings.max_rms_px,
-        }));
-    }
-    Ok(Ok(feature))
+    Ok(checked(feature, &inliers, rms_mm, settings))
 }
 
 #[cfg(test)]

@@ -240,6 +240,26 @@ fn too_few_views(views: &[CalibrationView], inner_corners: [u32; 2], found: usiz
     }
 }
 
+/// Each image's size and board corners (with how they were found), decoded and
+/// searched on every core, in the images' order.
+#[allow(clippy::type_complexity)]
+fn search_views(
+    images: &[PathBuf],
+    inner_corners: [u32; 2],
+    subpix: SubPix,
+    search: Search,
+) -> Vec<Result<(Size, opencv::Result<Option<(Vec<[f64; 2]>, Found)>>), crate::io::image::ImageError>> {
+    crate::core::parallel::parallel_map(images.len(), |i| {
+        read_gray(&images[i]).map(|image| {
+            let size = Size::new(image.cols(), image.rows());
+            (
+                size,
+                search_chessboard_reduced(&image, inner_corners, subpix, SEARCH_MAX_SIDE_PX, search),
+            )
+        })
+    })
+}
+
 /// Calibrates from the given image files.
 pub fn calibrate(
     images: &[PathBuf],
@@ -257,16 +277,7 @@ pub fn calibrate(
     let mut views = Vec::new();
     let mut used = UsedViews::default();
     let mut size: Option<(PathBuf, Size)> = None;
-    // The views are decoded and searched on every core; what follows reads them in order.
-    let searched = crate::core::parallel::parallel_map(images.len(), |i| {
-        read_gray(&images[i]).map(|image| {
-            let size = Size::new(image.cols(), image.rows());
-            (
-                size,
-                search_chessboard_reduced(&image, inner_corners, subpix, SEARCH_MAX_SIDE_PX, search),
-            )
-        })
-    });
+    let searched = search_views(images, inner_corners, subpix, search);
     for (path, searched) in images.iter().zip(searched) {
         let (this, found) = match searched {
             Ok(s) => s,

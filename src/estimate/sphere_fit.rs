@@ -121,6 +121,44 @@ fn elevation(frame: &ArcFrame, marker_T_image: &Rigid, centre: &Point3<f64>) -> 
     (image_T_phantom * centre).z
 }
 
+/// The edge points' RMS distance from their spheres under a calibration,
+/// overall and per frame (consecutive arcs of one frame together), mm.
+fn residual_rms(
+    frames: &[&ArcFrame],
+    points: &[Vec<Point3<f64>>],
+    settings: &SphereSettings,
+    marker_T_image: &Rigid,
+    radius_offset_mm: f64,
+) -> (f64, Vec<(usize, f64)>) {
+    let mut sum = 0.0;
+    let mut count = 0usize;
+    let mut per_frame: Vec<(usize, f64, usize)> = Vec::new();
+    for (f, points) in frames.iter().zip(points) {
+        if per_frame.last().is_none_or(|(k, _, _)| *k != f.frame) {
+            per_frame.push((f.frame, 0.0, 0));
+        }
+        let phantom_T_image = f.phantom_T_marker() * marker_T_image;
+        let KnownSphere {
+            centre_in_phantom_mm: c,
+            radius_mm,
+        } = settings.spheres[f.sphere];
+        for p in points {
+            let squared = ((phantom_T_image * p - c).norm() - radius_mm - radius_offset_mm).powi(2);
+            sum += squared;
+            count += 1;
+            if let Some(last) = per_frame.last_mut() {
+                last.1 += squared;
+                last.2 += 1;
+            }
+        }
+    }
+    let frame_rms_mm = per_frame
+        .into_iter()
+        .map(|(k, s, n)| (k, (s / n.max(1) as f64).sqrt()))
+        .collect();
+    ((sum / count.max(1) as f64).sqrt(), frame_rms_mm)
+}
+
 /// Refines `start` (e.g. Horn on the arc centres) on the arc edge points.
 pub fn refine(start: &Rigid, frames: &[ArcFrame], settings: &SphereSettings) -> Result<SphereFit, SphereFitError> {
     let frames: Vec<&ArcFrame> = frames
@@ -196,43 +234,19 @@ pub fn refine(start: &Rigid, frames: &[ArcFrame], settings: &SphereSettings) -> 
             nominal_mm: nominal,
         });
     }
-    let in_image = in_image(spacing_mm_per_px);
-    let mut sum = 0.0;
-    let mut count = 0usize;
-    let mut per_frame: Vec<(usize, f64, usize)> = Vec::new();
-    for (f, points) in frames.iter().zip(&in_image) {
-        if per_frame.last().is_none_or(|(k, _, _)| *k != f.frame) {
-            per_frame.push((f.frame, 0.0, 0));
-        }
-        let phantom_T_image = f.phantom_T_marker() * marker_T_image;
-        let KnownSphere {
-            centre_in_phantom_mm: c,
-            radius_mm,
-        } = sphere(f);
-        for p in points {
-            let squared = ((phantom_T_image * p - c).norm() - radius_mm - radius_offset_mm).powi(2);
-            sum += squared;
-            count += 1;
-            if let Some(last) = per_frame.last_mut() {
-                last.1 += squared;
-                last.2 += 1;
-            }
-        }
-    }
+    let points = in_image(spacing_mm_per_px);
+    let (rms_mm, frame_rms_mm) = residual_rms(&frames, &points, settings, &marker_T_image, radius_offset_mm);
     Ok(SphereFit {
         elevation_mm: frames
             .iter()
             .map(|f| (f.frame, elevation(f, &marker_T_image, &sphere(f).centre_in_phantom_mm)))
             .collect(),
-        frame_rms_mm: per_frame
-            .into_iter()
-            .map(|(k, s, n)| (k, (s / n.max(1) as f64).sqrt()))
-            .collect(),
+        frame_rms_mm,
         marker_T_image,
         radius_offset_mm,
         edge_offset_mm: [0.0; TERMS],
         spacing_mm_per_px,
-        rms_mm: (sum / count.max(1) as f64).sqrt(),
+        rms_mm,
         iterations: out.iterations,
     })
 }

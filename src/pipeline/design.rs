@@ -187,28 +187,13 @@ pub struct Bound {
     pub arcs: usize,
 }
 
-/// The bound of `phantom` in the manifest's lab for a render spec: the
-/// scene's frames (all but those where the probe moved between photo and
-/// B-scan, or the plane misses), each cut dome's arc sampled one point per
-/// pixel column within ±55° of its top; the boards' poses from their corners
-/// in the scene's photos, with the intrinsics from the scene's calibration views.
-/// The noise is the manifest's [`noise`].
-pub fn bound_of(manifest: &Manifest, phantom: &Phantom, spec: &RenderSpec) -> Result<Bound, BoundError> {
-    let noise = noise(manifest);
-    let mut lab = super::settings::lab(manifest);
-    lab.phantom = phantom;
-    let scene = crate::synth::scene_of(&lab, spec).map_err(|e| BoundError::Scene(e.to_string()))?;
-    if lab.calibration_board.is_none() {
-        return Err(BoundError::Unusable(
-            "the bound models a camera calibrated from board views (`camera.calibrate`)",
-        ));
-    }
-    let photo_noise = PhotoNoise {
-        probe_corner_sd_px: noise.probe_corner_sd_px,
-        phantom_corner_sd_px: noise.phantom_corner_sd_px,
-        tremor_sd_mm: spec.sweep.tremor_mm,
-        tremor_sd_deg: spec.sweep.tremor_deg,
-    };
+/// What the camera calibration knows of the intrinsics: its board views, and
+/// (when the manifest refines the camera with the frames) every photo's two boards.
+fn intrinsics_information(
+    manifest: &Manifest,
+    scene: &crate::synth::scene::Scene,
+    noise: &BoundNoise,
+) -> Result<pose_noise::IntrinsicsInformation, BoundError> {
     let probe_corners = scene.probe_board.feature_points_mm();
     let phantom_corners = scene.phantom_board.feature_points_mm();
     let camera_T_phantom = scene.camera_T_world * scene.world_T_phantom;
@@ -241,6 +226,35 @@ pub fn bound_of(manifest: &Manifest, phantom: &Phantom, spec: &RenderSpec) -> Re
                 pose_noise::calibration_information(&scene.camera, &distinct, corners, sd).ok_or(behind)?;
         }
     }
+    Ok(intrinsics_information)
+}
+
+/// The bound of `phantom` in the manifest's lab for a render spec: the
+/// scene's frames (all but those where the probe moved between photo and
+/// B-scan, or the plane misses), each cut dome's arc sampled one point per
+/// pixel column within ±55° of its top; the boards' poses from their corners
+/// in the scene's photos, with the intrinsics from the scene's calibration views.
+/// The noise is the manifest's [`noise`].
+pub fn bound_of(manifest: &Manifest, phantom: &Phantom, spec: &RenderSpec) -> Result<Bound, BoundError> {
+    let noise = noise(manifest);
+    let mut lab = super::settings::lab(manifest);
+    lab.phantom = phantom;
+    let scene = crate::synth::scene_of(&lab, spec).map_err(|e| BoundError::Scene(e.to_string()))?;
+    if lab.calibration_board.is_none() {
+        return Err(BoundError::Unusable(
+            "the bound models a camera calibrated from board views (`camera.calibrate`)",
+        ));
+    }
+    let photo_noise = PhotoNoise {
+        probe_corner_sd_px: noise.probe_corner_sd_px,
+        phantom_corner_sd_px: noise.phantom_corner_sd_px,
+        tremor_sd_mm: spec.sweep.tremor_mm,
+        tremor_sd_deg: spec.sweep.tremor_deg,
+    };
+    let probe_corners = scene.probe_board.feature_points_mm();
+    let phantom_corners = scene.phantom_board.feature_points_mm();
+    let camera_T_phantom = scene.camera_T_world * scene.world_T_phantom;
+    let intrinsics_information = intrinsics_information(manifest, &scene, &noise)?;
     let spheres: Vec<KnownSphere> = super::settings::known_spheres(phantom).ok_or(BoundError::Unusable(
         "the bound is of dome phantoms (hemisphere, spheres)",
     ))?;

@@ -16,6 +16,63 @@ use crate::io::fs::{display_path, WriteError};
 
 pub use super::error::OutputError;
 
+/// The frames' truth columns (rendered datasets; empty otherwise).
+fn truth_columns(f: &[crate::pipeline::record::FrameRecord]) -> Vec<Column> {
+    let opt = |get: &dyn Fn(&crate::pipeline::record::FrameRecord) -> Option<f64>| {
+        f.iter().map(get).collect::<Vec<Option<f64>>>()
+    };
+    vec![
+        Column::new(
+            "truth_kind".into(),
+            f.iter().map(|r| r.truth_kind.clone()).collect::<Vec<_>>(),
+        ),
+        Column::new(
+            "truth_elevation_offset_mm".into(),
+            opt(&|r| r.truth_elevation_offset_mm),
+        ),
+        Column::new(
+            "truth_arc_centre_error_px".into(),
+            opt(&|r| r.truth_arc_centre_error_px),
+        ),
+        Column::new(
+            "truth_probe_pose_error_mm".into(),
+            opt(&|r| r.truth_probe_pose_error.map(|e| e.0)),
+        ),
+        Column::new(
+            "truth_probe_pose_error_deg".into(),
+            opt(&|r| r.truth_probe_pose_error.map(|e| e.1)),
+        ),
+        Column::new(
+            "truth_phantom_pose_error_mm".into(),
+            opt(&|r| r.truth_phantom_pose_error.map(|e| e.0)),
+        ),
+        Column::new(
+            "truth_phantom_pose_error_deg".into(),
+            opt(&|r| r.truth_phantom_pose_error.map(|e| e.1)),
+        ),
+    ]
+}
+
+/// One column per cut-off: whether each frame is kept below it.
+fn kept_columns(run: &DatasetRun) -> Vec<Column> {
+    let f = &run.frames;
+    let mut columns = Vec::new();
+    for row in &run.thresholds {
+        let name = if row.cutoff_mm.is_infinite() {
+            "kept_below_inf".to_string()
+        } else {
+            format!("kept_below_{}mm", trim_number(row.cutoff_mm))
+        };
+        columns.push(Column::new(
+            name.into(),
+            f.iter()
+                .map(|r| row.frames.contains(&r.files.frame))
+                .collect::<Vec<_>>(),
+        ));
+    }
+    columns
+}
+
 /// The per-frame table: one row per frame, used or rejected with the stage and reason.
 pub fn frames_table(run: &DatasetRun) -> PolarsResult<DataFrame> {
     let f = &run.frames;
@@ -87,49 +144,10 @@ pub fn frames_table(run: &DatasetRun) -> PolarsResult<DataFrame> {
         Column::new("bre_y_mm".into(), opt(&|r| r.bre_mm.map(|b| b.0[1]))),
         Column::new("bre_z_mm".into(), opt(&|r| r.bre_mm.map(|b| b.0[2]))),
         Column::new("bre_norm_mm".into(), opt(&|r| r.bre_mm.map(|b| b.1))),
-        Column::new(
-            "truth_kind".into(),
-            f.iter().map(|r| r.truth_kind.clone()).collect::<Vec<_>>(),
-        ),
-        Column::new(
-            "truth_elevation_offset_mm".into(),
-            opt(&|r| r.truth_elevation_offset_mm),
-        ),
-        Column::new(
-            "truth_arc_centre_error_px".into(),
-            opt(&|r| r.truth_arc_centre_error_px),
-        ),
-        Column::new(
-            "truth_probe_pose_error_mm".into(),
-            opt(&|r| r.truth_probe_pose_error.map(|e| e.0)),
-        ),
-        Column::new(
-            "truth_probe_pose_error_deg".into(),
-            opt(&|r| r.truth_probe_pose_error.map(|e| e.1)),
-        ),
-        Column::new(
-            "truth_phantom_pose_error_mm".into(),
-            opt(&|r| r.truth_phantom_pose_error.map(|e| e.0)),
-        ),
-        Column::new(
-            "truth_phantom_pose_error_deg".into(),
-            opt(&|r| r.truth_phantom_pose_error.map(|e| e.1)),
-        ),
     ];
     let mut columns = columns;
-    for row in &run.thresholds {
-        let name = if row.cutoff_mm.is_infinite() {
-            "kept_below_inf".to_string()
-        } else {
-            format!("kept_below_{}mm", trim_number(row.cutoff_mm))
-        };
-        columns.push(Column::new(
-            name.into(),
-            f.iter()
-                .map(|r| row.frames.contains(&r.files.frame))
-                .collect::<Vec<_>>(),
-        ));
-    }
+    columns.extend(truth_columns(f));
+    columns.extend(kept_columns(run));
     DataFrame::new(n, columns)
 }
 
