@@ -79,28 +79,34 @@ pub struct MethodInputs<'a> {
     pub truth: Option<evaluate::TrueCalibration>,
 }
 
-/// Every estimator on the same frames, the reported one first.
-pub fn methods_stage(manifest: &Manifest, inputs: &MethodInputs<'_>, log: &mut dyn FnMut(&str)) -> Vec<MethodResult> {
-    let MethodInputs {
-        records,
-        frames,
-        reported,
-        ..
-    } = *inputs;
-    let spacing = inputs.fit.spacing;
-    let variant = inputs.fit.variant;
-    let result =
-        |method: Method, frames_used: usize, frames_left_out: Vec<usize>, m: &Rigid, s: [f64; 2]| MethodResult {
+impl MethodInputs<'_> {
+    /// An estimator's result on these frames, scored against the truth when given.
+    fn result(
+        &self,
+        method: Method,
+        frames_used: usize,
+        frames_left_out: Vec<usize>,
+        m: &Rigid,
+        s: [f64; 2],
+    ) -> MethodResult {
+        MethodResult {
             method,
             frames_used,
             frames_left_out,
             marker_T_image: *m,
             spacing_mm_per_px: s,
-            truth: truth_of(m, s, spacing, inputs.truth),
-        };
+            truth: truth_of(m, s, self.fit.spacing, self.truth),
+        }
+    }
+}
+
+/// Every estimator on the same frames, the reported one first.
+pub fn methods_stage(manifest: &Manifest, inputs: &MethodInputs<'_>, log: &mut dyn FnMut(&str)) -> Vec<MethodResult> {
+    let MethodInputs { frames, reported, .. } = *inputs;
+    let spacing = inputs.fit.spacing;
     let mut out = Vec::new();
     if let Ok(fit) = &reported.fit {
-        out.push(result(
+        out.push(inputs.result(
             Method::CutoffWorstFirst {
                 cutoff_mm: reported.cutoff_mm,
             },
@@ -110,64 +116,9 @@ pub fn methods_stage(manifest: &Manifest, inputs: &MethodInputs<'_>, log: &mut d
             spacing,
         ));
     }
-    // The thesis's own procedure: one Horn fit on all frames, every frame whose BRE
-    // under it exceeds the cut-off dropped at once, Horn again.
-    if reported.cutoff_mm.is_finite() {
-        if let Ok(all) = correspondence::solve(frames, spacing, variant, None) {
-            let kept: Vec<Correspondence> = frames
-                .iter()
-                .filter(|f| {
-                    let (axes, norm) = correspondence::bre(f, &all, spacing);
-                    let value = manifest.thresholds.cutoff_rule.measure(&axes, norm);
-                    CutoffRule::below(value, reported.cutoff_mm)
-                })
-                .cloned()
-                .collect();
-            if let Ok(fit) = correspondence::solve(&kept, spacing, variant, None) {
-                out.push(result(
-                    Method::ThesisOneShot {
-                        cutoff_mm: reported.cutoff_mm,
-                    },
-                    kept.len(),
-                    left_out(frames, |f| kept.iter().any(|c| c.frame == f.frame)),
-                    &fit.target_T_source,
-                    spacing,
-                ));
-            }
-        }
-    }
-    let mut ransac = None;
-    for method in [RobustMethod::Ransac, RobustMethod::Lmeds] {
-        let settings = RobustSettings {
-            method,
-            ..manifest.robust
-        };
-        match robust::solve(frames, spacing, variant, &settings) {
-            Ok(r) => {
-                let used = r.inliers.iter().filter(|k| **k).count();
-                let named = match method {
-                    RobustMethod::Ransac => Method::Ransac {
-                        threshold_mm: r.threshold_mm,
-                        noise_sd_mm: settings.threshold_mm.is_none().then_some(settings.noise_sd_mm),
-                    },
-                    RobustMethod::Lmeds => Method::Lmeds {
-                        threshold_mm: r.threshold_mm,
-                    },
-                };
-                out.push(result(
-                    named,
-                    used,
-                    outside_consensus(frames, &r.inliers),
-                    &r.fit.target_T_source,
-                    spacing,
-                ));
-                if method == RobustMethod::Ransac {
-                    ransac = Some(r);
-                }
-            }
-            Err(e) => log(&format!("{method:?}: {e}")),
-        }
-    }
+    out.extend(thesis_one_shot(manifest, inputs));
+    let (robust, ransac) = robust_methods(manifest, inputs, log);
+    out.extend(robust);
     let Some(ransac) = ransac else { return out };
     let ransac_left_out = outside_consensus(frames, &ransac.inliers);
     let inliers: Vec<&Correspondence> = frames
@@ -187,7 +138,7 @@ pub fn methods_stage(manifest: &Manifest, inputs: &MethodInputs<'_>, log: &mut d
     match image_to_probe::refine(&start, &constraints, &settings) {
         Ok(fit) => {
             let m = &fit.image_to_probe;
-            out.push(result(
+            out.push(inputs.result(
                 Method::RansacLmScales,
                 inliers.len(),
                 ransac_left_out.clone(),
@@ -197,13 +148,106 @@ pub fn methods_stage(manifest: &Manifest, inputs: &MethodInputs<'_>, log: &mut d
         }
         Err(e) => log(&format!("LM with pixel scales: {e}")),
     }
-    let Some(radius_mm) = inputs.sphere_radius_mm else {
-        return out;
-    };
+    if let Some(radius_mm) = inputs.sphere_radius_mm {
+        let fitted = ransac_sphere_fit(manifest, inputs, &ransac, &inliers, radius_mm);
+        match fitted {
+            Ok((method, arcs, fit)) => {
+                out.push(inputs.result(method, arcs, ransac_left_out, &fit.marker_T_image, spacing))
+            }
+            Err(e) => log(&format!("sphere fit: {e}")),
+        }
+    }
+    out
+}
+
+/// The thesis's own procedure: one Horn fit on all frames, every frame whose BRE
+/// under it exceeds the cut-off dropped at once, Horn again.
+fn thesis_one_shot(manifest: &Manifest, inputs: &MethodInputs<'_>) -> Option<MethodResult> {
+    let MethodInputs { frames, reported, .. } = *inputs;
+    let (spacing, variant) = (inputs.fit.spacing, inputs.fit.variant);
+    if !reported.cutoff_mm.is_finite() {
+        return None;
+    }
+    let all = correspondence::solve(frames, spacing, variant, None).ok()?;
+    let kept: Vec<Correspondence> = frames
+        .iter()
+        .filter(|f| {
+            let (axes, norm) = correspondence::bre(f, &all, spacing);
+            let value = manifest.thresholds.cutoff_rule.measure(&axes, norm);
+            CutoffRule::below(value, reported.cutoff_mm)
+        })
+        .cloned()
+        .collect();
+    let fit = correspondence::solve(&kept, spacing, variant, None).ok()?;
+    Some(inputs.result(
+        Method::ThesisOneShot {
+            cutoff_mm: reported.cutoff_mm,
+        },
+        kept.len(),
+        left_out(frames, |f| kept.iter().any(|c| c.frame == f.frame)),
+        &fit.target_T_source,
+        spacing,
+    ))
+}
+
+/// RANSAC and LMedS on the frames; RANSAC's fit is kept for the methods that start from it.
+fn robust_methods(
+    manifest: &Manifest,
+    inputs: &MethodInputs<'_>,
+    log: &mut dyn FnMut(&str),
+) -> (Vec<MethodResult>, Option<robust::RobustFit>) {
+    let frames = inputs.frames;
+    let (spacing, variant) = (inputs.fit.spacing, inputs.fit.variant);
+    let mut out = Vec::new();
+    let mut ransac = None;
+    for method in [RobustMethod::Ransac, RobustMethod::Lmeds] {
+        let settings = RobustSettings {
+            method,
+            ..manifest.robust
+        };
+        match robust::solve(frames, spacing, variant, &settings) {
+            Ok(r) => {
+                let used = r.inliers.iter().filter(|k| **k).count();
+                let named = match method {
+                    RobustMethod::Ransac => Method::Ransac {
+                        threshold_mm: r.threshold_mm,
+                        noise_sd_mm: settings.threshold_mm.is_none().then_some(settings.noise_sd_mm),
+                    },
+                    RobustMethod::Lmeds => Method::Lmeds {
+                        threshold_mm: r.threshold_mm,
+                    },
+                };
+                out.push(inputs.result(
+                    named,
+                    used,
+                    outside_consensus(frames, &r.inliers),
+                    &r.fit.target_T_source,
+                    spacing,
+                ));
+                if method == RobustMethod::Ransac {
+                    ransac = Some(r);
+                }
+            }
+            Err(e) => log(&format!("{method:?}: {e}")),
+        }
+    }
+    (out, ransac)
+}
+
+/// The sphere fit of RANSAC's inliers' arcs from RANSAC's calibration (its
+/// elevation prior from the data when the manifest says so): the method, the
+/// arcs used and the fit.
+fn ransac_sphere_fit(
+    manifest: &Manifest,
+    inputs: &MethodInputs<'_>,
+    ransac: &robust::RobustFit,
+    inliers: &[&Correspondence],
+    radius_mm: f64,
+) -> Result<(Method, usize, sphere_fit::SphereFit), sphere_fit::SphereFitError> {
     let arcs: Vec<ArcFrame> = inliers
         .iter()
         .filter_map(|c| {
-            let record = records.iter().find(|r| r.files.frame == c.frame)?;
+            let record = inputs.records.iter().find(|r| r.files.frame == c.frame)?;
             Some(ArcFrame {
                 frame: c.frame,
                 sphere: 0,
@@ -218,7 +262,7 @@ pub fn methods_stage(manifest: &Manifest, inputs: &MethodInputs<'_>, log: &mut d
             centre_in_phantom_mm: Point3::from(nalgebra::Vector3::from(inputs.feature_in_phantom_mm)),
             radius_mm,
         }],
-        spacing_mm_per_px: spacing,
+        spacing_mm_per_px: inputs.fit.spacing,
         elevation_prior_sd_mm: manifest.sphere_fit.elevation_prior_sd_mm,
         fit_radius_offset: manifest.sphere_fit.fit_radius_offset,
         points_per_frame: 20.0,
@@ -236,54 +280,18 @@ pub fn methods_stage(manifest: &Manifest, inputs: &MethodInputs<'_>, log: &mut d
             }
         }
     }
-    match fitted {
-        Ok(fit) => out.push(result(
-            Method::RansacSphereFit {
-                elevation_prior_sd_mm: settings.elevation_prior_sd_mm,
-                edge_offset_mm: fit.radius_offset_mm,
-            },
-            arcs.len(),
-            ransac_left_out,
-            &fit.marker_T_image,
-            spacing,
-        )),
-        Err(e) => log(&format!("sphere fit: {e}")),
-    }
-    out
+    let fit = fitted?;
+    let method = Method::RansacSphereFit {
+        elevation_prior_sd_mm: settings.elevation_prior_sd_mm,
+        edge_offset_mm: fit.radius_offset_mm,
+    };
+    Ok((method, arcs.len(), fit))
 }
 
-/// Multi-sphere phantoms: the reported calibration, and the sphere fit of the
-/// arcs of its frames, each arc on its own sphere (paired in stage 4).
-pub fn spheres_methods(
-    inputs: &MethodInputs<'_>,
-    spheres: &[crate::spec::phantom::Sphere],
-    fit_pixel_size: bool,
-    pose: Option<&super::sphere_pose::PoseInputs<'_>>,
-    log: &mut dyn FnMut(&str),
-) -> Vec<MethodResult> {
-    let spacing = inputs.fit.spacing;
+/// The arcs of the reported calibration's frames, each on the sphere its label names.
+fn sphere_arcs(inputs: &MethodInputs<'_>, spheres: &[crate::spec::phantom::Sphere]) -> Vec<ArcFrame> {
     let reported = inputs.reported;
-    let Ok(fit) = &reported.fit else {
-        return Vec::new();
-    };
-    // `fitted`: the pixel size the method maps pixels with (its own when fitted).
-    let result = |method: Method, frames_used: usize, m: &Rigid, fitted: [f64; 2]| MethodResult {
-        method,
-        frames_used,
-        frames_left_out: left_out(inputs.frames, |f| reported.frames.contains(&f.frame)),
-        marker_T_image: *m,
-        spacing_mm_per_px: fitted,
-        truth: truth_of(m, fitted, spacing, inputs.truth),
-    };
-    let mut out = vec![result(
-        Method::CutoffWorstFirst {
-            cutoff_mm: reported.cutoff_mm,
-        },
-        reported.frames.len(),
-        &fit.target_T_source,
-        spacing,
-    )];
-    let arcs: Vec<ArcFrame> = inputs
+    inputs
         .frames
         .iter()
         .filter(|c| reported.frames.contains(&c.frame))
@@ -307,7 +315,33 @@ pub fn spheres_methods(
             )
         })
         .flatten()
-        .collect();
+        .collect()
+}
+
+/// Multi-sphere phantoms: the reported calibration, and the sphere fit of the
+/// arcs of its frames, each arc on its own sphere (paired in stage 4).
+pub fn spheres_methods(
+    inputs: &MethodInputs<'_>,
+    spheres: &[crate::spec::phantom::Sphere],
+    fit_pixel_size: bool,
+    pose: Option<&super::sphere_pose::PoseInputs<'_>>,
+    log: &mut dyn FnMut(&str),
+) -> Vec<MethodResult> {
+    let spacing = inputs.fit.spacing;
+    let reported = inputs.reported;
+    let Ok(fit) = &reported.fit else {
+        return Vec::new();
+    };
+    let mut out = vec![inputs.result(
+        Method::CutoffWorstFirst {
+            cutoff_mm: reported.cutoff_mm,
+        },
+        reported.frames.len(),
+        left_out(inputs.frames, |f| reported.frames.contains(&f.frame)),
+        &fit.target_T_source,
+        spacing,
+    )];
+    let arcs = sphere_arcs(inputs, spheres);
     let settings = SphereSettings {
         spheres: spheres
             .iter()
@@ -348,20 +382,18 @@ pub fn spheres_methods(
             return out;
         }
     };
-    out.push(MethodResult {
-        frames_left_out: kept_left_out.clone(),
-        ..result(
-            Method::SphereFit {
-                arcs: kept.len(),
-                rms_mm: sphere.rms_mm,
-                rms_limit_mm: limit,
-                pixel_size_fitted: fit_pixel_size,
-            },
-            frames_kept,
-            &sphere.marker_T_image,
-            sphere.spacing_mm_per_px,
-        )
-    });
+    out.push(inputs.result(
+        Method::SphereFit {
+            arcs: kept.len(),
+            rms_mm: sphere.rms_mm,
+            rms_limit_mm: limit,
+            pixel_size_fitted: fit_pixel_size,
+        },
+        frames_kept,
+        kept_left_out.clone(),
+        &sphere.marker_T_image,
+        sphere.spacing_mm_per_px,
+    ));
     if let Some(pose) = pose {
         // The pose-prior fit maps pixels with the sphere fit's pixel size.
         let settings = SphereSettings {
@@ -370,20 +402,18 @@ pub fn spheres_methods(
             ..settings
         };
         match super::sphere_pose::fit(&sphere.marker_T_image, &kept, inputs.records, &settings, pose) {
-            Ok((posed, noise)) => out.push(MethodResult {
-                frames_left_out: kept_left_out,
-                ..result(
-                    Method::SphereFitPosePrior {
-                        arcs: kept.len(),
-                        rms_mm: posed.rms_mm,
-                        noise,
-                        pixel_size_fitted: fit_pixel_size,
-                    },
-                    frames_kept,
-                    &posed.marker_T_image,
-                    posed.spacing_mm_per_px,
-                )
-            }),
+            Ok((posed, noise)) => out.push(inputs.result(
+                Method::SphereFitPosePrior {
+                    arcs: kept.len(),
+                    rms_mm: posed.rms_mm,
+                    noise,
+                    pixel_size_fitted: fit_pixel_size,
+                },
+                frames_kept,
+                kept_left_out,
+                &posed.marker_T_image,
+                posed.spacing_mm_per_px,
+            )),
             Err(e) => log(&format!("sphere fit with pose priors: {e}")),
         }
     }
