@@ -3,7 +3,8 @@
 # plain `cargo test` runs) and the full tier (tests that need ../shared/data or run
 # experiments; `#[ignore]`d with their reason), except the long reproductions of
 # scripts/long-tests, which scripts/reproduce.sh runs. A test whose input is
-# absent says so and skips. Extra arguments go to cargo test.
+# absent says so and skips. Formatting and clippy (warnings denied) run first.
+# Extra arguments go to cargo test.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh
@@ -11,6 +12,9 @@ source scripts/env.sh
 started=$(date +%s)
 cargo build --all-targets
 built=$(date +%s)
+# The code's shape: formatted, no lint (functions over 100 lines among them, see clippy.toml).
+cargo fmt --check
+cargo clippy --all-targets -- -D warnings
 mapfile -t long < <(grep -v '^#' scripts/long-tests | grep .)
 targets=(--lib --bins)
 for file in tests/*.rs; do

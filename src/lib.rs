@@ -48,6 +48,8 @@
 //! - BRE of a frame: `|p − phantom_T_camera · camera_T_marker · marker_T_image ·
 //!   (sx·u, sy·v, 0)|` per axis of P, where `p` is the feature's known position.
 #![allow(non_snake_case)]
+// Functions fit on a screen (`clippy.toml` sets the limit to 100 lines).
+#![deny(clippy::too_many_lines)]
 
 pub mod cli;
 pub mod core;

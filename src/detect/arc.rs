@@ -354,6 +354,7 @@ fn arc_from_points(echo: &EchoPoints, settings: &ArcSettings) -> Result<Result<A
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::detect::circle::{accumulator_peak, strongest_outside};
 
     #[test]
     fn peak_and_strongest_competitor_are_the_cell_by_cell_search() {

@@ -107,7 +107,7 @@ pub fn angular_fill(angles: &[f64], first: f64, span: f64) -> f64 {
 /// The accumulator's first strongest cell `(column, row, votes)`, or `None`
 /// when no cell has a vote. The maximum is found over all cells first and then
 /// its first cell, so the loops vectorise.
-fn accumulator_peak(accumulator: &[f32], width: usize) -> Option<(usize, usize, f32)> {
+pub(crate) fn accumulator_peak(accumulator: &[f32], width: usize) -> Option<(usize, usize, f32)> {
     let votes = accumulator.iter().copied().fold(0f32, f32::max);
     if votes <= 0.0 {
         return None;
@@ -119,7 +119,7 @@ fn accumulator_peak(accumulator: &[f32], width: usize) -> Option<(usize, usize, 
 /// The strongest accumulator cell more than `exclusion` cells from `peak` in
 /// column or in row (0 when there is none): whole rows away from the peak's
 /// rows, and the parts left and right of the peak's columns in its rows.
-fn strongest_outside(accumulator: &[f32], width: usize, peak: [usize; 2], exclusion: usize) -> f32 {
+pub(crate) fn strongest_outside(accumulator: &[f32], width: usize, peak: [usize; 2], exclusion: usize) -> f32 {
     let [bx, by] = peak;
     let row_max = |row: &[f32]| row.iter().copied().fold(0f32, f32::max);
     accumulator

@@ -143,7 +143,7 @@ fn fitted(
     settings: &SphereSettings,
     iterations: usize,
 ) -> SphereFit {
-    let (c, k, free) = split(&x, m);
+    let (c, k, free) = split(x, m);
     let o = model.expand(free.as_slice());
     let marker_T_image = at(start, &c);
     let mut sum = 0.0;

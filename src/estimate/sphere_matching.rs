@@ -182,6 +182,75 @@ fn pair_frame(
     (candidates(offset).0, predicted.len(), shift.then_some(offset))
 }
 
+/// Every paired arc as the sphere fit takes it.
+fn paired_arcs(frames: &[FrameArcs], pairs: &[Vec<(usize, usize)>]) -> Vec<ArcFrame> {
+    frames
+        .iter()
+        .zip(pairs)
+        .flat_map(|(f, p)| {
+            p.iter().map(move |(j, k)| ArcFrame {
+                frame: f.frame,
+                sphere: *k,
+                edge_px: f.arcs[*j].edge_px.clone(),
+                camera_T_marker: f.camera_T_marker,
+                camera_T_phantom: f.camera_T_phantom,
+            })
+        })
+        .collect()
+}
+
+/// The point pairs of the frames with a paired arc (each arc's centre on its
+/// sphere's centre, at the fit's elevation), their arcs' sphere names, and the
+/// frames with none.
+#[allow(clippy::type_complexity)]
+fn paired(
+    frames: &[FrameArcs],
+    spheres: &[NamedSphere],
+    pairs: &[Vec<(usize, usize)>],
+    predicted_counts: &[usize],
+    fit: &SphereFit,
+) -> (
+    Vec<Correspondence>,
+    Vec<(usize, Vec<(String, usize)>)>,
+    Vec<(usize, SphereRejection)>,
+) {
+    let mut correspondences = Vec::new();
+    let mut labels = Vec::new();
+    let mut rejected = Vec::new();
+    for ((f, p), predicted) in frames.iter().zip(pairs).zip(predicted_counts) {
+        if p.is_empty() {
+            rejected.push((
+                f.frame,
+                SphereRejection::NoArcOnASphere {
+                    arcs: f.arcs.len(),
+                    predicted: *predicted,
+                },
+            ));
+            continue;
+        }
+        let mut features = Vec::new();
+        let mut names = Vec::new();
+        for (j, k) in p {
+            let sphere = &spheres[*k].sphere;
+            let elevation_mm = predict(f, &fit.marker_T_image, sphere).map_or(0.0, |(_, _, z)| z);
+            features.push(Observed {
+                pixel: f.arcs[*j].centre_px,
+                elevation_mm,
+                target_in_phantom: Target::Point(Point3::from(sphere.centre_in_phantom_mm.coords)),
+            });
+            names.push((spheres[*k].name.clone(), *j));
+        }
+        correspondences.push(Correspondence {
+            frame: f.frame,
+            features,
+            camera_T_marker: f.camera_T_marker,
+            camera_T_phantom: f.camera_T_phantom,
+        });
+        labels.push((f.frame, names));
+    }
+    (correspondences, labels, rejected)
+}
+
 /// Pairs arcs with spheres and fits `marker_T_image` on every paired arc's edge.
 pub fn match_and_solve(
     frames: &[FrameArcs],
@@ -241,19 +310,7 @@ pub fn match_and_solve(
                 needed: min_frames.max(3),
             });
         }
-        let arcs: Vec<ArcFrame> = frames
-            .iter()
-            .zip(&pairs)
-            .flat_map(|(f, p)| {
-                p.iter().map(move |(j, k)| ArcFrame {
-                    frame: f.frame,
-                    sphere: *k,
-                    edge_px: f.arcs[*j].edge_px.clone(),
-                    camera_T_marker: f.camera_T_marker,
-                    camera_T_phantom: f.camera_T_phantom,
-                })
-            })
-            .collect();
+        let arcs = paired_arcs(frames, &pairs);
         let refined = sphere_fit::refine(&marker_T_image, &arcs, &settings)?;
         marker_T_image = refined.marker_T_image;
         current = refined.spacing_mm_per_px;
@@ -267,40 +324,7 @@ pub fn match_and_solve(
             needed: min_frames.max(3),
         });
     };
-    let mut correspondences = Vec::new();
-    let mut labels = Vec::new();
-    let mut rejected = Vec::new();
-    for ((f, p), predicted) in frames.iter().zip(&pairs).zip(&predicted_counts) {
-        if p.is_empty() {
-            rejected.push((
-                f.frame,
-                SphereRejection::NoArcOnASphere {
-                    arcs: f.arcs.len(),
-                    predicted: *predicted,
-                },
-            ));
-            continue;
-        }
-        let mut features = Vec::new();
-        let mut names = Vec::new();
-        for (j, k) in p {
-            let sphere = &spheres[*k].sphere;
-            let elevation_mm = predict(f, &fit.marker_T_image, sphere).map_or(0.0, |(_, _, z)| z);
-            features.push(Observed {
-                pixel: f.arcs[*j].centre_px,
-                elevation_mm,
-                target_in_phantom: Target::Point(Point3::from(sphere.centre_in_phantom_mm.coords)),
-            });
-            names.push((spheres[*k].name.clone(), *j));
-        }
-        correspondences.push(Correspondence {
-            frame: f.frame,
-            features,
-            camera_T_marker: f.camera_T_marker,
-            camera_T_phantom: f.camera_T_phantom,
-        });
-        labels.push((f.frame, names));
-    }
+    let (correspondences, labels, rejected) = paired(frames, spheres, &pairs, &predicted_counts, &fit);
     Ok(SphereMatching {
         correspondences,
         labels,

@@ -260,6 +260,8 @@ mod tests {
     /// RMS corner error over many draws, over the bound's under the same model.
     /// With `blur`, each point's variance grows with its arc's cut as
     /// [`SliceBlur`] says, and the fit and the bound both know it.
+    // A test scenario read top to bottom: the rule on functions is for the code under test.
+    #[allow(clippy::too_many_lines)]
     fn fit_over_bound(model: EdgeOffset, terms_mm: EdgeTerms, blur: Option<SliceBlur>) -> f64 {
         use crate::core::rng::Rng;
         use crate::estimate::sphere_bundle::PosePriors;

@@ -198,13 +198,13 @@ fn time_offset(c: &mut Checker<'_>, base: &Path, seq: &PlusSequence) -> TimeOffs
         OffsetSetting::Temporal { temporal } => TimeOffset::Temporal {
             tracker: c.existing(
                 &format!("{f}.time_offset_s.temporal.tracker"),
-                &base,
+                base,
                 &temporal.tracker,
                 false,
             ),
             video: c.existing(
                 &format!("{f}.time_offset_s.temporal.video"),
-                &base,
+                base,
                 &temporal.video,
                 false,
             ),
@@ -264,7 +264,7 @@ fn phantom_parts(c: &mut Checker<'_>, base: &Path, phantom: &TrackedPhantom) -> 
                     );
                 }
             }
-            let plus_config = c.existing(config_field, &base, plus_config, false);
+            let plus_config = c.existing(config_field, base, plus_config, false);
             if plus_config.is_file() {
                 match PlusConfig::read(&plus_config) {
                     Ok(config) => {

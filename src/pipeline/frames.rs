@@ -52,7 +52,28 @@ fn detect_frame(
     rig: &RigBoards,
     detector: &Detector,
 ) -> Result<FrameRecord, RunError> {
-    let mut record = FrameRecord {
+    let mut record = blank_record(files);
+    if let Err(rejection) = frame_poses(files, camera, rig, &mut record)? {
+        record.rejection = Some(rejection);
+        return Ok(record);
+    }
+    let bscan = match read_gray(&files.bscan_image) {
+        Ok(m) => m,
+        Err(e) => {
+            record.rejection = Some(Rejection::BscanImage(e));
+            return Ok(record);
+        }
+    };
+    record.bscan_size_px = Some([bscan.cols() as usize, bscan.rows() as usize]);
+    if let Err(rejection) = bscan_features(&bscan, detector, &mut record) {
+        record.rejection = Some(rejection);
+    }
+    Ok(record)
+}
+
+/// A frame's record before any stage has run.
+fn blank_record(files: &FrameFiles) -> FrameRecord {
+    FrameRecord {
         files: files.clone(),
         rejection: None,
         poses: None,
@@ -70,34 +91,34 @@ fn detect_frame(
         truth_phantom_pose_error: None,
         truth_probe_depth_error_mm: None,
         bscan_size_px: None,
-    };
+    }
+}
+
+/// Stage 2: the frame's poses, from its photo's boards or from the tracker
+/// (the inner `Err` is the frame's rejection).
+fn frame_poses(
+    files: &FrameFiles,
+    camera: &CameraStage,
+    rig: &RigBoards,
+    record: &mut FrameRecord,
+) -> Result<Result<(), Rejection>, RunError> {
     match (&camera.intrinsics, &camera.tracker) {
         (Some(intrinsics), _) => {
             let Some(photo_file) = &files.camera_image else {
-                record.rejection = Some(Rejection::NoCameraImage);
-                return Ok(record);
+                return Ok(Err(Rejection::NoCameraImage));
             };
             let photo = match read_gray_sized(photo_file, intrinsics.image_size_px) {
                 Ok(m) => m,
-                Err(e) => {
-                    record.rejection = Some(Rejection::CameraImage(e));
-                    return Ok(record);
-                }
+                Err(e) => return Ok(Err(Rejection::CameraImage(e))),
             };
             match crate::detect::rig_pose::estimate(&photo, intrinsics, rig)? {
                 Ok(poses) => record.poses = Some(poses),
-                Err(reason) => {
-                    record.rejection = Some(Rejection::BoardPose(reason));
-                    return Ok(record);
-                }
+                Err(reason) => return Ok(Err(Rejection::BoardPose(reason))),
             }
         }
         (None, Some(t)) => match t.poses.frame(files.frame, &t.probe_transform, &t.reference_transform) {
             Ok(tracked) => record.tracked = Some(tracked),
-            Err(reason) => {
-                record.rejection = Some(Rejection::TrackerPose(reason));
-                return Ok(record);
-            }
+            Err(reason) => return Ok(Err(Rejection::TrackerPose(reason))),
         },
         (None, None) => {
             return Err(RunError::Unsupported(
@@ -105,77 +126,62 @@ fn detect_frame(
             ))
         }
     }
-    let bscan = match read_gray(&files.bscan_image) {
-        Ok(m) => m,
-        Err(e) => {
-            record.rejection = Some(Rejection::BscanImage(e));
-            return Ok(record);
-        }
-    };
-    record.bscan_size_px = Some([bscan.cols() as usize, bscan.rows() as usize]);
+    Ok(Ok(()))
+}
+
+/// Stage 3: the phantom's features in the B-scan (arcs, a pin head, wire dots);
+/// `Err` is the frame's rejection.
+fn bscan_features(bscan: &opencv::core::Mat, detector: &Detector, record: &mut FrameRecord) -> Result<(), Rejection> {
     let spots = match detector {
         Detector::Arc(arc) => {
-            match arc::detect(&bscan, arc) {
-                Ok(Ok(feature)) => {
-                    record.features_px = vec![feature.centre_px];
-                    record.arc = Some(feature);
-                }
-                Ok(Err(reason)) => record.rejection = Some(Rejection::Arc(reason)),
-                Err(e) => record.rejection = Some(Rejection::BscanImage(e)),
-            }
-            return Ok(record);
+            let feature = arc::detect(bscan, arc)
+                .map_err(Rejection::BscanImage)?
+                .map_err(Rejection::Arc)?;
+            record.features_px = vec![feature.centre_px];
+            record.arc = Some(feature);
+            return Ok(());
         }
         Detector::Arcs(arc, count) => {
-            match arc::detect_many(&bscan, arc, *count) {
-                Ok((arcs, reason)) => match (arcs.first(), reason) {
-                    (None, Some(reason)) => record.rejection = Some(Rejection::Arc(reason)),
-                    _ => {
-                        record.features_px = arcs.iter().map(|a| a.centre_px).collect();
-                        record.arc = arcs.first().cloned();
-                        record.arcs = arcs;
-                    }
-                },
-                Err(e) => record.rejection = Some(Rejection::BscanImage(e)),
+            let (arcs, reason) = arc::detect_many(bscan, arc, *count).map_err(Rejection::BscanImage)?;
+            if let (None, Some(reason)) = (arcs.first(), reason) {
+                return Err(Rejection::Arc(reason));
             }
-            return Ok(record);
+            record.features_px = arcs.iter().map(|a| a.centre_px).collect();
+            record.arc = arcs.first().cloned();
+            record.arcs = arcs;
+            return Ok(());
         }
-        Detector::PinHead(settings) | Detector::WireDots(settings) => match spot::detect(&bscan, settings) {
-            Ok(spots) => spots,
-            Err(e) => {
-                record.rejection = Some(Rejection::BscanImage(e));
-                return Ok(record);
-            }
-        },
+        Detector::PinHead(settings) | Detector::WireDots(settings) => {
+            spot::detect(bscan, settings).map_err(Rejection::BscanImage)?
+        }
     };
     record.spots = spots.spots.clone();
     match detector {
         Detector::PinHead(settings) => match pin_head_candidates(&spots.spots, settings.object_radius_mm).as_slice() {
-            [] => {
-                record.rejection = Some(Rejection::NoPinHead {
-                    compact: spots.spots.len(),
-                    surfaces: spots.surfaces,
-                })
-            }
+            [] => Err(Rejection::NoPinHead {
+                compact: spots.spots.len(),
+                surfaces: spots.surfaces,
+            }),
             [first, second, ..] if first.strength < PIN_HEAD_MIN_STRENGTH_RATIO * second.strength => {
-                record.rejection = Some(Rejection::AmbiguousPinHead {
+                Err(Rejection::AmbiguousPinHead {
                     first_px: first.echo_px,
                     second_px: second.echo_px,
                 })
             }
-            [first, ..] => record.features_px = vec![first.centre_px],
-        },
-        _ => {
-            if spots.spots.len() < 2 {
-                record.rejection = Some(Rejection::TooFewWireDots {
-                    compact: spots.spots.len(),
-                    surfaces: spots.surfaces,
-                });
-            } else {
-                record.features_px = spots.spots.iter().map(|s| s.centre_px).collect();
+            [first, ..] => {
+                record.features_px = vec![first.centre_px];
+                Ok(())
             }
+        },
+        _ if spots.spots.len() < 2 => Err(Rejection::TooFewWireDots {
+            compact: spots.spots.len(),
+            surfaces: spots.surfaces,
+        }),
+        _ => {
+            record.features_px = spots.spots.iter().map(|s| s.centre_px).collect();
+            Ok(())
         }
     }
-    Ok(record)
 }
 
 /// The names of a record's two poses, for its plausibility check.

@@ -47,6 +47,124 @@ fn mm(v: Option<f64>) -> String {
     v.map(|v| format!("{v:.3}")).unwrap_or_else(|| "—".into())
 }
 
+/// The BRE per axis at the reported cut-off, and the mean per axis at every cut-off.
+fn bre_rows(run: &DatasetRun) -> Vec<(String, String)> {
+    let primary = &run.thresholds[run.primary];
+    let mut values = Vec::new();
+    for (axis, name) in ["x", "y", "z"].iter().enumerate() {
+        for (stat, get) in crate::evaluate::STAT_ROWS {
+            values.push((
+                format!("BRE {name} {stat} (mm)"),
+                mm(primary.stats.map(|s| get(&s.axes()[axis]))),
+            ));
+        }
+    }
+    for row in &run.thresholds {
+        values.push((
+            format!("BRE mean x/y/z, cut-off {} mm", cutoff_label(row.cutoff_mm)),
+            match row.stats {
+                Some(s) => format!(
+                    "{:.3} / {:.3} / {:.3} ({})",
+                    s.x.mean,
+                    s.y.mean,
+                    s.z.mean,
+                    row.frames.len()
+                ),
+                None => format!("— ({})", row.frames.len()),
+            },
+        ));
+    }
+    values
+}
+
+/// The rows against the ground truth (the calibration, the gated estimator, the
+/// boards' poses and their lever arm), added to `values`; the paragraph that
+/// explains them.
+fn truth_rows(
+    manifest: &Manifest,
+    run: &DatasetRun,
+    used: &[&crate::pipeline::record::FrameRecord],
+    t: &crate::pipeline::record::TruthSummary,
+    values: &mut Vec<(String, String)>,
+) -> String {
+    let c = &t.calibration;
+    values.push((
+        "truth: image corners mean (mm)".into(),
+        format!("{:.3}", c.corner_error_mean_mm),
+    ));
+    // The estimator the gates check (`thresholds.gates.method`): the one a
+    // phantom is for, when it is not the reported calibration.
+    let gated = manifest.thresholds.gates.method.as_deref().and_then(|name| {
+        let m = run.methods.iter().find(|m| m.method.name() == name)?;
+        Some((name, m.truth?.corner_error_mean_mm))
+    });
+    values.push((
+        "truth: image corners mean, the estimator the gates check (mm)".into(),
+        match gated {
+            Some((name, e)) => format!("{e:.3} ({name})"),
+            None => format!("{:.3}", c.corner_error_mean_mm),
+        },
+    ));
+    values.push((
+        "truth: image corners max (mm)".into(),
+        format!("{:.3}", c.corner_error_max_mm),
+    ));
+    values.push(("truth: rotation (°)".into(), format!("{:.3}", c.rotation_error_deg)));
+    values.push((
+        "truth: translation (mm)".into(),
+        format!("{:.3}", c.translation_error_mm),
+    ));
+    let probe_t = mean(used.iter().filter_map(|f| f.truth_probe_pose_error.map(|e| e.0)));
+    let probe_r = mean(used.iter().filter_map(|f| f.truth_probe_pose_error.map(|e| e.1)));
+    let probe_depth = mean(used.iter().filter_map(|f| f.truth_probe_depth_error_mm));
+    let phantom_t = mean(used.iter().filter_map(|f| f.truth_phantom_pose_error.map(|e| e.0)));
+    let phantom_r = mean(used.iter().filter_map(|f| f.truth_phantom_pose_error.map(|e| e.1)));
+    // Lever arm: from the probe board's origin to the image centre, through the estimate.
+    let fit = run.primary_fit();
+    let [w, h] = used.iter().find_map(|f| f.bscan_size_px).unwrap_or([0, 0]);
+    let centre = pixel_to_image_mm([(w as f64 - 1.0) / 2.0, (h as f64 - 1.0) / 2.0], run.spacing_mm_per_px);
+    let lever = fit.apply(&centre).coords.norm();
+    let lever_effect = probe_r.map(|r| r.to_radians() * lever);
+    values.push(("probe board position error (mm)".into(), mm(probe_t)));
+    values.push(("… of it along the viewing axis (mm)".into(), mm(probe_depth)));
+    values.push(("probe board rotation error (°)".into(), mm(probe_r)));
+    values.push(("phantom board position error (mm)".into(), mm(phantom_t)));
+    values.push(("phantom board rotation error (°)".into(), mm(phantom_r)));
+    values.push(("lever arm board → image centre (mm)".into(), format!("{lever:.1}")));
+    values.push(("probe rotation error × lever arm (mm)".into(), mm(lever_effect)));
+    let depth = if run.camera.tracker.is_some() {
+        String::new()
+    } else {
+        format!(
+            ", {} mm of it along the camera's viewing axis (depth is what a monocular camera measures worst),",
+            mm(probe_depth)
+        )
+    };
+    let (who, marker) = if run.camera.tracker.is_some() {
+        ("tracker's", "marker")
+    } else {
+        ("photo's", "board")
+    };
+    let mut explanation = format!(
+        "The probe {marker}'s pose (the {who}) is off by {} mm on average{depth} and by {}°. Over the \
+         {lever:.0} mm lever arm from the {marker} to the image centre that rotation alone moves B-scan \
+         points by {} mm; the phantom {marker} adds {} mm and {}°. The calibration solved from these \
+         frames places the image corners {:.3} mm from the truth.",
+        mm(probe_t),
+        mm(probe_r),
+        mm(lever_effect),
+        mm(phantom_t),
+        mm(phantom_r),
+        c.corner_error_mean_mm
+    );
+    if let Some((name, e)) = gated {
+        explanation.push_str(&format!(
+            " The estimator its gates check, {name}, places them {e:.3} mm from it."
+        ));
+    }
+    explanation
+}
+
 /// Builds one column from a dataset run.
 pub fn column(manifest: &Manifest, run: &DatasetRun) -> CompareColumn {
     let used: Vec<_> = run.frames.iter().filter(|f| f.rejection.is_none()).collect();
@@ -82,107 +200,11 @@ pub fn column(manifest: &Manifest, run: &DatasetRun) -> CompareColumn {
             format!("{} ({})", cutoff_label(primary.cutoff_mm), primary.frames.len()),
         ),
     ];
-    for (axis, name) in ["x", "y", "z"].iter().enumerate() {
-        for (stat, get) in crate::evaluate::STAT_ROWS {
-            values.push((
-                format!("BRE {name} {stat} (mm)"),
-                mm(primary.stats.map(|s| get(&s.axes()[axis]))),
-            ));
-        }
-    }
-    for row in &run.thresholds {
-        values.push((
-            format!("BRE mean x/y/z, cut-off {} mm", cutoff_label(row.cutoff_mm)),
-            match row.stats {
-                Some(s) => format!(
-                    "{:.3} / {:.3} / {:.3} ({})",
-                    s.x.mean,
-                    s.y.mean,
-                    s.z.mean,
-                    row.frames.len()
-                ),
-                None => format!("— ({})", row.frames.len()),
-            },
-        ));
-    }
-    let mut explanation = String::new();
-    if let Some(t) = &run.truth {
-        let c = &t.calibration;
-        values.push((
-            "truth: image corners mean (mm)".into(),
-            format!("{:.3}", c.corner_error_mean_mm),
-        ));
-        // The estimator the gates check (`thresholds.gates.method`): the one a
-        // phantom is for, when it is not the reported calibration.
-        let gated = manifest.thresholds.gates.method.as_deref().and_then(|name| {
-            let m = run.methods.iter().find(|m| m.method.name() == name)?;
-            Some((name, m.truth?.corner_error_mean_mm))
-        });
-        values.push((
-            "truth: image corners mean, the estimator the gates check (mm)".into(),
-            match gated {
-                Some((name, e)) => format!("{e:.3} ({name})"),
-                None => format!("{:.3}", c.corner_error_mean_mm),
-            },
-        ));
-        values.push((
-            "truth: image corners max (mm)".into(),
-            format!("{:.3}", c.corner_error_max_mm),
-        ));
-        values.push(("truth: rotation (°)".into(), format!("{:.3}", c.rotation_error_deg)));
-        values.push((
-            "truth: translation (mm)".into(),
-            format!("{:.3}", c.translation_error_mm),
-        ));
-        let probe_t = mean(used.iter().filter_map(|f| f.truth_probe_pose_error.map(|e| e.0)));
-        let probe_r = mean(used.iter().filter_map(|f| f.truth_probe_pose_error.map(|e| e.1)));
-        let probe_depth = mean(used.iter().filter_map(|f| f.truth_probe_depth_error_mm));
-        let phantom_t = mean(used.iter().filter_map(|f| f.truth_phantom_pose_error.map(|e| e.0)));
-        let phantom_r = mean(used.iter().filter_map(|f| f.truth_phantom_pose_error.map(|e| e.1)));
-        // Lever arm: from the probe board's origin to the image centre, through the estimate.
-        let fit = run.primary_fit();
-        let [w, h] = used.iter().find_map(|f| f.bscan_size_px).unwrap_or([0, 0]);
-        let centre = pixel_to_image_mm([(w as f64 - 1.0) / 2.0, (h as f64 - 1.0) / 2.0], run.spacing_mm_per_px);
-        let lever = fit.apply(&centre).coords.norm();
-        let lever_effect = probe_r.map(|r| r.to_radians() * lever);
-        values.push(("probe board position error (mm)".into(), mm(probe_t)));
-        values.push(("… of it along the viewing axis (mm)".into(), mm(probe_depth)));
-        values.push(("probe board rotation error (°)".into(), mm(probe_r)));
-        values.push(("phantom board position error (mm)".into(), mm(phantom_t)));
-        values.push(("phantom board rotation error (°)".into(), mm(phantom_r)));
-        values.push(("lever arm board → image centre (mm)".into(), format!("{lever:.1}")));
-        values.push(("probe rotation error × lever arm (mm)".into(), mm(lever_effect)));
-        let depth = if run.camera.tracker.is_some() {
-            String::new()
-        } else {
-            format!(
-                ", {} mm of it along the camera's viewing axis (depth is what a monocular camera measures worst),",
-                mm(probe_depth)
-            )
-        };
-        let (who, marker) = if run.camera.tracker.is_some() {
-            ("tracker's", "marker")
-        } else {
-            ("photo's", "board")
-        };
-        explanation = format!(
-            "The probe {marker}'s pose (the {who}) is off by {} mm on average{depth} and by {}°. Over the \
-             {lever:.0} mm lever arm from the {marker} to the image centre that rotation alone moves B-scan \
-             points by {} mm; the phantom {marker} adds {} mm and {}°. The calibration solved from these \
-             frames places the image corners {:.3} mm from the truth.",
-            mm(probe_t),
-            mm(probe_r),
-            mm(lever_effect),
-            mm(phantom_t),
-            mm(phantom_r),
-            c.corner_error_mean_mm
-        );
-        if let Some((name, e)) = gated {
-            explanation.push_str(&format!(
-                " The estimator its gates check, {name}, places them {e:.3} mm from it."
-            ));
-        }
-    }
+    values.extend(bre_rows(run));
+    let explanation = match &run.truth {
+        Some(t) => truth_rows(manifest, run, &used, t, &mut values),
+        None => String::new(),
+    };
     CompareColumn {
         experiment: run.experiment.clone(),
         dataset: run.dataset.clone(),

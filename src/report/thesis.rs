@@ -228,126 +228,133 @@ pub fn chapter(root: &Path) -> Chapter {
     let mut tables = Vec::new();
     let mut missing = Vec::new();
     for t in &AXIS_TABLES {
-        let Some(s) = summary(root, t.experiment, t.dataset) else {
-            missing.push(format!("{}/{}", t.experiment, t.dataset));
-            continue;
-        };
-        // The thesis's tables for these datasets are over all frames: the first cut-off (∞).
-        let all = s.thresholds.first();
-        let frames = all.map_or(0, |r| r.frames);
-        let bre = all.and_then(|r| r.bre_mm.as_ref());
-        let rows = ROWS
-            .iter()
-            .zip(STAT_ROWS)
-            .enumerate()
-            .map(|(r, (label, (_, get)))| Row {
-                label: label.to_string(),
-                cells: (0..3)
-                    .flat_map(|a| [fmt(stat(bre, a, get)), fmt(Some(t.thesis[r][a]))])
-                    .collect(),
-            })
-            .collect();
-        tables.push(
-            Table {
-                id: t.experiment.to_string(),
-                title: t.title.to_string(),
-                note: format!(
-                    "{} probecal: {} ({frames} frames with a usable feature, all kept).{}{}",
-                    t.note,
-                    t.experiment,
-                    truth_note(&s),
-                    if t.show_kept { kept_note(&s) } else { String::new() }
-                ),
-                groups: vec!["x".into(), "y".into(), "z".into()],
-                sub: vec!["probecal".into(), "thesis".into()],
-                blocks: vec![(String::new(), rows)],
-                spans: Vec::new(),
-            }
-            .with_spans(),
-        );
+        match summary(root, t.experiment, t.dataset) {
+            Some(s) => tables.push(axis_table(t, &s)),
+            None => missing.push(format!("{}/{}", t.experiment, t.dataset)),
+        }
     }
     let (experiment, dataset) = DATASET3_EXPERIMENT;
     match summary(root, experiment, dataset) {
-        Some(s) => {
-            let rows = &s.thresholds;
-            let groups: Vec<String> = rows
-                .iter()
-                .zip(DATASET3_THESIS_FRAMES)
-                .map(|(r, thesis_frames)| {
-                    let cutoff = crate::evaluate::cutoff_label(r.cutoff_mm.0);
-                    format!("{cutoff} ({} / {thesis_frames})", r.frames)
-                })
-                .collect();
-            let blocks = ["X", "Y", "Z"]
-                .iter()
-                .enumerate()
-                .map(|(a, axis)| {
-                    let rows = ROWS
-                        .iter()
-                        .zip(STAT_ROWS)
-                        .enumerate()
-                        .map(|(r, (label, (_, get)))| Row {
-                            label: label.to_string(),
-                            cells: rows
-                                .iter()
-                                .enumerate()
-                                .flat_map(|(c, row)| {
-                                    [
-                                        fmt(stat(row.bre_mm.as_ref(), a, get)),
-                                        fmt(DATASET3_THESIS[a].get(r).and_then(|v| v.get(c)).copied()),
-                                    ]
-                                })
-                                .collect(),
-                        })
-                        .collect();
-                    (axis.to_string(), rows)
-                })
-                .collect();
-            tables.push(
-                Table {
-                    id: experiment.to_string(),
-                    title: "BRE along axes for Dataset 3".into(),
-                    note: format!(
-                    "11x11 squares of 13 mm, 50 frames; frames above each cut-off removed and the calibration solved \
-                     again (column heads: frames kept, probecal / thesis). probecal: {experiment}.{}",
-                    truth_note(&s)
-                ),
-                    groups,
-                    sub: vec!["probecal".into(), "thesis".into()],
-                    blocks,
-                    spans: Vec::new(),
-                }
-                .with_spans(),
-            );
-        }
+        Some(s) => tables.push(dataset3_table(&s)),
         None => missing.push(format!("{experiment}/{dataset}")),
     }
+    tables.push(sigma_table());
+    Chapter { tables, missing }
+}
+
+/// A BRE-along-axes table over all frames, beside the thesis's.
+fn axis_table(t: &AxisTable, s: &Summary) -> Table {
+    // The thesis's tables for these datasets are over all frames: the first cut-off (∞).
+    let all = s.thresholds.first();
+    let frames = all.map_or(0, |r| r.frames);
+    let bre = all.and_then(|r| r.bre_mm.as_ref());
+    let rows = ROWS
+        .iter()
+        .zip(STAT_ROWS)
+        .enumerate()
+        .map(|(r, (label, (_, get)))| Row {
+            label: label.to_string(),
+            cells: (0..3)
+                .flat_map(|a| [fmt(stat(bre, a, get)), fmt(Some(t.thesis[r][a]))])
+                .collect(),
+        })
+        .collect();
+    Table {
+        id: t.experiment.to_string(),
+        title: t.title.to_string(),
+        note: format!(
+            "{} probecal: {} ({frames} frames with a usable feature, all kept).{}{}",
+            t.note,
+            t.experiment,
+            truth_note(s),
+            if t.show_kept { kept_note(s) } else { String::new() }
+        ),
+        groups: vec!["x".into(), "y".into(), "z".into()],
+        sub: vec!["probecal".into(), "thesis".into()],
+        blocks: vec![(String::new(), rows)],
+        spans: Vec::new(),
+    }
+    .with_spans()
+}
+
+/// Dataset 3's BRE at every cut-off, beside the thesis's.
+fn dataset3_table(s: &Summary) -> Table {
+    let (experiment, _) = DATASET3_EXPERIMENT;
+    let rows = &s.thresholds;
+    let groups: Vec<String> = rows
+        .iter()
+        .zip(DATASET3_THESIS_FRAMES)
+        .map(|(r, thesis_frames)| {
+            let cutoff = crate::evaluate::cutoff_label(r.cutoff_mm.0);
+            format!("{cutoff} ({} / {thesis_frames})", r.frames)
+        })
+        .collect();
+    let blocks = ["X", "Y", "Z"]
+        .iter()
+        .enumerate()
+        .map(|(a, axis)| {
+            let rows = ROWS
+                .iter()
+                .zip(STAT_ROWS)
+                .enumerate()
+                .map(|(r, (label, (_, get)))| Row {
+                    label: label.to_string(),
+                    cells: rows
+                        .iter()
+                        .enumerate()
+                        .flat_map(|(c, row)| {
+                            [
+                                fmt(stat(row.bre_mm.as_ref(), a, get)),
+                                fmt(DATASET3_THESIS[a].get(r).and_then(|v| v.get(c)).copied()),
+                            ]
+                        })
+                        .collect(),
+                })
+                .collect();
+            (axis.to_string(), rows)
+        })
+        .collect();
+    Table {
+        id: experiment.to_string(),
+        title: "BRE along axes for Dataset 3".into(),
+        note: format!(
+            "11x11 squares of 13 mm, 50 frames; frames above each cut-off removed and the calibration solved \
+             again (column heads: frames kept, probecal / thesis). probecal: {experiment}.{}",
+            truth_note(s)
+        ),
+        groups,
+        sub: vec!["probecal".into(), "thesis".into()],
+        blocks,
+        spans: Vec::new(),
+    }
+    .with_spans()
+}
+
+/// The thesis's synthetic experiment: the residuals' SD at each noise level.
+fn sigma_table() -> Table {
     let sigma = crate::pipeline::study::sigma_table(50, 200, 1);
-    tables.push(
-        Table {
-            id: "sigma".into(),
-            title: "Error in synthetic data with varying noise".into(),
-            note: "Gaussian noise of SD σ on each axis of the marker's position, 50 frames, Horn's closed form, 200 \
+    Table {
+        id: "sigma".into(),
+        title: "Error in synthetic data with varying noise".into(),
+        note: "Gaussian noise of SD σ on each axis of the marker's position, 50 frames, Horn's closed form, 200 \
                repetitions (the protocol is stated on the page of probecal study). Std.: SD of the per-axis absolute \
                residuals."
-                .into(),
-            groups: vec!["Std.".into()],
-            sub: vec!["probecal".into(), "thesis".into()],
-            blocks: vec![(
-                String::new(),
-                sigma
-                    .iter()
-                    .map(|r| Row {
-                        label: format!("σ = {}", r.sigma_mm),
-                        cells: vec![fmt(Some(r.std_per_axis_mm)), fmt(Some(r.thesis_std_mm))],
-                    })
-                    .collect(),
-            )],
-            spans: Vec::new(),
-        }
-        .with_spans(),
-    );
-    Chapter { tables, missing }
+            .into(),
+        groups: vec!["Std.".into()],
+        sub: vec!["probecal".into(), "thesis".into()],
+        blocks: vec![(
+            String::new(),
+            sigma
+                .iter()
+                .map(|r| Row {
+                    label: format!("σ = {}", r.sigma_mm),
+                    cells: vec![fmt(Some(r.std_per_axis_mm)), fmt(Some(r.thesis_std_mm))],
+                })
+                .collect(),
+        )],
+        spans: Vec::new(),
+    }
+    .with_spans()
 }
 
 /// The layout of the chapter without its numbers: what the golden test pins.

@@ -90,6 +90,94 @@ const BLACK_REFLECTANCE: f32 = 0.07;
 const WHITE_REFLECTANCE: f32 = 0.88;
 const OCCLUDER_REFLECTANCE: f32 = 0.22;
 
+/// Each board as a plane in the camera frame: origin, normal, and the inverse pose.
+struct Plane<'a> {
+    origin: Vector3<f32>,
+    normal: Vector3<f32>,
+    board_T_camera: Rigid,
+    layout: &'a PrintedBoard,
+    occluder: Option<(Occluder, [f64; 2])>,
+    scale: f64,
+    /// Sagitta, middle and half-width of the bow along x (board mm).
+    bow: Option<(f64, f64, f64)>,
+}
+
+/// The boards' planes at `time_s` into the exposure (a moving board moved on).
+fn planes_at<'a>(boards: &[PlacedBoard<'a>], time_s: f64) -> Vec<Plane<'a>> {
+    boards
+        .iter()
+        .map(|b| {
+            let pose = match b.motion {
+                Some(m) if time_s != 0.0 => {
+                    b.camera_T_board * Rigid::new(m.translation_mm_per_s * time_s, m.rotation_rad_per_s * time_s)
+                }
+                _ => b.camera_T_board,
+            };
+            Plane {
+                origin: pose.translation.vector.cast::<f32>(),
+                normal: (pose.rotation * Vector3::z()).cast::<f32>(),
+                board_T_camera: pose.inverse(),
+                layout: b.layout,
+                occluder: b.occluder.map(|o| {
+                    let c = b.layout.centre_mm();
+                    (o, [c.x, c.y])
+                }),
+                scale: b.print_scale,
+                bow: (b.bow_mm != 0.0).then(|| {
+                    let [x0, _, x1, _] = b.layout.paper_bounds_mm();
+                    let [x0, x1] = [x0 * b.print_scale, x1 * b.print_scale];
+                    (b.bow_mm, (x0 + x1) / 2.0, (x1 - x0) / 2.0)
+                }),
+            }
+        })
+        .collect()
+}
+
+/// The nearest board surface a camera ray meets: its distance along the ray and
+/// its reflectance (ink, paper, or the occluder over it).
+fn nearest_hit(planes: &[Plane<'_>], dir: &Vector3<f32>) -> Option<(f32, f32)> {
+    let mut best: Option<(f32, f32)> = None;
+    for plane in planes {
+        let denom = plane.normal.dot(dir);
+        if denom.abs() < 1e-6 {
+            continue;
+        }
+        let mut t = plane.normal.dot(&plane.origin) / denom;
+        let mut local = {
+            let hit = dir * t;
+            plane.board_T_camera * Point3::new(hit.x as f64, hit.y as f64, hit.z as f64)
+        };
+        if let Some((sagitta, middle, half)) = plane.bow {
+            // The bowed surface is `z = h(x)` in the board's frame: two
+            // fixed-point steps of the ray's meeting with it.
+            for _ in 0..2 {
+                let u = ((local.x - middle) / half).clamp(-1.0, 1.0);
+                let height = sagitta * (1.0 - u * u);
+                t = (plane.normal.dot(&plane.origin) + height as f32) / denom;
+                let hit = dir * t;
+                local = plane.board_T_camera * Point3::new(hit.x as f64, hit.y as f64, hit.z as f64);
+            }
+        }
+        if t <= 0.0 || best.is_some_and(|(bt, _)| bt <= t) {
+            continue;
+        }
+        let covered = plane
+            .occluder
+            .is_some_and(|(o, c)| o.covers(local.x - c[0], local.y - c[1]));
+        if covered {
+            best = Some((t, OCCLUDER_REFLECTANCE));
+        } else if let Some(ink) = plane.layout.ink_at(local.x / plane.scale, local.y / plane.scale) {
+            let r = if ink == Ink::Black {
+                BLACK_REFLECTANCE
+            } else {
+                WHITE_REFLECTANCE
+            };
+            best = Some((t, r));
+        }
+    }
+    best
+}
+
 /// Renders one photo. `rng` drives the lighting direction, exposure and noise.
 pub fn render_photo(
     camera: &CameraIntrinsics,
@@ -99,46 +187,7 @@ pub fn render_photo(
     rng: &mut Rng,
 ) -> Result<Gray8, ImageError> {
     let (w, h) = (rays.width, rays.height);
-    // Each board as a plane in the camera frame: origin, normal, and the inverse pose.
-    struct Plane<'a> {
-        origin: Vector3<f32>,
-        normal: Vector3<f32>,
-        board_T_camera: Rigid,
-        layout: &'a PrintedBoard,
-        occluder: Option<(Occluder, [f64; 2])>,
-        scale: f64,
-        /// Sagitta, middle and half-width of the bow along x (board mm).
-        bow: Option<(f64, f64, f64)>,
-    }
-    let planes_at = |time_s: f64| -> Vec<Plane<'_>> {
-        boards
-            .iter()
-            .map(|b| {
-                let pose = match b.motion {
-                    Some(m) if time_s != 0.0 => {
-                        b.camera_T_board * Rigid::new(m.translation_mm_per_s * time_s, m.rotation_rad_per_s * time_s)
-                    }
-                    _ => b.camera_T_board,
-                };
-                Plane {
-                    origin: pose.translation.vector.cast::<f32>(),
-                    normal: (pose.rotation * Vector3::z()).cast::<f32>(),
-                    board_T_camera: pose.inverse(),
-                    layout: b.layout,
-                    occluder: b.occluder.map(|o| {
-                        let c = b.layout.centre_mm();
-                        (o, [c.x, c.y])
-                    }),
-                    scale: b.print_scale,
-                    bow: (b.bow_mm != 0.0).then(|| {
-                        let [x0, _, x1, _] = b.layout.paper_bounds_mm();
-                        let [x0, x1] = [x0 * b.print_scale, x1 * b.print_scale];
-                        (b.bow_mm, (x0 + x1) / 2.0, (x1 - x0) / 2.0)
-                    }),
-                }
-            })
-            .collect()
-    };
+    let planes_at = |time_s: f64| planes_at(boards, time_s);
     // One set of planes when nothing moves; else one per moment of the exposure.
     let exposure_s = boards
         .iter()
@@ -179,45 +228,7 @@ pub fn render_photo(
                     let planes = &planes_per_time[TIME_OF_SUBSAMPLE[iy * 3 + ix] % planes_per_time.len()];
                     let [nx, ny] = rays.ray(x, y, sx, sy);
                     let dir = Vector3::new(nx, ny, 1.0);
-                    let mut best: Option<(f32, f32)> = None;
-                    for plane in planes {
-                        let denom = plane.normal.dot(&dir);
-                        if denom.abs() < 1e-6 {
-                            continue;
-                        }
-                        let mut t = plane.normal.dot(&plane.origin) / denom;
-                        let mut local = {
-                            let hit = dir * t;
-                            plane.board_T_camera * Point3::new(hit.x as f64, hit.y as f64, hit.z as f64)
-                        };
-                        if let Some((sagitta, middle, half)) = plane.bow {
-                            // The bowed surface is `z = h(x)` in the board's frame: two
-                            // fixed-point steps of the ray's meeting with it.
-                            for _ in 0..2 {
-                                let u = ((local.x - middle) / half).clamp(-1.0, 1.0);
-                                let height = sagitta * (1.0 - u * u);
-                                t = (plane.normal.dot(&plane.origin) + height as f32) / denom;
-                                let hit = dir * t;
-                                local = plane.board_T_camera * Point3::new(hit.x as f64, hit.y as f64, hit.z as f64);
-                            }
-                        }
-                        if t <= 0.0 || best.is_some_and(|(bt, _)| bt <= t) {
-                            continue;
-                        }
-                        let covered = plane
-                            .occluder
-                            .is_some_and(|(o, c)| o.covers(local.x - c[0], local.y - c[1]));
-                        if covered {
-                            best = Some((t, OCCLUDER_REFLECTANCE));
-                        } else if let Some(ink) = plane.layout.ink_at(local.x / plane.scale, local.y / plane.scale) {
-                            let r = if ink == Ink::Black {
-                                BLACK_REFLECTANCE
-                            } else {
-                                WHITE_REFLECTANCE
-                            };
-                            best = Some((t, r));
-                        }
-                    }
+                    let best = nearest_hit(planes, &dir);
                     reflectance += match best {
                         Some((_, r)) => r,
                         None => {

@@ -298,6 +298,97 @@ fn realised(lab: &Lab<'_>, spec: &RenderSpec) -> Result<Realised, SynthError> {
     })
 }
 
+/// The truth of where each wire or cut dome shows in a B-scan (its centre's
+/// projection, displayed at the scanner's range scale), px.
+fn truth_dots(
+    phantom: &Phantom,
+    scene: &scene::Scene,
+    world_T_image: &Rigid,
+    range_scale: f64,
+) -> Vec<crate::io::truth::WireDot> {
+    match (phantom, &scene.shape) {
+        (Phantom::FourWire { wires, .. }, shape::Shape::Wires { wires_world, .. }) => wires
+            .iter()
+            .zip(wires_world)
+            .filter_map(|(w, (a, b))| {
+                let p = shape::segment_in_plane(world_T_image, a, b)?;
+                let [sx, sy] = scene.bscan.spacing_mm_per_px;
+                let (u, v) = scene.bscan.displayed(p.x, p.y, range_scale);
+                Some(crate::io::truth::WireDot {
+                    wire: w.name.clone(),
+                    pixel: [u / sx, v / sy],
+                })
+            })
+            .collect(),
+        // Each dome the plane cuts: its centre's projection (the arc's centre).
+        (Phantom::Spheres { spheres }, shape::Shape::Spheres { domes_world }) => spheres
+            .iter()
+            .zip(domes_world)
+            .filter_map(|(s, (centre, r))| {
+                let p = world_T_image.inverse() * centre;
+                let [sx, sy] = scene.bscan.spacing_mm_per_px;
+                let (u, v) = scene.bscan.displayed(p.x, p.y, range_scale);
+                (p.z.abs() < *r).then(|| crate::io::truth::WireDot {
+                    wire: s.name.clone(),
+                    pixel: [u / sx, v / sy],
+                })
+            })
+            .collect(),
+        _ => Vec::new(),
+    }
+}
+
+/// The camera-calibration photos: a plain board in each view, each on a core.
+fn render_calibration_views(
+    scene: &scene::Scene,
+    rays: &RayMap,
+    photometry: Photometry,
+    seed: u64,
+    calib_dir: &Path,
+    progress: &crate::core::progress::Progress,
+) -> Result<(), SynthError> {
+    let calibration_board = crate::detect::board::PrintedBoard::Checkerboard(scene.calibration_board);
+    let results = parallel_map(
+        scene.camera_T_calibration_board.len(),
+        |view| -> Result<(), SynthError> {
+            let mut rng = Rng::fork(seed, 1000 + view as u64);
+            let board = PlacedBoard {
+                camera_T_board: scene.camera_T_calibration_board[view],
+                layout: &calibration_board,
+                occluder: None,
+                print_scale: 1.0,
+                bow_mm: 0.0,
+                motion: None,
+            };
+            let image = camera_render::render_photo(&scene.camera, rays, &[board], photometry, &mut rng)?;
+            image.write_png(&calib_dir.join(format!("view_{view:03}.png")))?;
+            progress.inc();
+            Ok(())
+        },
+    );
+    results.into_iter().collect::<Result<Vec<_>, _>>()?;
+    Ok(())
+}
+
+/// The dataset's frame list: each frame's photo and B-scan.
+fn write_frame_list(folder: &Path, frames: usize, jpeg: Option<u8>) -> Result<(), SynthError> {
+    let mut list = String::from("frame,camera_image,bscan_image\n");
+    for k in 0..frames {
+        list.push_str(&format!("{k},frames/{},frames/bscan_{k:03}.png\n", photo_name(k, jpeg)));
+    }
+    let list_path = folder.join(FRAME_LIST);
+    std::fs::write(&list_path, list).map_err(io_err(&list_path))
+}
+
+/// Writes `value` as pretty JSON at `path`.
+fn write_json<T: Serialize>(path: &Path, value: &T) -> Result<(), SynthError> {
+    let text = serde_json::to_string_pretty(value).map_err(|e| SynthError::Io {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    })?;
+    std::fs::write(path, text).map_err(io_err(path))
+}
+
 fn render_into(lab: &Lab<'_>, spec: &RenderSpec, folder: &Path) -> Result<(), SynthError> {
     let Realised {
         scene,
@@ -308,7 +399,6 @@ fn render_into(lab: &Lab<'_>, spec: &RenderSpec, folder: &Path) -> Result<(), Sy
     let spec = &spec;
     let range_scale = realism::range_scale(spec);
     let jpeg = realism::of(spec).jpeg.map(|j| j.quality);
-    let calibration_board = crate::detect::board::PrintedBoard::Checkerboard(scene.calibration_board);
     let frames_dir = folder.join("frames");
     let calib_dir = folder.join("camera_calibration");
     std::fs::create_dir_all(&frames_dir).map_err(io_err(&frames_dir))?;
@@ -327,25 +417,7 @@ fn render_into(lab: &Lab<'_>, spec: &RenderSpec, folder: &Path) -> Result<(), Sy
 
     let progress =
         crate::core::progress::Progress::new(scene.camera_T_calibration_board.len() + scene.frames.len(), "rendering");
-    let calibration_results = parallel_map(
-        scene.camera_T_calibration_board.len(),
-        |view| -> Result<(), SynthError> {
-            let mut rng = Rng::fork(spec.seed, 1000 + view as u64);
-            let board = PlacedBoard {
-                camera_T_board: scene.camera_T_calibration_board[view],
-                layout: &calibration_board,
-                occluder: None,
-                print_scale: 1.0,
-                bow_mm: 0.0,
-                motion: None,
-            };
-            let image = camera_render::render_photo(&scene.camera, &rays, &[board], photometry, &mut rng)?;
-            image.write_png(&calib_dir.join(format!("view_{view:03}.png")))?;
-            progress.inc();
-            Ok(())
-        },
-    );
-    calibration_results.into_iter().collect::<Result<Vec<_>, _>>()?;
+    render_calibration_views(&scene, &rays, photometry, spec.seed, &calib_dir, &progress)?;
 
     let camera_T_phantom = scene.camera_T_world * scene.world_T_phantom;
     let frame_results = parallel_map(scene.frames.len(), |k| -> Result<GroundTruthFrame, SynthError> {
@@ -379,36 +451,7 @@ fn render_into(lab: &Lab<'_>, spec: &RenderSpec, folder: &Path) -> Result<(), Sy
         let world_T_image: Rigid = plan.world_T_marker_bscan * scene.marker_T_image;
         let bubbles = bscan_render::draw_bubbles(&scene, &world_T_image, plan.kind, echo, &mut rng);
         let bscan = bscan_render::render_bscan(&scene, &world_T_image, &bubbles, echo, &mut rng)?;
-        let wire_dots_px = match (lab.phantom, &scene.shape) {
-            (Phantom::FourWire { wires, .. }, shape::Shape::Wires { wires_world, .. }) => wires
-                .iter()
-                .zip(wires_world)
-                .filter_map(|(w, (a, b))| {
-                    let p = shape::segment_in_plane(&world_T_image, a, b)?;
-                    let [sx, sy] = scene.bscan.spacing_mm_per_px;
-                    let (u, v) = scene.bscan.displayed(p.x, p.y, range_scale);
-                    Some(crate::io::truth::WireDot {
-                        wire: w.name.clone(),
-                        pixel: [u / sx, v / sy],
-                    })
-                })
-                .collect(),
-            // Each dome the plane cuts: its centre's projection (the arc's centre).
-            (Phantom::Spheres { spheres }, shape::Shape::Spheres { domes_world }) => spheres
-                .iter()
-                .zip(domes_world)
-                .filter_map(|(s, (centre, r))| {
-                    let p = world_T_image.inverse() * centre;
-                    let [sx, sy] = scene.bscan.spacing_mm_per_px;
-                    let (u, v) = scene.bscan.displayed(p.x, p.y, range_scale);
-                    (p.z.abs() < *r).then(|| crate::io::truth::WireDot {
-                        wire: s.name.clone(),
-                        pixel: [u / sx, v / sy],
-                    })
-                })
-                .collect(),
-            _ => Vec::new(),
-        };
+        let wire_dots_px = truth_dots(lab.phantom, &scene, &world_T_image, range_scale);
         bscan.write_png(&frames_dir.join(format!("bscan_{k:03}.png")))?;
         progress.inc();
         Ok(GroundTruthFrame {
@@ -426,12 +469,7 @@ fn render_into(lab: &Lab<'_>, spec: &RenderSpec, folder: &Path) -> Result<(), Sy
     progress.finish();
     let truth_frames = frame_results.into_iter().collect::<Result<Vec<_>, _>>()?;
 
-    let mut list = String::from("frame,camera_image,bscan_image\n");
-    for k in 0..scene.frames.len() {
-        list.push_str(&format!("{k},frames/{},frames/bscan_{k:03}.png\n", photo_name(k, jpeg)));
-    }
-    let list_path = folder.join(FRAME_LIST);
-    std::fs::write(&list_path, list).map_err(io_err(&list_path))?;
+    write_frame_list(folder, scene.frames.len(), jpeg)?;
     write_tracker_poses(spec, &scene, camera_T_phantom, folder)?;
 
     let truth = GroundTruthFile {
@@ -447,13 +485,7 @@ fn render_into(lab: &Lab<'_>, spec: &RenderSpec, folder: &Path) -> Result<(), Sy
         frames: truth_frames,
         camera_calibration_views: scene.camera_T_calibration_board.iter().map(to_rows).collect(),
     };
-    let truth_path = folder.join(crate::io::truth::GROUND_TRUTH_FILE);
-    let text = serde_json::to_string_pretty(&truth).map_err(|e| SynthError::Io {
-        path: truth_path.clone(),
-        message: e.to_string(),
-    })?;
-    std::fs::write(&truth_path, text).map_err(io_err(&truth_path))?;
-    Ok(())
+    write_json(&folder.join(crate::io::truth::GROUND_TRUTH_FILE), &truth)
 }
 
 fn is_one(v: &f64) -> bool {
