@@ -2,8 +2,20 @@
 //! done by [`crate::pipeline`] (running) and [`crate::report`] (writing, checking);
 //! `docs/cli.md` is generated from these definitions (`tests/cli_help.rs`).
 
+mod ablate;
+mod camera;
+mod check;
+mod design;
 pub mod docs;
+mod failure;
 mod init;
+mod live;
+mod manifests;
+mod phantom;
+mod resolve;
+mod segment;
+mod study;
+mod temporal;
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -12,8 +24,8 @@ use clap::{Parser, Subcommand};
 
 use crate::manifest::Experiment;
 use crate::pipeline::experiment::{load_all, next_run_folder, run_all, Outcome, RunOptions};
-use crate::report::live::LiveSource;
 use crate::report::writer::ReportWriter;
+use live::LiveSource;
 
 #[derive(Parser)]
 #[command(
@@ -97,7 +109,7 @@ enum Command {
     },
     /// The thesis's σ-table and a Monte Carlo accuracy study of every estimator
     /// (renders the manifest's first dataset once per seed).
-    Study(crate::report::study::StudyArgs),
+    Study(study::StudyArgs),
     /// Calibrate while a tracked manifest's calibration sequence is replayed at its
     /// recorded rate: a line per frame (predicted error, running accuracy, work),
     /// then the batch calibration of the whole recording; summary.json, live.csv.
@@ -126,7 +138,7 @@ enum Command {
     },
     /// Segment the N-wire dots of a PLUS sequence on their own: segmentation.csv,
     /// summary.json and report.html in --out.
-    Segment(crate::report::segment::SegmentArgs),
+    Segment(segment::SegmentArgs),
     /// The tracker's lag behind the video from a probe moved over a flat reflector
     /// (PLUS's temporal calibration): summary.json, lines.csv, report.html in --out.
     Temporal {
@@ -143,7 +155,7 @@ enum Command {
     /// Error budget of a rendered rig: its dataset rendered with its error sources
     /// (render.realism) all on, all off, each left out and each alone;
     /// ablation.json, ablation.md and ablation.html in --out.
-    Ablate(crate::report::ablation::AblateArgs),
+    Ablate(ablate::AblateArgs),
     /// Dome-phantom layouts for the manifest's lab and sweep, ranked by the
     /// Cramér–Rao bound of their calibration: design.json and design.md in --out.
     Design {
@@ -237,28 +249,28 @@ pub fn main() -> ExitCode {
             baselines,
             update,
             allow_drop,
-        } => crate::report::check::run(&runs, &baselines, update, allow_drop),
-        Command::Validate { manifests } => crate::report::console::validate(&manifests),
-        Command::Temporal { tracker, video, out } => crate::report::temporal::command(&video, &tracker, &out),
-        Command::Segment(args) => crate::report::segment::command(&args),
+        } => failure::exit_code(check::command(&runs, &baselines, update, allow_drop)),
+        Command::Validate { manifests } => failure::exit_code(manifests::validate(&manifests)),
+        Command::Temporal { tracker, video, out } => failure::exit_code(temporal::command(&video, &tracker, &out)),
+        Command::Segment(args) => failure::exit_code(segment::command(&args)),
         Command::Live {
             manifest,
             out,
             speed,
             watch,
             idle_s,
-        } => crate::report::live::command(&manifest, &out, &LiveSource { speed, watch, idle_s }),
-        Command::Study(args) => crate::report::study::dispatch(args),
-        Command::Synth { manifests, datasets } => crate::report::console::synth(&manifests, &datasets),
-        Command::Resolve { run } => crate::report::resolve::command(&run),
-        Command::Ablate(args) => crate::report::ablation::command(&args),
-        Command::Design { manifest, out } => crate::report::design::command(&manifest, &out),
-        Command::Phantom { manifest, stl } => crate::report::phantom::command(&manifest, &stl),
+        } => failure::exit_code(live::command(&manifest, &out, &LiveSource { speed, watch, idle_s })),
+        Command::Study(args) => failure::exit_code(study::dispatch(args)),
+        Command::Synth { manifests, datasets } => failure::exit_code(manifests::synth(&manifests, &datasets)),
+        Command::Resolve { run } => failure::exit_code(resolve::command(&run)),
+        Command::Ablate(args) => failure::exit_code(ablate::command(&args)),
+        Command::Design { manifest, out } => failure::exit_code(design::command(&manifest, &out)),
+        Command::Phantom { manifest, stl } => failure::exit_code(phantom::command(&manifest, &stl)),
         Command::CalibrateCamera {
             images,
             board,
             square_mm,
             out,
-        } => crate::report::console::calibrate_camera(&images, board, square_mm, &out),
+        } => failure::exit_code(camera::command(&images, board, square_mm, &out)),
     })
 }

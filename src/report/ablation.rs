@@ -2,9 +2,8 @@
 //! `ablation.md` and `ablation.html`, with the thesis's Dataset 3 row beside it.
 
 use std::fmt::Write as _;
-use std::path::PathBuf;
 
-use crate::pipeline::ablation::{self, Ablation, VariantResult};
+use crate::pipeline::ablation::{Ablation, VariantResult};
 
 fn methods_of(a: &Ablation) -> Vec<String> {
     let mut names: Vec<String> = Vec::new();
@@ -109,70 +108,18 @@ pub fn markdown(a: &Ablation) -> String {
     s
 }
 
-/// `probecal ablate`'s arguments.
-#[derive(Debug, Clone, clap::Args)]
-pub struct AblateArgs {
-    /// A manifest of a rendered rig (its first dataset and `render.realism`).
-    pub manifest: PathBuf,
-    /// Output folder: ablation.json, ablation.md, ablation.html.
-    #[arg(long)]
-    pub out: PathBuf,
-    /// Where rendered datasets are cached.
-    #[arg(long, default_value = "datasets")]
-    pub datasets: PathBuf,
-    /// Keep the variants' rendered datasets.
-    #[arg(long)]
-    pub keep_datasets: bool,
-    /// Run only these variants (e.g. "only speed_of_sound"; repeatable).
-    #[arg(long)]
-    pub only: Vec<String>,
-}
-
-/// `probecal ablate`; exit code 0 written, 2 bad input, 1 failed.
-pub fn command(args: &AblateArgs) -> u8 {
-    let (manifest_path, out, datasets, keep) = (&args.manifest, &args.out, &args.datasets, args.keep_datasets);
-    let manifest = match crate::manifest::Manifest::load(manifest_path) {
-        Ok(m) => m,
-        Err(e) => {
-            eprintln!("{e}");
-            return 2;
-        }
-    };
-    let result = ablation::ablate(&manifest, datasets, keep, &args.only, &mut |line| eprintln!("{line}"));
-    let a = match result {
-        Ok(a) => a,
-        Err(crate::pipeline::run::RunError::Unsupported(why)) => {
-            eprintln!("error: {}: {why}", manifest_path.display());
-            return 2;
-        }
-        Err(e) => {
-            eprintln!("error: {e}");
-            return 1;
-        }
-    };
-    let json = match crate::io::json::to_text(&a) {
-        Ok(j) => j,
-        Err(e) => {
-            eprintln!("error: ablation.json: {e}");
-            return 1;
-        }
-    };
-    let md = markdown(&a);
-    if let Err(e) = crate::io::fs::write_all_atomic(
+/// Writes `ablation.json`, `ablation.md` and `ablation.html` into `out` (whole,
+/// or nothing); the Markdown.
+pub fn write(a: &Ablation, out: &std::path::Path) -> Result<String, crate::report::error::OutputError> {
+    let json = crate::io::json::to_text(a)?;
+    let md = markdown(a);
+    crate::io::fs::write_all_atomic(
         out,
         &[
             ("ablation.json".into(), json.into_bytes()),
             ("ablation.md".into(), md.clone().into_bytes()),
             ("ablation.html".into(), super::study::html(&md).into_bytes()),
         ],
-    ) {
-        eprintln!("error: {e}");
-        return 1;
-    }
-    print!("{md}");
-    println!(
-        "\nwritten to {} (ablation.json, ablation.md, ablation.html)",
-        out.display()
-    );
-    0
+    )?;
+    Ok(md)
 }

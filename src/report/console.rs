@@ -1,11 +1,8 @@
 //! What the terminal shows: the thesis's tables as text, a run's summary, the
 //! camera calibration's views.
 
-use std::path::{Path, PathBuf};
-
 use crate::detect::camera_calibration::CameraCalibration;
 use crate::evaluate::{cutoff_label, BreStats, STAT_ROWS};
-use crate::manifest::Experiment;
 use crate::pipeline::record::DatasetRun;
 use crate::pipeline::tracked::{Role, TrackedRun};
 use crate::report::summary::{Summary, TrackedSummary};
@@ -157,97 +154,4 @@ pub fn camera_calibration(cal: &CameraCalibration) {
         k.distortion,
         k.rms_px.unwrap_or(f64::NAN)
     );
-}
-
-/// `probecal calibrate-camera`: intrinsics from board views, printed and written
-/// as OpenCV FileStorage YAML; the exit code.
-pub fn calibrate_camera(images: &[PathBuf], board: [u32; 2], square_mm: f64, out: &Path) -> u8 {
-    if !(square_mm.is_finite() && square_mm > 0.0) {
-        eprintln!("error: --square-mm must be a positive number, got {square_mm}");
-        return 2;
-    }
-    // The folder is made before the work, so a finished calibration has somewhere to go.
-    if let Some(parent) = out.parent().filter(|p| !p.as_os_str().is_empty()) {
-        if let Err(e) = std::fs::create_dir_all(parent) {
-            eprintln!("error: {}: cannot create the output's folder: {e}", parent.display());
-            return 1;
-        }
-    }
-    let calibrated = crate::detect::camera_calibration::calibrate_from(
-        images,
-        board,
-        square_mm,
-        crate::detect::corners::Search::OpenCvSample,
-    );
-    let saved = calibrated.map_err(|e| e.to_string()).and_then(|cal| {
-        camera_calibration(&cal);
-        let views: Vec<crate::io::camera_model::ViewFate> = cal
-            .views
-            .iter()
-            .map(|v| crate::io::camera_model::ViewFate {
-                image: v.image.display().to_string(),
-                used: v.used,
-                how: match (&v.reason, v.found_by) {
-                    (Some(r), _) => r.clone(),
-                    (None, Some(f)) => format!("board found by {f}"),
-                    (None, None) => String::new(),
-                },
-            })
-            .collect();
-        cal.intrinsics
-            .save_with_views(out, Some((board, square_mm)), &views)
-            .map_err(|e| e.to_string())
-    });
-    match saved {
-        Ok(()) => {
-            println!("written to {}", out.display());
-            0
-        }
-        Err(e) => {
-            eprintln!("error: {e}");
-            1
-        }
-    }
-}
-
-/// Every manifest, or `None` after printing all their errors.
-fn loaded(paths: &[PathBuf]) -> Option<Vec<Experiment>> {
-    crate::pipeline::experiment::load_all(paths)
-        .map_err(|e| eprintln!("error: {e}"))
-        .ok()
-}
-
-/// `probecal validate`: every manifest checked, nothing run.
-pub fn validate(manifests: &[PathBuf]) -> u8 {
-    let Some(experiments) = loaded(manifests) else {
-        return 2;
-    };
-    for m in experiments {
-        match m {
-            Experiment::Camera(m) => println!("{}: ok ({} dataset(s))", m.path.display(), m.datasets.len()),
-            Experiment::Tracked(m) => println!(
-                "{}: ok (tracked sequence, {} N-wires)",
-                m.path.display(),
-                m.nwires.len()
-            ),
-        }
-    }
-    0
-}
-
-/// `probecal synth`: the camera experiments' datasets rendered, nothing run.
-pub fn synth(manifests: &[PathBuf], datasets: &Path) -> u8 {
-    let Some(manifests) = loaded(manifests) else {
-        return 2;
-    };
-    for m in manifests.iter().filter_map(|m| match m {
-        Experiment::Camera(m) => Some(m),
-        Experiment::Tracked(_) => None,
-    }) {
-        if let Err(e) = crate::pipeline::run::synth_only(m, datasets, &mut |l| eprintln!("{l}")) {
-            eprintln!("error: {}: {e}", m.path.display());
-            return 1;
-        }
-    }
-    0
 }

@@ -9,6 +9,7 @@ use serde::Serialize;
 use crate::estimate::edge_blur::SliceBlur;
 use crate::estimate::edge_offset::EdgeOffset;
 use crate::pipeline::design::{self, Bound, BoundError, BoundNoise, DesignRow, DESIGN_SEEDS};
+use crate::report::error::OutputError;
 use crate::spec::phantom::Phantom;
 
 #[derive(Serialize)]
@@ -135,33 +136,26 @@ fn markdown(file: &DesignFile<'_>) -> String {
     s
 }
 
-/// Ranks the layouts; exit code 0 written, 2 bad input, 1 failed.
-pub fn command(manifest: &Path, out: &Path) -> u8 {
-    let (manifest, spec) = match super::phantom::rendered_lab(manifest) {
-        Ok(found) => found,
-        Err(e) => {
-            eprintln!("error: {e}");
-            return 2;
-        }
-    };
-    let rows = match design::design(&manifest, &spec) {
-        Ok(rows) => rows,
-        Err(e) => {
-            eprintln!("error: {}: {e}", manifest.path.display());
-            return 2;
-        }
-    };
+/// Writes `design.json` and `design.md` into `out` for the ranked `rows` (with
+/// the manifest's own phantom and the thesis's hemisphere beside them); the
+/// Markdown page.
+pub fn write(
+    manifest: &crate::manifest::Manifest,
+    spec: &crate::spec::render::RenderSpec,
+    rows: &[DesignRow],
+    out: &Path,
+) -> Result<String, OutputError> {
     let hemisphere = match crate::detect::board_pose::RigBoards::from_rig(&manifest.rig) {
         Ok(rig) => {
             let (_, world_T_phantom) = crate::synth::scene::lab_layout(spec.board_distance_mm, &rig.phantom);
             let c = world_T_phantom.inverse() * nalgebra::Point3::origin();
             design::bound_over_sweeps(
-                &manifest,
+                manifest,
                 &Phantom::Hemisphere {
                     centre_in_phantom_mm: [c.x, c.y, c.z],
                     radius_mm: 15.0,
                 },
-                &spec,
+                spec,
                 DESIGN_SEEDS,
             )
         }
@@ -171,33 +165,22 @@ pub fn command(manifest: &Path, out: &Path) -> u8 {
         experiment: &manifest.experiment,
         seeds: [DESIGN_SEEDS.start, DESIGN_SEEDS.end - 1],
         frames: spec.frames,
-        noise: design::noise(&manifest),
-        camera_refined_with_frames: design::refines_with_frames(&manifest),
-        edge_offset: design::edge_offset_model(&manifest),
-        slice_blur: design::slice_blur_model(&manifest),
-        manifest_phantom: design::bound_over_sweeps(&manifest, &manifest.phantom, &spec, DESIGN_SEEDS),
+        noise: design::noise(manifest),
+        camera_refined_with_frames: design::refines_with_frames(manifest),
+        edge_offset: design::edge_offset_model(manifest),
+        slice_blur: design::slice_blur_model(manifest),
+        manifest_phantom: design::bound_over_sweeps(manifest, &manifest.phantom, spec, DESIGN_SEEDS),
         hemisphere,
-        layouts: &rows,
+        layouts: rows,
     };
-    let json = match crate::io::json::to_text(&file) {
-        Ok(j) => j,
-        Err(e) => {
-            eprintln!("error: design.json: {e}");
-            return 1;
-        }
-    };
+    let json = crate::io::json::to_text(&file)?;
     let md = markdown(&file);
-    if let Err(e) = crate::io::fs::write_all_atomic(
+    crate::io::fs::write_all_atomic(
         out,
         &[
             ("design.json".into(), json.into_bytes()),
             ("design.md".into(), md.clone().into_bytes()),
         ],
-    ) {
-        eprintln!("error: {e}");
-        return 1;
-    }
-    print!("{}", md.lines().take(12).collect::<Vec<_>>().join("\n"));
-    println!("\nwritten to {} (design.json, design.md)", out.display());
-    0
+    )?;
+    Ok(md)
 }

@@ -6,16 +6,14 @@
 
 use crate::report::error::OutputError;
 use std::fmt::Write as _;
-use std::io::{IsTerminal, Write as _};
 use std::path::Path;
 
 use serde::Serialize;
 
 pub(crate) use super::live_timing::{number, timing, Timing};
 use crate::io::fs::write_all_atomic;
-use crate::manifest::Experiment;
 use crate::pipeline::live::{LiveFrame, LiveRun, Replay};
-use crate::pipeline::tracked::{Role, TrackedInputs};
+use crate::pipeline::tracked::Role;
 
 /// `live.csv`.
 pub fn frames_csv(run: &LiveRun) -> String {
@@ -40,22 +38,22 @@ pub fn frames_csv(run: &LiveRun) -> String {
 }
 
 #[derive(Serialize)]
-struct LiveSummary {
-    frames: usize,
-    recorded_rate_hz: f64,
-    replay_speed: f64,
+pub struct LiveSummary {
+    pub frames: usize,
+    pub recorded_rate_hz: f64,
+    pub replay_speed: f64,
     /// Per frame, ms.
-    latency_ms: Timing,
-    processing_ms: Timing,
+    pub latency_ms: Timing,
+    pub processing_ms: Timing,
     /// Every frame's work took less than the recording's frame interval at the
     /// replay speed.
-    kept_up: bool,
+    pub kept_up: bool,
     /// The running accuracy estimate at the last frame, mm.
     running_pre3d_mm: Option<f64>,
     /// The live fit at the last frame and the final (batch) calibration.
-    last_live_matrix: Option<Vec<Vec<f64>>>,
-    final_matrix: Vec<Vec<f64>>,
-    final_validation_pre3d_mm: Option<f64>,
+    pub last_live_matrix: Option<Vec<Vec<f64>>>,
+    pub final_matrix: Vec<Vec<f64>>,
+    pub final_validation_pre3d_mm: Option<f64>,
 }
 
 /// `summary.json`.
@@ -80,7 +78,7 @@ fn summary(run: &LiveRun, replay: Replay) -> LiveSummary {
 }
 
 /// The terminal's line for one frame.
-fn line(f: &LiveFrame) -> String {
+pub fn line(f: &LiveFrame) -> String {
     let mm = |v: Option<f64>| v.map(|v| format!("{v:.3} mm")).unwrap_or_else(|| "—".into());
     let status = match &f.rejected {
         Some(r) => format!("rejected: {}", r.chars().take(60).collect::<String>()),
@@ -97,100 +95,16 @@ fn line(f: &LiveFrame) -> String {
     )
 }
 
-/// How `probecal live` gets its frames: a tracked manifest's sequence replayed,
-/// or a camera manifest's frames from a folder being written.
-pub struct LiveSource {
-    pub speed: f64,
-    pub watch: Option<std::path::PathBuf>,
-    pub idle_s: f64,
-}
-
-/// `probecal live <manifest> --out <dir> [--speed S | --watch DIR]`; the exit code.
-pub fn command(manifest: &Path, out: &Path, source: &LiveSource) -> u8 {
-    let speed = source.speed;
-    if !(speed.is_finite() && speed >= 0.0) {
-        eprintln!("error: --speed {speed}: a replay speed is a number ≥ 0 (0: as fast as the frames are processed)");
-        return 2;
-    }
-    let m = match crate::pipeline::experiment::load_all(&[manifest.to_path_buf()]) {
-        Ok(mut all) => match (all.pop(), &source.watch) {
-            (Some(Experiment::Tracked(m)), None) => m,
-            (Some(Experiment::Camera(m)), Some(folder)) => {
-                let watch = crate::pipeline::live_folder::Watch {
-                    folder: folder.clone(),
-                    idle_s: source.idle_s,
-                    poll_ms: 20,
-                };
-                return crate::report::live_folder::command(&m, &watch, out);
-            }
-            (Some(Experiment::Tracked(_)), Some(_)) => {
-                eprintln!(
-                    "error: {}: --watch takes a camera manifest's frames from a folder; a tracked manifest replays its sequence (leave out --watch)",
-                    manifest.display()
-                );
-                return 2;
-            }
-            _ => {
-                eprintln!(
-                    "error: {}: live calibration replays a tracked sequence (tracking: plus_sequence), or with --watch DIR takes a camera manifest's frames from a folder being written",
-                    manifest.display()
-                );
-                return 2;
-            }
-        },
-        Err(e) => {
-            eprintln!("error: {e}");
-            return 2;
-        }
-    };
-    let replay = Replay { speed };
-    let terminal = std::io::stderr().is_terminal();
-    let mut show = |f: &LiveFrame| {
-        let text = line(f);
-        if terminal {
-            eprint!("\r\x1b[2K{text}");
-            let _ = std::io::stderr().flush();
-        } else {
-            eprintln!("{text}");
-        }
-    };
-    let run = match crate::pipeline::live::run(&TrackedInputs::from_manifest(&m), m.min_frames, replay, &mut show) {
-        Ok(r) => r,
-        Err(e) => {
-            eprintln!("\nerror: {e}");
-            return 1;
-        }
-    };
-    if terminal {
-        eprintln!();
-    }
-    let s = summary(&run, replay);
-    let written = crate::report::summary::to_text(&s)
-        .map_err(OutputError::from)
-        .and_then(|text| {
-            let files = [
-                ("summary.json".to_string(), text.into_bytes()),
-                ("live.csv".to_string(), frames_csv(&run).into_bytes()),
-            ];
-            Ok(write_all_atomic(out, &files)?)
-        });
-    match written {
-        Ok(()) => {
-            println!(
-                "{} frames at {:.1} frames/s recorded; work per frame {:.1} ms mean, {:.1} ms max ({}); final validation PRE3D {}; written to {}",
-                s.frames,
-                s.recorded_rate_hz,
-                s.processing_ms.mean,
-                s.processing_ms.max,
-                if s.kept_up { "kept up" } else { "fell behind" },
-                s.final_validation_pre3d_mm.map(|v| format!("{v:.4} mm")).unwrap_or_else(|| "—".into()),
-                out.display()
-            );
-            0
-        }
-        Err(e) => {
-            eprintln!("error: {}: {e}", out.display());
-            1
-        }
-    }
+/// Writes `summary.json` and `live.csv` into `out` (whole, or nothing); the summary.
+pub fn write(run: &LiveRun, replay: Replay, out: &Path) -> Result<LiveSummary, OutputError> {
+    let s = summary(run, replay);
+    let files = [
+        (
+            "summary.json".to_string(),
+            crate::report::summary::to_text(&s)?.into_bytes(),
+        ),
+        ("live.csv".to_string(), frames_csv(run).into_bytes()),
+    ];
+    write_all_atomic(out, &files)?;
+    Ok(s)
 }

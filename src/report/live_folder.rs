@@ -7,15 +7,13 @@
 
 use crate::report::error::OutputError;
 use std::fmt::Write as _;
-use std::io::{IsTerminal, Write as _};
 use std::path::Path;
 
 use serde::Serialize;
 
 use crate::estimate::horn::HornFit;
 use crate::io::fs::write_all_atomic;
-use crate::manifest::Manifest;
-use crate::pipeline::live_folder::{self, Ending, FolderFrame, FolderRun, Watch};
+use crate::pipeline::live_folder::{Ending, FolderFrame, FolderRun};
 use crate::report::live_timing::{number, timing, Timing};
 
 /// `live.csv`.
@@ -45,25 +43,25 @@ pub fn frames_csv(run: &FolderRun) -> String {
 }
 
 #[derive(Serialize)]
-struct FolderSummary {
-    frames: usize,
-    frames_used: usize,
+pub struct FolderSummary {
+    pub frames: usize,
+    pub frames_used: usize,
     /// `frame_list` (the frame list appeared and every frame it lists was taken)
     /// or `idle` (no new frame for the idle time).
-    ended_by: &'static str,
+    pub ended_by: &'static str,
     /// Per frame, ms.
-    latency_ms: Timing,
-    processing_ms: Timing,
+    pub latency_ms: Timing,
+    pub processing_ms: Timing,
     /// The running error estimate at the last frame, mm.
-    running_error_mm: Option<f64>,
+    pub running_error_mm: Option<f64>,
     /// The live all-frames fit at the last frame, and the batch run's.
-    live_all_frames_matrix: Option<Vec<Vec<f64>>>,
-    batch_all_frames_matrix: Option<Vec<Vec<f64>>>,
+    pub live_all_frames_matrix: Option<Vec<Vec<f64>>>,
+    pub batch_all_frames_matrix: Option<Vec<Vec<f64>>>,
     /// Largest difference between their entries.
-    live_minus_batch_max_abs: Option<f64>,
+    pub live_minus_batch_max_abs: Option<f64>,
     /// The batch run's reported calibration (its cut-off) and its BRE means, mm.
-    batch_reported_matrix: Option<Vec<Vec<f64>>>,
-    batch_reported_bre_mean_mm: Option<[f64; 3]>,
+    pub batch_reported_matrix: Option<Vec<Vec<f64>>>,
+    pub batch_reported_bre_mean_mm: Option<[f64; 3]>,
 }
 
 fn matrix(fit: &HornFit) -> Vec<Vec<f64>> {
@@ -101,7 +99,7 @@ fn summary(run: &FolderRun) -> FolderSummary {
 }
 
 /// The terminal's line for one frame.
-fn line(f: &FolderFrame) -> String {
+pub fn line(f: &FolderFrame) -> String {
     let mm = |v: Option<f64>| v.map(|v| format!("{v:.3} mm")).unwrap_or_else(|| "—".into());
     let status = match &f.rejected {
         Some(r) => format!("rejected: {}", r.chars().take(60).collect::<String>()),
@@ -121,62 +119,16 @@ fn line(f: &FolderFrame) -> String {
     )
 }
 
-/// `probecal live <camera manifest> --watch <folder> --out <dir>`; the exit code.
-pub fn command(manifest: &Manifest, watch: &Watch, out: &Path) -> u8 {
-    if !(watch.idle_s.is_finite() && watch.idle_s > 0.0 && watch.idle_s <= 86_400.0) {
-        eprintln!(
-            "error: --idle-s {}: a time in seconds, above 0 and at most a day",
-            watch.idle_s
-        );
-        return 2;
-    }
-    let terminal = std::io::stderr().is_terminal();
-    let mut show = |f: &FolderFrame| {
-        let text = line(f);
-        if terminal {
-            eprint!("\r\x1b[2K{text}");
-            let _ = std::io::stderr().flush();
-        } else {
-            eprintln!("{text}");
-        }
-    };
-    let run = match live_folder::run(manifest, watch, &mut show) {
-        Ok(r) => r,
-        Err(e) => {
-            eprintln!("\nerror: {e}");
-            return 1;
-        }
-    };
-    if terminal {
-        eprintln!();
-    }
-    let s = summary(&run);
-    let written = crate::report::summary::to_text(&s)
-        .map_err(OutputError::from)
-        .and_then(|text| {
-            let files = [
-                ("summary.json".to_string(), text.into_bytes()),
-                ("live.csv".to_string(), frames_csv(&run).into_bytes()),
-            ];
-            Ok(write_all_atomic(out, &files)?)
-        });
-    match written {
-        Ok(()) => {
-            println!(
-                "{} frames ({} used), ended by {}; latency {:.1} ms mean, {:.1} ms max; live and batch all-frames fits differ by {}; written to {}",
-                s.frames,
-                s.frames_used,
-                s.ended_by.replace('_', " "),
-                s.latency_ms.mean,
-                s.latency_ms.max,
-                s.live_minus_batch_max_abs.map(|v| format!("{v:.2e}")).unwrap_or_else(|| "— (no batch run)".into()),
-                out.display()
-            );
-            0
-        }
-        Err(e) => {
-            eprintln!("error: {}: {e}", out.display());
-            1
-        }
-    }
+/// Writes `summary.json` and `live.csv` into `out` (whole, or nothing); the summary.
+pub fn write(run: &FolderRun, out: &Path) -> Result<FolderSummary, OutputError> {
+    let s = summary(run);
+    let files = [
+        (
+            "summary.json".to_string(),
+            crate::report::summary::to_text(&s)?.into_bytes(),
+        ),
+        ("live.csv".to_string(), frames_csv(run).into_bytes()),
+    ];
+    write_all_atomic(out, &files)?;
+    Ok(s)
 }

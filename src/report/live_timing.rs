@@ -12,10 +12,10 @@ pub(crate) fn number(v: Option<f64>) -> String {
 
 /// Mean, 95th percentile and largest of per-frame times, ms.
 #[derive(Serialize)]
-pub(crate) struct Timing {
-    pub(crate) mean: f64,
-    pub(crate) p95: f64,
-    pub(crate) max: f64,
+pub struct Timing {
+    pub mean: f64,
+    pub p95: f64,
+    pub max: f64,
 }
 
 pub(crate) fn timing(values: &[f64]) -> Timing {

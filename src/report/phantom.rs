@@ -2,7 +2,6 @@
 
 use std::path::Path;
 
-use crate::detect::board_pose::RigBoards;
 use crate::manifest::{DatasetSource, Experiment, Manifest};
 use nalgebra::Point3;
 use serde::Serialize;
@@ -83,7 +82,7 @@ pub struct SheetSeat {
     pub front_corner_mm: [f64; 3],
 }
 
-fn sheet(manifest: &Manifest, model: &printable::PrintableModel, stl: &Path, triangles: usize) -> ModelSheet {
+pub fn sheet(manifest: &Manifest, model: &printable::PrintableModel, stl: &Path, triangles: usize) -> ModelSheet {
     let mount = model.seat.mount;
     let corner = model.seat.upright_T_phantom * Point3::new(mount.left_x_mm, mount.bottom_y_mm, 0.0);
     let size = model.plate_max_mm - model.plate_min_mm;
@@ -116,76 +115,4 @@ fn sheet(manifest: &Manifest, model: &printable::PrintableModel, stl: &Path, tri
             front_corner_mm: corner.coords.into(),
         },
     }
-}
-
-/// Writes the STL and its sheet (`<name>.json` beside it); prints the model's
-/// size. Exit code: 0 written, 2 bad input, 1 failed write.
-pub fn command(manifest: &Path, stl: &Path) -> u8 {
-    let sheet_path = stl.with_extension("json");
-    if sheet_path == stl {
-        eprintln!(
-            "error: --stl {}: the model's sheet would overwrite it; name the STL *.stl",
-            stl.display()
-        );
-        return 2;
-    }
-    let (manifest, render) = match rendered_lab(manifest) {
-        Ok(found) => found,
-        Err(e) => {
-            eprintln!("error: {e}");
-            return 2;
-        }
-    };
-    let rig = match RigBoards::from_rig(&manifest.rig) {
-        Ok(rig) => rig,
-        Err(e) => {
-            eprintln!("error: {}: field `rig`: {e}", manifest.path.display());
-            return 2;
-        }
-    };
-    let model = match printable::model(&manifest.phantom, &rig.phantom, &render) {
-        Ok(m) => m,
-        Err(e) => {
-            eprintln!("error: {}: {e}", manifest.path.display());
-            return 2;
-        }
-    };
-    let triangles = match model.triangles() {
-        Ok(t) => t,
-        Err(e) => {
-            eprintln!("error: {}: {e}", manifest.path.display());
-            return 2;
-        }
-    };
-    let header = format!("probecal phantom of {} (mm)", manifest.experiment);
-    if let Err(e) = crate::io::stl::write(stl, &header, &triangles) {
-        eprintln!("error: {e}");
-        return 1;
-    }
-    let sheet = sheet(&manifest, &model, stl, triangles.len());
-    let json = match serde_json::to_string_pretty(&sheet) {
-        Ok(text) => text + "\n",
-        Err(e) => {
-            eprintln!("error: {}: {e}", sheet_path.display());
-            return 1;
-        }
-    };
-    if let Err(e) = crate::io::fs::write_atomic(&sheet_path, json.as_bytes()) {
-        eprintln!("error: {e}");
-        return 1;
-    }
-    let size = model.plate_max_mm - model.plate_min_mm;
-    println!(
-        "written {} and its sheet ({} triangles, {} shells): {:.1} x {:.1} mm on the bed, {:.1} mm tall; {} domes over a floor {:.1} mm up, the board's seat; {:.0} mm³",
-        stl.display(),
-        triangles.len(),
-        model.shells(),
-        size.x,
-        size.y,
-        model.top_mm(),
-        model.domes.len(),
-        model.floor_mm(),
-        model.volume_mm3()
-    );
-    0
 }

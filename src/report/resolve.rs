@@ -43,30 +43,3 @@ pub enum ResolveError {
     #[error("{0}")]
     Inputs(#[from] crate::pipeline::resolve::SolveInputsError),
 }
-
-/// The command: prints the re-solved matrix and the difference; exit 0 when it is
-/// the same calibration, 1 when not or when the folder cannot be solved again.
-pub fn command(run_folder: &Path) -> u8 {
-    match resolve(run_folder) {
-        Ok((difference, again)) => {
-            println!("marker_T_image solved again from {}:", run_folder.display());
-            for row in again {
-                println!("  {:>14.9} {:>14.9} {:>14.9} {:>14.9}", row[0], row[1], row[2], row[3]);
-            }
-            let same = difference <= SAME_CALIBRATION;
-            println!(
-                "largest difference from summary.json: {difference:.3e} ({})",
-                if same {
-                    "the same calibration"
-                } else {
-                    "NOT the calibration the run reports"
-                }
-            );
-            u8::from(!same)
-        }
-        Err(e) => {
-            eprintln!("error: {e}");
-            1
-        }
-    }
-}

@@ -322,6 +322,11 @@ fn gallery_html(run: &SegmentRun) -> String {
     out + "</div>\n"
 }
 
+/// Writes every output into `out` (whole, or nothing).
+pub fn write(run: &SegmentRun, baseline: Option<&Baseline>, out: &std::path::Path) -> Result<(), OutputError> {
+    Ok(write_all_atomic(out, &outputs(run, baseline)?)?)
+}
+
 /// Every output file: the gallery's pictures, then the tables and the page.
 fn outputs(run: &SegmentRun, baseline: Option<&Baseline>) -> Result<Vec<(String, Vec<u8>)>, OutputError> {
     let mut files = Vec::with_capacity(run.frames.len() + 3);
@@ -334,77 +339,4 @@ fn outputs(run: &SegmentRun, baseline: Option<&Baseline>) -> Result<Vec<(String,
     files.push(("summary.json".into(), text.into_bytes()));
     files.push(("report.html".into(), html(run, baseline).into_bytes()));
     Ok(files)
-}
-
-/// `probecal segment`'s arguments.
-#[derive(Debug, clap::Args)]
-pub struct SegmentArgs {
-    /// A PLUS sequence file (.mha).
-    pub sequence: std::path::PathBuf,
-    /// The PLUS device set with the phantom (and its segmentation settings).
-    #[arg(long)]
-    pub config: std::path::PathBuf,
-    /// The output folder (written whole on success).
-    #[arg(long)]
-    pub out: std::path::PathBuf,
-    /// PLUS's segmentation of the same sequence (a segmentation test baseline
-    /// or a calibration result XML): recall, extra frames and point distances
-    /// on the page and in summary.json.
-    #[arg(long)]
-    pub plus_baseline: Option<std::path::PathBuf>,
-}
-
-/// `probecal segment`: exit code 0 on success, 1 when the inputs cannot be read
-/// or the outputs written.
-pub fn command(args: &SegmentArgs) -> u8 {
-    let (sequence, config, out) = (&args.sequence, &args.config, &args.out);
-    let plus_baseline = args.plus_baseline.as_deref();
-    let run = match crate::pipeline::segment::run(sequence, config) {
-        Ok(r) => r,
-        Err(e) => {
-            eprintln!("error: {e}");
-            return 1;
-        }
-    };
-    let baseline = match plus_baseline.map(|p| against_plus(&run, p)).transpose() {
-        Ok(b) => b,
-        Err(e) => {
-            eprintln!("error: {e}");
-            return 1;
-        }
-    };
-    let written = outputs(&run, baseline.as_ref()).and_then(|files| Ok(write_all_atomic(out, &files)?));
-    match written {
-        Ok(()) => {
-            let found = run.frames.iter().filter(|f| f.rejected.is_none()).count();
-            let role = crate::pipeline::sequence_frames::Role::Calibration;
-            if let Some(w) = crate::pipeline::sequence_frames::rejection_warning(&run.frames, role, "sequence") {
-                eprintln!("warning: {w}");
-            }
-            if let Some(b) = &baseline {
-                let s = &b.score;
-                println!(
-                    "against PLUS's segmentation ({}): {} of the {} frames PLUS segmented found here ({:.1} %), {} found here only; mean distance to PLUS's points {}",
-                    b.section,
-                    s.both_frames,
-                    s.plus_frames,
-                    100.0 * s.recall,
-                    s.extra_frames.len(),
-                    s.point_distance_px
-                        .map(|d| format!("{:.3} px", d.mean))
-                        .unwrap_or_else(|| "—".into())
-                );
-            }
-            println!(
-                "{found} of {} frames segmented; written to {}",
-                run.frames.len(),
-                out.display()
-            );
-            0
-        }
-        Err(e) => {
-            eprintln!("error: {e}");
-            1
-        }
-    }
 }

@@ -7,6 +7,7 @@ use std::path::Path;
 
 use crate::io::fs::{display_path, write_all_atomic};
 use crate::pipeline::temporal::TemporalRun;
+use crate::report::error::OutputError;
 
 /// `lines.csv`: frame, found, origin and direction in pixels, or the reason.
 pub fn lines_csv(run: &TemporalRun) -> String {
@@ -96,34 +97,13 @@ pub fn html(run: &TemporalRun) -> String {
     )
 }
 
-/// `probecal temporal`: 0 on success, 1 when the inputs cannot be used or the
-/// outputs written.
-pub fn command(video: &Path, tracker: &Path, out: &Path) -> u8 {
-    let run = match crate::pipeline::temporal::run(video, tracker, "ProbeToTracker", "ReferenceToTracker") {
-        Ok(r) => r,
-        Err(e) => {
-            eprintln!("error: {e}");
-            return 1;
-        }
-    };
-    let written = crate::report::summary::to_text(&summary(&run))
-        .map_err(|e| e.to_string())
-        .and_then(|text| {
-            let files = [
-                ("summary.json".to_string(), text.into_bytes()),
-                ("lines.csv".to_string(), lines_csv(&run).into_bytes()),
-                ("report.html".to_string(), html(&run).into_bytes()),
-            ];
-            write_all_atomic(out, &files).map_err(|e| e.to_string())
-        });
-    match written {
-        Ok(()) => {
-            println!("tracker lag {:.4} s; written to {}", run.tracker_lag_s, out.display());
-            0
-        }
-        Err(e) => {
-            eprintln!("error: {e}");
-            1
-        }
-    }
+/// Writes `summary.json`, `lines.csv` and `report.html` into `out` (whole, or nothing).
+pub fn write(run: &TemporalRun, out: &Path) -> Result<(), OutputError> {
+    let text = crate::report::summary::to_text(&summary(run))?;
+    let files = [
+        ("summary.json".to_string(), text.into_bytes()),
+        ("lines.csv".to_string(), lines_csv(run).into_bytes()),
+        ("report.html".to_string(), html(run).into_bytes()),
+    ];
+    Ok(write_all_atomic(out, &files)?)
 }

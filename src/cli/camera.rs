@@ -1,0 +1,47 @@
+//! `probecal calibrate-camera`: intrinsics from board views, printed and written
+//! as OpenCV FileStorage YAML with every image's fate; 0 written, 2 bad
+//! options, 1 when no calibration could be solved or written.
+
+use std::path::{Path, PathBuf};
+
+use super::failure::Failure;
+use crate::io::camera_model::ViewFate;
+
+pub fn command(images: &[PathBuf], board: [u32; 2], square_mm: f64, out: &Path) -> Result<(), Failure> {
+    if !(square_mm.is_finite() && square_mm > 0.0) {
+        return Err(Failure::bad_input(format!(
+            "--square-mm must be a positive number, got {square_mm}"
+        )));
+    }
+    // The folder is made before the work, so a finished calibration has somewhere to go.
+    if let Some(parent) = out.parent().filter(|p| !p.as_os_str().is_empty()) {
+        std::fs::create_dir_all(parent)
+            .map_err(|e| Failure::failed(format!("{}: cannot create the output's folder: {e}", parent.display())))?;
+    }
+    let cal = crate::detect::camera_calibration::calibrate_from(
+        images,
+        board,
+        square_mm,
+        crate::detect::corners::Search::OpenCvSample,
+    )
+    .map_err(Failure::failed)?;
+    crate::report::console::camera_calibration(&cal);
+    let views: Vec<ViewFate> = cal
+        .views
+        .iter()
+        .map(|v| ViewFate {
+            image: v.image.display().to_string(),
+            used: v.used,
+            how: match (&v.reason, v.found_by) {
+                (Some(r), _) => r.clone(),
+                (None, Some(f)) => format!("board found by {f}"),
+                (None, None) => String::new(),
+            },
+        })
+        .collect();
+    cal.intrinsics
+        .save_with_views(out, Some((board, square_mm)), &views)
+        .map_err(Failure::failed)?;
+    println!("written to {}", out.display());
+    Ok(())
+}

@@ -1,0 +1,16 @@
+//! `probecal design`: the dome-phantom layouts of the manifest's lab ranked by
+//! the Cramér–Rao bound of their calibration; 0 written, 2 bad input, 1 failed.
+
+use std::path::Path;
+
+use super::failure::Failure;
+
+pub fn command(manifest: &Path, out: &Path) -> Result<(), Failure> {
+    let (manifest, spec) = crate::report::phantom::rendered_lab(manifest).map_err(Failure::bad_input)?;
+    let rows = crate::pipeline::design::design(&manifest, &spec)
+        .map_err(|e| Failure::bad_input(format!("{}: {e}", manifest.path.display())))?;
+    let md = crate::report::design::write(&manifest, &spec, &rows, out).map_err(Failure::failed)?;
+    print!("{}", md.lines().take(12).collect::<Vec<_>>().join("\n"));
+    println!("\nwritten to {} (design.json, design.md)", out.display());
+    Ok(())
+}

@@ -1,0 +1,44 @@
+//! Why a command stopped, and the exit code the documentation gives it: 2 for
+//! input the command cannot use (a bad manifest, option or file), 1 for a run
+//! that failed (an output not written, a result that disagrees).
+
+use std::error::Error;
+
+/// A command's failure: what the console prints after `error:`, and its class.
+#[derive(Debug)]
+pub enum Failure {
+    /// Exit code 2: the input cannot be used.
+    BadInput(Box<dyn Error>),
+    /// Exit code 1: the run failed.
+    Failed(Box<dyn Error>),
+}
+
+impl Failure {
+    pub fn bad_input(e: impl Into<Box<dyn Error>>) -> Failure {
+        Failure::BadInput(e.into())
+    }
+
+    pub fn failed(e: impl Into<Box<dyn Error>>) -> Failure {
+        Failure::Failed(e.into())
+    }
+
+    /// The documented exit code.
+    pub fn exit_code(&self) -> u8 {
+        match self {
+            Failure::BadInput(_) => 2,
+            Failure::Failed(_) => 1,
+        }
+    }
+}
+
+/// Prints a command's failure and gives its exit code (0 on success).
+pub fn exit_code(result: Result<(), Failure>) -> u8 {
+    match result {
+        Ok(()) => 0,
+        Err(failure) => {
+            let (Failure::BadInput(e) | Failure::Failed(e)) = &failure;
+            eprintln!("error: {e}");
+            failure.exit_code()
+        }
+    }
+}

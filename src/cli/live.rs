@@ -1,0 +1,116 @@
+//! `probecal live`: calibrates while a tracked recording is replayed, or while
+//! a camera experiment's frames arrive in a folder; a line per frame (one
+//! updated line on a terminal), then the session's files. 0 written, 2 bad
+//! input, 1 failed.
+
+use std::io::{IsTerminal, Write as _};
+use std::path::{Path, PathBuf};
+
+use super::failure::Failure;
+use crate::manifest::{Experiment, Manifest};
+use crate::pipeline::live::Replay;
+use crate::pipeline::live_folder::Watch;
+use crate::pipeline::tracked::TrackedInputs;
+
+/// How `probecal live` gets its frames: a tracked manifest's sequence replayed,
+/// or a camera manifest's frames from a folder being written.
+pub struct LiveSource {
+    pub speed: f64,
+    pub watch: Option<PathBuf>,
+    pub idle_s: f64,
+}
+
+/// Shows a frame's line: replacing the last on a terminal, one per line otherwise.
+fn shown(terminal: bool, text: &str) {
+    if terminal {
+        eprint!("\r\x1b[2K{text}");
+        let _ = std::io::stderr().flush();
+    } else {
+        eprintln!("{text}");
+    }
+}
+
+pub fn command(manifest: &Path, out: &Path, source: &LiveSource) -> Result<(), Failure> {
+    let speed = source.speed;
+    if !(speed.is_finite() && speed >= 0.0) {
+        return Err(Failure::bad_input(format!(
+            "--speed {speed}: a replay speed is a number ≥ 0 (0: as fast as the frames are processed)"
+        )));
+    }
+    let mut all = crate::pipeline::experiment::load_all(&[manifest.to_path_buf()]).map_err(Failure::bad_input)?;
+    let m = match (all.pop(), &source.watch) {
+        (Some(Experiment::Tracked(m)), None) => m,
+        (Some(Experiment::Camera(m)), Some(folder)) => {
+            let watch = Watch {
+                folder: folder.clone(),
+                idle_s: source.idle_s,
+                poll_ms: 20,
+            };
+            return folder_command(&m, &watch, out);
+        }
+        (Some(Experiment::Tracked(_)), Some(_)) => {
+            return Err(Failure::bad_input(format!(
+                "{}: --watch takes a camera manifest's frames from a folder; a tracked manifest replays its sequence (leave out --watch)",
+                manifest.display()
+            )))
+        }
+        _ => {
+            return Err(Failure::bad_input(format!(
+                "{}: live calibration replays a tracked sequence (tracking: plus_sequence), or with --watch DIR takes a camera manifest's frames from a folder being written",
+                manifest.display()
+            )))
+        }
+    };
+    let replay = Replay { speed };
+    let terminal = std::io::stderr().is_terminal();
+    let mut show = |f: &crate::pipeline::live::LiveFrame| shown(terminal, &crate::report::live::line(f));
+    let run = crate::pipeline::live::run(&TrackedInputs::from_manifest(&m), m.min_frames, replay, &mut show);
+    if terminal {
+        eprintln!();
+    }
+    let run = run.map_err(Failure::failed)?;
+    let s = crate::report::live::write(&run, replay, out)
+        .map_err(|e| Failure::failed(format!("{}: {e}", out.display())))?;
+    println!(
+        "{} frames at {:.1} frames/s recorded; work per frame {:.1} ms mean, {:.1} ms max ({}); final validation PRE3D {}; written to {}",
+        s.frames,
+        s.recorded_rate_hz,
+        s.processing_ms.mean,
+        s.processing_ms.max,
+        if s.kept_up { "kept up" } else { "fell behind" },
+        s.final_validation_pre3d_mm.map(|v| format!("{v:.4} mm")).unwrap_or_else(|| "—".into()),
+        out.display()
+    );
+    Ok(())
+}
+
+/// `probecal live <camera manifest> --watch <folder> --out <dir>`.
+fn folder_command(manifest: &Manifest, watch: &Watch, out: &Path) -> Result<(), Failure> {
+    if !(watch.idle_s.is_finite() && watch.idle_s > 0.0 && watch.idle_s <= 86_400.0) {
+        return Err(Failure::bad_input(format!(
+            "--idle-s {}: a time in seconds, above 0 and at most a day",
+            watch.idle_s
+        )));
+    }
+    let terminal = std::io::stderr().is_terminal();
+    let mut show =
+        |f: &crate::pipeline::live_folder::FolderFrame| shown(terminal, &crate::report::live_folder::line(f));
+    let run = crate::pipeline::live_folder::run(manifest, watch, &mut show);
+    if terminal {
+        eprintln!();
+    }
+    let run = run.map_err(Failure::failed)?;
+    let s =
+        crate::report::live_folder::write(&run, out).map_err(|e| Failure::failed(format!("{}: {e}", out.display())))?;
+    println!(
+        "{} frames ({} used), ended by {}; latency {:.1} ms mean, {:.1} ms max; live and batch all-frames fits differ by {}; written to {}",
+        s.frames,
+        s.frames_used,
+        s.ended_by.replace('_', " "),
+        s.latency_ms.mean,
+        s.latency_ms.max,
+        s.live_minus_batch_max_abs.map(|v| format!("{v:.2e}")).unwrap_or_else(|| "— (no batch run)".into()),
+        out.display()
+    );
+    Ok(())
+}

@@ -1,0 +1,134 @@
+//! `probecal study` and `probecal study merge`: the σ-table and the Monte Carlo
+//! study of a manifest (whole, or one slice of its seeds as a shard file), and
+//! a study joined from its shards; 0 written, 2 bad input, 1 failed.
+
+use std::path::{Path, PathBuf};
+
+use super::failure::Failure;
+use crate::core::limits::MAX_SEEDS;
+use crate::pipeline::shard::{self, Shard, ShardFile};
+use crate::pipeline::study::BoundModel;
+use crate::report::study::{sigma_table, write};
+
+/// `probecal study`'s arguments.
+#[derive(Debug, Clone, clap::Args)]
+#[command(args_conflicts_with_subcommands = true, subcommand_negates_reqs = true)]
+pub struct StudyArgs {
+    #[command(subcommand)]
+    pub merge: Option<StudyMerge>,
+    /// A manifest of a rendered rig (its first dataset is rendered once per seed).
+    #[arg(required = true)]
+    pub manifest: Option<PathBuf>,
+    /// Run every N-th seed from the K-th only (1-based), into
+    /// <out>/shard_K_of_N.yaml; `study merge` joins the slices.
+    #[arg(long, value_name = "K/N")]
+    pub shard: Option<Shard>,
+    /// Seeds rendered (0: the σ-table only).
+    #[arg(long, default_value_t = 50)]
+    pub seeds: u64,
+    /// The first seed rendered; the study renders seeds first_seed.. first_seed+seeds-1.
+    #[arg(long, default_value_t = 1000)]
+    pub first_seed: u64,
+    /// Output folder: study.json, study.md, study.html, the σ-table.
+    #[arg(long, default_value = "reports/study")]
+    pub out: PathBuf,
+    /// Where rendered datasets are cached.
+    #[arg(long, default_value = "datasets")]
+    pub datasets: PathBuf,
+    /// Keep the rendered datasets (they are removed after each seed's run).
+    #[arg(long)]
+    pub keep_datasets: bool,
+}
+
+/// `probecal study merge`.
+#[derive(Debug, Clone, clap::Subcommand)]
+pub enum StudyMerge {
+    /// Join the shard files of one study into the study.json and pages one run writes.
+    Merge {
+        /// The shard files (`shard_K_of_N.yaml`) of one study, every K once.
+        #[arg(required = true)]
+        shards: Vec<PathBuf>,
+        /// Output folder of the joined study.
+        #[arg(long, default_value = "reports/study")]
+        out: PathBuf,
+    },
+}
+
+/// `probecal study` or `probecal study merge`; the exit code.
+pub fn dispatch(args: StudyArgs) -> Result<(), Failure> {
+    match &args.merge {
+        Some(StudyMerge::Merge { shards, out }) => merge(shards, out),
+        None => command(&args),
+    }
+}
+
+/// `probecal study`: the σ-table and, for `seeds` seeds from `first_seed`, the
+/// Monte Carlo study of the manifest, written to `out` (or one slice of the
+/// seeds, written as a shard file); the exit code.
+pub fn command(request: &StudyArgs) -> Result<(), Failure> {
+    let path = request.manifest.as_deref().unwrap_or(Path::new(""));
+    let manifest = crate::manifest::Manifest::load(path).map_err(Failure::bad_input)?;
+    crate::core::progress::set_quiet(true);
+    let (seeds, first_seed) = (request.seeds, request.first_seed);
+    let last = first_seed.checked_add(seeds).filter(|_| seeds <= MAX_SEEDS);
+    let Some(last) = last else {
+        return Err(Failure::bad_input(format!(
+            "--seeds {seeds} from --first-seed {first_seed}: at most {MAX_SEEDS} seeds, and the last below 2^64"
+        )));
+    };
+    let all: Vec<u64> = (first_seed..last).collect();
+    let mut log = |l: &str| eprintln!("{l}");
+    if let Some(shard) = request.shard {
+        let (_, manifest_sha256) =
+            crate::io::fs::file_sha256(path).map_err(|e| Failure::bad_input(format!("{}: {e}", path.display())))?;
+        let mine = shard.seeds_of(&all);
+        let results =
+            crate::pipeline::study::seed_results(&manifest, &mine, &request.datasets, request.keep_datasets, &mut log)
+                .map_err(Failure::failed)?;
+        let file = ShardFile {
+            experiment: manifest.experiment.clone(),
+            manifest_sha256,
+            first_seed,
+            seeds,
+            shard,
+            bound: BoundModel::of(&manifest),
+            results,
+        };
+        let written = shard::write(&request.out, &file)
+            .map_err(|e| Failure::failed(format!("{}: {e}", request.out.display())))?;
+        eprintln!(
+            "shard {}/{}: {} seeds; written to {}",
+            shard.index,
+            shard.count,
+            mine.len(),
+            written.display()
+        );
+        return Ok(());
+    }
+    let sigma = sigma_table();
+    let monte_carlo = if all.is_empty() {
+        None
+    } else {
+        Some(
+            crate::pipeline::study::monte_carlo(&manifest, &all, &request.datasets, request.keep_datasets, &mut log)
+                .map_err(Failure::failed)?,
+        )
+    };
+    write(&request.out, &sigma, monte_carlo.as_ref()).map_err(Failure::failed)?;
+    eprintln!("written to {}", request.out.display());
+    Ok(())
+}
+
+/// `probecal study merge`: the study from its shard files, written to `out`.
+pub fn merge(files: &[PathBuf], out: &Path) -> Result<(), Failure> {
+    let mut shards = Vec::new();
+    for path in files {
+        shards.push((path.clone(), shard::read(path).map_err(Failure::bad_input)?));
+    }
+    let (experiment, bound, results) = shard::join(&shards).map_err(Failure::bad_input)?;
+    let monte_carlo = crate::pipeline::study::summarise(&experiment, bound, results);
+    let sigma = sigma_table();
+    write(out, &sigma, Some(&monte_carlo)).map_err(|e| Failure::failed(format!("{}: {e}", out.display())))?;
+    eprintln!("{} shards merged; written to {}", shards.len(), out.display());
+    Ok(())
+}

@@ -1,0 +1,14 @@
+//! `probecal temporal`: the tracker's lag behind the video (PLUS's temporal
+//! calibration); 0 written, 1 when the inputs cannot be used or the outputs written.
+
+use std::path::Path;
+
+use super::failure::Failure;
+
+pub fn command(video: &Path, tracker: &Path, out: &Path) -> Result<(), Failure> {
+    let run = crate::pipeline::temporal::run(video, tracker, "ProbeToTracker", "ReferenceToTracker")
+        .map_err(Failure::failed)?;
+    crate::report::temporal::write(&run, out).map_err(Failure::failed)?;
+    println!("tracker lag {:.4} s; written to {}", run.tracker_lag_s, out.display());
+    Ok(())
+}
