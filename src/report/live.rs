@@ -10,8 +10,7 @@ use std::path::Path;
 
 use serde::Serialize;
 
-pub(crate) use super::live_timing::{number, timing, Timing};
-use crate::io::fs::write_all_atomic;
+pub(crate) use super::live_timing::{number, timing, write_session, Timing};
 use crate::pipeline::live::{LiveFrame, LiveRun, Replay};
 use crate::pipeline::tracked::Role;
 
@@ -98,13 +97,6 @@ pub fn line(f: &LiveFrame) -> String {
 /// Writes `summary.json` and `live.csv` into `out` (whole, or nothing); the summary.
 pub fn write(run: &LiveRun, replay: Replay, out: &Path) -> Result<LiveSummary, OutputError> {
     let s = summary(run, replay);
-    let files = [
-        (
-            "summary.json".to_string(),
-            crate::report::summary::to_text(&s)?.into_bytes(),
-        ),
-        ("live.csv".to_string(), frames_csv(run).into_bytes()),
-    ];
-    write_all_atomic(out, &files)?;
+    write_session(out, &s, frames_csv(run))?;
     Ok(s)
 }

@@ -12,9 +12,8 @@ use std::path::Path;
 use serde::Serialize;
 
 use crate::estimate::horn::HornFit;
-use crate::io::fs::write_all_atomic;
 use crate::pipeline::live_folder::{Ending, FolderFrame, FolderRun};
-use crate::report::live_timing::{number, timing, Timing};
+use crate::report::live_timing::{number, timing, write_session, Timing};
 
 /// `live.csv`.
 pub fn frames_csv(run: &FolderRun) -> String {
@@ -122,13 +121,6 @@ pub fn line(f: &FolderFrame) -> String {
 /// Writes `summary.json` and `live.csv` into `out` (whole, or nothing); the summary.
 pub fn write(run: &FolderRun, out: &Path) -> Result<FolderSummary, OutputError> {
     let s = summary(run);
-    let files = [
-        (
-            "summary.json".to_string(),
-            crate::report::summary::to_text(&s)?.into_bytes(),
-        ),
-        ("live.csv".to_string(), frames_csv(run).into_bytes()),
-    ];
-    write_all_atomic(out, &files)?;
+    write_session(out, &s, frames_csv(run))?;
     Ok(s)
 }

@@ -29,3 +29,19 @@ pub(crate) fn timing(values: &[f64]) -> Timing {
         max: values.iter().copied().fold(0.0, f64::max),
     }
 }
+
+/// Writes a live session's `summary.json` and `live.csv` into `out` (whole, or nothing).
+pub(crate) fn write_session<S: Serialize>(
+    out: &std::path::Path,
+    summary: &S,
+    frames_csv: String,
+) -> Result<(), crate::report::error::OutputError> {
+    let files = [
+        (
+            "summary.json".to_string(),
+            crate::report::summary::to_text(summary)?.into_bytes(),
+        ),
+        ("live.csv".to_string(), frames_csv.into_bytes()),
+    ];
+    Ok(crate::io::fs::write_all_atomic(out, &files)?)
+}
