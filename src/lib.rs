@@ -19,7 +19,7 @@
 //! | 6 | [`pipeline`] | the stages chained; the only reader of manifests' settings |
 //! | 5 | [`manifest`] | YAML in, a validated experiment out |
 //! | 4 | [`evaluate`], [`synth`] | BRE, cut-offs, truth, resampling; the rendered lab |
-//! | 3 | [`detect`], [`estimate`] | features from pixels; `marker_T_image` from pairs |
+//! | 3 | [`detect`], [`estimate`], [`reconstruct`] | features from pixels; `marker_T_image` from pairs; B-scans into volumes |
 //! | 2 | [`io`] | files: images, frame lists, tracker poses, PLUS formats |
 //! | 1 | [`spec`] | what an experiment describes: phantoms, rigs, the lab |
 //! | 0 | [`core`] | geometry, statistics, solvers, threads |
@@ -59,6 +59,7 @@ pub mod evaluate;
 pub mod io;
 pub mod manifest;
 pub mod pipeline;
+pub mod reconstruct;
 pub mod report;
 pub mod spec;
 pub mod synth;

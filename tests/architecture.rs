@@ -20,6 +20,7 @@ const LAYERS: &[(&str, usize)] = &[
     ("io", 2),
     ("detect", 3),
     ("estimate", 3),
+    ("reconstruct", 3),
     ("evaluate", 4),
     ("synth", 4),
     ("manifest", 5),

@@ -12,6 +12,7 @@ mod init;
 mod live;
 mod manifests;
 mod phantom;
+mod reconstruct;
 mod resolve;
 mod segment;
 mod study;
@@ -174,6 +175,10 @@ enum Command {
         #[arg(long)]
         stl: PathBuf,
     },
+    /// Reconstruct a 3D volume from a tracked PLUS sequence as PLUS's
+    /// VolumeReconstructor does (the device set's <VolumeReconstruction>):
+    /// volume.mha, summary.json, report.html with slices in --out.
+    Reconstruct(reconstruct::ReconstructArgs),
     /// Calibrate a camera from chessboard images; writes OpenCV FileStorage YAML.
     CalibrateCamera {
         /// Image files and/or folders of images.
@@ -266,6 +271,7 @@ pub fn main() -> ExitCode {
         Command::Ablate(args) => failure::exit_code(ablate::command(&args)),
         Command::Design { manifest, out } => failure::exit_code(design::command(&manifest, &out)),
         Command::Phantom { manifest, stl } => failure::exit_code(phantom::command(&manifest, &stl)),
+        Command::Reconstruct(args) => failure::exit_code(reconstruct::command(&args)),
         Command::CalibrateCamera {
             images,
             board,

@@ -10,3 +10,4 @@ pub mod plus;
 pub mod stl;
 pub mod tracker_poses;
 pub mod truth;
+pub mod volume_file;

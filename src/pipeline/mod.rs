@@ -9,6 +9,7 @@ pub mod frames;
 pub mod live;
 pub mod live_folder;
 pub mod methods;
+pub mod reconstruct;
 pub mod record;
 pub mod resolve;
 pub mod run;

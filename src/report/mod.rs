@@ -20,6 +20,7 @@ pub mod live_folder;
 pub mod live_timing;
 pub mod phantom;
 pub mod provenance;
+pub mod reconstruct;
 pub mod render;
 pub mod resolve;
 pub mod segment;

@@ -5,3 +5,4 @@ pub mod orientation;
 pub mod result;
 pub mod segmentation;
 pub mod sequence;
+pub mod volume_config;

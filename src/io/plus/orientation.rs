@@ -29,7 +29,7 @@ impl Orientation {
     }
 
     /// Flips every `width` x `height` frame of `pixels` in place so that it reads MF.
-    pub fn flip_to_mf(self, pixels: &mut [u8], width: usize, height: usize) {
+    pub fn flip_to_mf<T>(self, pixels: &mut [T], width: usize, height: usize) {
         let (columns, rows) = match self {
             Orientation::Mf => (false, false),
             Orientation::Mn => (false, true),

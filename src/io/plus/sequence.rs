@@ -73,8 +73,18 @@ pub struct Sequence {
     /// Header fields that are not per-frame, in file order by key.
     pub header: BTreeMap<String, Field>,
     pub frames: Vec<SequenceFrame>,
-    /// All frames' pixels, frame after frame.
+    /// All frames' pixels, frame after frame (8-bit sequences).
     pixels: Vec<u8>,
+    /// All frames' samples of a `MET_FLOAT` sequence (read only by
+    /// [`Sequence::read_any`]); empty otherwise.
+    float_pixels: Vec<f32>,
+}
+
+/// One frame's samples, whichever element type the file holds.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Samples<'a> {
+    U8(&'a [u8]),
+    F32(&'a [f32]),
 }
 
 /// The header's fields (per-frame ones apart) and where the pixel data starts.
@@ -202,21 +212,28 @@ fn compressed_flag(
     }
 }
 
-/// Only 8-bit grey pixels are read.
+/// 8-bit grey pixels, and 32-bit float ones where `allow_float`; true for float.
 fn check_element(
     element: &Field,
     channels: Option<&Field>,
+    allow_float: bool,
     fail: &dyn Fn(Option<usize>, String) -> SequenceError,
-) -> Result<(), SequenceError> {
-    if element.value != "MET_UCHAR" {
-        return Err(fail(
-            Some(element.line),
-            format!(
-                "`ElementType = {}`: only MET_UCHAR (8-bit B-scans) is supported",
-                element.value
-            ),
-        ));
-    }
+) -> Result<bool, SequenceError> {
+    let float = match element.value.as_str() {
+        "MET_UCHAR" => false,
+        "MET_FLOAT" if allow_float => true,
+        other => {
+            let supported = if allow_float {
+                "MET_UCHAR (8-bit) and MET_FLOAT (32-bit) are"
+            } else {
+                "MET_UCHAR (8-bit B-scans) is"
+            };
+            return Err(fail(
+                Some(element.line),
+                format!("`ElementType = {other}`: only {supported} supported"),
+            ));
+        }
+    };
     match channels {
         Some(channels) if channels.value != "1" => Err(fail(
             Some(channels.line),
@@ -225,7 +242,7 @@ fn check_element(
                 channels.value
             ),
         )),
-        _ => Ok(()),
+        _ => Ok(float),
     }
 }
 
@@ -287,8 +304,24 @@ impl Sequence {
         Sequence::parse(path, &bytes)
     }
 
-    /// Parses the bytes of a sequence file; `path` is only used in messages.
+    /// Reads a sequence of 8-bit or 32-bit float images (volume reconstruction
+    /// takes both; [`Sequence::samples`] gives either).
+    pub fn read_any(path: &Path) -> Result<Sequence, SequenceError> {
+        let bytes = std::fs::read(path).map_err(|e| SequenceError {
+            path: path.to_path_buf(),
+            line: None,
+            message: format!("cannot read: {e}"),
+        })?;
+        Sequence::parse_with(path, &bytes, true)
+    }
+
+    /// Parses the bytes of a sequence file of 8-bit images; `path` is only used in messages.
     pub fn parse(path: &Path, bytes: &[u8]) -> Result<Sequence, SequenceError> {
+        Sequence::parse_with(path, bytes, false)
+    }
+
+    /// Parses the bytes of a sequence file, float images too where `allow_float`.
+    pub fn parse_with(path: &Path, bytes: &[u8], allow_float: bool) -> Result<Sequence, SequenceError> {
         let fail = |line: Option<usize>, message: String| SequenceError {
             path: path.to_path_buf(),
             line,
@@ -316,7 +349,14 @@ impl Sequence {
                     format!("`DimSize = {}` is implausibly large", dims.value),
                 )
             })?;
-        check_element(get("ElementType")?, header.get("ElementNumberOfChannels"), &fail)?;
+        let float = check_element(
+            get("ElementType")?,
+            header.get("ElementNumberOfChannels"),
+            allow_float,
+            &fail,
+        )?;
+        let sample_bytes = if float { 4 } else { 1 };
+        let expected = expected * sample_bytes;
         let compressed = compressed_flag(header.get("CompressedData"), &fail)?;
         if per_frame.len() != count || per_frame.keys().next_back().is_some_and(|&last| last + 1 != count) {
             let last = per_frame.keys().next_back().map(|l| l + 1).unwrap_or(0);
@@ -371,7 +411,17 @@ impl Sequence {
             })?,
         };
         let mut pixels = pixels;
-        orientation.flip_to_mf(&mut pixels, width, height);
+        let mut float_pixels = Vec::new();
+        if float {
+            float_pixels = pixels
+                .chunks_exact(4)
+                .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+                .collect();
+            pixels = Vec::new();
+            orientation.flip_to_mf(&mut float_pixels, width, height);
+        } else {
+            orientation.flip_to_mf(&mut pixels, width, height);
+        }
         Ok(Sequence {
             path: path.to_path_buf(),
             width,
@@ -380,11 +430,26 @@ impl Sequence {
             header,
             frames,
             pixels,
+            float_pixels,
         })
     }
 
-    /// The pixels of frame `index` (row-major, `width * height` bytes).
+    /// Frame `index`'s samples, 8-bit or float (row-major, `width * height`).
+    pub fn samples(&self, index: usize) -> Samples<'_> {
+        let size = self.width * self.height;
+        if self.pixels.is_empty() && !self.float_pixels.is_empty() {
+            Samples::F32(&self.float_pixels[index * size..(index + 1) * size])
+        } else {
+            Samples::U8(self.pixels(index))
+        }
+    }
+
+    /// The pixels of frame `index` (row-major, `width * height` bytes); empty
+    /// for a float sequence (read those with [`Sequence::samples`]).
     pub fn pixels(&self, index: usize) -> &[u8] {
+        if self.pixels.is_empty() {
+            return &[];
+        }
         let size = self.width * self.height;
         &self.pixels[index * size..(index + 1) * size]
     }

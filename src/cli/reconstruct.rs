@@ -1,0 +1,67 @@
+//! `probecal reconstruct`: a tracked sequence into a 3D volume as PLUS's
+//! `VolumeReconstructor` makes it; 0 written, 2 when an input cannot be used,
+//! 1 when the outputs cannot be written.
+
+use std::path::PathBuf;
+
+use super::failure::Failure;
+use crate::pipeline::reconstruct::ReconstructInputs;
+
+/// `probecal reconstruct`'s arguments.
+#[derive(Debug, clap::Args)]
+pub struct ReconstructArgs {
+    /// A PLUS sequence file (.mha, .igs.mha) of tracked B-scans, 8-bit or float.
+    pub sequence: PathBuf,
+    /// The PLUS device set: its <VolumeReconstruction> settings and the fixed
+    /// transforms (CoordinateDefinitions) that lead from Image to Reference.
+    #[arg(long)]
+    pub config: PathBuf,
+    /// Output folder: volume.mha, summary.json, report.html and the pictures
+    /// (written whole on success; an existing folder must be a reconstruction's).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// A probecal run folder of a PLUS recording: its ImageToProbe replaces the
+    /// device set's.
+    #[arg(long)]
+    pub calibration: Option<PathBuf>,
+    /// Worker threads (0: one per core), instead of the device set's
+    /// NumberOfThreads. The volume does not depend on it.
+    #[arg(long, value_parser = clap::value_parser!(u16).range(0..=crate::core::limits::MAX_THREADS as i64))]
+    pub threads: Option<u16>,
+    /// Also write volume.nrrd.
+    #[arg(long)]
+    pub nrrd: bool,
+}
+
+pub fn command(args: &ReconstructArgs) -> Result<(), Failure> {
+    let inputs = ReconstructInputs {
+        sequence: args.sequence.clone(),
+        config: args.config.clone(),
+        calibration: args.calibration.clone(),
+        threads: args.threads.map(usize::from),
+    };
+    let run = crate::pipeline::reconstruct::run(&inputs).map_err(Failure::bad_input)?;
+    crate::report::reconstruct::write(&run, &args.out, args.nrrd).map_err(Failure::failed)?;
+    if !run.skipped.is_empty() {
+        eprintln!(
+            "warning: {} of {} frames skipped (first: frame {}: {}); see summary.json",
+            run.skipped.len(),
+            run.frames_total,
+            run.skipped[0].index,
+            run.skipped[0].reason
+        );
+    }
+    let g = run.volume.grid();
+    println!(
+        "{} of {} frames into {}x{}x{} voxels ({} filled, {} by hole filling); written to {}",
+        run.frames_used.len(),
+        run.frames_total,
+        g.dims[0],
+        g.dims[1],
+        g.dims[2],
+        run.voxels_filled_after_holes,
+        run.voxels_filled_after_holes - run.voxels_filled_before_holes,
+        args.out.display()
+    );
+    Ok(())
+}

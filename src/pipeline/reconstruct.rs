@@ -1,0 +1,305 @@
+//! `probecal reconstruct`: a tracked sequence and a PLUS device set into a volume,
+//! stage by stage ([`crate::reconstruct`]), each stage timed.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use nalgebra::Matrix4;
+
+use crate::io::plus::config::PlusConfig;
+use crate::io::plus::sequence::{Samples, Sequence};
+use crate::io::plus::volume_config::VolumeSettings;
+use crate::reconstruct::grid::Grid;
+use crate::reconstruct::holes::HoleStats;
+use crate::reconstruct::paste::{PasteSettings, Slice};
+use crate::reconstruct::poses::{frame_poses, FramePose, SkippedFrame};
+use crate::reconstruct::{reconstruct, ReconstructError, Sample, Volume};
+
+/// What to reconstruct.
+#[derive(Debug, Clone)]
+pub struct ReconstructInputs {
+    pub sequence: PathBuf,
+    pub config: PathBuf,
+    /// A probecal run folder whose `summary.json` gives `ImageToProbe`.
+    pub calibration: Option<PathBuf>,
+    /// Overrides `NumberOfThreads` (0: all cores).
+    pub threads: Option<usize>,
+}
+
+/// The volume, 8-bit or float as the input.
+#[derive(Debug, Clone, PartialEq)]
+pub enum AnyVolume {
+    U8(Volume<u8>),
+    F32(Volume<f32>),
+}
+
+impl AnyVolume {
+    pub fn grid(&self) -> &Grid {
+        match self {
+            AnyVolume::U8(v) => &v.grid,
+            AnyVolume::F32(v) => &v.grid,
+        }
+    }
+
+    pub fn element_type(&self) -> &'static str {
+        match self {
+            AnyVolume::U8(_) => u8::ELEMENT_TYPE,
+            AnyVolume::F32(_) => f32::ELEMENT_TYPE,
+        }
+    }
+
+    /// Voxels as little-endian bytes.
+    pub fn bytes(&self) -> Vec<u8> {
+        let mut out = Vec::new();
+        match self {
+            AnyVolume::U8(v) => u8::write_le(&v.voxels, &mut out),
+            AnyVolume::F32(v) => f32::write_le(&v.voxels, &mut out),
+        }
+        out
+    }
+
+    /// Voxel values as f64 (for pictures and statistics).
+    pub fn values(&self) -> Vec<f64> {
+        match self {
+            AnyVolume::U8(v) => v.voxels.iter().map(|x| f64::from(*x)).collect(),
+            AnyVolume::F32(v) => v.voxels.iter().map(|x| f64::from(*x)).collect(),
+        }
+    }
+}
+
+/// A reconstruction and how it went.
+#[derive(Debug, Clone)]
+pub struct Reconstruction {
+    pub inputs: ReconstructInputs,
+    pub settings: VolumeSettings,
+    pub volume: AnyVolume,
+    /// Where `ImageToProbe` came from: the device set or the run folder.
+    pub image_to_probe_source: String,
+    pub image_to_probe: Option<Matrix4<f64>>,
+    pub frames_total: usize,
+    pub frames_used: Vec<usize>,
+    pub skipped: Vec<SkippedFrame>,
+    pub pixels_inserted: u64,
+    pub accumulator_saturated: u64,
+    /// Voxels with a value from the distribution, and after hole filling.
+    pub voxels_filled_before_holes: u64,
+    pub voxels_filled_after_holes: u64,
+    pub holes: HoleStats,
+    pub threads: usize,
+    /// (stage, seconds).
+    pub timings: Vec<(String, f64)>,
+}
+
+/// `ImageToProbe` of a probecal run folder (its `summary.json`'s `image_to_probe.matrix`).
+pub fn run_image_to_probe(folder: &Path) -> Result<Matrix4<f64>, ReconstructError> {
+    let path = folder.join("summary.json");
+    let fail = |message: String| ReconstructError::Input {
+        path: path.clone(),
+        message,
+    };
+    let text = std::fs::read_to_string(&path).map_err(|e| {
+        fail(format!(
+            "cannot read (is {} a probecal run folder?): {e}",
+            folder.display()
+        ))
+    })?;
+    let json: serde_json::Value = serde_json::from_str(&text).map_err(|e| fail(format!("not JSON: {e}")))?;
+    let rows = json
+        .pointer("/image_to_probe/matrix")
+        .and_then(|m| serde_json::from_value::<Vec<Vec<f64>>>(m.clone()).ok())
+        .ok_or_else(|| {
+            fail("no `image_to_probe.matrix` (4 rows of 4 numbers): only a tracked (PLUS recording) run has one".into())
+        })?;
+    if rows.len() != 4 || rows.iter().any(|r| r.len() != 4 || r.iter().any(|v| !v.is_finite())) {
+        return Err(fail(
+            "`image_to_probe.matrix` must be 4 rows of 4 finite numbers".into(),
+        ));
+    }
+    Ok(Matrix4::from_fn(|r, c| rows[r][c]))
+}
+
+/// The clip rectangle's first and last inserted column and row, and the far
+/// corner PLUS fits the volume to (one past the last inserted, within the frame).
+fn clip(settings: &VolumeSettings, width: usize, height: usize) -> Result<([usize; 4], [usize; 2]), ReconstructError> {
+    let [ox, oy] = settings.clip_origin_px;
+    let [sx, sy] = match settings.clip_size_px {
+        [0, 0] => [width, height],
+        s => s,
+    };
+    if ox >= width || oy >= height || sx == 0 || sy == 0 {
+        return Err(ReconstructError::Input {
+            path: settings.path.clone(),
+            message: format!(
+                "line {}: clip rectangle at ({ox}, {oy}) size {sx}x{sy} lies outside the {width}x{height} frames",
+                settings.line
+            ),
+        });
+    }
+    let inserted = [ox, oy, (ox + sx - 1).min(width - 1), (oy + sy - 1).min(height - 1)];
+    let far = [(ox + sx).min(width - 1), (oy + sy).min(height - 1)];
+    Ok((inserted, far))
+}
+
+fn importance_mask(
+    settings: &VolumeSettings,
+    width: usize,
+    height: usize,
+) -> Result<Option<Vec<u8>>, ReconstructError> {
+    let Some(path) = &settings.importance_mask else {
+        return Ok(None);
+    };
+    let fail = |message: String| ReconstructError::Input {
+        path: path.clone(),
+        message,
+    };
+    use opencv::prelude::{MatTraitConst, MatTraitConstManual};
+    let mat = crate::io::image::read_gray(path).map_err(|e| fail(e.to_string()))?;
+    if mat.cols() as usize != width || mat.rows() as usize != height {
+        return Err(fail(format!(
+            "importance mask is {}x{}, the frames are {width}x{height}",
+            mat.cols(),
+            mat.rows()
+        )));
+    }
+    Ok(Some(mat.data_bytes().map_err(|e| fail(e.to_string()))?.to_vec()))
+}
+
+/// Reads the inputs and reconstructs; nothing is written here.
+pub fn run(inputs: &ReconstructInputs) -> Result<Reconstruction, ReconstructError> {
+    let mut timings = Vec::new();
+    let mut clock = Instant::now();
+    let mut lap = |name: &str, timings: &mut Vec<(String, f64)>| {
+        timings.push((name.to_string(), clock.elapsed().as_secs_f64()));
+        clock = Instant::now();
+    };
+    let settings = VolumeSettings::read(&inputs.config)?;
+    let config = PlusConfig::read(&inputs.config)?;
+    let image_to_probe = inputs.calibration.as_deref().map(run_image_to_probe).transpose()?;
+    let sequence = Sequence::read_any(&inputs.sequence)?;
+    lap("read", &mut timings);
+    let (poses, skipped) = frame_poses(
+        &sequence,
+        &config,
+        &settings.image_frame,
+        &settings.reference_frame,
+        settings.skip_interval,
+        image_to_probe,
+    );
+    if poses.is_empty() {
+        let why = skipped
+            .first()
+            .map(|s| s.reason.clone())
+            .unwrap_or("the sequence has no frames".into());
+        return Err(ReconstructError::NoFrames(format!(
+            "{} frames, none usable; frame 0: {why}",
+            sequence.frames.len()
+        )));
+    }
+    let (width, height) = (sequence.width, sequence.height);
+    let (clip_px, far_px) = clip(&settings, width, height)?;
+    let grid = match (settings.origin_mm, settings.extent) {
+        (Some(origin), Some(extent)) => Grid::from_extent(origin, settings.spacing_mm, extent)?,
+        _ => {
+            let matrices: Vec<_> = poses.iter().map(|p| p.reference_T_pixel).collect();
+            Grid::fit(&matrices, [clip_px[0], clip_px[1]], far_px, settings.spacing_mm)?
+        }
+    };
+    let paste_settings = PasteSettings {
+        width,
+        height,
+        clip_px,
+        fan: settings.fan,
+        pixel_rejection_threshold: settings.pixel_rejection_threshold,
+        interpolation: settings.interpolation,
+        compounding: settings.compounding,
+        optimization: settings.optimization,
+        importance_mask: importance_mask(&settings, width, height)?,
+    };
+    lap("poses and grid", &mut timings);
+    let threads = match inputs.threads.unwrap_or(settings.threads) {
+        0 => crate::core::parallel::threads(),
+        n => n,
+    };
+    let (volume, stats) = match sequence.samples(poses[0].index) {
+        Samples::U8(_) => {
+            let slices = slices(&sequence, &poses, |s| match s {
+                Samples::U8(p) => Some(p),
+                Samples::F32(_) => None,
+            });
+            let out = reconstruct(&grid, &slices, &paste_settings, &settings.hole_filling, threads);
+            let stats = Stats::of(&out);
+            (AnyVolume::U8(out.volume), stats)
+        }
+        Samples::F32(_) => {
+            let slices = slices(&sequence, &poses, |s| match s {
+                Samples::F32(p) => Some(p),
+                Samples::U8(_) => None,
+            });
+            let out = reconstruct(&grid, &slices, &paste_settings, &settings.hole_filling, threads);
+            let stats = Stats::of(&out);
+            (AnyVolume::F32(out.volume), stats)
+        }
+    };
+    timings.extend(stats.timings);
+    let holes_filled: u64 = stats.holes.filled_by_element.iter().sum();
+    let voxels = grid.voxels() as u64;
+    Ok(Reconstruction {
+        inputs: inputs.clone(),
+        image_to_probe_source: match &inputs.calibration {
+            Some(folder) => format!("{}/summary.json", crate::io::fs::display_path(folder)),
+            None => format!(
+                "{} (CoordinateDefinitions)",
+                crate::io::fs::display_path(&inputs.config)
+            ),
+        },
+        image_to_probe,
+        settings,
+        volume,
+        frames_total: sequence.frames.len(),
+        frames_used: poses.iter().map(|p| p.index).collect(),
+        skipped,
+        pixels_inserted: stats.pixels_inserted,
+        accumulator_saturated: stats.saturated,
+        voxels_filled_before_holes: voxels - stats.holes.holes_before,
+        voxels_filled_after_holes: voxels - stats.holes.holes_before + holes_filled,
+        holes: stats.holes,
+        threads,
+        timings,
+    })
+}
+
+/// What the stages report, apart from the voxels.
+struct Stats {
+    pixels_inserted: u64,
+    saturated: u64,
+    holes: HoleStats,
+    timings: Vec<(String, f64)>,
+}
+
+impl Stats {
+    fn of<T>(out: &crate::reconstruct::Output<T>) -> Stats {
+        Stats {
+            pixels_inserted: out.pixels_inserted,
+            saturated: out.accumulator_saturated,
+            holes: out.holes.clone(),
+            timings: out.timings.clone(),
+        }
+    }
+}
+
+/// The kept frames' pixels of one element type, with their poses.
+fn slices<'a, T>(
+    sequence: &'a Sequence,
+    poses: &[FramePose],
+    pick: impl Fn(Samples<'a>) -> Option<&'a [T]>,
+) -> Vec<Slice<'a, T>> {
+    poses
+        .iter()
+        .filter_map(|p| {
+            pick(sequence.samples(p.index)).map(|pixels| Slice {
+                pixels,
+                reference_T_pixel: p.reference_T_pixel,
+            })
+        })
+        .collect()
+}

@@ -1,0 +1,255 @@
+//! Hole filling: voxels no pixel reached (accumulated weight zero) get a value
+//! from the filled voxels around them. The elements of `<HoleFilling>` are tried
+//! in order until one gives a value; a hole none can fill stays as it is.
+//!
+//! Every element reads the volume as the distribution left it (a filled hole is
+//! never a source for another), so holes can be filled in any order and in
+//! parallel with the same result.
+//!
+//! STICK (Vaughan et al., "Hole filling with oriented sticks in ultrasound volume
+//! reconstruction", J. Med. Imaging 2015): from the hole, along each of the 13
+//! directions of the 26-neighbourhood (both ways), the first filled voxel within
+//! `StickLengthLimit` steps; a direction with one on both sides is a stick, its
+//! value interpolated linearly between its ends. The shortest stick wins
+//! (`NumberOfSticksToUse` > 1: the shortest ones, weighted by inverse length).
+//! PLUS counts the backward half of each stick one step longer than it is, in
+//! its length and its interpolation weights; probecal does the same, so that its
+//! volumes match PLUS's (`docs/reconstruction.md` shows the measurement).
+
+use crate::io::plus::volume_config::HoleFilling;
+
+use super::{Grid, Sample};
+
+/// What hole filling did.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct HoleStats {
+    /// Voxels with zero weight after distribution.
+    pub holes_before: u64,
+    /// Holes filled by each element, in the settings' order.
+    pub filled_by_element: Vec<u64>,
+    pub holes_after: u64,
+}
+
+/// The 13 stick directions: one of each opposite pair of the 26-neighbourhood.
+fn stick_directions() -> Vec<[i64; 3]> {
+    let mut out = Vec::new();
+    for dz in -1..=1 {
+        for dy in -1..=1 {
+            for dx in -1..=1 {
+                let v = [dx, dy, dz];
+                if v.iter().find(|c| **c != 0).is_some_and(|c| *c > 0) {
+                    out.push(v);
+                }
+            }
+        }
+    }
+    out
+}
+
+/// Read-only view of the distributed volume.
+struct Source<'a, T> {
+    grid: &'a Grid,
+    voxels: &'a [T],
+    weights: &'a [u16],
+}
+
+impl<T: Sample> Source<'_, T> {
+    fn index(&self, p: [i64; 3]) -> Option<usize> {
+        let d = self.grid.dims;
+        (0..3)
+            .all(|k| p[k] >= 0 && p[k] < d[k] as i64)
+            .then(|| (p[2] as usize * d[1] + p[1] as usize) * d[0] + p[0] as usize)
+    }
+
+    /// First filled voxel from `p` along `step`, within `limit` steps: (steps, value).
+    fn first_filled(&self, p: [i64; 3], step: [i64; 3], limit: usize) -> Option<(f64, f64)> {
+        (1..=limit as i64).find_map(|k| {
+            let i = self.index([0, 1, 2].map(|a| p[a] + k * step[a]))?;
+            (self.weights[i] > 0).then(|| (k as f64, self.voxels[i].to_f64()))
+        })
+    }
+
+    fn stick(&self, p: [i64; 3], limit: usize, use_sticks: usize, dirs: &[[i64; 3]]) -> Option<f64> {
+        let mut sticks: Vec<(f64, f64)> = Vec::new();
+        for d in dirs {
+            let Some((ahead, v_ahead)) = self.first_filled(p, *d, limit) else {
+                continue;
+            };
+            let Some((behind, v_behind)) = self.first_filled(p, d.map(|c| -c), limit) else {
+                continue;
+            };
+            let behind = behind + 1.0;
+            let unit = ((d[0] * d[0] + d[1] * d[1] + d[2] * d[2]) as f64).sqrt();
+            let t = behind / (ahead + behind);
+            sticks.push(((ahead + behind) * unit, v_ahead * t + v_behind * (1.0 - t)));
+        }
+        if sticks.is_empty() {
+            return None;
+        }
+        // Stable: among equal lengths the earlier direction wins.
+        sticks.sort_by(|a, b| a.0.total_cmp(&b.0));
+        if use_sticks <= 1 {
+            return Some(sticks[0].1);
+        }
+        let best = &sticks[..use_sticks.min(sticks.len())];
+        let total: f64 = best.iter().map(|s| 1.0 / s.0).sum();
+        Some(best.iter().map(|s| s.1 / s.0).sum::<f64>() / total)
+    }
+
+    /// Weighted mean of the filled voxels of the `size`³ cube around `p`, if at
+    /// least `min_ratio` of the cube is filled; `weight(offset², accumulated)`.
+    fn kernel(&self, p: [i64; 3], size: usize, min_ratio: f64, weight: &dyn Fn(f64, f64) -> f64) -> Option<f64> {
+        let h = (size / 2) as i64;
+        let (mut known, mut sum, mut total) = (0usize, 0.0, 0.0);
+        for dz in -h..=h {
+            for dy in -h..=h {
+                for dx in -h..=h {
+                    let Some(i) = self.index([p[0] + dx, p[1] + dy, p[2] + dz]) else {
+                        continue;
+                    };
+                    if self.weights[i] == 0 {
+                        continue;
+                    }
+                    known += 1;
+                    let w = weight((dx * dx + dy * dy + dz * dz) as f64, f64::from(self.weights[i]));
+                    sum += w * self.voxels[i].to_f64();
+                    total += w;
+                }
+            }
+        }
+        let ratio = known as f64 / (size * size * size) as f64;
+        (known > 0 && ratio >= min_ratio && total > 0.0).then(|| sum / total)
+    }
+
+    fn element(&self, p: [i64; 3], element: &HoleFilling, dirs: &[[i64; 3]]) -> Option<f64> {
+        match *element {
+            HoleFilling::Stick {
+                length_limit,
+                sticks_to_use,
+            } => self.stick(p, length_limit, sticks_to_use, dirs),
+            HoleFilling::Gaussian {
+                size,
+                stdev,
+                min_known_ratio,
+            } => self.kernel(p, size, min_known_ratio, &|d2, _| (-d2 / (2.0 * stdev * stdev)).exp()),
+            HoleFilling::GaussianAccumulation {
+                size,
+                stdev,
+                min_known_ratio,
+            } => self.kernel(p, size, min_known_ratio, &|d2, acc| {
+                acc * (-d2 / (2.0 * stdev * stdev)).exp()
+            }),
+            HoleFilling::NearestNeighbor { size, min_known_ratio } => (3..=size)
+                .step_by(2)
+                .find_map(|s| self.kernel(p, s, min_known_ratio, &|_, _| 1.0)),
+            HoleFilling::DistanceWeightInverse { size, min_known_ratio } => {
+                self.kernel(p, size, min_known_ratio, &|d2, _| 1.0 / d2.sqrt())
+            }
+        }
+    }
+}
+
+/// Fills the holes of `voxels` (weights zero) with the elements, in parallel over
+/// `threads` slabs of z planes.
+pub fn fill<T: Sample>(
+    grid: &Grid,
+    voxels: &mut [T],
+    weights: &[u16],
+    elements: &[HoleFilling],
+    threads: usize,
+) -> HoleStats {
+    let holes_before = weights.iter().filter(|w| **w == 0).count() as u64;
+    if elements.is_empty() || holes_before == 0 {
+        return HoleStats {
+            holes_before,
+            filled_by_element: vec![0; elements.len()],
+            holes_after: holes_before,
+        };
+    }
+    let original = voxels.to_vec();
+    let source = Source {
+        grid,
+        voxels: &original,
+        weights,
+    };
+    let dirs = stick_directions();
+    let plane = grid.dims[0] * grid.dims[1];
+    let planes_per_slab = grid.dims[2].div_ceil(threads.max(1)).max(1);
+    let counts: Vec<Vec<u64>> = std::thread::scope(|scope| {
+        let jobs: Vec<_> = voxels
+            .chunks_mut(plane * planes_per_slab)
+            .enumerate()
+            .map(|(n, out)| {
+                let (source, dirs) = (&source, &dirs);
+                scope.spawn(move || {
+                    let mut filled = vec![0u64; elements.len()];
+                    let first = n * planes_per_slab * plane;
+                    for (offset, voxel) in out.iter_mut().enumerate() {
+                        let i = first + offset;
+                        if weights[i] != 0 {
+                            continue;
+                        }
+                        let p = [
+                            (i % grid.dims[0]) as i64,
+                            ((i / grid.dims[0]) % grid.dims[1]) as i64,
+                            (i / plane) as i64,
+                        ];
+                        if let Some((k, v)) = elements
+                            .iter()
+                            .enumerate()
+                            .find_map(|(k, e)| source.element(p, e, dirs).map(|v| (k, v)))
+                        {
+                            *voxel = T::from_floor(v);
+                            filled[k] += 1;
+                        }
+                    }
+                    filled
+                })
+            })
+            .collect();
+        jobs.into_iter()
+            .map(|j| j.join().expect("a hole-filling worker"))
+            .collect()
+    });
+    let filled_by_element: Vec<u64> = (0..elements.len()).map(|k| counts.iter().map(|c| c[k]).sum()).collect();
+    HoleStats {
+        holes_before,
+        holes_after: holes_before - filled_by_element.iter().sum::<u64>(),
+        filled_by_element,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_stick_fills_the_gap_between_two_filled_planes() {
+        // 1 x 1 x 5 column: 10 at z=0, 50 at z=4, holes between.
+        let grid = Grid {
+            origin_mm: [0.0; 3],
+            spacing_mm: [1.0; 3],
+            dims: [1, 1, 5],
+        };
+        let mut voxels = vec![10u8, 0, 0, 0, 50];
+        let weights = vec![256u16, 0, 0, 0, 256];
+        let stick = HoleFilling::Stick {
+            length_limit: 9,
+            sticks_to_use: 1,
+        };
+        let stats = fill(&grid, &mut voxels, &weights, &[stick], 2);
+        assert_eq!(stats.holes_before, 3);
+        assert_eq!(stats.holes_after, 0);
+        // Ahead (towards z=4) k, behind counted one longer: value = 50·t + 10·(1−t),
+        // t = (behind+1)/(ahead+behind+1).
+        assert_eq!(voxels, vec![10, 26, 34, 42, 50]);
+        let mut short = vec![10u8, 0, 0, 0, 50];
+        let limited = HoleFilling::Stick {
+            length_limit: 2,
+            sticks_to_use: 1,
+        };
+        let stats = fill(&grid, &mut short, &weights, &[limited], 1);
+        assert_eq!(stats.holes_after, 2, "z=1 and z=3 are 3 steps from one end");
+        assert_eq!(short, vec![10, 0, 34, 0, 50]);
+    }
+}

@@ -1,0 +1,135 @@
+//! Freehand 3D reconstruction: tracked B-scans into a voxel volume, as PLUS's
+//! `VolumeReconstructor` does, so that a calibration can be seen at work.
+//!
+//! The stages, one file each, typed in and out:
+//!
+//! 1. [`poses`]: each frame's `reference_T_image` (pixel to mm in the Reference
+//!    frame) from the sequence's tracker transforms and the device set's fixed
+//!    ones; frames whose transforms are missing or not OK are skipped with the reason.
+//! 2. [`grid`]: the output volume's origin, spacing and size, given or fitted to
+//!    the clipped frames.
+//! 3. [`paste`]: every kept pixel into the nearest voxel or the 8 around it,
+//!    values compounded (mean, latest, maximum) with an accumulation buffer.
+//! 4. [`holes`]: voxels no pixel reached, filled by PLUS's hole-filling elements.
+//!
+//! Each stage is deterministic and the volume is the same whatever the number of
+//! threads: work is split by output slabs, and every voxel sees its pixels in
+//! frame, row, column order.
+
+pub mod grid;
+pub mod holes;
+pub mod paste;
+pub mod poses;
+
+use std::path::PathBuf;
+
+pub use grid::Grid;
+
+/// A voxel or pixel value: 8-bit grey or 32-bit float, as PLUS reconstructs both.
+pub trait Sample: Copy + Default + PartialOrd + Send + Sync + 'static {
+    /// MetaImage element type.
+    const ELEMENT_TYPE: &'static str;
+    fn to_f64(self) -> f64;
+    /// A computed value stored as PLUS stores it after an integer division
+    /// (8-bit: the floor, clamped to 0–255).
+    fn from_floor(v: f64) -> Self;
+    /// A computed value stored rounded half up (8-bit: clamped to 0–255).
+    fn from_round(v: f64) -> Self;
+    /// Little-endian bytes of a slice of samples.
+    fn write_le(values: &[Self], out: &mut Vec<u8>);
+}
+
+impl Sample for u8 {
+    const ELEMENT_TYPE: &'static str = "MET_UCHAR";
+    fn to_f64(self) -> f64 {
+        f64::from(self)
+    }
+    fn from_floor(v: f64) -> Self {
+        v.floor().clamp(0.0, 255.0) as u8
+    }
+    fn from_round(v: f64) -> Self {
+        (v + 0.5).floor().clamp(0.0, 255.0) as u8
+    }
+    fn write_le(values: &[Self], out: &mut Vec<u8>) {
+        out.extend_from_slice(values);
+    }
+}
+
+impl Sample for f32 {
+    const ELEMENT_TYPE: &'static str = "MET_FLOAT";
+    fn to_f64(self) -> f64 {
+        f64::from(self)
+    }
+    fn from_floor(v: f64) -> Self {
+        v as f32
+    }
+    fn from_round(v: f64) -> Self {
+        v as f32
+    }
+    fn write_le(values: &[Self], out: &mut Vec<u8>) {
+        for v in values {
+            out.extend_from_slice(&v.to_le_bytes());
+        }
+    }
+}
+
+/// A reconstructed volume: voxels x fastest, then y, then z.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Volume<T> {
+    pub grid: Grid,
+    pub voxels: Vec<T>,
+}
+
+/// Why a reconstruction could not be made (nothing is written then).
+#[derive(Debug, thiserror::Error)]
+pub enum ReconstructError {
+    #[error(transparent)]
+    Sequence(#[from] crate::io::plus::sequence::SequenceError),
+    #[error(transparent)]
+    Config(#[from] crate::io::plus::config::ConfigError),
+    #[error("{path}: {message}")]
+    Input { path: PathBuf, message: String },
+    #[error("{0}")]
+    Grid(#[from] grid::GridError),
+    #[error("no frame can be inserted: {0}")]
+    NoFrames(String),
+}
+
+/// A volume and what its stages did.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Output<T> {
+    pub volume: Volume<T>,
+    pub pixels_inserted: u64,
+    /// Voxel updates that hit the accumulator's ceiling.
+    pub accumulator_saturated: u64,
+    pub holes: holes::HoleStats,
+    /// (stage, seconds).
+    pub timings: Vec<(String, f64)>,
+}
+
+/// Distribution then hole filling, over `threads` workers (the volume does not
+/// depend on their number).
+pub fn reconstruct<T: Sample>(
+    grid: &Grid,
+    slices: &[paste::Slice<T>],
+    settings: &paste::PasteSettings,
+    hole_filling: &[crate::io::plus::volume_config::HoleFilling],
+    threads: usize,
+) -> Output<T> {
+    let clock = std::time::Instant::now();
+    let pasted = paste::paste(grid, slices, settings, threads);
+    let paste_s = clock.elapsed().as_secs_f64();
+    let clock = std::time::Instant::now();
+    let mut voxels = pasted.voxels;
+    let holes = holes::fill(grid, &mut voxels, &pasted.weights, hole_filling, threads);
+    Output {
+        volume: Volume { grid: *grid, voxels },
+        pixels_inserted: pasted.pixels_inserted,
+        accumulator_saturated: pasted.saturated,
+        holes,
+        timings: vec![
+            ("paste".to_string(), paste_s),
+            ("hole filling".to_string(), clock.elapsed().as_secs_f64()),
+        ],
+    }
+}

@@ -1,0 +1,322 @@
+//! Pixels into voxels ("distribution"), with PLUS's arithmetic so that the
+//! voxels come out as PLUS's do:
+//!
+//! - Positions: with `Optimization="FULL"` a pixel's continuous voxel index is
+//!   computed in fixed point with 14 fractional bits (the matrix's coefficients
+//!   rounded to 1/16384 of a voxel), otherwise in double precision.
+//! - Nearest neighbour: the voxel at the index rounded half up. MEAN keeps an
+//!   accumulation weight of 256 per pixel (16-bit, saturating) and stores
+//!   `(in·256 + out·acc) / (acc + 256)`, an 8-bit value floored as an integer
+//!   division floors it.
+//! - Linear: the 8 voxels around the index with trilinear weights `w`; a pixel
+//!   whose 8 voxels are not all inside the volume is left out. MEAN stores
+//!   `(w·in + r·out) / (w + r)` rounded half up, with `r = acc / 256`, and adds
+//!   `round(256·w)` to the accumulator. MAXIMUM and LATEST update only voxels
+//!   with `w > 1/8`.
+//!
+//! A voxel counts as filled (for hole filling) when its accumulator is above zero.
+
+use crate::io::plus::volume_config::{Compounding, Fan, Interpolation, Optimization};
+
+use super::{Grid, Sample};
+
+/// Accumulation weight of one nearest-neighbour pixel (PLUS's `ACCUMULATION_MULTIPLIER`).
+pub const ACCUMULATION_UNIT: f64 = 256.0;
+/// The accumulator's ceiling (16 bits).
+pub const ACCUMULATION_MAX: u32 = 65535;
+/// Fractional bits of the fixed-point positions.
+const FIXED_BITS: u32 = 14;
+const FIXED_ONE: f64 = (1u64 << FIXED_BITS) as f64;
+/// Linear MAXIMUM and LATEST update a voxel only above this weight.
+const LINEAR_UPDATE_WEIGHT: f64 = 0.125;
+
+/// One frame to insert.
+pub struct Slice<'a, T> {
+    pub pixels: &'a [T],
+    /// Pixel `(column, row, 0, 1)` to mm in the volume's frame.
+    pub reference_T_pixel: nalgebra::Matrix4<f64>,
+}
+
+/// Which pixels of a frame are inserted, and how.
+#[derive(Debug, Clone)]
+pub struct PasteSettings {
+    pub width: usize,
+    pub height: usize,
+    /// First and last column and row inserted (inclusive).
+    pub clip_px: [usize; 4],
+    pub fan: Option<Fan>,
+    pub pixel_rejection_threshold: Option<f64>,
+    pub interpolation: Interpolation,
+    pub compounding: Compounding,
+    pub optimization: Optimization,
+    /// Per-pixel weights 0–255 (`width * height`), 0: not inserted.
+    pub importance_mask: Option<Vec<u8>>,
+}
+
+/// The voxels and their accumulated weights.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Pasted<T> {
+    pub voxels: Vec<T>,
+    pub weights: Vec<u16>,
+    /// Pixels inserted (at least one voxel updated), and accumulator saturations.
+    pub pixels_inserted: u64,
+    pub saturated: u64,
+}
+
+/// Voxel index of pixel (x, y): `a·x + b·y + c` per axis, in fixed or floating point.
+#[derive(Debug, Clone, Copy)]
+enum Mapper {
+    Fixed { a: [i64; 3], b: [i64; 3], c: [i64; 3] },
+    Float { a: [f64; 3], b: [f64; 3], c: [f64; 3] },
+}
+
+impl Mapper {
+    fn new(grid: &Grid, m: &nalgebra::Matrix4<f64>, optimization: Optimization) -> Mapper {
+        let a = [0, 1, 2].map(|k| m[(k, 0)] / grid.spacing_mm[k]);
+        let b = [0, 1, 2].map(|k| m[(k, 1)] / grid.spacing_mm[k]);
+        let c = [0, 1, 2].map(|k| (m[(k, 3)] - grid.origin_mm[k]) / grid.spacing_mm[k]);
+        match optimization {
+            Optimization::Full => {
+                let fix = |v: [f64; 3]| v.map(|x| (x * FIXED_ONE).round() as i64);
+                Mapper::Fixed {
+                    a: fix(a),
+                    b: fix(b),
+                    c: fix(c),
+                }
+            }
+            _ => Mapper::Float { a, b, c },
+        }
+    }
+
+    fn nearest(&self, x: usize, y: usize) -> [i64; 3] {
+        match self {
+            Mapper::Fixed { a, b, c } => {
+                [0, 1, 2].map(|k| (a[k] * x as i64 + b[k] * y as i64 + c[k] + (1 << (FIXED_BITS - 1))) >> FIXED_BITS)
+            }
+            Mapper::Float { a, b, c } => {
+                [0, 1, 2].map(|k| (a[k] * x as f64 + b[k] * y as f64 + c[k] + 0.5).floor() as i64)
+            }
+        }
+    }
+
+    /// The voxel below the position and the fractions towards the next one.
+    fn linear(&self, x: usize, y: usize) -> ([i64; 3], [f64; 3]) {
+        match self {
+            Mapper::Fixed { a, b, c } => {
+                let p = [0, 1, 2].map(|k| a[k] * x as i64 + b[k] * y as i64 + c[k]);
+                (
+                    p.map(|v| v >> FIXED_BITS),
+                    p.map(|v| (v & ((1 << FIXED_BITS) - 1)) as f64 / FIXED_ONE),
+                )
+            }
+            Mapper::Float { a, b, c } => {
+                let p = [0, 1, 2].map(|k| a[k] * x as f64 + b[k] * y as f64 + c[k]);
+                (p.map(|v| v.floor() as i64), p.map(|v| v - v.floor()))
+            }
+        }
+    }
+}
+
+/// Whether pixel (x, y) lies in the fan: within its radii (inclusive) and its
+/// angles, measured from the downward column axis at the fan's origin.
+pub fn in_fan(fan: &Fan, x: usize, y: usize) -> bool {
+    let dx = x as f64 - fan.origin_px[0];
+    let dy = y as f64 - fan.origin_px[1];
+    let r = (dx * dx + dy * dy).sqrt();
+    let angle = dx.atan2(dy).to_degrees();
+    r >= fan.radius_start_px && r <= fan.radius_stop_px && angle >= fan.angles_deg[0] && angle <= fan.angles_deg[1]
+}
+
+/// The pixels inside the clip rectangle and the fan, row by row (the same for every frame).
+fn region(settings: &PasteSettings) -> Vec<(usize, usize)> {
+    let [x0, y0, x1, y1] = settings.clip_px;
+    (y0..=y1)
+        .flat_map(|y| (x0..=x1).map(move |x| (x, y)))
+        .filter(|&(x, y)| settings.fan.as_ref().is_none_or(|fan| in_fan(fan, x, y)))
+        .collect()
+}
+
+/// Pixel (x, y)'s weight (0–1), `None` when it is not inserted (darker than the
+/// rejection threshold, or masked out).
+fn pixel_weight<T: Sample>(settings: &PasteSettings, value: T, x: usize, y: usize) -> Option<f64> {
+    if settings.pixel_rejection_threshold.is_some_and(|t| value.to_f64() < t) {
+        return None;
+    }
+    match &settings.importance_mask {
+        Some(mask) => match mask[y * settings.width + x] {
+            0 => None,
+            m => Some(f64::from(m) / 255.0),
+        },
+        None => Some(1.0),
+    }
+}
+
+/// Whether the pixel's voxel (nearest) or all 8 voxels around it (linear) lie in the volume.
+fn lands_inside(grid: &Grid, mapper: &Mapper, x: usize, y: usize, interpolation: Interpolation) -> bool {
+    let inside = |v: i64, k: usize| v >= 0 && v < grid.dims[k] as i64;
+    match interpolation {
+        Interpolation::NearestNeighbor => {
+            let v = mapper.nearest(x, y);
+            (0..3).all(|k| inside(v[k], k))
+        }
+        Interpolation::Linear => {
+            let (base, frac) = mapper.linear(x, y);
+            (0..3).all(|k| inside(base[k], k) && inside(base[k] + i64::from(frac[k] > 0.0), k))
+        }
+    }
+}
+
+/// One slab of the volume (z from `z0`, `voxels.len() / plane` planes) with its accumulator.
+struct Slab<'a, T> {
+    z0: i64,
+    planes: i64,
+    voxels: &'a mut [T],
+    weights: &'a mut [u16],
+    saturated: u64,
+}
+
+impl<T: Sample> Slab<'_, T> {
+    fn offset(&self, grid: &Grid, v: [i64; 3]) -> Option<usize> {
+        let z = v[2] - self.z0;
+        (z >= 0 && z < self.planes).then(|| (z as usize * grid.dims[1] + v[1] as usize) * grid.dims[0] + v[0] as usize)
+    }
+
+    fn add_weight(&mut self, i: usize, add: u32) {
+        let total = u32::from(self.weights[i]) + add;
+        if total > ACCUMULATION_MAX {
+            self.saturated += 1;
+        }
+        self.weights[i] = total.min(ACCUMULATION_MAX) as u16;
+    }
+
+    fn nearest(&mut self, grid: &Grid, v: [i64; 3], value: T, mask: f64, mode: Compounding) {
+        if (0..3).any(|k| v[k] < 0 || v[k] >= grid.dims[k] as i64) {
+            return;
+        }
+        let Some(i) = self.offset(grid, v) else {
+            return;
+        };
+        let add = (ACCUMULATION_UNIT * mask).round();
+        let acc = f64::from(self.weights[i]);
+        match mode {
+            Compounding::Mean => {
+                if add + acc > 0.0 {
+                    self.voxels[i] =
+                        T::from_floor((value.to_f64() * add + self.voxels[i].to_f64() * acc) / (acc + add));
+                }
+            }
+            Compounding::Latest => self.voxels[i] = value,
+            Compounding::Maximum => {
+                if value > self.voxels[i] || self.weights[i] == 0 {
+                    self.voxels[i] = value;
+                }
+            }
+        }
+        self.add_weight(i, add as u32);
+    }
+
+    fn linear(&mut self, grid: &Grid, base: [i64; 3], frac: [f64; 3], value: T, mask: f64, mode: Compounding) {
+        let far = [0, 1, 2].map(|k| base[k] + i64::from(frac[k] > 0.0));
+        if (0..3).any(|k| base[k] < 0 || far[k] >= grid.dims[k] as i64) {
+            return;
+        }
+        for corner in 0..8 {
+            let o = [corner & 1, (corner >> 1) & 1, (corner >> 2) & 1];
+            let w: f64 = (0..3)
+                .map(|k| if o[k] == 1 { frac[k] } else { 1.0 - frac[k] })
+                .product::<f64>()
+                * mask;
+            if w <= 0.0 {
+                continue;
+            }
+            let Some(i) = self.offset(grid, [0, 1, 2].map(|k| base[k] + o[k] as i64)) else {
+                continue;
+            };
+            match mode {
+                Compounding::Mean => {
+                    let r = f64::from(self.weights[i]) / ACCUMULATION_UNIT;
+                    self.voxels[i] = T::from_round((w * value.to_f64() + r * self.voxels[i].to_f64()) / (w + r));
+                    self.add_weight(i, (w * ACCUMULATION_UNIT).round() as u32);
+                }
+                Compounding::Maximum | Compounding::Latest if w > LINEAR_UPDATE_WEIGHT => {
+                    if mode == Compounding::Latest || value > self.voxels[i] || self.weights[i] == 0 {
+                        self.voxels[i] = value;
+                    }
+                    self.add_weight(i, (w * ACCUMULATION_UNIT).round() as u32);
+                }
+                _ => {}
+            }
+        }
+    }
+}
+
+/// Inserts the slices in order into a zeroed volume, split over `threads` slabs of
+/// z planes (the result does not depend on `threads`).
+pub fn paste<T: Sample>(grid: &Grid, slices: &[Slice<T>], settings: &PasteSettings, threads: usize) -> Pasted<T> {
+    let plane = grid.dims[0] * grid.dims[1];
+    let mut voxels = vec![T::default(); grid.voxels()];
+    let mut weights = vec![0u16; grid.voxels()];
+    let region = region(settings);
+    let mappers: Vec<Mapper> = slices
+        .iter()
+        .map(|s| Mapper::new(grid, &s.reference_T_pixel, settings.optimization))
+        .collect();
+    let planes_per_slab = grid.dims[2].div_ceil(threads.max(1)).max(1);
+    let saturated: u64 = std::thread::scope(|scope| {
+        let jobs: Vec<_> = voxels
+            .chunks_mut(plane * planes_per_slab)
+            .zip(weights.chunks_mut(plane * planes_per_slab))
+            .enumerate()
+            .map(|(n, (voxels, weights))| {
+                let (region, mappers) = (&region, &mappers);
+                scope.spawn(move || {
+                    let mut slab = Slab {
+                        z0: (n * planes_per_slab) as i64,
+                        planes: (voxels.len() / plane) as i64,
+                        voxels,
+                        weights,
+                        saturated: 0,
+                    };
+                    for (slice, mapper) in slices.iter().zip(mappers) {
+                        for &(x, y) in region {
+                            let value = slice.pixels[y * settings.width + x];
+                            let Some(mask) = pixel_weight(settings, value, x, y) else {
+                                continue;
+                            };
+                            match settings.interpolation {
+                                Interpolation::NearestNeighbor => {
+                                    slab.nearest(grid, mapper.nearest(x, y), value, mask, settings.compounding)
+                                }
+                                Interpolation::Linear => {
+                                    let (base, frac) = mapper.linear(x, y);
+                                    slab.linear(grid, base, frac, value, mask, settings.compounding)
+                                }
+                            }
+                        }
+                    }
+                    slab.saturated
+                })
+            })
+            .collect();
+        jobs.into_iter().map(|j| j.join().expect("a paste worker")).sum()
+    });
+    let pixels_inserted = slices
+        .iter()
+        .zip(&mappers)
+        .map(|(slice, mapper)| {
+            region
+                .iter()
+                .filter(|&&(x, y)| {
+                    pixel_weight(settings, slice.pixels[y * settings.width + x], x, y).is_some()
+                        && lands_inside(grid, mapper, x, y, settings.interpolation)
+                })
+                .count() as u64
+        })
+        .sum();
+    Pasted {
+        voxels,
+        weights,
+        pixels_inserted,
+        saturated,
+    }
+}

@@ -1,0 +1,199 @@
+//! Each frame's `reference_T_pixel`: the chain of transforms from the image's
+//! pixels to the Reference frame, from the sequence's per-frame tracker
+//! transforms and the device set's fixed ones (`CoordinateDefinitions`), found
+//! as PLUS's transform repository finds it: any path through the named frames.
+//!
+//! For the usual recording the path is
+//! `ImageToReference = inverse(ReferenceToTracker) · ProbeToTracker · ImageToProbe`.
+
+use std::collections::{BTreeMap, VecDeque};
+
+use nalgebra::Matrix4;
+
+use crate::io::plus::config::PlusConfig;
+use crate::io::plus::sequence::Sequence;
+
+/// A frame to insert.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FramePose {
+    pub index: usize,
+    /// Pixel `(column, row, 0, 1)` to mm in the Reference frame.
+    pub reference_T_pixel: Matrix4<f64>,
+}
+
+/// A frame left out, and why.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct SkippedFrame {
+    pub index: usize,
+    pub reason: String,
+}
+
+/// A transform between two named frames: `to_T_from`.
+#[derive(Debug, Clone)]
+struct Edge {
+    from: String,
+    to: String,
+    matrix: Matrix4<f64>,
+}
+
+/// Splits `ProbeToTracker` into (`Probe`, `Tracker`) at the first `To` that
+/// starts a capitalised name.
+pub fn split_name(name: &str) -> Option<(&str, &str)> {
+    let bytes = name.as_bytes();
+    (1..name.len().saturating_sub(2)).find_map(|i| {
+        (&name[i..i + 2] == "To" && bytes[i + 2].is_ascii_uppercase()).then(|| (&name[..i], &name[i + 2..]))
+    })
+}
+
+/// The frames' poses: every `SkipInterval`-th frame, those whose image status and
+/// needed transforms are OK. `image_to_probe` replaces the device set's
+/// `ImageToProbe` (a calibration of one's own).
+pub fn frame_poses(
+    sequence: &Sequence,
+    config: &PlusConfig,
+    image_frame: &str,
+    reference_frame: &str,
+    skip_interval: usize,
+    image_to_probe: Option<Matrix4<f64>>,
+) -> (Vec<FramePose>, Vec<SkippedFrame>) {
+    let mut fixed: Vec<Edge> = config
+        .transforms
+        .iter()
+        .map(|t| Edge {
+            from: t.from.clone(),
+            to: t.to.clone(),
+            matrix: t.matrix,
+        })
+        .collect();
+    if let Some(m) = image_to_probe {
+        fixed.retain(|e| {
+            !matches!(
+                (e.from.as_str(), e.to.as_str()),
+                ("Image", "Probe") | ("Probe", "Image")
+            )
+        });
+        fixed.push(Edge {
+            from: "Image".into(),
+            to: "Probe".into(),
+            matrix: m,
+        });
+    }
+    let mut kept = Vec::new();
+    let mut skipped = Vec::new();
+    for index in (0..sequence.frames.len()).step_by(skip_interval.max(1)) {
+        match frame_pose(sequence, index, &fixed, image_frame, reference_frame) {
+            Ok(reference_T_pixel) => kept.push(FramePose {
+                index,
+                reference_T_pixel,
+            }),
+            Err(reason) => skipped.push(SkippedFrame { index, reason }),
+        }
+    }
+    (kept, skipped)
+}
+
+fn frame_pose(
+    sequence: &Sequence,
+    index: usize,
+    fixed: &[Edge],
+    image_frame: &str,
+    reference_frame: &str,
+) -> Result<Matrix4<f64>, String> {
+    if let Some(status) = sequence.frame_field(index, "ImageStatus") {
+        if status != "OK" {
+            return Err(format!("ImageStatus is {status}, not OK"));
+        }
+    }
+    let mut edges = fixed.to_vec();
+    let mut unusable = Vec::new();
+    for name in sequence.frames[index].fields.keys() {
+        let Some(transform) = name.strip_suffix("Transform") else {
+            continue;
+        };
+        let Some((from, to)) = split_name(transform) else {
+            continue;
+        };
+        match sequence.matrix(index, transform) {
+            Ok(matrix) => edges.push(Edge {
+                from: from.to_string(),
+                to: to.to_string(),
+                matrix,
+            }),
+            Err(fault) => unusable.push(fault.to_string()),
+        }
+    }
+    path(&edges, image_frame, reference_frame).ok_or_else(|| {
+        let mut reason = format!("no chain of usable transforms from {image_frame} to {reference_frame}");
+        if !unusable.is_empty() {
+            reason += &format!(" ({})", unusable.join("; "));
+        }
+        reason
+    })
+}
+
+/// `to_T_from` through the edges (each usable both ways), breadth first.
+fn path(edges: &[Edge], from: &str, to: &str) -> Option<Matrix4<f64>> {
+    let mut reached: BTreeMap<&str, Matrix4<f64>> = BTreeMap::new();
+    reached.insert(from, Matrix4::identity());
+    let mut queue = VecDeque::from([from]);
+    while let Some(at) = queue.pop_front() {
+        if at == to {
+            return reached.get(to).copied();
+        }
+        let at_T_from = reached[at];
+        for e in edges {
+            let step = if e.from == at {
+                Some((e.to.as_str(), e.matrix))
+            } else if e.to == at {
+                e.matrix.try_inverse().map(|inv| (e.from.as_str(), inv))
+            } else {
+                None
+            };
+            if let Some((next, next_T_at)) = step {
+                if !reached.contains_key(next) {
+                    reached.insert(next, next_T_at * at_T_from);
+                    queue.push_back(next);
+                }
+            }
+        }
+    }
+    None
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn names_split_at_the_capitalised_to() {
+        assert_eq!(split_name("ProbeToTracker"), Some(("Probe", "Tracker")));
+        assert_eq!(split_name("StylusTipToStylus"), Some(("StylusTip", "Stylus")));
+        assert_eq!(split_name("Tomato"), None);
+        assert_eq!(split_name("To"), None);
+    }
+
+    #[test]
+    fn the_chain_is_found_through_inverses() {
+        let shift = |x: f64| Matrix4::new_translation(&nalgebra::Vector3::new(x, 0.0, 0.0));
+        let edges = vec![
+            Edge {
+                from: "Image".into(),
+                to: "Probe".into(),
+                matrix: shift(1.0),
+            },
+            Edge {
+                from: "Probe".into(),
+                to: "Tracker".into(),
+                matrix: shift(10.0),
+            },
+            Edge {
+                from: "Reference".into(),
+                to: "Tracker".into(),
+                matrix: shift(100.0),
+            },
+        ];
+        let m = path(&edges, "Image", "Reference").unwrap();
+        assert_eq!(m[(0, 3)], 1.0 + 10.0 - 100.0);
+        assert!(path(&edges, "Image", "Stylus").is_none());
+    }
+}
