@@ -9,10 +9,11 @@
 //!   `(in·256 + out·acc) / (acc + 256)`, an 8-bit value floored as an integer
 //!   division floors it.
 //! - Linear: the 8 voxels around the index with trilinear weights `w`; a pixel
-//!   whose 8 voxels are not all inside the volume is left out. MEAN stores
+//!   whose 8 voxels are not all inside the volume is left out. With fixed point
+//!   the weights are fixed-point products too ([`corner_weight`]). MEAN stores
 //!   `(w·in + r·out) / (w + r)` rounded half up, with `r = acc / 256`, and adds
 //!   `round(256·w)` to the accumulator. MAXIMUM and LATEST update only voxels
-//!   with `w > 1/8`.
+//!   with `w >= 1/8`.
 //!
 //! A voxel counts as filled (for hole filling) when its accumulator is above zero.
 
@@ -99,32 +100,69 @@ impl Mapper {
         }
     }
 
-    /// The voxel below the position and the fractions towards the next one.
-    fn linear(&self, x: usize, y: usize) -> ([i64; 3], [f64; 3]) {
+    /// The voxel below the position and the fractions towards the next one, in
+    /// 1/16384 of a voxel for fixed point (`None` for floating point).
+    fn linear(&self, x: usize, y: usize) -> ([i64; 3], [f64; 3], Option<[i64; 3]>) {
         match self {
             Mapper::Fixed { a, b, c } => {
                 let p = [0, 1, 2].map(|k| a[k] * x as i64 + b[k] * y as i64 + c[k]);
+                let fixed = p.map(|v| v & ((1 << FIXED_BITS) - 1));
                 (
                     p.map(|v| v >> FIXED_BITS),
-                    p.map(|v| (v & ((1 << FIXED_BITS) - 1)) as f64 / FIXED_ONE),
+                    fixed.map(|f| f as f64 / FIXED_ONE),
+                    Some(fixed),
                 )
             }
             Mapper::Float { a, b, c } => {
                 let p = [0, 1, 2].map(|k| a[k] * x as f64 + b[k] * y as f64 + c[k]);
-                (p.map(|v| v.floor() as i64), p.map(|v| v - v.floor()))
+                (p.map(|v| v.floor() as i64), p.map(|v| v - v.floor()), None)
             }
         }
     }
 }
 
-/// Whether pixel (x, y) lies in the fan: within its radii (inclusive) and its
-/// angles, measured from the downward column axis at the fan's origin.
+/// The trilinear weight of corner `o` (0 or 1 per axis) and its accumulation
+/// increment. In fixed point as PLUS computes it: the y and z factors multiplied
+/// and rounded to 1/16384, then the x factor; the increment is the weight in
+/// 1/256 rounded. In floating point: the plain product, increment `round(256·w)`.
+fn corner_weight(o: [usize; 3], frac: [f64; 3], fixed: Option<[i64; 3]>) -> (f64, u32) {
+    match fixed {
+        Some(f) => {
+            let one = 1i64 << FIXED_BITS;
+            let half = one >> 1;
+            let g = [0, 1, 2].map(|k| if o[k] == 1 { f[k] } else { one - f[k] });
+            let yz = (g[1] * g[2] + half) >> FIXED_BITS;
+            let w = (yz * g[0] + half) >> FIXED_BITS;
+            (
+                w as f64 / FIXED_ONE,
+                ((w + (1 << (FIXED_BITS - 9))) >> (FIXED_BITS - 8)) as u32,
+            )
+        }
+        None => {
+            let w: f64 = (0..3)
+                .map(|k| if o[k] == 1 { frac[k] } else { 1.0 - frac[k] })
+                .product();
+            (w, (w * ACCUMULATION_UNIT).round() as u32)
+        }
+    }
+}
+
+/// Whether pixel (x, y) lies in the fan: below its origin, within its radii
+/// (inclusive) and between its edges, compared as PLUS compares them, by the
+/// tangent (`dx/dy` against `tan(angle)` in double precision, so that a pixel
+/// exactly on a 45° edge, where `tan` falls short of 1, is outside).
 pub fn in_fan(fan: &Fan, x: usize, y: usize) -> bool {
     let dx = x as f64 - fan.origin_px[0];
     let dy = y as f64 - fan.origin_px[1];
+    if dy <= 0.0 {
+        return false;
+    }
     let r = (dx * dx + dy * dy).sqrt();
-    let angle = dx.atan2(dy).to_degrees();
-    r >= fan.radius_start_px && r <= fan.radius_stop_px && angle >= fan.angles_deg[0] && angle <= fan.angles_deg[1]
+    let slope = dx / dy;
+    r >= fan.radius_start_px
+        && r <= fan.radius_stop_px
+        && slope >= fan.angles_deg[0].to_radians().tan()
+        && slope <= fan.angles_deg[1].to_radians().tan()
 }
 
 /// The pixels inside the clip rectangle and the fan, row by row (the same for every frame).
@@ -160,7 +198,7 @@ fn lands_inside(grid: &Grid, mapper: &Mapper, x: usize, y: usize, interpolation:
             (0..3).all(|k| inside(v[k], k))
         }
         Interpolation::Linear => {
-            let (base, frac) = mapper.linear(x, y);
+            let (base, frac, _) = mapper.linear(x, y);
             (0..3).all(|k| inside(base[k], k) && inside(base[k] + i64::from(frac[k] > 0.0), k))
         }
     }
@@ -215,17 +253,27 @@ impl<T: Sample> Slab<'_, T> {
         self.add_weight(i, add as u32);
     }
 
-    fn linear(&mut self, grid: &Grid, base: [i64; 3], frac: [f64; 3], value: T, mask: f64, mode: Compounding) {
+    fn linear(
+        &mut self,
+        grid: &Grid,
+        position: ([i64; 3], [f64; 3], Option<[i64; 3]>),
+        value: T,
+        mask: f64,
+        mode: Compounding,
+    ) {
+        let (base, frac, fixed) = position;
         let far = [0, 1, 2].map(|k| base[k] + i64::from(frac[k] > 0.0));
         if (0..3).any(|k| base[k] < 0 || far[k] >= grid.dims[k] as i64) {
             return;
         }
         for corner in 0..8 {
             let o = [corner & 1, (corner >> 1) & 1, (corner >> 2) & 1];
-            let w: f64 = (0..3)
-                .map(|k| if o[k] == 1 { frac[k] } else { 1.0 - frac[k] })
-                .product::<f64>()
-                * mask;
+            let (w, add) = corner_weight(o, frac, fixed);
+            let (w, add) = if mask < 1.0 {
+                (w * mask, (f64::from(add) * mask).round() as u32)
+            } else {
+                (w, add)
+            };
             if w <= 0.0 {
                 continue;
             }
@@ -236,13 +284,13 @@ impl<T: Sample> Slab<'_, T> {
                 Compounding::Mean => {
                     let r = f64::from(self.weights[i]) / ACCUMULATION_UNIT;
                     self.voxels[i] = T::from_round((w * value.to_f64() + r * self.voxels[i].to_f64()) / (w + r));
-                    self.add_weight(i, (w * ACCUMULATION_UNIT).round() as u32);
+                    self.add_weight(i, add);
                 }
-                Compounding::Maximum | Compounding::Latest if w > LINEAR_UPDATE_WEIGHT => {
+                Compounding::Maximum | Compounding::Latest if w >= LINEAR_UPDATE_WEIGHT => {
                     if mode == Compounding::Latest || value > self.voxels[i] || self.weights[i] == 0 {
                         self.voxels[i] = value;
                     }
-                    self.add_weight(i, (w * ACCUMULATION_UNIT).round() as u32);
+                    self.add_weight(i, add);
                 }
                 _ => {}
             }
@@ -288,8 +336,7 @@ pub fn paste<T: Sample>(grid: &Grid, slices: &[Slice<T>], settings: &PasteSettin
                                     slab.nearest(grid, mapper.nearest(x, y), value, mask, settings.compounding)
                                 }
                                 Interpolation::Linear => {
-                                    let (base, frac) = mapper.linear(x, y);
-                                    slab.linear(grid, base, frac, value, mask, settings.compounding)
+                                    slab.linear(grid, mapper.linear(x, y), value, mask, settings.compounding)
                                 }
                             }
                         }
