@@ -24,8 +24,8 @@ pub struct ReconstructArgs {
     /// device set's.
     #[arg(long)]
     pub calibration: Option<PathBuf>,
-    /// Worker threads (0: one per core), instead of the device set's
-    /// NumberOfThreads. The volume does not depend on it.
+    /// Worker threads (0: one per core; the device set's NumberOfThreads is not
+    /// used). The volume does not depend on it.
     #[arg(long, value_parser = clap::value_parser!(u16).range(0..=crate::core::limits::MAX_THREADS as i64))]
     pub threads: Option<u16>,
     /// Also write volume.nrrd.

@@ -34,7 +34,7 @@ pub fn format_g6(v: f64) -> String {
         .nth(1)
         .and_then(|e| e.parse::<i32>().ok())
         .unwrap_or(exponent);
-    if !(-5..6).contains(&exponent) {
+    if !(-4..6).contains(&exponent) {
         let (mantissa, _) = rounded.split_once('e').unwrap_or((&rounded, ""));
         let mantissa = trim_zeros(mantissa);
         return format!(

@@ -22,7 +22,8 @@ pub struct ReconstructInputs {
     pub config: PathBuf,
     /// A probecal run folder whose `summary.json` gives `ImageToProbe`.
     pub calibration: Option<PathBuf>,
-    /// Overrides `NumberOfThreads` (0: all cores).
+    /// Worker threads (0 or `None`: all cores); the device set's
+    /// `NumberOfThreads` is not needed, the volume is the same for any number.
     pub threads: Option<usize>,
 }
 
@@ -164,6 +165,35 @@ fn importance_mask(
     Ok(Some(mat.data_bytes().map_err(|e| fail(e.to_string()))?.to_vec()))
 }
 
+/// The output grid (given, or fitted to the clipped frames) and how pixels are pasted.
+fn grid_and_paste(
+    settings: &VolumeSettings,
+    sequence: &Sequence,
+    poses: &[FramePose],
+) -> Result<(Grid, PasteSettings), ReconstructError> {
+    let (width, height) = (sequence.width, sequence.height);
+    let (clip_px, far_px) = clip(settings, width, height)?;
+    let grid = match (settings.origin_mm, settings.extent) {
+        (Some(origin), Some(extent)) => Grid::from_extent(origin, settings.spacing_mm, extent)?,
+        _ => {
+            let matrices: Vec<_> = poses.iter().map(|p| p.reference_T_pixel).collect();
+            Grid::fit(&matrices, [clip_px[0], clip_px[1]], far_px, settings.spacing_mm)?
+        }
+    };
+    let paste_settings = PasteSettings {
+        width,
+        height,
+        clip_px,
+        fan: settings.fan,
+        pixel_rejection_threshold: settings.pixel_rejection_threshold,
+        interpolation: settings.interpolation,
+        compounding: settings.compounding,
+        optimization: settings.optimization,
+        importance_mask: importance_mask(settings, width, height)?,
+    };
+    Ok((grid, paste_settings))
+}
+
 /// Reads the inputs and reconstructs; nothing is written here.
 pub fn run(inputs: &ReconstructInputs) -> Result<Reconstruction, ReconstructError> {
     let mut timings = Vec::new();
@@ -195,28 +225,11 @@ pub fn run(inputs: &ReconstructInputs) -> Result<Reconstruction, ReconstructErro
             sequence.frames.len()
         )));
     }
-    let (width, height) = (sequence.width, sequence.height);
-    let (clip_px, far_px) = clip(&settings, width, height)?;
-    let grid = match (settings.origin_mm, settings.extent) {
-        (Some(origin), Some(extent)) => Grid::from_extent(origin, settings.spacing_mm, extent)?,
-        _ => {
-            let matrices: Vec<_> = poses.iter().map(|p| p.reference_T_pixel).collect();
-            Grid::fit(&matrices, [clip_px[0], clip_px[1]], far_px, settings.spacing_mm)?
-        }
-    };
-    let paste_settings = PasteSettings {
-        width,
-        height,
-        clip_px,
-        fan: settings.fan,
-        pixel_rejection_threshold: settings.pixel_rejection_threshold,
-        interpolation: settings.interpolation,
-        compounding: settings.compounding,
-        optimization: settings.optimization,
-        importance_mask: importance_mask(&settings, width, height)?,
-    };
+    let (grid, paste_settings) = grid_and_paste(&settings, &sequence, &poses)?;
     lap("poses and grid", &mut timings);
-    let threads = match inputs.threads.unwrap_or(settings.threads) {
+    // PLUS's volume depends on its NumberOfThreads; probecal's does not, so it
+    // uses every core unless told otherwise.
+    let threads = match inputs.threads.unwrap_or(0) {
         0 => crate::core::parallel::threads(),
         n => n,
     };

@@ -30,19 +30,40 @@ pub struct HoleStats {
     pub holes_after: u64,
 }
 
-/// The 13 stick directions: one of each opposite pair of the 26-neighbourhood.
-fn stick_directions() -> Vec<[i64; 3]> {
+/// A stick direction with what its searches need.
+#[derive(Debug, Clone, Copy)]
+struct Dir {
+    /// Canonical index (ties between equally long sticks go to the lower).
+    index: usize,
+    step: [i64; 3],
+    /// Length of one step, voxels.
+    unit: f64,
+    /// Index offset of one step in the voxel array.
+    stride: i64,
+}
+
+/// The 13 stick directions, one of each opposite pair of the 26-neighbourhood,
+/// with their canonical index (z, then y, then x from −1 to 1: ties between
+/// equally long sticks go to the lower index), axes first, then face and body
+/// diagonals.
+fn stick_directions(dims: [usize; 3]) -> Vec<Dir> {
     let mut out = Vec::new();
     for dz in -1..=1 {
         for dy in -1..=1 {
             for dx in -1..=1 {
-                let v = [dx, dy, dz];
-                if v.iter().find(|c| **c != 0).is_some_and(|c| *c > 0) {
-                    out.push(v);
+                let step = [dx, dy, dz];
+                if step.iter().find(|c| **c != 0).is_some_and(|c| *c > 0) {
+                    out.push(Dir {
+                        index: out.len(),
+                        step,
+                        unit: ((dx * dx + dy * dy + dz * dz) as f64).sqrt(),
+                        stride: dx + dy * dims[0] as i64 + dz * (dims[0] * dims[1]) as i64,
+                    });
                 }
             }
         }
     }
+    out.sort_by(|a, b| a.unit.total_cmp(&b.unit).then(a.index.cmp(&b.index)));
     out
 }
 
@@ -61,39 +82,76 @@ impl<T: Sample> Source<'_, T> {
             .then(|| (p[2] as usize * d[1] + p[1] as usize) * d[0] + p[0] as usize)
     }
 
-    /// First filled voxel from `p` along `step`, within `limit` steps: (steps, value).
-    fn first_filled(&self, p: [i64; 3], step: [i64; 3], limit: usize) -> Option<(f64, f64)> {
-        (1..=limit as i64).find_map(|k| {
-            let i = self.index([0, 1, 2].map(|a| p[a] + k * step[a]))?;
-            (self.weights[i] > 0).then(|| (k as f64, self.voxels[i].to_f64()))
-        })
+    /// First filled voxel from voxel `i` at `p` along `dir` (backwards when
+    /// `sign` is −1), within `limit` steps and the volume: (steps, value).
+    fn first_filled(&self, i: usize, p: [i64; 3], dir: &Dir, sign: i64, limit: usize) -> Option<(f64, f64)> {
+        let d = self.grid.dims;
+        let mut room = limit as i64;
+        for a in 0..3 {
+            match dir.step[a] * sign {
+                1 => room = room.min(d[a] as i64 - 1 - p[a]),
+                -1 => room = room.min(p[a]),
+                _ => {}
+            }
+        }
+        let stride = dir.stride * sign;
+        let mut j = i as i64;
+        for k in 1..=room {
+            j += stride;
+            let w = self.weights[j as usize];
+            if w > 0 {
+                return Some((k as f64, self.voxels[j as usize].to_f64()));
+            }
+        }
+        None
     }
 
-    fn stick(&self, p: [i64; 3], limit: usize, use_sticks: usize, dirs: &[[i64; 3]]) -> Option<f64> {
-        let mut sticks: Vec<(f64, f64)> = Vec::new();
-        for d in dirs {
-            let Some((ahead, v_ahead)) = self.first_filled(p, *d, limit) else {
-                continue;
-            };
-            let Some((behind, v_behind)) = self.first_filled(p, d.map(|c| -c), limit) else {
-                continue;
-            };
-            let behind = behind + 1.0;
-            let unit = ((d[0] * d[0] + d[1] * d[1] + d[2] * d[2]) as f64).sqrt();
-            let t = behind / (ahead + behind);
-            sticks.push(((ahead + behind) * unit, v_ahead * t + v_behind * (1.0 - t)));
+    /// (length, value) of the stick along `dir`, if it has both ends and is not
+    /// longer than `at_most`.
+    fn one_stick(&self, i: usize, p: [i64; 3], dir: &Dir, limit: usize, at_most: f64) -> Option<(f64, f64)> {
+        // Steps (ahead + behind + 1) that keep the stick within `at_most`.
+        let steps = ((at_most / dir.unit) + 1e-9).min((2 * limit + 1) as f64) as usize;
+        if steps < 3 {
+            return None;
         }
+        let (ahead, v_ahead) = self.first_filled(i, p, dir, 1, limit.min(steps - 2))?;
+        let room = steps - 1 - ahead as usize;
+        let (behind, v_behind) = self.first_filled(i, p, dir, -1, limit.min(room))?;
+        let behind = behind + 1.0;
+        let t = behind / (ahead + behind);
+        Some(((ahead + behind) * dir.unit, v_ahead * t + v_behind * (1.0 - t)))
+    }
+
+    /// The shortest stick's value (`use_sticks` > 1: the shortest ones' mean
+    /// weighted by inverse length). `dirs` come shortest unit first, so the bound
+    /// tightens early; ties go to the lower canonical index.
+    fn stick(&self, i: usize, p: [i64; 3], limit: usize, use_sticks: usize, dirs: &[Dir]) -> Option<f64> {
+        if use_sticks <= 1 {
+            let mut best: Option<(f64, usize, f64)> = None;
+            for dir in dirs {
+                let bound = best.map_or(f64::INFINITY, |b| b.0);
+                if let Some((length, value)) = self.one_stick(i, p, dir, limit, bound) {
+                    if best.is_none_or(|b| length < b.0 || (length == b.0 && dir.index < b.1)) {
+                        best = Some((length, dir.index, value));
+                    }
+                }
+            }
+            return best.map(|b| b.2);
+        }
+        let mut sticks: Vec<(f64, usize, f64)> = dirs
+            .iter()
+            .filter_map(|dir| {
+                self.one_stick(i, p, dir, limit, f64::INFINITY)
+                    .map(|(length, value)| (length, dir.index, value))
+            })
+            .collect();
         if sticks.is_empty() {
             return None;
         }
-        // Stable: among equal lengths the earlier direction wins.
-        sticks.sort_by(|a, b| a.0.total_cmp(&b.0));
-        if use_sticks <= 1 {
-            return Some(sticks[0].1);
-        }
+        sticks.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
         let best = &sticks[..use_sticks.min(sticks.len())];
         let total: f64 = best.iter().map(|s| 1.0 / s.0).sum();
-        Some(best.iter().map(|s| s.1 / s.0).sum::<f64>() / total)
+        Some(best.iter().map(|s| s.2 / s.0).sum::<f64>() / total)
     }
 
     /// Weighted mean of the filled voxels of the `size`³ cube around `p`, if at
@@ -121,12 +179,12 @@ impl<T: Sample> Source<'_, T> {
         (known > 0 && ratio >= min_ratio && total > 0.0).then(|| sum / total)
     }
 
-    fn element(&self, p: [i64; 3], element: &HoleFilling, dirs: &[[i64; 3]]) -> Option<f64> {
+    fn element(&self, i: usize, p: [i64; 3], element: &HoleFilling, dirs: &[Dir]) -> Option<f64> {
         match *element {
             HoleFilling::Stick {
                 length_limit,
                 sticks_to_use,
-            } => self.stick(p, length_limit, sticks_to_use, dirs),
+            } => self.stick(i, p, length_limit, sticks_to_use, dirs),
             HoleFilling::Gaussian {
                 size,
                 stdev,
@@ -147,6 +205,31 @@ impl<T: Sample> Source<'_, T> {
             }
         }
     }
+}
+
+/// Voxels with a filled voxel within `radius` steps along every axis (a cube):
+/// elsewhere no stick can reach a filled voxel, and the search is skipped.
+fn near_filled(grid: &Grid, weights: &[u16], radius: usize) -> Vec<bool> {
+    let d = grid.dims;
+    let mut near: Vec<u32> = weights.iter().map(|w| u32::from(*w > 0)).collect();
+    let strides = [1, d[0], d[0] * d[1]];
+    for axis in 0..3 {
+        let (n, stride) = (d[axis], strides[axis]);
+        let mut line = vec![0u32; n + 1];
+        for start in 0..near.len() {
+            if (start / stride) % n != 0 {
+                continue;
+            }
+            for k in 0..n {
+                line[k + 1] = line[k] + u32::from(near[start + k * stride] > 0);
+            }
+            for k in 0..n {
+                let (lo, hi) = (k.saturating_sub(radius), (k + radius + 1).min(n));
+                near[start + k * stride] = line[hi] - line[lo];
+            }
+        }
+    }
+    near.into_iter().map(|c| c > 0).collect()
 }
 
 /// Fills the holes of `voxels` (weights zero) with the elements, in parallel over
@@ -172,43 +255,46 @@ pub fn fill<T: Sample>(
         voxels: &original,
         weights,
     };
-    let dirs = stick_directions();
+    let dirs = stick_directions(grid.dims);
+    // Only stick elements: the search for holes no stick can reach is skipped.
+    let reach = elements
+        .iter()
+        .map(|e| match e {
+            HoleFilling::Stick { length_limit, .. } => Some(*length_limit),
+            _ => None,
+        })
+        .collect::<Option<Vec<usize>>>()
+        .map(|limits| near_filled(grid, weights, limits.into_iter().max().unwrap_or(0)));
     let plane = grid.dims[0] * grid.dims[1];
-    let planes_per_slab = grid.dims[2].div_ceil(threads.max(1)).max(1);
-    let counts: Vec<Vec<u64>> = std::thread::scope(|scope| {
-        let jobs: Vec<_> = voxels
-            .chunks_mut(plane * planes_per_slab)
+    let counts: Vec<Vec<u64>> = super::in_pool(threads, || {
+        use rayon::prelude::*;
+        voxels
+            .par_chunks_mut(plane)
             .enumerate()
-            .map(|(n, out)| {
-                let (source, dirs) = (&source, &dirs);
-                scope.spawn(move || {
-                    let mut filled = vec![0u64; elements.len()];
-                    let first = n * planes_per_slab * plane;
-                    for (offset, voxel) in out.iter_mut().enumerate() {
-                        let i = first + offset;
-                        if weights[i] != 0 {
-                            continue;
-                        }
-                        let p = [
-                            (i % grid.dims[0]) as i64,
-                            ((i / grid.dims[0]) % grid.dims[1]) as i64,
-                            (i / plane) as i64,
-                        ];
-                        if let Some((k, v)) = elements
-                            .iter()
-                            .enumerate()
-                            .find_map(|(k, e)| source.element(p, e, dirs).map(|v| (k, v)))
-                        {
-                            *voxel = T::from_floor(v);
-                            filled[k] += 1;
-                        }
+            .map(|(z, out)| {
+                let mut filled = vec![0u64; elements.len()];
+                let first = z * plane;
+                for (offset, voxel) in out.iter_mut().enumerate() {
+                    let i = first + offset;
+                    if weights[i] != 0 || reach.as_ref().is_some_and(|r| !r[i]) {
+                        continue;
                     }
-                    filled
-                })
+                    let p = [
+                        (i % grid.dims[0]) as i64,
+                        ((i / grid.dims[0]) % grid.dims[1]) as i64,
+                        z as i64,
+                    ];
+                    if let Some((k, v)) = elements
+                        .iter()
+                        .enumerate()
+                        .find_map(|(k, e)| source.element(i, p, e, &dirs).map(|v| (k, v)))
+                    {
+                        *voxel = T::from_floor(v);
+                        filled[k] += 1;
+                    }
+                }
+                filled
             })
-            .collect();
-        jobs.into_iter()
-            .map(|j| j.join().expect("a hole-filling worker"))
             .collect()
     });
     let filled_by_element: Vec<u64> = (0..elements.len()).map(|k| counts.iter().map(|c| c[k]).sum()).collect();

@@ -37,6 +37,11 @@ pub trait Sample: Copy + Default + PartialOrd + Send + Sync + 'static {
     fn from_round(v: f64) -> Self;
     /// Little-endian bytes of a slice of samples.
     fn write_le(values: &[Self], out: &mut Vec<u8>);
+    /// Nearest-neighbour MEAN: `(value·add + old·acc) / (acc + add)`, stored as
+    /// [`Sample::from_floor`] stores it (`acc + add > 0`).
+    fn mean_update(value: Self, old: Self, acc: u32, add: u32) -> Self {
+        Self::from_floor((value.to_f64() * f64::from(add) + old.to_f64() * f64::from(acc)) / f64::from(acc + add))
+    }
 }
 
 impl Sample for u8 {
@@ -52,6 +57,10 @@ impl Sample for u8 {
     }
     fn write_le(values: &[Self], out: &mut Vec<u8>) {
         out.extend_from_slice(values);
+    }
+    /// The integer division itself (the same value as the floor of the quotient).
+    fn mean_update(value: Self, old: Self, acc: u32, add: u32) -> Self {
+        ((u32::from(value) * add + u32::from(old) * acc) / (acc + add)) as u8
     }
 }
 
@@ -93,6 +102,15 @@ pub enum ReconstructError {
     Grid(#[from] grid::GridError),
     #[error("no frame can be inserted: {0}")]
     NoFrames(String),
+}
+
+/// Runs `job` on a pool of `threads` workers (its parallel loops split the
+/// volume into pieces whose results do not depend on who computes them).
+pub(crate) fn in_pool<R: Send>(threads: usize, job: impl FnOnce() -> R + Send) -> R {
+    match rayon::ThreadPoolBuilder::new().num_threads(threads.max(1)).build() {
+        Ok(pool) => pool.install(job),
+        Err(_) => job(),
+    }
 }
 
 /// A volume and what its stages did.

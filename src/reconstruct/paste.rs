@@ -89,6 +89,14 @@ impl Mapper {
         }
     }
 
+    /// The continuous z index at (x, y), approximately (to skip rows far from a slab).
+    fn z(&self, x: usize, y: usize) -> f64 {
+        match self {
+            Mapper::Fixed { a, b, c } => (a[2] * x as i64 + b[2] * y as i64 + c[2]) as f64 / FIXED_ONE,
+            Mapper::Float { a, b, c } => a[2] * x as f64 + b[2] * y as f64 + c[2],
+        }
+    }
+
     fn nearest(&self, x: usize, y: usize) -> [i64; 3] {
         match self {
             Mapper::Fixed { a, b, c } => {
@@ -165,12 +173,17 @@ pub fn in_fan(fan: &Fan, x: usize, y: usize) -> bool {
         && slope <= fan.angles_deg[1].to_radians().tan()
 }
 
-/// The pixels inside the clip rectangle and the fan, row by row (the same for every frame).
-fn region(settings: &PasteSettings) -> Vec<(usize, usize)> {
+/// The columns inside the clip rectangle and the fan, per row (the same for every frame).
+fn region(settings: &PasteSettings) -> Vec<(usize, Vec<usize>)> {
     let [x0, y0, x1, y1] = settings.clip_px;
     (y0..=y1)
-        .flat_map(|y| (x0..=x1).map(move |x| (x, y)))
-        .filter(|&(x, y)| settings.fan.as_ref().is_none_or(|fan| in_fan(fan, x, y)))
+        .map(|y| {
+            let xs: Vec<usize> = (x0..=x1)
+                .filter(|&x| settings.fan.as_ref().is_none_or(|fan| in_fan(fan, x, y)))
+                .collect();
+            (y, xs)
+        })
+        .filter(|(_, xs)| !xs.is_empty())
         .collect()
 }
 
@@ -186,21 +199,6 @@ fn pixel_weight<T: Sample>(settings: &PasteSettings, value: T, x: usize, y: usiz
             m => Some(f64::from(m) / 255.0),
         },
         None => Some(1.0),
-    }
-}
-
-/// Whether the pixel's voxel (nearest) or all 8 voxels around it (linear) lie in the volume.
-fn lands_inside(grid: &Grid, mapper: &Mapper, x: usize, y: usize, interpolation: Interpolation) -> bool {
-    let inside = |v: i64, k: usize| v >= 0 && v < grid.dims[k] as i64;
-    match interpolation {
-        Interpolation::NearestNeighbor => {
-            let v = mapper.nearest(x, y);
-            (0..3).all(|k| inside(v[k], k))
-        }
-        Interpolation::Linear => {
-            let (base, frac, _) = mapper.linear(x, y);
-            (0..3).all(|k| inside(base[k], k) && inside(base[k] + i64::from(frac[k] > 0.0), k))
-        }
     }
 }
 
@@ -227,20 +225,61 @@ impl<T: Sample> Slab<'_, T> {
         self.weights[i] = total.min(ACCUMULATION_MAX) as u16;
     }
 
-    fn nearest(&mut self, grid: &Grid, v: [i64; 3], value: T, mask: f64, mode: Compounding) {
+    /// Every frame's pixels that can reach this slab, in order; the pixels counted here.
+    fn insert_all(
+        &mut self,
+        grid: &Grid,
+        slices: &[Slice<T>],
+        mappers: &[Mapper],
+        region: &[(usize, Vec<usize>)],
+        settings: &PasteSettings,
+    ) -> u64 {
+        let mut inserted = 0u64;
+        let (lo, hi) = (self.z0 as f64 - 2.0, (self.z0 + self.planes) as f64 + 1.0);
+        for (slice, mapper) in slices.iter().zip(mappers) {
+            for (y, xs) in region {
+                let (z_first, z_last) = (mapper.z(xs[0], *y), mapper.z(xs[xs.len() - 1], *y));
+                if z_first.max(z_last) < lo || z_first.min(z_last) > hi {
+                    continue;
+                }
+                for &x in xs {
+                    let value = slice.pixels[y * settings.width + x];
+                    let Some(mask) = pixel_weight(settings, value, x, *y) else {
+                        continue;
+                    };
+                    let here = match settings.interpolation {
+                        Interpolation::NearestNeighbor => {
+                            self.nearest(grid, mapper.nearest(x, *y), value, mask, settings.compounding)
+                        }
+                        Interpolation::Linear => {
+                            self.linear(grid, mapper.linear(x, *y), value, mask, settings.compounding)
+                        }
+                    };
+                    inserted += u64::from(here);
+                }
+            }
+        }
+        inserted
+    }
+
+    /// Inserts a pixel into its nearest voxel if that is in this slab; true then.
+    fn nearest(&mut self, grid: &Grid, v: [i64; 3], value: T, mask: f64, mode: Compounding) -> bool {
         if (0..3).any(|k| v[k] < 0 || v[k] >= grid.dims[k] as i64) {
-            return;
+            return false;
         }
         let Some(i) = self.offset(grid, v) else {
-            return;
+            return false;
         };
-        let add = (ACCUMULATION_UNIT * mask).round();
-        let acc = f64::from(self.weights[i]);
+        let add = if mask < 1.0 {
+            (ACCUMULATION_UNIT * mask).round() as u32
+        } else {
+            ACCUMULATION_UNIT as u32
+        };
+        let acc = u32::from(self.weights[i]);
         match mode {
             Compounding::Mean => {
-                if add + acc > 0.0 {
-                    self.voxels[i] =
-                        T::from_floor((value.to_f64() * add + self.voxels[i].to_f64() * acc) / (acc + add));
+                if add + acc > 0 {
+                    self.voxels[i] = T::mean_update(value, self.voxels[i], acc, add);
                 }
             }
             Compounding::Latest => self.voxels[i] = value,
@@ -250,9 +289,12 @@ impl<T: Sample> Slab<'_, T> {
                 }
             }
         }
-        self.add_weight(i, add as u32);
+        self.add_weight(i, add);
+        true
     }
 
+    /// Inserts a pixel into those of its 8 voxels in this slab; true when all 8
+    /// are in the volume and the lowest is in this slab (the pixel counts here).
     fn linear(
         &mut self,
         grid: &Grid,
@@ -260,11 +302,11 @@ impl<T: Sample> Slab<'_, T> {
         value: T,
         mask: f64,
         mode: Compounding,
-    ) {
+    ) -> bool {
         let (base, frac, fixed) = position;
         let far = [0, 1, 2].map(|k| base[k] + i64::from(frac[k] > 0.0));
         if (0..3).any(|k| base[k] < 0 || far[k] >= grid.dims[k] as i64) {
-            return;
+            return false;
         }
         for corner in 0..8 {
             let o = [corner & 1, (corner >> 1) & 1, (corner >> 2) & 1];
@@ -295,6 +337,7 @@ impl<T: Sample> Slab<'_, T> {
                 _ => {}
             }
         }
+        base[2] >= self.z0 && base[2] < self.z0 + self.planes
     }
 }
 
@@ -309,57 +352,28 @@ pub fn paste<T: Sample>(grid: &Grid, slices: &[Slice<T>], settings: &PasteSettin
         .iter()
         .map(|s| Mapper::new(grid, &s.reference_T_pixel, settings.optimization))
         .collect();
+    // One slab per worker: a frame's row crosses many planes, so smaller slabs
+    // would map the same pixels again for each.
     let planes_per_slab = grid.dims[2].div_ceil(threads.max(1)).max(1);
-    let saturated: u64 = std::thread::scope(|scope| {
-        let jobs: Vec<_> = voxels
-            .chunks_mut(plane * planes_per_slab)
-            .zip(weights.chunks_mut(plane * planes_per_slab))
+    let (saturated, pixels_inserted): (u64, u64) = super::in_pool(threads, || {
+        use rayon::prelude::*;
+        voxels
+            .par_chunks_mut(plane * planes_per_slab)
+            .zip(weights.par_chunks_mut(plane * planes_per_slab))
             .enumerate()
             .map(|(n, (voxels, weights))| {
-                let (region, mappers) = (&region, &mappers);
-                scope.spawn(move || {
-                    let mut slab = Slab {
-                        z0: (n * planes_per_slab) as i64,
-                        planes: (voxels.len() / plane) as i64,
-                        voxels,
-                        weights,
-                        saturated: 0,
-                    };
-                    for (slice, mapper) in slices.iter().zip(mappers) {
-                        for &(x, y) in region {
-                            let value = slice.pixels[y * settings.width + x];
-                            let Some(mask) = pixel_weight(settings, value, x, y) else {
-                                continue;
-                            };
-                            match settings.interpolation {
-                                Interpolation::NearestNeighbor => {
-                                    slab.nearest(grid, mapper.nearest(x, y), value, mask, settings.compounding)
-                                }
-                                Interpolation::Linear => {
-                                    slab.linear(grid, mapper.linear(x, y), value, mask, settings.compounding)
-                                }
-                            }
-                        }
-                    }
-                    slab.saturated
-                })
+                let mut slab = Slab {
+                    z0: (n * planes_per_slab) as i64,
+                    planes: (voxels.len() / plane) as i64,
+                    voxels,
+                    weights,
+                    saturated: 0,
+                };
+                let inserted = slab.insert_all(grid, slices, &mappers, &region, settings);
+                (slab.saturated, inserted)
             })
-            .collect();
-        jobs.into_iter().map(|j| j.join().expect("a paste worker")).sum()
+            .reduce(|| (0, 0), |a, b| (a.0 + b.0, a.1 + b.1))
     });
-    let pixels_inserted = slices
-        .iter()
-        .zip(&mappers)
-        .map(|(slice, mapper)| {
-            region
-                .iter()
-                .filter(|&&(x, y)| {
-                    pixel_weight(settings, slice.pixels[y * settings.width + x], x, y).is_some()
-                        && lands_inside(grid, mapper, x, y, settings.interpolation)
-                })
-                .count() as u64
-        })
-        .sum();
     Pasted {
         voxels,
         weights,

@@ -5,4 +5,5 @@ pub mod orientation;
 pub mod result;
 pub mod segmentation;
 pub mod sequence;
+mod sequence_header;
 pub mod volume_config;

@@ -11,10 +11,12 @@
 //! not a rigid matrix) is a [`FrameFault`] for that frame only.
 
 use std::collections::BTreeMap;
-use std::io::Read;
 use std::path::{Path, PathBuf};
 
 pub use super::orientation::Orientation;
+use super::sequence_header::{
+    check_element, compressed_flag, dimensions, orientation, pixel_bytes, read_header, samples_in_mf, Header,
+};
 use crate::core::geometry::{rigid_from_rows, Rigid};
 
 /// Why a sequence file could not be read.
@@ -85,208 +87,6 @@ pub struct Sequence {
 pub enum Samples<'a> {
     U8(&'a [u8]),
     F32(&'a [f32]),
-}
-
-/// The header's fields (per-frame ones apart) and where the pixel data starts.
-struct Header {
-    fields: BTreeMap<String, Field>,
-    per_frame: BTreeMap<usize, BTreeMap<String, Field>>,
-    data_start: usize,
-}
-
-/// Reads `Key = value` lines up to `ElementDataFile = LOCAL`.
-fn read_header(bytes: &[u8], fail: &dyn Fn(Option<usize>, String) -> SequenceError) -> Result<Header, SequenceError> {
-    let mut header: BTreeMap<String, Field> = BTreeMap::new();
-    let mut per_frame: BTreeMap<usize, BTreeMap<String, Field>> = BTreeMap::new();
-    let mut offset = 0usize;
-    let mut line_no = 0usize;
-    while offset < bytes.len() {
-        let end = bytes[offset..]
-            .iter()
-            .position(|&b| b == b'\n')
-            .map(|p| offset + p)
-            .unwrap_or(bytes.len());
-        line_no += 1;
-        let raw = &bytes[offset..end];
-        offset = (end + 1).min(bytes.len());
-        let text = std::str::from_utf8(raw)
-            .map_err(|_| {
-                fail(
-                    Some(line_no),
-                    "header line is not text (data before `ElementDataFile`?)".into(),
-                )
-            })?
-            .trim_end_matches('\r');
-        if text.trim().is_empty() {
-            continue;
-        }
-        let Some((key, value)) = text.split_once('=') else {
-            return Err(fail(
-                Some(line_no),
-                format!("expected `Key = value`, got `{}`", clip(text)),
-            ));
-        };
-        let key = key.trim().to_string();
-        let value = value.trim().to_string();
-        if key == "ElementDataFile" {
-            if value != "LOCAL" {
-                return Err(fail(
-                    Some(line_no),
-                    format!("`ElementDataFile = {value}`: only LOCAL (data in the same file) is supported"),
-                ));
-            }
-            header.insert(key, Field { value, line: line_no });
-            return Ok(Header {
-                fields: header,
-                per_frame,
-                data_start: offset,
-            });
-        }
-        let field = Field { value, line: line_no };
-        if let Some(rest) = key.strip_prefix("Seq_Frame") {
-            let digits: String = rest.chars().take_while(|c| c.is_ascii_digit()).collect();
-            let name = rest[digits.len()..].strip_prefix('_');
-            match (digits.parse::<usize>(), name) {
-                (Ok(index), Some(name)) if !name.is_empty() => {
-                    per_frame.entry(index).or_default().insert(name.to_string(), field);
-                }
-                _ => return Err(fail(Some(line_no), format!("`{key}`: expected `Seq_FrameNNNN_<Name>`"))),
-            }
-        } else {
-            header.insert(key, field);
-        }
-    }
-    Err(fail(
-        Some(line_no),
-        "no `ElementDataFile = LOCAL` line: the header never ends (file cut off?)".into(),
-    ))
-}
-
-/// `DimSize`: width, height and frames (`0 0 N` for a tracker-only sequence).
-fn dimensions(
-    dims: &Field,
-    fail: &dyn Fn(Option<usize>, String) -> SequenceError,
-) -> Result<(usize, usize, usize), SequenceError> {
-    let numbers: Vec<usize> = dims
-        .value
-        .split_whitespace()
-        .map(|s| s.parse::<usize>())
-        .collect::<Result<_, _>>()
-        .map_err(|_| {
-            fail(
-                Some(dims.line),
-                format!("`DimSize = {}`: not whole numbers", dims.value),
-            )
-        })?;
-    let (width, height, count) = match numbers.as_slice() {
-        [w, h, n] => (*w, *h, *n),
-        [w, h] => (*w, *h, 1),
-        _ => {
-            return Err(fail(
-                Some(dims.line),
-                format!("`DimSize = {}`: expected width height frames", dims.value),
-            ))
-        }
-    };
-    if (width == 0) != (height == 0) {
-        return Err(fail(Some(dims.line), "`DimSize`: an image of zero size".into()));
-    }
-    Ok((width, height, count))
-}
-
-/// `CompressedData`: True or False (absent: False).
-fn compressed_flag(
-    field: Option<&Field>,
-    fail: &dyn Fn(Option<usize>, String) -> SequenceError,
-) -> Result<bool, SequenceError> {
-    match field {
-        None => Ok(false),
-        Some(f) => match f.value.to_ascii_lowercase().as_str() {
-            "true" => Ok(true),
-            "false" => Ok(false),
-            other => Err(fail(
-                Some(f.line),
-                format!("`CompressedData = {other}`: expected True or False"),
-            )),
-        },
-    }
-}
-
-/// 8-bit grey pixels, and 32-bit float ones where `allow_float`; true for float.
-fn check_element(
-    element: &Field,
-    channels: Option<&Field>,
-    allow_float: bool,
-    fail: &dyn Fn(Option<usize>, String) -> SequenceError,
-) -> Result<bool, SequenceError> {
-    let float = match element.value.as_str() {
-        "MET_UCHAR" => false,
-        "MET_FLOAT" if allow_float => true,
-        other => {
-            let supported = if allow_float {
-                "MET_UCHAR (8-bit) and MET_FLOAT (32-bit) are"
-            } else {
-                "MET_UCHAR (8-bit B-scans) is"
-            };
-            return Err(fail(
-                Some(element.line),
-                format!("`ElementType = {other}`: only {supported} supported"),
-            ));
-        }
-    };
-    match channels {
-        Some(channels) if channels.value != "1" => Err(fail(
-            Some(channels.line),
-            format!(
-                "`ElementNumberOfChannels = {}`: only grey (1) is supported",
-                channels.value
-            ),
-        )),
-        _ => Ok(float),
-    }
-}
-
-/// The pixel bytes after the header: as they are, or inflated (`compressed_size`
-/// is `Some` for compressed data, holding `CompressedDataSize` when given), at
-/// most one byte past `expected`.
-fn pixel_bytes(
-    data: &[u8],
-    compressed_size: Option<Option<&Field>>,
-    expected: usize,
-    fail: &dyn Fn(Option<usize>, String) -> SequenceError,
-) -> Result<Vec<u8>, SequenceError> {
-    let Some(size) = compressed_size else {
-        return Ok(data.to_vec());
-    };
-    if let Some(size) = size {
-        let declared: usize = size.value.parse().map_err(|_| {
-            fail(
-                Some(size.line),
-                format!("`CompressedDataSize = {}`: not a whole number", size.value),
-            )
-        })?;
-        if declared > data.len() {
-            return Err(fail(
-                Some(size.line),
-                format!(
-                    "data truncated: `CompressedDataSize` says {declared} bytes, the file has {} after the header",
-                    data.len()
-                ),
-            ));
-        }
-    }
-    let mut out = Vec::with_capacity(expected);
-    let mut decoder = flate2::read::ZlibDecoder::new(data).take(expected as u64 + 1);
-    decoder.read_to_end(&mut out).map_err(|e| {
-        fail(
-            None,
-            format!(
-                "compressed data is corrupt or truncated after {} of {expected} bytes: {e}",
-                out.len()
-            ),
-        )
-    })?;
-    Ok(out)
 }
 
 /// Largest frame count and image size accepted (guards the allocation against a
@@ -398,30 +198,8 @@ impl Sequence {
             .into_iter()
             .map(|(index, fields)| SequenceFrame { index, fields })
             .collect();
-        let orientation = match header.get("UltrasoundImageOrientation") {
-            None => Orientation::default(),
-            Some(f) => Orientation::parse(&f.value).ok_or_else(|| {
-                fail(
-                    Some(f.line),
-                    format!(
-                        "`UltrasoundImageOrientation = {}`: expected MF, MN, UF or UN (a third letter allowed)",
-                        f.value
-                    ),
-                )
-            })?,
-        };
-        let mut pixels = pixels;
-        let mut float_pixels = Vec::new();
-        if float {
-            float_pixels = pixels
-                .chunks_exact(4)
-                .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
-                .collect();
-            pixels = Vec::new();
-            orientation.flip_to_mf(&mut float_pixels, width, height);
-        } else {
-            orientation.flip_to_mf(&mut pixels, width, height);
-        }
+        let orientation = orientation(header.get("UltrasoundImageOrientation"), &fail)?;
+        let (pixels, float_pixels) = samples_in_mf(pixels, float, orientation, width, height);
         Ok(Sequence {
             path: path.to_path_buf(),
             width,
@@ -545,7 +323,7 @@ impl Sequence {
     }
 }
 
-fn clip(text: &str) -> String {
+pub(super) fn clip(text: &str) -> String {
     let mut s: String = text.chars().take(60).collect();
     if s.len() < text.len() {
         s.push('…');

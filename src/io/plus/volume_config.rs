@@ -199,6 +199,9 @@ impl VolumeSettings {
     }
 }
 
+/// `OutputOrigin` and `OutputExtent`, where given.
+type OriginExtent = (Option<[f64; 3]>, Option<[i64; 6]>);
+
 /// Attribute readers for one element, errors naming its line.
 struct Reader<'a, 'b, 'input> {
     x: &'a Xml<'b, 'input>,
@@ -267,7 +270,7 @@ impl Reader<'_, '_, '_> {
     }
 
     /// `OutputOrigin` and `OutputExtent` together, or neither.
-    fn origin_and_extent(&self) -> Result<(Option<[f64; 3]>, Option<[i64; 6]>), ConfigError> {
+    fn origin_and_extent(&self) -> Result<OriginExtent, ConfigError> {
         let origin = self.optional("OutputOrigin", 3)?;
         let extent = self.optional("OutputExtent", 6)?;
         match (origin, extent) {
