@@ -52,6 +52,12 @@ fn reconstruct(c: &mut Criterion) {
     let image_to_probe = "-0.00157821 0.0785919 -0.00803285 15.3978 -0.0839128 0.00372697 0.0153803 49.5705 \
                           0.0159024 0.00714276 0.0803604 -8.63446 0 0 0 1";
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("benches/numpy_nn_reference.py");
+    // Debian's python3-numpy lives with the system interpreter.
+    let python = if Path::new("/usr/bin/python3").exists() {
+        "/usr/bin/python3"
+    } else {
+        "python3"
+    };
     let mut group = c.benchmark_group("end_to_end");
     group.sample_size(10).measurement_time(Duration::from_secs(20));
     group.bench_function("probecal", |b| {
@@ -71,14 +77,14 @@ fn reconstruct(c: &mut Criterion) {
     });
     group.bench_function("numpy_nn", |b| {
         b.iter(|| {
-            let status = Command::new("python3")
+            let status = Command::new(python)
                 .arg(&script)
                 .arg(&sequence)
                 .arg(image_to_probe)
                 .arg("0.5")
                 .arg(&numpy_out)
                 .status()
-                .expect("python3 with numpy starts");
+                .expect("python3 with numpy starts (Debian: python3-numpy)");
             assert!(status.success());
         })
     });

@@ -10,6 +10,7 @@ probecal="$CARGO_TARGET_DIR/debug/probecal"
 fresh="$(mktemp -d)/reports"
 cp -r reports "$fresh"
 "$probecal" compare experiments/*.yaml --out "$fresh" --force --quiet
+bash scripts/reconstructions.sh "$fresh"
 if ! diff -r --exclude=provenance.json --exclude=.probecal.lock reports "$fresh"; then
   echo "reports/ differs from what the main job writes now: regenerate it with scripts/main-job.sh and commit" >&2
   exit 1

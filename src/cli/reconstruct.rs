@@ -31,6 +31,15 @@ pub struct ReconstructArgs {
     /// Also write volume.nrrd.
     #[arg(long)]
     pub nrrd: bool,
+    /// A reference volume (e.g. PLUS's output for the same inputs): agreement.json
+    /// gives the geometry's differences, the share of voxels within one grey
+    /// level, the Dice of the nonzero masks and whether the files are identical.
+    #[arg(long)]
+    pub compare: Option<PathBuf>,
+    /// Leave the run times out of summary.json and report.html, so that the
+    /// same inputs give byte-identical outputs.
+    #[arg(long)]
+    pub no_times: bool,
 }
 
 pub fn command(args: &ReconstructArgs) -> Result<(), Failure> {
@@ -40,8 +49,21 @@ pub fn command(args: &ReconstructArgs) -> Result<(), Failure> {
         calibration: args.calibration.clone(),
         threads: args.threads.map(usize::from),
     };
-    let run = crate::pipeline::reconstruct::run(&inputs).map_err(Failure::bad_input)?;
-    crate::report::reconstruct::write(&run, &args.out, args.nrrd).map_err(Failure::failed)?;
+    let mut run = crate::pipeline::reconstruct::run(&inputs).map_err(Failure::bad_input)?;
+    if args.no_times {
+        run.timings.clear();
+    }
+    let reference = args
+        .compare
+        .as_deref()
+        .map(crate::io::volume_file::read_metaimage)
+        .transpose()
+        .map_err(Failure::bad_input)?;
+    let options = crate::report::reconstruct::WriteOptions {
+        nrrd: args.nrrd,
+        compare: args.compare.as_deref().zip(reference.as_ref()),
+    };
+    crate::report::reconstruct::write(&run, &args.out, &options).map_err(Failure::failed)?;
     if !run.skipped.is_empty() {
         eprintln!(
             "warning: {} of {} frames skipped (first: frame {}: {}); see summary.json",

@@ -26,9 +26,10 @@ pub fn header(volume: &AnyVolume) -> VolumeHeader {
     }
 }
 
+/// `summary.json`; the times and thread count only where the run kept them.
 pub fn summary(r: &Reconstruction) -> serde_json::Value {
     let g = r.volume.grid();
-    serde_json::json!({
+    let mut out = serde_json::json!({
         "kind": KIND,
         "sequence": display_path(&r.inputs.sequence),
         "config": display_path(&r.inputs.config),
@@ -57,9 +58,16 @@ pub fn summary(r: &Reconstruction) -> serde_json::Value {
             "holes_filled_by_element": r.holes.filled_by_element,
             "holes_left": r.holes.holes_after,
         },
-        "threads": r.threads,
-        "time_s": r.timings.iter().map(|(k, v)| (k.clone(), serde_json::json!(v))).collect::<serde_json::Map<_, _>>(),
-    })
+    });
+    if !r.timings.is_empty() {
+        out["threads"] = serde_json::json!(r.threads);
+        out["time_s"] = r
+            .timings
+            .iter()
+            .map(|(k, v)| (k.clone(), serde_json::json!(v)))
+            .collect();
+    }
+    out
 }
 
 /// An 8-bit picture: `width` x `height`, row by row.
@@ -72,15 +80,31 @@ pub struct Picture {
     pub pixels: Vec<u8>,
 }
 
-/// The middle slices across each axis and the maximum-intensity projection
-/// along z, grey levels scaled so that the brightest voxel is white.
+/// Slices across each axis through the intensity-weighted centre and the
+/// maximum-intensity projection along z, grey levels scaled so that the
+/// brightest voxel is white.
 pub fn pictures(volume: &AnyVolume) -> Vec<Picture> {
     let values = volume.values();
     let [nx, ny, nz] = volume.grid().dims;
     let top = values.iter().copied().fold(0.0f64, f64::max).max(f64::MIN_POSITIVE);
     let grey = |v: f64| (v / top * 255.0).round().clamp(0.0, 255.0) as u8;
     let at = |x: usize, y: usize, z: usize| values[(z * ny + y) * nx + x];
-    let (cx, cy, cz) = (nx / 2, ny / 2, nz / 2);
+    // Slices through the intensity-weighted centre (the middle of an empty volume).
+    let (mut sum, mut at_sum) = (0.0, [0.0f64; 3]);
+    for (i, v) in values.iter().enumerate() {
+        sum += v;
+        at_sum[0] += v * (i % nx) as f64;
+        at_sum[1] += v * ((i / nx) % ny) as f64;
+        at_sum[2] += v * (i / (nx * ny)) as f64;
+    }
+    let centre = |a: usize, n: usize| {
+        if sum > 0.0 {
+            ((at_sum[a] / sum).round() as usize).min(n - 1)
+        } else {
+            n / 2
+        }
+    };
+    let (cx, cy, cz) = (centre(0, nx), centre(1, ny), centre(2, nz));
     let mip: Vec<u8> = (0..ny)
         .flat_map(|y| (0..nx).map(move |x| (x, y)))
         .map(|(x, y)| grey((0..nz).map(|z| at(x, y, z)).fold(0.0, f64::max)))
@@ -163,7 +187,13 @@ pub fn html(r: &Reconstruction, pictures: &[Picture]) -> String {
         .iter()
         .map(|s| format!("<tr><td>{}</td><td>{}</td></tr>\n", s.index, escape(&s.reason)))
         .collect();
-    let times: String = r.timings.iter().map(|(k, v)| format!("{k} {v:.3} s; ")).collect();
+    let times: String = match r.timings.is_empty() {
+        true => String::new(),
+        false => {
+            let stages: String = r.timings.iter().map(|(k, v)| format!("{k} {v:.3} s; ")).collect();
+            format!("Time: {stages}{} thread(s).", r.threads)
+        }
+    };
     format!(
         "<!DOCTYPE html>\n<html lang=\"en\">\n<head><meta charset=\"utf-8\"><title>reconstruction</title>\n\
          <style>body{{font-family:sans-serif;max-width:70em;margin:1em auto}} figure{{display:inline-block;margin:0.5em}} \
@@ -177,7 +207,7 @@ pub fn html(r: &Reconstruction, pictures: &[Picture]) -> String {
          clip rectangle origin {co:?} size {cs:?}, fan {fan}, {holes} hole-filling element(s). \
          Origin (centre of the first voxel) {origin:?} mm.</p>\n\
          <h2>Frames left out</h2>\n<table><tr><th>frame</th><th>reason</th></tr>\n{skipped}</table>\n\
-         <p>Time: {times}{threads} thread(s).</p>\n</body></html>\n",
+         <p>{times}</p>\n</body></html>\n",
         seq = escape(&display_path(&r.inputs.sequence)),
         used = r.frames_used.len(),
         total = r.frames_total,
@@ -197,7 +227,6 @@ pub fn html(r: &Reconstruction, pictures: &[Picture]) -> String {
         fan = if r.settings.fan.is_some() { "on" } else { "off" },
         holes = r.settings.hole_filling.len(),
         origin = g.origin_mm,
-        threads = r.threads,
     )
 }
 
@@ -226,8 +255,59 @@ fn check_out(out: &Path) -> Result<(), OutputError> {
     Ok(())
 }
 
+/// What `write` adds to the volume, summary, report and pictures.
+#[derive(Debug, Default)]
+pub struct WriteOptions<'a> {
+    pub nrrd: bool,
+    /// A reference volume's path, header and voxel bytes: agreement.json.
+    pub compare: Option<(&'a Path, &'a (VolumeHeader, Vec<u8>))>,
+}
+
+/// How a volume agrees with a reference of the same inputs (PLUS's, say).
+pub fn agreement(
+    r: &Reconstruction,
+    written: &[u8],
+    path: &Path,
+    reference: &(VolumeHeader, Vec<u8>),
+) -> serde_json::Value {
+    let (theirs, their_voxels) = reference;
+    let ours = header(&r.volume);
+    let same_grid = ours.dims == theirs.dims && ours.element_type == theirs.element_type;
+    let offset_mm = (0..3)
+        .map(|a| (ours.origin_mm[a] - theirs.origin_mm[a]).abs())
+        .fold(0.0, f64::max);
+    let mut out = serde_json::json!({
+        "reference": display_path(path),
+        "dims": {"ours": ours.dims, "reference": theirs.dims},
+        "element_type": {"ours": ours.element_type, "reference": theirs.element_type},
+        "offset_max_difference_mm": offset_mm,
+        "spacing_equal": ours.spacing_mm == theirs.spacing_mm,
+        "identical_file": std::fs::read(path).map(|b| b == written).unwrap_or(false),
+    });
+    if same_grid && ours.element_type == "MET_UCHAR" {
+        let mine = r.volume.bytes();
+        let (mut union, mut close, mut a, mut b, mut both, mut equal) = (0u64, 0u64, 0u64, 0u64, 0u64, 0u64);
+        for (&o, &t) in mine.iter().zip(their_voxels) {
+            a += u64::from(o > 0);
+            b += u64::from(t > 0);
+            both += u64::from(o > 0 && t > 0);
+            equal += u64::from(o == t);
+            if o > 0 || t > 0 {
+                union += 1;
+                close += u64::from(o.abs_diff(t) <= 1);
+            }
+        }
+        out["voxels"] = serde_json::json!(mine.len());
+        out["voxels_equal"] = serde_json::json!(equal);
+        out["nonzero_in_either"] = serde_json::json!(union);
+        out["within_one_grey_level"] = serde_json::json!(close as f64 / union.max(1) as f64);
+        out["dice_nonzero"] = serde_json::json!(2.0 * both as f64 / (a + b).max(1) as f64);
+    }
+    out
+}
+
 /// Writes all outputs into `out` (swapped in whole).
-pub fn write(r: &Reconstruction, out: &Path, nrrd: bool) -> Result<(), OutputError> {
+pub fn write(r: &Reconstruction, out: &Path, options: &WriteOptions) -> Result<(), OutputError> {
     check_out(out)?;
     let header = header(&r.volume);
     let data = r.volume.bytes();
@@ -236,8 +316,15 @@ pub fn write(r: &Reconstruction, out: &Path, nrrd: bool) -> Result<(), OutputErr
     let dir = staged.path().to_path_buf();
     let write = |name: &str, bytes: &[u8]| crate::io::fs::write_atomic(&dir.join(name), bytes);
     let result = (|| -> Result<(), OutputError> {
-        write("volume.mha", &metaimage_bytes(&header, &data))?;
-        if nrrd {
+        let volume = metaimage_bytes(&header, &data);
+        write("volume.mha", &volume)?;
+        if let Some((path, reference)) = options.compare {
+            write(
+                "agreement.json",
+                serde_json::to_string_pretty(&agreement(r, &volume, path, reference))?.as_bytes(),
+            )?;
+        }
+        if options.nrrd {
             write("volume.nrrd", &nrrd_bytes(&header, &data))?;
         }
         for p in &pictures {
