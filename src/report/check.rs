@@ -118,6 +118,10 @@ pub fn find_summaries(inputs: &[PathBuf]) -> Result<Vec<FoundSummary>, CheckErro
                         message: e.to_string(),
                     })?
                     .path();
+                if crate::report::reconstruct::is_reconstruction(&dataset.join("summary.json")) {
+                    // A volume reconstruction (`probecal reconstruct`), not a calibration run.
+                    continue;
+                }
                 if dataset.join("summary.json").is_file() {
                     // A run writes these with its summary; without them the folder is not a
                     // complete run, whatever its summary says.

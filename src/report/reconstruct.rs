@@ -16,6 +16,15 @@ use crate::report::error::OutputError;
 /// `summary.json`'s `kind`, which marks a folder as a reconstruction's.
 pub const KIND: &str = "reconstruction";
 
+/// Whether a `summary.json` is a reconstruction's (`kind: reconstruction`), not a
+/// calibration run's.
+pub fn is_reconstruction(summary: &Path) -> bool {
+    std::fs::read_to_string(summary)
+        .ok()
+        .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok())
+        .is_some_and(|j| j.get("kind").and_then(|k| k.as_str()) == Some(KIND))
+}
+
 pub fn header(volume: &AnyVolume) -> VolumeHeader {
     let g = volume.grid();
     VolumeHeader {
