@@ -4,12 +4,13 @@
 # tests check the reports in (pdflatex with the LaTeX report's packages, Chromium),
 # ADMesh, the independent STL reader the printable phantom is checked with, and
 # python3-opencv, OpenCV's own calibration sample the camera calibration is
-# checked against.
+# checked against, and pyigtl (PyPI, in a virtual environment), the OpenIGTLink
+# server the live stream is tested with.
 # Safe to run again.
 set -euo pipefail
 
 packages=(libopencv-dev libopencv-contrib-dev clang libclang-dev fonts-dejavu-core pkg-config admesh
-  texlive-latex-recommended texlive-latex-extra texlive-science lmodern chromium python3-opencv)
+  texlive-latex-recommended texlive-latex-extra texlive-science lmodern chromium python3-opencv python3-venv)
 missing=()
 for p in "${packages[@]}"; do
   dpkg -s "$p" >/dev/null 2>&1 || missing+=("$p")
@@ -26,3 +27,10 @@ command -v cargo >/dev/null || { echo "cargo is not installed: install Rust (rus
 for tool in clippy rustfmt; do
   cargo "${tool/rustfmt/fmt}" --version >/dev/null 2>&1 || rustup component add "$tool"
 done
+# The OpenIGTLink replay server of tests/live_igtl.rs (PROBECAL_PYIGTL_VENV).
+venv="${PROBECAL_PYIGTL_VENV:-/var/tmp/probecal-pyigtl}"
+if ! "$venv/bin/python3" -c 'import pyigtl' >/dev/null 2>&1; then
+  echo "installing pyigtl into $venv"
+  /usr/bin/python3 -m venv "$venv"
+  "$venv/bin/python3" -m pip install --quiet --disable-pip-version-check pyigtl==0.3.4
+fi

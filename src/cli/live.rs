@@ -21,7 +21,7 @@ pub struct LiveSource {
 }
 
 /// Shows a frame's line: replacing the last on a terminal, one per line otherwise.
-fn shown(terminal: bool, text: &str) {
+pub(super) fn shown(terminal: bool, text: &str) {
     if terminal {
         eprint!("\r\x1b[2K{text}");
         let _ = std::io::stderr().flush();

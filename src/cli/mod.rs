@@ -10,6 +10,7 @@ pub mod docs;
 mod failure;
 mod init;
 mod live;
+mod live_igtl;
 mod manifests;
 mod phantom;
 mod reconstruct;
@@ -130,6 +131,12 @@ enum Command {
         /// With --watch: no new frame for this long ends the acquisition, s.
         #[arg(long, default_value_t = 10.0)]
         idle_s: f64,
+        /// A tracked manifest: take the frames from an OpenIGTLink server
+        /// (PlusServer) at HOST:PORT instead of its sequence file, and send the
+        /// calibration back (device names and the stream's end in the
+        /// manifest's `live:`).
+        #[arg(long, value_name = "HOST:PORT", conflicts_with_all = ["watch", "speed"])]
+        igtl: Option<String>,
     },
     /// Solve a run again from its own folder (the frames' poses and feature pixels
     /// in `solve_inputs.yaml`, the manifest it ran with) and compare with its summary.
@@ -264,7 +271,11 @@ pub fn main() -> ExitCode {
             speed,
             watch,
             idle_s,
-        } => failure::exit_code(live::command(&manifest, &out, &LiveSource { speed, watch, idle_s })),
+            igtl,
+        } => match igtl {
+            Some(address) => failure::exit_code(live_igtl::command(&manifest, &address, &out)),
+            None => failure::exit_code(live::command(&manifest, &out, &LiveSource { speed, watch, idle_s })),
+        },
         Command::Study(args) => failure::exit_code(study::dispatch(args)),
         Command::Synth { manifests, datasets } => failure::exit_code(manifests::synth(&manifests, &datasets)),
         Command::Resolve { run } => failure::exit_code(resolve::command(&run)),

@@ -4,6 +4,7 @@ pub mod camera_model;
 pub mod csv;
 pub mod dataset;
 pub mod fs;
+pub mod igtl;
 pub mod image;
 pub mod json;
 pub mod plus;

@@ -31,8 +31,8 @@ use std::path::{Path, PathBuf};
 
 use nalgebra::Matrix4;
 
+pub use super::tracked_raw::{LiveStream, TrackedGates, TrackedRegression};
 use super::tracked_raw::{OffsetSetting, PlusSequence, RawTrackedManifest, TrackedPhantom, Tracking};
-pub use super::tracked_raw::{TrackedGates, TrackedRegression};
 use super::{deserialize_located, sha256_hex, Checker, ManifestErrors};
 use nalgebra::Point3;
 
@@ -92,6 +92,7 @@ pub struct TrackedManifest {
     pub gates: TrackedGates,
     pub regression: TrackedRegression,
     pub plus_result: Option<PathBuf>,
+    pub live: LiveStream,
 }
 
 impl TrackedManifest {
@@ -172,6 +173,7 @@ impl TrackedManifest {
             gates: raw.thresholds.gates,
             regression: raw.thresholds.regression,
             plus_result,
+            live: raw.live,
         })
     }
 
@@ -427,4 +429,34 @@ fn check_solve_and_thresholds(c: &mut Checker<'_>, raw: &RawTrackedManifest) {
         raw.thresholds.regression.frames_rejected,
         0.0,
     );
+    check_live(c, &raw.live);
+}
+
+/// Device names OpenIGTLink can carry, and times a session can wait.
+fn check_live(c: &mut Checker<'_>, live: &LiveStream) {
+    for (field, name) in [
+        ("live.image_device", &live.image_device),
+        ("live.end_device", &live.end_device),
+        ("live.send_device", &live.send_device),
+    ] {
+        if name.is_empty() || name.len() > 20 || !name.bytes().all(|b| b.is_ascii_graphic()) {
+            c.fail(
+                field,
+                format!("`{name}`: an OpenIGTLink device name is 1 to 20 printable ASCII characters"),
+            );
+        }
+    }
+    if !(live.silence_s.is_finite() && live.silence_s > 0.0 && live.silence_s <= 3600.0) {
+        c.fail(
+            "live.silence_s",
+            format!("{}: seconds, above 0 and at most 3600", live.silence_s),
+        );
+    }
+    let gap = live.max_transform_gap_s;
+    if !(gap.is_finite() && gap > 0.0 && gap <= 1.0) {
+        c.fail(
+            "live.max_transform_gap_s",
+            format!("{gap}: seconds, above 0 and at most 1"),
+        );
+    }
 }

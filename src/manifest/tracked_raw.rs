@@ -22,6 +22,9 @@ pub(super) struct RawTrackedManifest {
     pub(super) solve: TrackedSolve,
     #[serde(default)]
     pub(super) thresholds: TrackedThresholds,
+    /// `probecal live --igtl`: the stream's device names and its end.
+    #[serde(default)]
+    pub(super) live: LiveStream,
     /// PLUS's own result file (`ProbeCalibrationResult` XML), for comparison only.
     #[serde(default)]
     pub(super) compare_with_plus_result: Option<String>,
@@ -208,6 +211,38 @@ impl Default for TrackedRegression {
         TrackedRegression {
             pre3d_mm: 0.02,
             frames_rejected: 2.0,
+        }
+    }
+}
+
+/// What `probecal live --igtl` listens for and sends (OpenIGTLink device names
+/// are at most 20 bytes).
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct LiveStream {
+    /// The IMAGE messages' device.
+    pub image_device: String,
+    /// A STRING message from this device ends the acquisition.
+    pub end_device: String,
+    /// No message for this long ends the acquisition, s.
+    pub silence_s: f64,
+    /// A pose is interpolated between two transform samples no further apart
+    /// than this, s; a wider gap leaves the image without a pose.
+    pub max_transform_gap_s: f64,
+    /// The TRANSFORM sent back with the calibration.
+    pub send_device: String,
+}
+
+impl Default for LiveStream {
+    fn default() -> Self {
+        // PlusServer's and fCal's names. At 0.1 s a hand sweeping at 50 mm/s
+        // moves 5 mm between the samples: interpolating over more is a guess.
+        LiveStream {
+            image_device: "Image".into(),
+            end_device: "SequenceEnd".into(),
+            silence_s: 5.0,
+            max_transform_gap_s: 0.1,
+            send_device: "ImageToProbe".into(),
         }
     }
 }

@@ -74,15 +74,31 @@ pub struct LiveRun {
     pub final_run: TrackedRun,
 }
 
-struct State<'a> {
+/// The live calibration between frames: the frames used, the predictions, the fit.
+pub(super) struct State<'a> {
     inputs: &'a TrackedInputs,
     candidate: Candidate,
     used: Vec<FrameConstraints>,
     predicted: Vec<f64>,
-    fit: Option<Fit>,
+    pub(super) fit: Option<Fit>,
 }
 
-impl State<'_> {
+impl<'a> State<'a> {
+    /// No frames yet; the model is the manifest's, or middle points with an
+    /// anisotropic pixel size.
+    pub(super) fn new(inputs: &'a TrackedInputs) -> State<'a> {
+        State {
+            inputs,
+            candidate: Candidate {
+                constraints: inputs.model.unwrap_or(ConstraintModel::MiddlePoints),
+                pixel_model: inputs.pixel_model.unwrap_or(PixelModel::Anisotropic),
+            },
+            used: Vec::new(),
+            predicted: Vec::new(),
+            fit: None,
+        }
+    }
+
     /// Attaches `frame`'s pose, predicts its error and refits.
     fn finish(&mut self, sequence: &Sequence, mut frame: TrackedFrame, offset_s: f64) -> LiveFrame {
         attach_poses(sequence, std::slice::from_mut(&mut frame), self.inputs, offset_s);
@@ -128,13 +144,14 @@ impl State<'_> {
 }
 
 /// A frame segmented on arrival.
-struct Arrived {
-    frame: TrackedFrame,
-    arrived: Instant,
-    segmentation_ms: f64,
+pub(super) struct Arrived {
+    pub(super) frame: TrackedFrame,
+    pub(super) arrived: Instant,
+    pub(super) segmentation_ms: f64,
 }
 
-fn finish(
+/// Attaches `arrived`'s pose, predicts its error, refits, and shows the outcome.
+pub(super) fn finish(
     state: &mut State<'_>,
     sequence: &Sequence,
     arrived: Arrived,
@@ -151,6 +168,19 @@ fn finish(
     live
 }
 
+/// The tracker's lag while frames arrive: the manifest's fixed value or
+/// reflector recording; 0 where it is estimated (at the end, from all frames).
+pub(super) fn live_offset_s(inputs: &TrackedInputs) -> Result<f64, TrackedError> {
+    Ok(match &inputs.time_offset {
+        TimeOffset::Fixed(s) => *s,
+        TimeOffset::Temporal { tracker, video } => {
+            crate::pipeline::temporal::run(video, tracker, &inputs.probe_transform, &inputs.reference_transform)?
+                .tracker_lag_s
+        }
+        TimeOffset::Estimate => 0.0,
+    })
+}
+
 /// Replays the calibration sequence of `inputs` and calibrates as frames arrive;
 /// `show` sees each frame's outcome. The batch run on the whole recording follows.
 pub fn run(
@@ -165,24 +195,8 @@ pub fn run(
         .unwrap_or([0, 0, sequence.width, sequence.height]);
     let segmentation = segmentation_inputs(inputs, clip, None);
     let geometry = pattern_geometry(&segmentation);
-    let offset_s = match &inputs.time_offset {
-        TimeOffset::Fixed(s) => *s,
-        TimeOffset::Temporal { tracker, video } => {
-            crate::pipeline::temporal::run(video, tracker, &inputs.probe_transform, &inputs.reference_transform)?
-                .tracker_lag_s
-        }
-        TimeOffset::Estimate => 0.0,
-    };
-    let mut state = State {
-        inputs,
-        candidate: Candidate {
-            constraints: inputs.model.unwrap_or(ConstraintModel::MiddlePoints),
-            pixel_model: inputs.pixel_model.unwrap_or(PixelModel::Anisotropic),
-        },
-        used: Vec::new(),
-        predicted: Vec::new(),
-        fit: None,
-    };
+    let offset_s = live_offset_s(inputs)?;
+    let mut state = State::new(inputs);
     let n = sequence.frames.len();
     let times: Vec<Option<f64>> = (0..n).map(|i| tracked::timestamp_s(&sequence, i)).collect();
     let first_time = times.iter().flatten().next().copied().unwrap_or(0.0);

@@ -15,11 +15,11 @@ use crate::pipeline::live::{LiveFrame, LiveRun, Replay};
 use crate::pipeline::tracked::Role;
 
 /// `live.csv`.
-pub fn frames_csv(run: &LiveRun) -> String {
+pub fn frames_csv(frames: &[LiveFrame]) -> String {
     let mut out = String::from(
         "frame,arrival_s,latency_ms,processing_ms,rejected,predicted_pre3d_mm,running_pre3d_mm,frames_used\n",
     );
-    for f in &run.frames {
+    for f in frames {
         let reason = f.rejected.as_deref().unwrap_or("").replace(['"', ','], ";");
         let _ = writeln!(
             out,
@@ -97,6 +97,6 @@ pub fn line(f: &LiveFrame) -> String {
 /// Writes `summary.json` and `live.csv` into `out` (whole, or nothing); the summary.
 pub fn write(run: &LiveRun, replay: Replay, out: &Path) -> Result<LiveSummary, OutputError> {
     let s = summary(run, replay);
-    write_session(out, &s, frames_csv(run))?;
+    write_session(out, &s, frames_csv(&run.frames))?;
     Ok(s)
 }

@@ -17,6 +17,7 @@ pub mod gallery;
 pub mod index;
 pub mod live;
 pub mod live_folder;
+pub mod live_igtl;
 pub mod live_timing;
 pub mod phantom;
 pub mod provenance;

@@ -6,4 +6,5 @@ pub mod result;
 pub mod segmentation;
 pub mod sequence;
 mod sequence_header;
+mod sequence_writer;
 pub mod volume_config;

@@ -76,10 +76,10 @@ pub struct Sequence {
     pub header: BTreeMap<String, Field>,
     pub frames: Vec<SequenceFrame>,
     /// All frames' pixels, frame after frame (8-bit sequences).
-    pixels: Vec<u8>,
+    pub(super) pixels: Vec<u8>,
     /// All frames' samples of a `MET_FLOAT` sequence (read only by
     /// [`Sequence::read_any`]); empty otherwise.
-    float_pixels: Vec<f32>,
+    pub(super) float_pixels: Vec<f32>,
 }
 
 /// One frame's samples, whichever element type the file holds.

@@ -1,0 +1,102 @@
+//! `probecal live <tracked manifest> --igtl HOST:PORT --out <dir>`: calibrates
+//! from a PlusServer stream and sends the calibration back. Everything is
+//! written into a staged folder swapped in at the end; an interrupt (Ctrl-C)
+//! ends the acquisition and the session still calibrates and writes (a second
+//! one stops at once). 0 written, 2 bad input, 1 failed (no calibration: the
+//! received frames are kept in `.<out>.failed/`).
+
+use std::io::IsTerminal;
+use std::path::Path;
+use std::sync::atomic::AtomicBool;
+use std::sync::Arc;
+
+use super::failure::Failure;
+use crate::io::fs::Staged;
+use crate::manifest::tracked::TrackedManifest;
+use crate::manifest::Experiment;
+use crate::pipeline::live_igtl::StreamSettings;
+use crate::pipeline::tracked::TrackedInputs;
+
+pub fn command(manifest: &Path, address: &str, out: &Path) -> Result<(), Failure> {
+    let mut all = crate::pipeline::experiment::load_all(&[manifest.to_path_buf()]).map_err(Failure::bad_input)?;
+    match all.pop() {
+        Some(Experiment::Tracked(m)) => session(&m, address, out),
+        _ => Err(Failure::bad_input(format!(
+            "{}: --igtl takes a tracked manifest (tracking: plus_sequence): its phantom, transforms' names and `live:` settings",
+            manifest.display()
+        ))),
+    }
+}
+
+fn session(manifest: &TrackedManifest, address: &str, out: &Path) -> Result<(), Failure> {
+    let settings = StreamSettings {
+        address: address.to_string(),
+        stream: manifest.live.clone(),
+    };
+    let stop = Arc::new(AtomicBool::new(false));
+    for signal in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
+        // A second interrupt while the first is honoured ends the process.
+        signal_hook::flag::register_conditional_shutdown(signal, 130, Arc::clone(&stop))
+            .and_then(|_| signal_hook::flag::register(signal, Arc::clone(&stop)))
+            .map_err(|e| Failure::failed(format!("cannot watch for interrupts: {e}")))?;
+    }
+    let staged = Staged::begin(out).map_err(|e| Failure::failed(e.to_string()))?;
+    let terminal = std::io::stderr().is_terminal();
+    eprintln!(
+        "listening to {address}: IMAGE `{}`, TRANSFORM `{}` and `{}`; ends on STRING `{}` or {} s of silence",
+        settings.stream.image_device,
+        manifest.probe_transform,
+        manifest.reference_transform,
+        settings.stream.end_device,
+        settings.stream.silence_s
+    );
+    let mut show = |f: &crate::pipeline::live::LiveFrame| super::live::shown(terminal, &crate::report::live::line(f));
+    let inputs = TrackedInputs::from_manifest(manifest);
+    let run = crate::pipeline::live_igtl::run(&inputs, manifest.min_frames, &settings, staged.path(), &stop, &mut show);
+    if terminal {
+        eprintln!();
+    }
+    let run = match run {
+        Ok(run) => run,
+        Err(e) => {
+            let _ = staged.abandon();
+            return Err(Failure::failed(format!("{address}: {e}")));
+        }
+    };
+    let s = crate::report::live_igtl::write(&run, &settings, manifest, staged.path())
+        .map_err(|e| Failure::failed(format!("{}: {e}", out.display())))?;
+    if s.messages.skipped > 0 {
+        eprintln!(
+            "warning: {} message(s) skipped; the first: {}",
+            s.messages.skipped,
+            s.messages.skip_reasons.first().map(String::as_str).unwrap_or("")
+        );
+    }
+    if let Some(e) = &s.calibration_error {
+        let kept = staged.abandon().map(|p| p.display().to_string()).unwrap_or_default();
+        return Err(Failure::failed(format!(
+            "{} images received, {} frames; no calibration: {e} (the received frames are in {kept})",
+            s.images_received, s.frames
+        )));
+    }
+    staged.commit().map_err(|e| Failure::failed(e.to_string()))?;
+    let latency = s
+        .latency_ms
+        .as_ref()
+        .map(|p| format!("{:.1} ms median, {:.1} ms p99", p.p50, p.p99))
+        .unwrap_or_else(|| "—".into());
+    println!(
+        "{} images received ({} frames, {} without a pose), ended by {}; latency {latency}; {}; final validation PRE3D {}; written to {}",
+        s.images_received,
+        s.frames,
+        s.frames_without_pose,
+        s.ended_by,
+        match &s.sent_error {
+            None => format!("ImageToProbe sent as `{}`", s.sent_device),
+            Some(e) => format!("ImageToProbe {e}"),
+        },
+        s.final_validation_pre3d_mm.map(|v| format!("{v:.4} mm")).unwrap_or_else(|| "—".into()),
+        out.display()
+    );
+    Ok(())
+}

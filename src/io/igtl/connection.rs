@@ -1,0 +1,207 @@
+//! An OpenIGTLink client connection: messages framed from a TCP stream, each
+//! body's CRC checked, with bounded memory (a body announced above
+//! [`MAX_BODY_BYTES`] ends the session: the stream cannot be trusted past it).
+//! A message that is framed but wrong (bad CRC, a body that contradicts its own
+//! sizes) is returned as a skip with its reason; the stream goes on after it.
+
+use std::io::{Read, Write};
+use std::net::{TcpStream, ToSocketAddrs};
+use std::time::Duration;
+
+use super::message::{decode, Body, Header, HEADER_BYTES};
+
+/// Largest body accepted: 256 MiB (a 4096x4096 float image is 64 MiB).
+pub const MAX_BODY_BYTES: u64 = 1 << 28;
+
+/// What one wait on the stream gave.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Event {
+    Message(Header, Body),
+    /// A framed message that could not be used: its type, device and why.
+    Skipped {
+        kind: String,
+        device: String,
+        reason: String,
+    },
+    /// Nothing complete arrived within the wait.
+    Quiet,
+    /// The server closed the connection between messages.
+    Closed,
+    /// The server closed the connection inside a message.
+    Cut(String),
+}
+
+pub struct Connection {
+    stream: TcpStream,
+    buffer: Vec<u8>,
+    /// Bytes received in all.
+    pub bytes_received: u64,
+}
+
+impl Connection {
+    /// Connects to `address` (`HOST:PORT`) within `timeout`.
+    pub fn open(address: &str, timeout: Duration) -> Result<Connection, String> {
+        let addresses: Vec<_> = address
+            .to_socket_addrs()
+            .map_err(|e| format!("{address}: not a HOST:PORT address ({e})"))?
+            .collect();
+        let mut last = format!("{address}: resolves to no address");
+        for a in addresses {
+            match TcpStream::connect_timeout(&a, timeout) {
+                Ok(stream) => {
+                    let _ = stream.set_nodelay(true);
+                    stream
+                        .set_write_timeout(Some(Duration::from_secs(10)))
+                        .map_err(|e| format!("{address}: {e}"))?;
+                    return Ok(Connection {
+                        stream,
+                        buffer: Vec::new(),
+                        bytes_received: 0,
+                    });
+                }
+                Err(e) => last = format!("{address}: cannot connect ({e})"),
+            }
+        }
+        Err(last)
+    }
+
+    /// The next message, a skip, or what ended the wait. An error ends the
+    /// session (a header that cannot be framed, a body above the limit, a socket
+    /// error).
+    pub fn next(&mut self, wait: Duration) -> Result<Event, String> {
+        loop {
+            if let Some(event) = self.take()? {
+                return Ok(event);
+            }
+            self.stream
+                .set_read_timeout(Some(wait.max(Duration::from_millis(1))))
+                .map_err(|e| e.to_string())?;
+            let mut chunk = [0u8; 1 << 16];
+            match self.stream.read(&mut chunk) {
+                Ok(0) => {
+                    return Ok(if self.buffer.is_empty() {
+                        Event::Closed
+                    } else {
+                        Event::Cut(self.cut_reason())
+                    })
+                }
+                Ok(n) => {
+                    self.bytes_received += n as u64;
+                    self.buffer.extend_from_slice(&chunk[..n]);
+                }
+                Err(e) if matches!(e.kind(), std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut) => {
+                    return Ok(Event::Quiet)
+                }
+                Err(e) if e.kind() == std::io::ErrorKind::Interrupted => return Ok(Event::Quiet),
+                Err(e) if e.kind() == std::io::ErrorKind::ConnectionReset => {
+                    return Ok(if self.buffer.is_empty() {
+                        Event::Closed
+                    } else {
+                        Event::Cut(self.cut_reason())
+                    })
+                }
+                Err(e) => return Err(format!("receiving: {e}")),
+            }
+        }
+    }
+
+    /// Why the bytes left in the buffer are not a message.
+    fn cut_reason(&self) -> String {
+        match self.header() {
+            Ok(Some(h)) => format!(
+                "the connection closed {} bytes into the {}-byte body of a {} message from `{}`",
+                self.buffer.len() - HEADER_BYTES,
+                h.body_bytes,
+                h.kind,
+                h.device
+            ),
+            _ => format!(
+                "the connection closed {} bytes into a {HEADER_BYTES}-byte message header",
+                self.buffer.len()
+            ),
+        }
+    }
+
+    fn header(&self) -> Result<Option<Header>, String> {
+        if self.buffer.len() < HEADER_BYTES {
+            return Ok(None);
+        }
+        let bytes: &[u8; HEADER_BYTES] = self.buffer[..HEADER_BYTES]
+            .try_into()
+            .map_err(|_| "header".to_string())?;
+        let header = Header::parse(bytes)?;
+        if header.body_bytes > MAX_BODY_BYTES {
+            return Err(format!(
+                "a {} message from `{}` announces a body of {} bytes, above the limit of {MAX_BODY_BYTES}: the stream cannot be framed past it",
+                header.kind, header.device, header.body_bytes
+            ));
+        }
+        Ok(Some(header))
+    }
+
+    /// A whole message from the buffer, if one is there.
+    fn take(&mut self) -> Result<Option<Event>, String> {
+        let Some(header) = self.header()? else {
+            return Ok(None);
+        };
+        let end = HEADER_BYTES + header.body_bytes as usize;
+        if self.buffer.len() < end {
+            return Ok(None);
+        }
+        let body = &self.buffer[HEADER_BYTES..end];
+        let crc = super::message::crc64(body);
+        let event = if crc != header.crc {
+            Event::Skipped {
+                kind: header.kind.clone(),
+                device: header.device.clone(),
+                reason: format!(
+                    "CRC-64 of the {}-byte body is {crc:016x}, the header says {:016x}",
+                    body.len(),
+                    header.crc
+                ),
+            }
+        } else {
+            match decode(&header, body) {
+                Ok(b) => Event::Message(header, b),
+                Err(reason) => Event::Skipped {
+                    kind: header.kind.clone(),
+                    device: header.device.clone(),
+                    reason,
+                },
+            }
+        };
+        self.buffer.drain(..end);
+        Ok(Some(event))
+    }
+
+    /// A second handle on the socket, for sending while another thread reads.
+    pub fn sender(&self) -> Result<Sender, String> {
+        self.stream
+            .try_clone()
+            .map(|stream| Sender { stream })
+            .map_err(|e| format!("socket: {e}"))
+    }
+
+    /// Sends a whole encoded message.
+    pub fn send(&mut self, bytes: &[u8]) -> Result<(), String> {
+        self.stream
+            .write_all(bytes)
+            .and_then(|_| self.stream.flush())
+            .map_err(|e| format!("sending: {e}"))
+    }
+}
+
+/// The sending side of a connection.
+pub struct Sender {
+    stream: TcpStream,
+}
+
+impl Sender {
+    /// Sends a whole encoded message.
+    pub fn send(&mut self, bytes: &[u8]) -> Result<(), String> {
+        self.stream
+            .write_all(bytes)
+            .and_then(|_| self.stream.flush())
+            .map_err(|e| format!("sending: {e}"))
+    }
+}

@@ -1,0 +1,362 @@
+//! Live calibration from an OpenIGTLink stream (PlusServer's): IMAGE messages
+//! from the image device and TRANSFORM messages from the probe's and the
+//! reference's devices, paired at the images' timestamps (see
+//! [`super::igtl_pairing`]); each paired frame is segmented, posed, predicted
+//! and refitted as the file replay does ([`super::live`]). The acquisition ends
+//! on a STRING message from the end device, a silence, an interrupt, or the
+//! server closing the connection. Then the received frames are written as a
+//! PLUS sequence file, the batch pipeline runs on it (so the result is
+//! `probecal run`'s on that file), and the calibration is sent back as a
+//! TRANSFORM message on the same connection.
+//!
+//! Every message is accounted for: used, ignored (another device or type), or
+//! skipped with its reason (bad CRC, a body that contradicts its sizes, an
+//! image that is not 8-bit grey or changes size, a transform that is not a
+//! rotation or runs backwards in time).
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+
+use nalgebra::Matrix4;
+
+use super::igtl_pairing::{Pairing, PendingImage};
+use super::live::{finish, live_offset_s, Arrived, LiveFrame, State};
+use super::sequence_frames::{pattern_geometry, segment_frame};
+use super::tracked::{self, segmentation_inputs, Role, TrackedInputs, TrackedRun};
+use crate::io::igtl::connection::{Connection, Event};
+use crate::io::igtl::message::{self, Body, Header};
+use crate::io::igtl::reader::Reader;
+use crate::io::plus::sequence::Sequence;
+use crate::manifest::tracked::LiveStream;
+
+/// Skip reasons listed one by one (the rest are counted).
+const MAX_LISTED: usize = 50;
+/// Pixels held for the received frames: past it the acquisition ends (a
+/// 820x616 stream holds 4250 frames, 5.5 minutes at 12.8 frames/s).
+pub const MAX_RECEIVED_PIXELS: usize = 1 << 31;
+
+/// Where to connect and what to listen for.
+#[derive(Debug, Clone)]
+pub struct StreamSettings {
+    /// `HOST:PORT` of the OpenIGTLink server.
+    pub address: String,
+    pub stream: LiveStream,
+}
+
+/// Why the acquisition ended.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Ending {
+    /// A STRING message from the end device.
+    EndMessage,
+    Silence,
+    Interrupted,
+    /// The server closed the connection between messages.
+    Closed,
+    /// The server closed the connection inside a message.
+    Cut(String),
+    /// The received frames reached [`MAX_RECEIVED_PIXELS`].
+    FrameLimit,
+}
+
+impl Ending {
+    pub fn describe(&self, stream: &LiveStream) -> String {
+        match self {
+            Ending::EndMessage => format!("a STRING message from `{}`", stream.end_device),
+            Ending::Silence => format!("{} s without a message", stream.silence_s),
+            Ending::Interrupted => "an interrupt (Ctrl-C)".into(),
+            Ending::Closed => "the server closing the connection".into(),
+            Ending::Cut(reason) => format!("a cut stream: {reason}"),
+            Ending::FrameLimit => format!("the received frames reaching {MAX_RECEIVED_PIXELS} pixels"),
+        }
+    }
+
+    fn connected(&self) -> bool {
+        !matches!(self, Ending::Closed | Ending::Cut(_))
+    }
+}
+
+/// What arrived, by fate.
+#[derive(Debug, Clone, Default)]
+pub struct StreamCounts {
+    /// Messages read, by `TYPE device`.
+    pub messages: BTreeMap<String, usize>,
+    /// Messages of other devices or types, by `TYPE device`.
+    pub ignored: BTreeMap<String, usize>,
+    pub skipped: usize,
+    /// The first skips' `TYPE from device: reason`.
+    pub skip_reasons: Vec<String>,
+    pub images_received: usize,
+    /// Images paired with transforms (each is a frame of the received sequence).
+    pub frames: usize,
+    /// Frames some transform could not be given for (kept, status INVALID).
+    pub frames_without_pose: usize,
+    /// STATUS messages' `code name: message` (the first ones).
+    pub statuses: Vec<String>,
+    pub bytes: u64,
+}
+
+impl StreamCounts {
+    fn skip(&mut self, kind: &str, device: &str, reason: &str) {
+        self.skipped += 1;
+        if self.skip_reasons.len() < MAX_LISTED {
+            self.skip_reasons.push(format!("{kind} from `{device}`: {reason}"));
+        }
+    }
+}
+
+/// A session on a stream.
+pub struct StreamRun {
+    pub frames: Vec<LiveFrame>,
+    pub counts: StreamCounts,
+    pub ending: Ending,
+    /// The received frames' rate (their timestamps), frames/s.
+    pub received_rate_hz: f64,
+    pub last_live: Option<crate::estimate::image_to_probe::Fit>,
+    /// The batch pipeline on the received frames.
+    pub final_run: Result<TrackedRun, String>,
+    /// The calibration sent back, or why it was not.
+    pub sent: Result<Matrix4<f64>, String>,
+}
+
+/// The session's live state: the received sequence and the calibration.
+struct Session<'a> {
+    inputs: &'a TrackedInputs,
+    sequence: Option<Sequence>,
+    state: State<'a>,
+    offset_s: f64,
+    pending: Option<Arrived>,
+    frames: Vec<LiveFrame>,
+    start: Instant,
+    received_path: PathBuf,
+    pairing: Pairing,
+    counts: StreamCounts,
+    /// The images' timestamps, s.
+    times: Vec<f64>,
+}
+
+impl Session<'_> {
+    /// Appends a paired image to the sequence and processes it.
+    fn take(
+        &mut self,
+        pixels: &[u8],
+        fields: BTreeMap<String, String>,
+        received: Instant,
+        show: &mut dyn FnMut(&LiveFrame),
+    ) {
+        let Some(sequence) = self.sequence.as_mut() else { return };
+        if sequence.push_frame(fields, pixels).is_err() {
+            return;
+        }
+        let work = Instant::now();
+        let clip = self
+            .inputs
+            .clip_rectangle_px
+            .unwrap_or([0, 0, sequence.width, sequence.height]);
+        let segmentation = segmentation_inputs(self.inputs, clip, None);
+        let geometry = pattern_geometry(&segmentation);
+        let index = sequence.frames.len() - 1;
+        let frame = segment_frame(sequence, index, Role::Calibration, &segmentation, &geometry);
+        let this = Arrived {
+            frame,
+            arrived: received,
+            segmentation_ms: work.elapsed().as_secs_f64() * 1e3,
+        };
+        let ready = if self.offset_s > 0.0 {
+            self.pending.replace(this)
+        } else {
+            Some(this)
+        };
+        if let Some(ready) = ready {
+            let sequence = self.sequence.as_ref().expect("set above");
+            self.frames.push(finish(
+                &mut self.state,
+                sequence,
+                ready,
+                self.offset_s,
+                self.start,
+                show,
+            ));
+        }
+    }
+}
+
+/// Connects, calibrates while frames arrive, then runs the batch calibration on
+/// the received frames (written to `staging/received.igs.mha`) and sends it back.
+/// `stop` set ends the acquisition (an interrupt).
+pub fn run(
+    inputs: &TrackedInputs,
+    min_frames: usize,
+    settings: &StreamSettings,
+    staging: &Path,
+    stop: &AtomicBool,
+    show: &mut dyn FnMut(&LiveFrame),
+) -> Result<StreamRun, String> {
+    let stream = &settings.stream;
+    let offset_s = live_offset_s(inputs).map_err(|e| e.to_string())?;
+    let mut connection = Reader::start(Connection::open(&settings.address, Duration::from_secs(5))?)?;
+    let names = [inputs.probe_transform.clone(), inputs.reference_transform.clone()];
+    let mut session = Session {
+        inputs,
+        sequence: None,
+        state: State::new(inputs),
+        offset_s,
+        pending: None,
+        frames: Vec::new(),
+        start: Instant::now(),
+        received_path: staging.join("received.igs.mha"),
+        pairing: Pairing::new(&names, stream.max_transform_gap_s),
+        counts: StreamCounts::default(),
+        times: Vec::new(),
+    };
+    let mut last_message = Instant::now();
+    let ending = loop {
+        if stop.load(Ordering::Relaxed) {
+            break Ending::Interrupted;
+        }
+        if last_message.elapsed().as_secs_f64() >= stream.silence_s {
+            break Ending::Silence;
+        }
+        let (event, read) = connection.next(Duration::from_millis(50))?;
+        match event {
+            Event::Quiet => continue,
+            Event::Closed => break Ending::Closed,
+            Event::Cut(reason) => break Ending::Cut(reason),
+            Event::Skipped { kind, device, reason } => session.counts.skip(&kind, &device, &reason),
+            Event::Message(header, body) => {
+                if let Some(ending) = session.message(&header, body, read, stream) {
+                    break ending;
+                }
+                session.drain(false, show);
+            }
+        }
+        last_message = Instant::now();
+    };
+    session.drain(true, show);
+    if let (Some(last), Some(sequence)) = (session.pending.take(), session.sequence.as_ref()) {
+        let live = finish(&mut session.state, sequence, last, offset_s, session.start, show);
+        session.frames.push(live);
+    }
+    session.counts.bytes = connection.bytes_received();
+    let final_run = batch(&session, inputs, min_frames);
+    let sent = match (&final_run, ending.connected()) {
+        (Ok(run), true) => send_back(&mut connection, &stream.send_device, run),
+        (Ok(_), false) => Err(format!("not sent: {}", ending.describe(stream))),
+        (Err(_), _) => Err("not sent: no calibration".into()),
+    };
+    Ok(StreamRun {
+        frames: session.frames,
+        counts: session.counts,
+        ending,
+        received_rate_hz: rate(&session.times),
+        last_live: session.state.fit,
+        final_run,
+        sent,
+    })
+}
+
+impl Session<'_> {
+    /// Takes one message; the acquisition's end if it is one.
+    fn message(&mut self, header: &Header, body: Body, read: Instant, stream: &LiveStream) -> Option<Ending> {
+        let key = format!("{} {}", header.kind, header.device);
+        *self.counts.messages.entry(key.clone()).or_default() += 1;
+        match body {
+            Body::Image(image) if header.device == stream.image_device => {
+                self.counts.images_received += 1;
+                if let Err(reason) = accept_image(self, &image) {
+                    self.counts.skip("IMAGE", &header.device, &reason);
+                    return None;
+                }
+                if self.sequence.as_ref().is_some_and(|s| {
+                    (s.frames.len() + self.pairing.waiting() + 1) * s.width * s.height > MAX_RECEIVED_PIXELS
+                }) {
+                    return Some(Ending::FrameLimit);
+                }
+                self.times.push(header.timestamp_s);
+                self.pairing.add_image(PendingImage {
+                    timestamp_s: header.timestamp_s,
+                    pixels: image.pixels,
+                    received: read,
+                });
+            }
+            Body::Transform(m) if self.pairing.wants(&header.device) => {
+                if let Err(refused) = self.pairing.add_transform(&header.device, header.timestamp_s, m) {
+                    self.counts.skip("TRANSFORM", &header.device, &refused.0);
+                }
+            }
+            Body::String(_) if header.device == stream.end_device => return Some(Ending::EndMessage),
+            Body::Status { code, name, message } => {
+                if self.counts.statuses.len() < MAX_LISTED {
+                    self.counts.statuses.push(format!("{code} {name}: {message}"));
+                }
+            }
+            _ => *self.counts.ignored.entry(key).or_default() += 1,
+        }
+        None
+    }
+
+    /// Processes the images whose transforms are known (all, once `ended`).
+    fn drain(&mut self, ended: bool, show: &mut dyn FnMut(&LiveFrame)) {
+        for paired in self.pairing.ready(ended) {
+            self.counts.frames += 1;
+            self.counts.frames_without_pose += usize::from(!paired.missing.is_empty());
+            self.take(&paired.image.pixels, paired.fields, paired.image.received, show);
+        }
+    }
+}
+
+/// Checks an image against the stream's first and starts the sequence with it.
+fn accept_image(session: &mut Session<'_>, image: &message::Image) -> Result<(), String> {
+    if image.scalar_type != 3 || image.components != 1 || image.size[2] != 1 {
+        return Err(format!(
+            "a {}x{}x{} image of scalar type {} with {} component(s): B-scans are 2D 8-bit grey (scalar type 3, 1 component)",
+            image.size[0], image.size[1], image.size[2], image.scalar_type, image.components
+        ));
+    }
+    let (w, h) = (image.size[0], image.size[1]);
+    match &session.sequence {
+        Some(s) if (s.width, s.height) != (w, h) => Err(format!(
+            "a {w}x{h} image in a stream of {}x{} images",
+            s.width, s.height
+        )),
+        Some(_) => Ok(()),
+        None if w == 0 || h == 0 => Err(format!("an empty {w}x{h} image")),
+        None => {
+            session.sequence = Some(Sequence::empty(&session.received_path, w, h));
+            Ok(())
+        }
+    }
+}
+
+/// The received frames written out and calibrated in batch.
+fn batch(session: &Session<'_>, inputs: &TrackedInputs, min_frames: usize) -> Result<TrackedRun, String> {
+    let sequence = session
+        .sequence
+        .as_ref()
+        .ok_or_else(|| "no image was received".to_string())?;
+    std::fs::write(&session.received_path, sequence.to_file_bytes())
+        .map_err(|e| format!("{}: {e}", session.received_path.display()))?;
+    let mut received = inputs.clone();
+    received.calibration_sequence = session.received_path.clone();
+    tracked::run(&received, min_frames).map_err(|e| e.to_string())
+}
+
+/// Sends the calibration as a TRANSFORM message.
+fn send_back(connection: &mut Reader, device: &str, run: &TrackedRun) -> Result<Matrix4<f64>, String> {
+    let m = run.fit.image_to_probe.matrix();
+    let now = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map(|d| d.as_secs_f64())
+        .unwrap_or(0.0);
+    connection.send(&message::encode("TRANSFORM", device, now, &message::transform_body(&m)))?;
+    Ok(m)
+}
+
+/// Frames per second from the images' timestamps.
+fn rate(times: &[f64]) -> f64 {
+    match (times.first(), times.last()) {
+        (Some(a), Some(b)) if b > a && times.len() > 1 => (times.len() - 1) as f64 / (b - a),
+        _ => 0.0,
+    }
+}
