@@ -4,13 +4,15 @@
 # tests check the reports in (pdflatex with the LaTeX report's packages, Chromium),
 # ADMesh, the independent STL reader the printable phantom is checked with, and
 # python3-opencv, OpenCV's own calibration sample the camera calibration is
-# checked against, and pyigtl (PyPI, in a virtual environment), the OpenIGTLink
-# server the live stream is tested with.
+# checked against, and two OpenIGTLink implementations the live stream is tested
+# with: libopenigtlink-dev (the protocol's reference library, Debian) and pyigtl
+# (PyPI, in a virtual environment).
 # Safe to run again.
 set -euo pipefail
 
 packages=(libopencv-dev libopencv-contrib-dev clang libclang-dev fonts-dejavu-core pkg-config admesh
-  texlive-latex-recommended texlive-latex-extra texlive-science lmodern chromium python3-opencv python3-venv)
+  texlive-latex-recommended texlive-latex-extra texlive-science lmodern chromium python3-opencv python3-venv
+  libopenigtlink-dev g++)
 missing=()
 for p in "${packages[@]}"; do
   dpkg -s "$p" >/dev/null 2>&1 || missing+=("$p")

@@ -330,7 +330,12 @@ fn a_cut_or_silent_stream_ends_the_acquisition_and_says_so() {
 #[ignore = "needs ../shared/data (full tier: scripts/test.sh)"]
 fn bad_settings_and_no_server_are_said_before_anything_is_written() {
     let dir = scratch("live_igtl", "settings");
-    let bad = manifest(&dir, "bad", None, "live:\n  silence_s: -1\n  send_device: ImageToProbeWithAVeryLongName\n");
+    let bad = manifest(
+        &dir,
+        "bad",
+        None,
+        "live:\n  silence_s: -1\n  send_device: ImageToProbeWithAVeryLongName\n",
+    );
     let out = probecal()
         .arg("live")
         .arg(&bad)
@@ -341,9 +346,15 @@ fn bad_settings_and_no_server_are_said_before_anything_is_written() {
     assert_eq!(out.status.code(), Some(2));
     let stderr = String::from_utf8_lossy(&out.stderr);
     let lines = std::fs::read_to_string(&bad).unwrap().lines().count();
-    assert!(stderr.contains("live.silence_s") && stderr.contains("at most 3600"), "{stderr}");
+    assert!(
+        stderr.contains("live.silence_s") && stderr.contains("at most 3600"),
+        "{stderr}"
+    );
     assert!(stderr.contains(&format!(":{}", lines - 1)), "names the line: {stderr}");
-    assert!(stderr.contains("live.send_device") && stderr.contains("1 to 20"), "{stderr}");
+    assert!(
+        stderr.contains("live.send_device") && stderr.contains("1 to 20"),
+        "{stderr}"
+    );
     let camera = probecal()
         .arg("live")
         .arg(root().join("experiments/hemisphere_checkerboard.yaml"))
@@ -365,6 +376,101 @@ fn bad_settings_and_no_server_are_said_before_anything_is_written() {
         .unwrap();
     assert_eq!(none.status.code(), Some(1));
     let stderr = String::from_utf8_lossy(&none.stderr);
-    assert!(stderr.contains(&format!("127.0.0.1:{port}: cannot connect")), "{stderr}");
+    assert!(
+        stderr.contains(&format!("127.0.0.1:{port}: cannot connect")),
+        "{stderr}"
+    );
     assert!(!dir.join("live").exists());
+}
+
+/// Builds the server of tests/igtl/reference_server.cxx against Debian's
+/// libopenigtlink-dev (OpenIGTLink's reference implementation).
+fn reference_server(dir: &Path) -> PathBuf {
+    std::fs::create_dir_all(dir).unwrap();
+    let binary = dir.join("reference_server");
+    let built = Command::new("g++")
+        .args(["-O1", "-I/usr/include/openigtlink"])
+        .arg(root().join("tests/igtl/reference_server.cxx"))
+        .args(["-lOpenIGTLink", "-o"])
+        .arg(&binary)
+        .output()
+        .expect("g++ (scripts/setup.sh installs it)");
+    assert!(
+        built.status.success(),
+        "building the reference server (libopenigtlink-dev, scripts/setup.sh): {}",
+        String::from_utf8_lossy(&built.stderr)
+    );
+    binary
+}
+
+#[test]
+#[ignore = "needs ../shared/data and libopenigtlink-dev (full tier: scripts/test.sh)"]
+fn messages_of_the_reference_implementation_are_read_as_it_sent_them() {
+    let dir = scratch("live_igtl", "reference");
+    let port = free_port();
+    let mut server = Command::new(reference_server(&dir))
+        .arg(port.to_string())
+        .stdout(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut line = String::new();
+    BufReader::new(server.stdout.take().unwrap())
+        .read_line(&mut line)
+        .unwrap();
+    assert_eq!(line.trim(), "listening");
+    let path = manifest(&dir, "reference", None, "");
+    let out = probecal()
+        .arg("live")
+        .arg(&path)
+        .args(["--igtl", &format!("127.0.0.1:{port}"), "--out"])
+        .arg(dir.join("live"))
+        .output()
+        .unwrap();
+    assert!(server.wait().unwrap().success());
+    // Five synthetic frames are too few to calibrate: a clear failure, and the
+    // session's files kept beside the output.
+    assert_eq!(out.status.code(), Some(1));
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        stderr.contains("no calibration") && stderr.contains(".live.failed"),
+        "{stderr}"
+    );
+    let kept = dir.join(".live.failed");
+    let s = json(&kept.join("summary.json"));
+    assert_eq!(s["images_received"], 5);
+    assert_eq!(s["frames"], 5);
+    assert_eq!(s["messages"]["skipped"], 0);
+    assert!(s["ended_by"].as_str().unwrap().contains("SequenceEnd"));
+    assert_eq!(s["messages"]["statuses"][0], "1 none: tracking");
+    let received = Sequence::read(&kept.join("received.igs.mha")).unwrap();
+    assert_eq!((received.width, received.height), (64, 48));
+    for f in 0..5 {
+        let expected: Vec<u8> = (0..64 * 48).map(|i| ((i * 7 + f) % 256) as u8).collect();
+        assert_eq!(received.pixels(f), expected.as_slice(), "frame {f}");
+        let t: f64 = received.frame_field(f, "Timestamp").unwrap().parse().unwrap();
+        assert!((t - (1000.0 + 0.125 * f as f64)).abs() < 1e-6, "frame {f}: {t}");
+        for (n, name) in ["ProbeToTracker", "ReferenceToTracker"].iter().enumerate() {
+            let m = received.matrix(f, name).unwrap();
+            let a = 0.1 * f as f64 + n as f64;
+            let expected = nalgebra::Matrix4::new(
+                a.cos(),
+                -a.sin(),
+                0.0,
+                10.0 + f as f64,
+                a.sin(),
+                a.cos(),
+                0.0,
+                20.0 * n as f64,
+                0.0,
+                0.0,
+                1.0,
+                -30.5,
+                0.0,
+                0.0,
+                0.0,
+                1.0,
+            );
+            assert!((m - expected).abs().max() < 1e-6, "frame {f} {name}: {m}");
+        }
+    }
 }
