@@ -61,6 +61,9 @@ pub fn command(manifest: &Path, out: &Path, source: &LiveSource) -> Result<(), F
             )))
         }
     };
+    if let Some(note) = estimated_lag_note(&m.time_offset) {
+        eprintln!("{note}");
+    }
     let replay = Replay { speed };
     let terminal = std::io::stderr().is_terminal();
     let mut show = |f: &crate::pipeline::live::LiveFrame| shown(terminal, &crate::report::live::line(f));
@@ -113,4 +116,11 @@ fn folder_command(manifest: &Manifest, watch: &Watch, out: &Path) -> Result<(), 
         out.display()
     );
     Ok(())
+}
+
+/// What the live lag is while frames arrive, when the manifest estimates it.
+pub(super) fn estimated_lag_note(offset: &crate::manifest::tracked::TimeOffset) -> Option<&'static str> {
+    matches!(offset, crate::manifest::tracked::TimeOffset::Estimate).then_some(
+        "lag: 0 s while frames arrive (time_offset_s: estimate); the final calibration estimates it from all frames",
+    )
 }

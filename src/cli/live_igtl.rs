@@ -50,6 +50,9 @@ fn session(manifest: &TrackedManifest, address: &str, out: &Path) -> Result<(), 
         settings.stream.end_device,
         settings.stream.silence_s
     );
+    if let Some(note) = super::live::estimated_lag_note(&manifest.time_offset) {
+        eprintln!("{note}");
+    }
     let mut show = |f: &crate::pipeline::live::LiveFrame| super::live::shown(terminal, &crate::report::live::line(f));
     let inputs = TrackedInputs::from_manifest(manifest);
     let run = crate::pipeline::live_igtl::run(&inputs, manifest.min_frames, &settings, staged.path(), &stop, &mut show);

@@ -113,6 +113,8 @@ pub struct StreamRun {
     pub ending: Ending,
     /// The received frames' rate (their timestamps), frames/s.
     pub received_rate_hz: f64,
+    /// The tracker lag used while frames arrived, s (0 where it is estimated at the end).
+    pub live_time_offset_s: f64,
     pub last_live: Option<crate::estimate::image_to_probe::Fit>,
     /// The batch pipeline on the received frames.
     pub final_run: Result<TrackedRun, String>,
@@ -250,6 +252,7 @@ pub fn run(
         counts: session.counts,
         ending,
         received_rate_hz: rate(&session.times),
+        live_time_offset_s: offset_s,
         last_live: session.state.fit,
         final_run,
         sent,

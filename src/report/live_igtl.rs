@@ -71,6 +71,10 @@ pub struct IgtlSummary {
     /// `received.igs.mha`), or why there is none.
     pub image_to_probe_matrix: Option<Vec<Vec<f64>>>,
     pub calibration_error: Option<String>,
+    /// The tracker lag used while frames arrived, s (0 where the manifest asks
+    /// for it to be estimated: that is done on all frames at the end).
+    pub live_time_offset_s: f64,
+    /// The batch calibration's lag, s.
     pub time_offset_s: Option<f64>,
     pub final_validation_pre3d_mm: Option<f64>,
     /// The TRANSFORM sent back: its device, and the matrix or why not.
@@ -116,6 +120,7 @@ pub fn summary(run: &StreamRun, settings: &StreamSettings) -> IgtlSummary {
         last_live_matrix: run.last_live.as_ref().map(|f| rows(f.image_to_probe.matrix())),
         image_to_probe_matrix: batch.map(|b| rows(b.fit.image_to_probe.matrix())),
         calibration_error: run.final_run.as_ref().err().cloned(),
+        live_time_offset_s: run.live_time_offset_s,
         time_offset_s: batch.map(|b| b.time_offset_s),
         final_validation_pre3d_mm: batch
             .and_then(|b| crate::core::stats::best_95(&b.pre3d(Role::Validation)))
