@@ -103,11 +103,16 @@ fn charuco_photo_gives_17_markers_and_24_corners() {
         markers.iter().map(|m| m.id).collect::<Vec<_>>(),
         (0..17).collect::<Vec<_>>()
     );
-    let corners = aruco::charuco_corners(&image("choriginal.jpg"), &dictionary, [5, 7], 0.04, 0.02).unwrap();
-    assert_eq!(
-        corners.iter().map(|c| c.0).collect::<Vec<_>>(),
-        (0..24).collect::<Vec<_>>()
-    );
+    let spec = probecal::detect::charuco_calibration::CharucoSpec {
+        squares: [5, 7],
+        square_mm: 40.0,
+        marker_mm: 20.0,
+        dictionary: "DICT_6X6_250".into(),
+    };
+    let (dictionary, board) = spec.board().unwrap();
+    let view =
+        probecal::detect::charuco_calibration::detect_view(&image("choriginal.jpg"), &dictionary, &board).unwrap();
+    assert_eq!(view.corner_ids, (0..24).collect::<Vec<_>>());
 }
 
 #[test]

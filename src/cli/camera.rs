@@ -1,6 +1,6 @@
-//! `probecal calibrate-camera`: intrinsics from board views, printed and written
-//! as OpenCV FileStorage YAML with every image's fate; 0 written, 2 bad
-//! options, 1 when no calibration could be solved or written.
+//! `probecal calibrate-camera`: intrinsics from chessboard or ChArUco views,
+//! printed and written as OpenCV FileStorage YAML with every image's fate; 0
+//! written, 2 bad options, 1 when no calibration could be solved or written.
 
 use std::path::{Path, PathBuf};
 
@@ -41,6 +41,36 @@ pub fn command(images: &[PathBuf], board: [u32; 2], square_mm: f64, out: &Path) 
         .collect();
     cal.intrinsics
         .save_with_views(out, Some((board, square_mm)), &views)
+        .map_err(Failure::failed)?;
+    println!("written to {}", out.display());
+    Ok(())
+}
+
+/// `calibrate-camera --charuco XxY --square-mm S --marker-mm M --dictionary D`.
+pub fn charuco_command(
+    images: &[PathBuf],
+    spec: &crate::detect::charuco_calibration::CharucoSpec,
+    out: &Path,
+) -> Result<(), Failure> {
+    spec.board().map_err(Failure::bad_input)?;
+    if let Some(parent) = out.parent().filter(|p| !p.as_os_str().is_empty()) {
+        std::fs::create_dir_all(parent)
+            .map_err(|e| Failure::failed(format!("{}: cannot create the output's folder: {e}", parent.display())))?;
+    }
+    let images = crate::detect::camera_calibration::collect_images(images).map_err(Failure::failed)?;
+    let cal = crate::detect::charuco_calibration::calibrate(&images, spec).map_err(Failure::failed)?;
+    crate::report::console::camera_calibration(&cal);
+    let views: Vec<ViewFate> = cal
+        .views
+        .iter()
+        .map(|v| ViewFate {
+            image: v.image.display().to_string(),
+            used: v.used,
+            how: v.reason.clone().unwrap_or_else(|| "ChArUco corners found".into()),
+        })
+        .collect();
+    cal.intrinsics
+        .save_with_views(out, None, &views)
         .map_err(Failure::failed)?;
     println!("written to {}", out.display());
     Ok(())

@@ -186,17 +186,27 @@ enum Command {
     /// VolumeReconstructor does (the device set's <VolumeReconstruction>):
     /// volume.mha, summary.json, report.html with slices in --out.
     Reconstruct(reconstruct::ReconstructArgs),
-    /// Calibrate a camera from chessboard images; writes OpenCV FileStorage YAML.
+    /// Calibrate a camera from chessboard or ChArUco images; writes OpenCV FileStorage YAML.
+    #[command(group = clap::ArgGroup::new("pattern").required(true).args(["board", "charuco"]))]
     CalibrateCamera {
         /// Image files and/or folders of images.
         #[arg(required = true)]
         images: Vec<PathBuf>,
-        /// Inner corners, COLSxROWS (e.g. 9x6).
+        /// A chessboard's inner corners, COLSxROWS (e.g. 9x6).
         #[arg(long, value_parser = crate::detect::camera_calibration::parse_board)]
-        board: [u32; 2],
+        board: Option<[u32; 2]>,
+        /// A ChArUco board's squares, XxY (e.g. 5x7); with --marker-mm and --dictionary.
+        #[arg(long, value_parser = crate::detect::camera_calibration::parse_board, requires_all = ["marker_mm", "dictionary"])]
+        charuco: Option<[u32; 2]>,
         /// Square size in millimetres (or any unit: the translations come out in it).
         #[arg(long)]
         square_mm: f64,
+        /// A ChArUco board's marker size, in the unit of --square-mm.
+        #[arg(long, requires = "charuco")]
+        marker_mm: Option<f64>,
+        /// A ChArUco board's dictionary: an OpenCV name (DICT_6X6_250) or a dictionary file.
+        #[arg(long, requires = "charuco")]
+        dictionary: Option<String>,
         /// Output file.
         #[arg(long)]
         out: PathBuf,
@@ -286,8 +296,25 @@ pub fn main() -> ExitCode {
         Command::CalibrateCamera {
             images,
             board,
+            charuco,
             square_mm,
+            marker_mm,
+            dictionary,
             out,
-        } => failure::exit_code(camera::command(&images, board, square_mm, &out)),
+        } => failure::exit_code(match (board, charuco, marker_mm, dictionary) {
+            (_, Some(squares), Some(marker_mm), Some(dictionary)) => {
+                let spec = crate::detect::charuco_calibration::CharucoSpec {
+                    squares,
+                    square_mm,
+                    marker_mm,
+                    dictionary,
+                };
+                camera::charuco_command(&images, &spec, &out)
+            }
+            (Some(board), ..) => camera::command(&images, board, square_mm, &out),
+            _ => Err(failure::Failure::bad_input(
+                "--board COLSxROWS, or --charuco XxY with --marker-mm and --dictionary".to_string(),
+            )),
+        }),
     })
 }

@@ -1,6 +1,7 @@
 //! ArUco markers through OpenCV's contrib `aruco` module (OpenCV 4.6): predefined
 //! and custom dictionaries, marker detection with optional sub-pixel corner
-//! refinement, marker cell patterns (for rendering) and ChArUco corners.
+//! refinement and marker cell patterns (for rendering); ChArUco boards are in
+//! `charuco_calibration`.
 
 use std::path::Path;
 
@@ -133,43 +134,4 @@ pub fn detect(
         .collect();
     markers.sort_by_key(|m| m.id);
     Ok(markers)
-}
-
-/// ChArUco chessboard corners (id, pixel) of a `squares_x x squares_y` board.
-pub fn charuco_corners(
-    image: &Mat,
-    dictionary: &Ptr<Dictionary>,
-    squares: [i32; 2],
-    square_length: f32,
-    marker_length: f32,
-) -> Result<Vec<(i32, [f64; 2])>, ArucoError> {
-    let board = aruco::CharucoBoard::create(squares[0], squares[1], square_length, marker_length, dictionary)?;
-    let parameters = DetectorParameters::create()?;
-    let mut corners = Vector::<Vector<Point2f>>::new();
-    let mut ids = Vector::<i32>::new();
-    let mut rejected = Vector::<Vector<Point2f>>::new();
-    aruco::detect_markers(image, dictionary, &mut corners, &mut ids, &parameters, &mut rejected)?;
-    if ids.is_empty() {
-        return Ok(Vec::new());
-    }
-    let mut charuco = Vector::<Point2f>::new();
-    let mut charuco_ids = Vector::<i32>::new();
-    aruco::interpolate_corners_charuco(
-        &corners,
-        &ids,
-        image,
-        &board,
-        &mut charuco,
-        &mut charuco_ids,
-        &Mat::default(),
-        &Mat::default(),
-        2,
-    )?;
-    let mut out: Vec<(i32, [f64; 2])> = charuco_ids
-        .iter()
-        .zip(charuco.iter())
-        .map(|(id, p)| (id, [p.x as f64, p.y as f64]))
-        .collect();
-    out.sort_by_key(|c| c.0);
-    Ok(out)
 }

@@ -83,6 +83,8 @@ pub enum CalibrationError {
     },
     #[error("the camera's solve with the frames' boards diverged (a board behind the camera or a singular system)")]
     Diverged,
+    #[error("{0}")]
+    Board(String),
     #[error("opencv: {0}")]
     OpenCv(#[from] opencv::Error),
 }
@@ -212,7 +214,7 @@ impl UsedViews {
 
 impl CalibrationView {
     /// A view not used, and why.
-    fn unused(path: &Path, reason: String, found_by: Option<Found>) -> CalibrationView {
+    pub(crate) fn unused(path: &Path, reason: String, found_by: Option<Found>) -> CalibrationView {
         CalibrationView {
             image: path.to_path_buf(),
             used: false,
@@ -224,7 +226,7 @@ impl CalibrationView {
 }
 
 /// Too few views with a board: each image's fate listed.
-fn too_few_views(views: &[CalibrationView], inner_corners: [u32; 2], found: usize) -> CalibrationError {
+pub(super) fn too_few_views(views: &[CalibrationView], inner_corners: [u32; 2], found: usize) -> CalibrationError {
     let details = views
         .iter()
         .filter_map(|v| v.reason.as_ref().map(|r| format!("  {}: {r}", v.image.display())))
