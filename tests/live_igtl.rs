@@ -173,14 +173,27 @@ fn stream(n: usize, hostile: &[Vec<u8>]) -> Vec<Vec<u8>> {
 }
 
 /// Serves `messages` (then `tail` bytes and a close, or, with `wait_reply`,
-/// reads the client's reply) to one client; probecal's output and the reply.
+/// reads the client's messages up to its `ImageToProbe`) to one client;
+/// probecal's output and those messages.
 fn serve(
     dir: &Path,
     manifest_path: &Path,
     messages: Vec<Vec<u8>>,
     tail: Vec<u8>,
     wait_reply: bool,
-) -> (Output, Option<(Header, Body)>) {
+) -> (Output, Vec<(Header, Body)>) {
+    serve_with(dir, manifest_path, messages, tail, wait_reply, &[])
+}
+
+/// [`serve`] with more options for `probecal live`.
+fn serve_with(
+    dir: &Path,
+    manifest_path: &Path,
+    messages: Vec<Vec<u8>>,
+    tail: Vec<u8>,
+    wait_reply: bool,
+    options: &[&str],
+) -> (Output, Vec<(Header, Body)>) {
     let listener = TcpListener::bind("127.0.0.1:0").unwrap();
     let port = listener.local_addr().unwrap().port();
     let server = std::thread::spawn(move || {
@@ -190,32 +203,43 @@ fn serve(
         }
         socket.write_all(&tail).unwrap();
         if !wait_reply {
-            return None;
+            return Vec::new();
         }
-        reply(&mut socket)
+        replies(&mut socket)
     });
     let out = probecal()
         .arg("live")
         .arg(manifest_path)
         .args(["--igtl", &format!("127.0.0.1:{port}"), "--out"])
         .arg(dir.join("live"))
+        .args(options)
         .output()
         .unwrap();
     (out, server.join().unwrap())
 }
 
-fn reply(socket: &mut TcpStream) -> Option<(Header, Body)> {
+/// The client's messages, up to its `ImageToProbe` (or the connection's end).
+fn replies(socket: &mut TcpStream) -> Vec<(Header, Body)> {
     socket
         .set_read_timeout(Some(std::time::Duration::from_secs(120)))
         .unwrap();
-    let mut header = [0u8; HEADER_BYTES];
-    socket.read_exact(&mut header).ok()?;
-    let header = Header::parse(&header).unwrap();
-    let mut body = vec![0u8; header.body_bytes as usize];
-    socket.read_exact(&mut body).ok()?;
-    assert_eq!(message::crc64(&body), header.crc);
-    let decoded = message::decode(&header, &body).unwrap();
-    Some((header, decoded))
+    let mut out = Vec::new();
+    loop {
+        let mut header = [0u8; HEADER_BYTES];
+        if socket.read_exact(&mut header).is_err() {
+            return out;
+        }
+        let header = Header::parse(&header).unwrap();
+        let mut body = vec![0u8; header.body_bytes as usize];
+        socket.read_exact(&mut body).unwrap();
+        assert_eq!(message::crc64(&body), header.crc);
+        let decoded = message::decode(&header, &body).unwrap();
+        let last = header.device == "ImageToProbe";
+        out.push((header, decoded));
+        if last {
+            return out;
+        }
+    }
 }
 
 #[test]
@@ -240,7 +264,7 @@ fn malformed_messages_are_skipped_with_their_reasons_and_counted() {
     let end = message::encode("STRING", "SequenceEnd", 0.0, &message::string_body("end"));
     let hostile = vec![bad_crc, short, small, unknown, status];
     let path = manifest(&dir, "hostile", None, "");
-    let (out, reply) = serve(
+    let (out, replies) = serve(
         &dir,
         &path,
         [stream(40, &hostile), vec![end]].concat(),
@@ -266,7 +290,8 @@ fn malformed_messages_are_skipped_with_their_reasons_and_counted() {
     assert_eq!(s["messages"]["ignored"]["FOO Image"], 1);
     assert_eq!(s["messages"]["statuses"].as_array().unwrap().len(), 1);
     // The calibration came back as a TRANSFORM `ImageToProbe`.
-    let (header, body) = reply.expect("a reply");
+    assert_eq!(replies.len(), 1);
+    let (header, body) = replies.into_iter().next().unwrap();
     assert_eq!(
         (header.kind.as_str(), header.device.as_str()),
         ("TRANSFORM", "ImageToProbe")
@@ -319,11 +344,11 @@ fn a_cut_or_silent_stream_ends_the_acquisition_and_says_so() {
     // A server that goes quiet: the manifest's silence ends it, and the
     // calibration is still sent back on the open connection.
     let quiet = manifest(&dir, "quiet", None, "live:\n  silence_s: 1.5\n");
-    let (out, reply) = serve(&dir, &quiet, stream(30, &[]), Vec::new(), true);
+    let (out, replies) = serve(&dir, &quiet, stream(30, &[]), Vec::new(), true);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let s = json(&dir.join("live/summary.json"));
     assert!(s["ended_by"].as_str().unwrap().contains("1.5 s without a message"));
-    assert!(reply.is_some());
+    assert_eq!(replies.len(), 1);
 }
 
 #[test]
@@ -473,4 +498,85 @@ fn messages_of_the_reference_implementation_are_read_as_it_sent_them() {
             assert!((m - expected).abs().max() < 1e-6, "frame {f} {name}: {m}");
         }
     }
+}
+
+#[test]
+#[ignore = "needs ../shared/data (full tier: scripts/test.sh)"]
+fn a_live_volume_is_sent_every_n_frames_on_the_device_sets_grid() {
+    let dir = scratch("live_igtl", "volume");
+    std::fs::create_dir_all(&dir).unwrap();
+    // 1 mm voxels over the fCal phantom's region in the Reference frame.
+    let config = dir.join("volume.xml");
+    std::fs::write(
+        &config,
+        r#"<PlusConfiguration version="2.1">
+  <VolumeReconstruction OutputSpacing="1 1 1" OutputOrigin="-60 -140 -70"
+    OutputExtent="0 119 0 139 0 89" ClipRectangleOrigin="0 0" ClipRectangleSize="820 616"
+    Interpolation="NEAREST_NEIGHBOR" Optimization="FULL" CompoundingMode="MEAN" FillHoles="OFF" />
+</PlusConfiguration>
+"#,
+    )
+    .unwrap();
+    let path = manifest(&dir, "volume", None, "");
+    let end = message::encode("STRING", "SequenceEnd", 0.0, &message::string_body("end"));
+    let config_arg = config.display().to_string();
+    let options = ["--reconstruct", config_arg.as_str(), "--volume-every", "10"];
+    let (out, replies) = serve_with(
+        &dir,
+        &path,
+        [stream(40, &[]), vec![end]].concat(),
+        Vec::new(),
+        true,
+        &options,
+    );
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let s = json(&dir.join("live/summary.json"));
+    let v = &s["live_volume"];
+    assert_eq!(v["dims"], serde_json::json!([120, 140, 90]));
+    let (inserted, waiting) = (
+        v["frames_inserted"].as_u64().unwrap(),
+        v["frames_not_inserted"].as_u64().unwrap(),
+    );
+    assert_eq!(inserted + waiting, 40);
+    // Frames before the first calibration (10 frames) wait outside.
+    assert_eq!((inserted, waiting), (31, 9), "{v}");
+    let volumes: Vec<&message::Image> = replies
+        .iter()
+        .filter_map(|(h, b)| match b {
+            Body::Image(i) if h.device == "Volume" => Some(i),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(volumes.len() as u64, v["volumes_sent"].as_u64().unwrap());
+    assert_eq!(volumes.len() as u64, inserted.div_ceil(10));
+    let filled: Vec<usize> = volumes
+        .iter()
+        .map(|i| i.pixels.iter().filter(|&&p| p > 0).count())
+        .collect();
+    assert!(volumes
+        .iter()
+        .all(|i| i.size == [120, 140, 90] && (i.spacing_mm[0] - 1.0).abs() < 1e-6));
+    // Each 820x616 frame (about 65x50 mm) reaches a few thousand 1 mm voxels;
+    // the wires' dots are the bright ones.
+    let reached = v["voxels_reached"].as_u64().unwrap();
+    assert!(reached > 20_000 && reached < 120 * 140 * 90 / 2, "{v}");
+    assert!(filled.iter().all(|&n| n > 0), "{filled:?}");
+    assert_eq!(replies.last().unwrap().0.device, "ImageToProbe");
+    // A device set without a grid is refused before connecting.
+    let plain = root().join("experiments/plus/fcal2_volume.xml");
+    let out = probecal()
+        .arg("live")
+        .arg(&path)
+        .args([
+            "--igtl",
+            "127.0.0.1:1",
+            "--reconstruct",
+            plain.to_str().unwrap(),
+            "--out",
+        ])
+        .arg(dir.join("refused"))
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("needs OutputOrigin and OutputExtent"));
 }

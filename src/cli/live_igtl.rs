@@ -15,12 +15,16 @@ use crate::io::fs::Staged;
 use crate::manifest::tracked::TrackedManifest;
 use crate::manifest::Experiment;
 use crate::pipeline::live_igtl::StreamSettings;
+use crate::pipeline::live_volume::VolumeRequest;
 use crate::pipeline::tracked::TrackedInputs;
 
-pub fn command(manifest: &Path, address: &str, out: &Path) -> Result<(), Failure> {
+pub fn command(manifest: &Path, address: &str, volume: Option<VolumeRequest>, out: &Path) -> Result<(), Failure> {
     let mut all = crate::pipeline::experiment::load_all(&[manifest.to_path_buf()]).map_err(Failure::bad_input)?;
+    if let Some(request) = &volume {
+        crate::pipeline::live_volume::LiveVolume::open(request).map_err(Failure::bad_input)?;
+    }
     match all.pop() {
-        Some(Experiment::Tracked(m)) => session(&m, address, out),
+        Some(Experiment::Tracked(m)) => session(&m, address, volume, out),
         _ => Err(Failure::bad_input(format!(
             "{}: --igtl takes a tracked manifest (tracking: plus_sequence): its phantom, transforms' names and `live:` settings",
             manifest.display()
@@ -28,10 +32,16 @@ pub fn command(manifest: &Path, address: &str, out: &Path) -> Result<(), Failure
     }
 }
 
-fn session(manifest: &TrackedManifest, address: &str, out: &Path) -> Result<(), Failure> {
+fn session(
+    manifest: &TrackedManifest,
+    address: &str,
+    volume: Option<VolumeRequest>,
+    out: &Path,
+) -> Result<(), Failure> {
     let settings = StreamSettings {
         address: address.to_string(),
         stream: manifest.live.clone(),
+        volume,
     };
     let stop = Arc::new(AtomicBool::new(false));
     for signal in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
@@ -50,6 +60,9 @@ fn session(manifest: &TrackedManifest, address: &str, out: &Path) -> Result<(), 
         settings.stream.end_device,
         settings.stream.silence_s
     );
+    if let Some(v) = &settings.volume {
+        eprintln!("reconstructing live: {}", crate::pipeline::live_volume::describe(v));
+    }
     if let Some(note) = super::live::estimated_lag_note(&manifest.time_offset) {
         eprintln!("{note}");
     }

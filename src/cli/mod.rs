@@ -137,6 +137,14 @@ enum Command {
         /// manifest's `live:`).
         #[arg(long, value_name = "HOST:PORT", conflicts_with_all = ["watch", "speed"])]
         igtl: Option<String>,
+        /// With --igtl: reconstruct a volume while the frames arrive, with this
+        /// PLUS device set's <VolumeReconstruction> (OutputOrigin and
+        /// OutputExtent given), and send it as an IMAGE message `Volume`.
+        #[arg(long, value_name = "DEVICE_SET", requires = "igtl")]
+        reconstruct: Option<PathBuf>,
+        /// With --reconstruct: send the volume every this many inserted frames.
+        #[arg(long, default_value_t = 10, requires = "reconstruct")]
+        volume_every: usize,
     },
     /// Solve a run again from its own folder (the frames' poses and feature pixels
     /// in `solve_inputs.yaml`, the manifest it ran with) and compare with its summary.
@@ -282,8 +290,17 @@ pub fn main() -> ExitCode {
             watch,
             idle_s,
             igtl,
+            reconstruct,
+            volume_every,
         } => match igtl {
-            Some(address) => failure::exit_code(live_igtl::command(&manifest, &address, &out)),
+            Some(address) => {
+                let volume = reconstruct.map(|config| crate::pipeline::live_volume::VolumeRequest {
+                    config,
+                    every: volume_every,
+                    device: "Volume".into(),
+                });
+                failure::exit_code(live_igtl::command(&manifest, &address, volume, &out))
+            }
             None => failure::exit_code(live::command(&manifest, &out, &LiveSource { speed, watch, idle_s })),
         },
         Command::Study(args) => failure::exit_code(study::dispatch(args)),

@@ -23,6 +23,7 @@ use nalgebra::Matrix4;
 
 use super::igtl_pairing::{Pairing, PendingImage};
 use super::live::{finish, live_offset_s, Arrived, LiveFrame, State};
+use super::live_volume::{volume_message, LiveVolume, VolumeRequest};
 use super::sequence_frames::{pattern_geometry, segment_frame};
 use super::tracked::{self, segmentation_inputs, Role, TrackedInputs, TrackedRun};
 use crate::io::igtl::connection::{Connection, Event};
@@ -43,6 +44,8 @@ pub struct StreamSettings {
     /// `HOST:PORT` of the OpenIGTLink server.
     pub address: String,
     pub stream: LiveStream,
+    /// A volume reconstructed while the frames arrive, sent back every N frames.
+    pub volume: Option<VolumeRequest>,
 }
 
 /// Why the acquisition ended.
@@ -120,6 +123,23 @@ pub struct StreamRun {
     pub final_run: Result<TrackedRun, String>,
     /// The calibration sent back, or why it was not.
     pub sent: Result<Matrix4<f64>, String>,
+    pub volume: Option<VolumeOutcome>,
+}
+
+/// What the live reconstruction did.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct VolumeOutcome {
+    pub dims: [usize; 3],
+    pub spacing_mm: [f64; 3],
+    pub origin_mm: [f64; 3],
+    pub frames_inserted: usize,
+    pub frames_not_inserted: usize,
+    pub not_inserted_reasons: Vec<String>,
+    pub volumes_sent: usize,
+    /// Voxels some pixel reached in the last volume sent.
+    pub voxels_reached: usize,
+    /// Why sending stopped, if it did.
+    pub send_error: Option<String>,
 }
 
 /// The session's live state: the received sequence and the calibration.
@@ -136,6 +156,12 @@ struct Session<'a> {
     counts: StreamCounts,
     /// The images' timestamps, s.
     times: Vec<f64>,
+    volume: Option<LiveVolume>,
+    /// Frames of `frames` already offered to the volume.
+    volume_cursor: usize,
+    volumes_sent: usize,
+    volume_device: String,
+    volume_error: Option<String>,
 }
 
 impl Session<'_> {
@@ -211,6 +237,11 @@ pub fn run(
         pairing: Pairing::new(&names, stream.max_transform_gap_s),
         counts: StreamCounts::default(),
         times: Vec::new(),
+        volume: settings.volume.as_ref().map(LiveVolume::open).transpose()?,
+        volume_cursor: 0,
+        volumes_sent: 0,
+        volume_device: settings.volume.as_ref().map(|v| v.device.clone()).unwrap_or_default(),
+        volume_error: None,
     };
     let mut last_message = Instant::now();
     let ending = loop {
@@ -231,6 +262,7 @@ pub fn run(
                     break ending;
                 }
                 session.drain(false, show);
+                session.volume_step(&mut connection, false);
             }
         }
         last_message = Instant::now();
@@ -239,6 +271,9 @@ pub fn run(
     if let (Some(last), Some(sequence)) = (session.pending.take(), session.sequence.as_ref()) {
         let live = finish(&mut session.state, sequence, last, offset_s, session.start, show);
         session.frames.push(live);
+    }
+    if ending.connected() {
+        session.volume_step(&mut connection, true);
     }
     session.counts.bytes = connection.bytes_received();
     let final_run = batch(&session, inputs, min_frames);
@@ -256,6 +291,17 @@ pub fn run(
         last_live: session.state.fit,
         final_run,
         sent,
+        volume: session.volume.as_ref().map(|v| VolumeOutcome {
+            dims: v.grid.dims,
+            spacing_mm: v.grid.spacing_mm,
+            origin_mm: v.grid.origin_mm,
+            frames_inserted: v.inserted,
+            frames_not_inserted: v.not_inserted,
+            not_inserted_reasons: v.not_inserted_reasons.clone(),
+            volumes_sent: session.volumes_sent,
+            voxels_reached: v.voxels_reached,
+            send_error: session.volume_error.clone(),
+        }),
     })
 }
 
@@ -297,6 +343,39 @@ impl Session<'_> {
             _ => *self.counts.ignored.entry(key).or_default() += 1,
         }
         None
+    }
+
+    /// Offers the frames finished since the last call to the live volume, and
+    /// sends it when it is due (or, at the `end`, when frames came in since).
+    fn volume_step(&mut self, connection: &mut Reader, end: bool) {
+        let (Some(volume), Some(sequence)) = (self.volume.as_mut(), self.sequence.as_ref()) else {
+            return;
+        };
+        if self.volume_error.is_some() {
+            return;
+        }
+        let names = [
+            self.inputs.probe_transform.as_str(),
+            self.inputs.reference_transform.as_str(),
+        ];
+        let calibration = self.state.fit.as_ref().map(|f| f.image_to_probe.matrix());
+        let mut due = false;
+        for frame in &self.frames[self.volume_cursor..] {
+            due |= volume.insert(sequence, frame.index, names, calibration.as_ref());
+        }
+        self.volume_cursor = self.frames.len();
+        if !(due || (end && volume.unsent() > 0)) {
+            return;
+        }
+        let Some(snapshot) = volume.snapshot() else { return };
+        let now = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map(|d| d.as_secs_f64())
+            .unwrap_or(0.0);
+        match connection.send(&volume_message(&self.volume_device, now, &snapshot)) {
+            Ok(()) => self.volumes_sent += 1,
+            Err(e) => self.volume_error = Some(e),
+        }
     }
 
     /// Processes the images whose transforms are known (all, once `ended`).

@@ -10,6 +10,7 @@ pub mod igtl_pairing;
 pub mod live;
 pub mod live_folder;
 pub mod live_igtl;
+pub mod live_volume;
 pub mod methods;
 pub mod reconstruct;
 pub mod record;

@@ -180,7 +180,17 @@ fn grid_and_paste(
             Grid::fit(&matrices, [clip_px[0], clip_px[1]], far_px, settings.spacing_mm)?
         }
     };
-    let paste_settings = PasteSettings {
+    Ok((grid, paste_settings(settings, width, height)?))
+}
+
+/// How the pixels of `width` x `height` frames are pasted under `settings`.
+pub fn paste_settings(
+    settings: &VolumeSettings,
+    width: usize,
+    height: usize,
+) -> Result<PasteSettings, ReconstructError> {
+    let (clip_px, _) = clip(settings, width, height)?;
+    Ok(PasteSettings {
         width,
         height,
         clip_px,
@@ -190,8 +200,7 @@ fn grid_and_paste(
         compounding: settings.compounding,
         optimization: settings.optimization,
         importance_mask: importance_mask(settings, width, height)?,
-    };
-    Ok((grid, paste_settings))
+    })
 }
 
 /// Reads the inputs and reconstructs; nothing is written here.

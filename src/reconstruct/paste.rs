@@ -344,9 +344,33 @@ impl<T: Sample> Slab<'_, T> {
 /// Inserts the slices in order into a zeroed volume, split over `threads` slabs of
 /// z planes (the result does not depend on `threads`).
 pub fn paste<T: Sample>(grid: &Grid, slices: &[Slice<T>], settings: &PasteSettings, threads: usize) -> Pasted<T> {
+    let mut pasted = Pasted::zeroed(grid);
+    paste_into(grid, &mut pasted, slices, settings, threads);
+    pasted
+}
+
+impl<T: Sample> Pasted<T> {
+    /// An empty volume of `grid`: no voxel reached.
+    pub fn zeroed(grid: &Grid) -> Pasted<T> {
+        Pasted {
+            voxels: vec![T::default(); grid.voxels()],
+            weights: vec![0u16; grid.voxels()],
+            pixels_inserted: 0,
+            saturated: 0,
+        }
+    }
+}
+
+/// Inserts the slices in order into `pasted` (a volume of `grid`): frames
+/// inserted one call at a time give the volume one call with all of them gives.
+pub fn paste_into<T: Sample>(
+    grid: &Grid,
+    pasted: &mut Pasted<T>,
+    slices: &[Slice<T>],
+    settings: &PasteSettings,
+    threads: usize,
+) {
     let plane = grid.dims[0] * grid.dims[1];
-    let mut voxels = vec![T::default(); grid.voxels()];
-    let mut weights = vec![0u16; grid.voxels()];
     let region = region(settings);
     let mappers: Vec<Mapper> = slices
         .iter()
@@ -355,6 +379,7 @@ pub fn paste<T: Sample>(grid: &Grid, slices: &[Slice<T>], settings: &PasteSettin
     // One slab per worker: a frame's row crosses many planes, so smaller slabs
     // would map the same pixels again for each.
     let planes_per_slab = grid.dims[2].div_ceil(threads.max(1)).max(1);
+    let (voxels, weights) = (&mut pasted.voxels, &mut pasted.weights);
     let (saturated, pixels_inserted): (u64, u64) = super::in_pool(threads, || {
         use rayon::prelude::*;
         voxels
@@ -374,10 +399,60 @@ pub fn paste<T: Sample>(grid: &Grid, slices: &[Slice<T>], settings: &PasteSettin
             })
             .reduce(|| (0, 0), |a, b| (a.0 + b.0, a.1 + b.1))
     });
-    Pasted {
-        voxels,
-        weights,
-        pixels_inserted,
-        saturated,
+    pasted.pixels_inserted += pixels_inserted;
+    pasted.saturated += saturated;
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn frames_pasted_one_at_a_time_give_the_volume_of_all_at_once() {
+        let grid = Grid::from_extent([0.0; 3], [1.0; 3], [0, 23, 0, 19, 0, 9]).unwrap();
+        let (width, height) = (16, 12);
+        let pixels: Vec<Vec<u8>> = (0..4u32)
+            .map(|f| {
+                (0..width * height)
+                    .map(|i| ((i as u32 * 13 + f * 31) % 251) as u8)
+                    .collect()
+            })
+            .collect();
+        let slices: Vec<Slice<u8>> = pixels
+            .iter()
+            .enumerate()
+            .map(|(f, p)| {
+                let mut m = nalgebra::Matrix4::identity();
+                m[(0, 0)] = 1.3;
+                m[(1, 1)] = 1.1;
+                m[(2, 1)] = 0.2;
+                m[(0, 3)] = 1.5 + 0.3 * f as f64;
+                m[(2, 3)] = 2.0 + 1.7 * f as f64;
+                Slice {
+                    pixels: p,
+                    reference_T_pixel: m,
+                }
+            })
+            .collect();
+        for interpolation in [Interpolation::NearestNeighbor, Interpolation::Linear] {
+            let settings = PasteSettings {
+                width,
+                height,
+                clip_px: [0, 0, width - 1, height - 1],
+                fan: None,
+                pixel_rejection_threshold: None,
+                interpolation,
+                compounding: Compounding::Mean,
+                optimization: Optimization::Full,
+                importance_mask: None,
+            };
+            let all = paste(&grid, &slices, &settings, 2);
+            let mut one_by_one = Pasted::zeroed(&grid);
+            for s in slices.chunks(1) {
+                paste_into(&grid, &mut one_by_one, s, &settings, 3);
+            }
+            assert!(all.pixels_inserted > 0);
+            assert_eq!(all, one_by_one, "{interpolation:?}");
+        }
     }
 }

@@ -81,6 +81,8 @@ pub struct IgtlSummary {
     pub sent_device: String,
     pub sent_matrix: Option<Vec<Vec<f64>>>,
     pub sent_error: Option<String>,
+    /// The live reconstruction, when asked for.
+    pub live_volume: Option<crate::pipeline::live_igtl::VolumeOutcome>,
 }
 
 pub fn summary(run: &StreamRun, settings: &StreamSettings) -> IgtlSummary {
@@ -128,6 +130,7 @@ pub fn summary(run: &StreamRun, settings: &StreamSettings) -> IgtlSummary {
         sent_device: settings.stream.send_device.clone(),
         sent_matrix: run.sent.as_ref().ok().map(|m| rows(*m)),
         sent_error: run.sent.as_ref().err().cloned(),
+        live_volume: run.volume.clone(),
     }
 }
 
