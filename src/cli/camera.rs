@@ -13,11 +13,7 @@ pub fn command(images: &[PathBuf], board: [u32; 2], square_mm: f64, out: &Path) 
             "--square-mm must be a positive number, got {square_mm}"
         )));
     }
-    // The folder is made before the work, so a finished calibration has somewhere to go.
-    if let Some(parent) = out.parent().filter(|p| !p.as_os_str().is_empty()) {
-        std::fs::create_dir_all(parent)
-            .map_err(|e| Failure::failed(format!("{}: cannot create the output's folder: {e}", parent.display())))?;
-    }
+    output_folder(out)?;
     let cal = crate::detect::camera_calibration::calibrate_from(
         images,
         board,
@@ -53,10 +49,7 @@ pub fn charuco_command(
     out: &Path,
 ) -> Result<(), Failure> {
     spec.board().map_err(Failure::bad_input)?;
-    if let Some(parent) = out.parent().filter(|p| !p.as_os_str().is_empty()) {
-        std::fs::create_dir_all(parent)
-            .map_err(|e| Failure::failed(format!("{}: cannot create the output's folder: {e}", parent.display())))?;
-    }
+    output_folder(out)?;
     let images = crate::detect::camera_calibration::collect_images(images).map_err(Failure::failed)?;
     let cal = crate::detect::charuco_calibration::calibrate(&images, spec).map_err(Failure::failed)?;
     crate::report::console::camera_calibration(&cal);
@@ -73,5 +66,14 @@ pub fn charuco_command(
         .save_with_views(out, None, &views)
         .map_err(Failure::failed)?;
     println!("written to {}", out.display());
+    Ok(())
+}
+
+/// Makes `out`'s folder before the work, so a finished calibration has somewhere to go.
+fn output_folder(out: &Path) -> Result<(), Failure> {
+    if let Some(parent) = out.parent().filter(|p| !p.as_os_str().is_empty()) {
+        std::fs::create_dir_all(parent)
+            .map_err(|e| Failure::failed(format!("{}: cannot create the output's folder: {e}", parent.display())))?;
+    }
     Ok(())
 }

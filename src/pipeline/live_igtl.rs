@@ -174,9 +174,11 @@ impl Session<'_> {
         show: &mut dyn FnMut(&LiveFrame),
     ) {
         let Some(sequence) = self.sequence.as_mut() else { return };
-        if sequence.push_frame(fields, pixels).is_err() {
+        if let Err(reason) = sequence.push_frame(fields, pixels) {
+            self.counts.skip("IMAGE", "received frame", &reason);
             return;
         }
+        let sequence: &Sequence = sequence;
         let work = Instant::now();
         let clip = self
             .inputs
@@ -197,7 +199,6 @@ impl Session<'_> {
             Some(this)
         };
         if let Some(ready) = ready {
-            let sequence = self.sequence.as_ref().expect("set above");
             self.frames.push(finish(
                 &mut self.state,
                 sequence,
