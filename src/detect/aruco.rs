@@ -40,8 +40,70 @@ pub enum ArucoError {
     UnknownDictionary(String),
     #[error("{path}: not an OpenCV ArUco dictionary file (nmarkers, markersize, marker_N)")]
     BadDictionaryFile { path: String },
+    #[error("{path}: not an OpenCV ArUco detector parameters file ({reason})")]
+    BadParametersFile { path: String, reason: String },
+    #[error("{0}")]
+    Board(String),
     #[error("opencv: {0}")]
     OpenCv(#[from] opencv::Error),
+}
+
+/// A dictionary by OpenCV name (`DICT_...`) or from a dictionary file.
+pub fn dictionary(name_or_path: &str) -> Result<Ptr<Dictionary>, ArucoError> {
+    if name_or_path.starts_with("DICT_") {
+        predefined(name_or_path)
+    } else {
+        dictionary_file(Path::new(name_or_path))
+    }
+}
+
+/// OpenCV's detector parameters: its defaults, or read from a FileStorage file
+/// as OpenCV's samples write it (`detector_params.yml`). A key the file lacks
+/// keeps its default; a value out of OpenCV's meaning is refused.
+pub fn detector_parameters(file: Option<&Path>) -> Result<Ptr<DetectorParameters>, ArucoError> {
+    let mut parameters = DetectorParameters::create()?;
+    let Some(path) = file else {
+        return Ok(parameters);
+    };
+    let bad = |reason: String| ArucoError::BadParametersFile {
+        path: path.display().to_string(),
+        reason,
+    };
+    if !path.is_file() {
+        return Err(bad("no such file".into()));
+    }
+    let fs = FileStorage::new_def(
+        path.to_string_lossy().as_ref(),
+        opencv::core::FileStorage_Mode::READ as i32,
+    )
+    .map_err(|e| bad(e.message))?;
+    let root = fs.root_def()?;
+    if !parameters.read_detector_parameters(&root).map_err(|e| bad(e.message))? {
+        return Err(bad("no detector parameters in it".into()));
+    }
+    let windows = [
+        parameters.adaptive_thresh_win_size_min(),
+        parameters.adaptive_thresh_win_size_max(),
+    ];
+    if windows[0] < 3 || windows[1] < windows[0] || parameters.adaptive_thresh_win_size_step() < 1 {
+        return Err(bad(format!(
+            "adaptiveThreshWinSizeMin {} / Max {} / Step {}: windows of at least 3 px, min <= max, step >= 1",
+            windows[0],
+            windows[1],
+            parameters.adaptive_thresh_win_size_step()
+        )));
+    }
+    let rates = [
+        parameters.min_marker_perimeter_rate(),
+        parameters.max_marker_perimeter_rate(),
+    ];
+    if !(rates[0] > 0.0 && rates[1] >= rates[0] && rates.iter().all(|r| r.is_finite())) {
+        return Err(bad(format!(
+            "minMarkerPerimeterRate {} / maxMarkerPerimeterRate {}: positive, min <= max",
+            rates[0], rates[1]
+        )));
+    }
+    Ok(parameters)
 }
 
 /// A predefined dictionary by its OpenCV name.
@@ -117,10 +179,19 @@ pub fn detect(
         parameters.set_corner_refinement_method(aruco::CORNER_REFINE_SUBPIX);
         parameters.set_corner_refinement_win_size(window);
     }
+    detect_with(image, dictionary, &parameters)
+}
+
+/// Detects markers with the given detector parameters, ids ascending.
+pub fn detect_with(
+    image: &Mat,
+    dictionary: &Ptr<Dictionary>,
+    parameters: &Ptr<DetectorParameters>,
+) -> Result<Vec<Marker>, ArucoError> {
     let mut corners = Vector::<Vector<Point2f>>::new();
     let mut ids = Vector::<i32>::new();
     let mut rejected = Vector::<Vector<Point2f>>::new();
-    aruco::detect_markers(image, dictionary, &mut corners, &mut ids, &parameters, &mut rejected)?;
+    aruco::detect_markers(image, dictionary, &mut corners, &mut ids, parameters, &mut rejected)?;
     let mut markers: Vec<Marker> = ids
         .iter()
         .zip(corners.iter())

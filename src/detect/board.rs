@@ -197,11 +197,113 @@ impl ArucoLayout {
     }
 }
 
+/// A ChArUco board as OpenCV 4.6's `CharucoBoard` lays it out and draws it:
+/// `squares[0] x squares[1]` squares of `square_mm`, square (i, j) (column,
+/// row from the top-left) black when `i + j` is even, a marker of `marker_mm`
+/// centred in every white square, ids `first_id..` row by row from the top.
+/// Board frame: origin on the board's top-left corner, x right, y down, z into
+/// the board; the chessboard corners are the inner corners
+/// `((i + 1) s, (j + 1) s)`, row by row (OpenCV's corner ids). A white margin of
+/// half a square surrounds the squares.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CharucoLayout {
+    /// OpenCV's dictionary name or a dictionary file.
+    pub dictionary: String,
+    pub squares: [u32; 2],
+    pub square_mm: f64,
+    pub marker_mm: f64,
+    pub first_id: u32,
+    /// Cells per marker side, border included.
+    pub cells_side: usize,
+    /// Per marker (board order), its cells row by row, `true` = black.
+    pub cells: Vec<Vec<bool>>,
+}
+
+impl CharucoLayout {
+    /// Builds the layout, reading the marker patterns from the dictionary.
+    pub fn new(board: &crate::spec::rig::CharucoBoard) -> Result<CharucoLayout, crate::detect::aruco::ArucoError> {
+        let dict = crate::detect::aruco::dictionary(&board.dictionary)?;
+        let mut cells = Vec::new();
+        let mut side = 0;
+        for k in 0..board.markers() {
+            let (s, c) = crate::detect::aruco::marker_cells(&dict, (board.first_id + k) as i32)?;
+            side = s;
+            cells.push(c);
+        }
+        Ok(CharucoLayout {
+            dictionary: board.dictionary.clone(),
+            squares: board.squares,
+            square_mm: board.square_mm,
+            marker_mm: board.marker_mm,
+            first_id: board.first_id,
+            cells_side: side,
+            cells,
+        })
+    }
+
+    pub fn markers(&self) -> u32 {
+        self.squares[0] * self.squares[1] / 2
+    }
+
+    pub fn ids(&self) -> std::ops::Range<u32> {
+        self.first_id..self.first_id + self.markers()
+    }
+
+    /// The chessboard corners in corner-id order, mm.
+    pub fn corners_mm(&self) -> Vec<Point2<f64>> {
+        let [x, y] = self.squares;
+        let s = self.square_mm;
+        (1..y)
+            .flat_map(|j| (1..x).map(move |i| Point2::new(i as f64 * s, j as f64 * s)))
+            .collect()
+    }
+
+    pub fn paper_bounds_mm(&self) -> [f64; 4] {
+        let m = 0.5 * self.square_mm;
+        [
+            -m,
+            -m,
+            self.squares[0] as f64 * self.square_mm + m,
+            self.squares[1] as f64 * self.square_mm + m,
+        ]
+    }
+
+    pub fn ink_at(&self, x_mm: f64, y_mm: f64) -> Option<Ink> {
+        let [x0, y0, x1, y1] = self.paper_bounds_mm();
+        if x_mm < x0 || y_mm < y0 || x_mm >= x1 || y_mm >= y1 {
+            return None;
+        }
+        let s = self.square_mm;
+        let (i, j) = ((x_mm / s).floor(), (y_mm / s).floor());
+        if i < 0.0 || j < 0.0 || i >= self.squares[0] as f64 || j >= self.squares[1] as f64 {
+            return Some(Ink::White);
+        }
+        let (i, j) = (i as usize, j as usize);
+        if (i + j) % 2 == 0 {
+            return Some(Ink::Black);
+        }
+        // The white square's marker: markers are counted over the white squares row by row.
+        let columns = self.squares[0] as usize;
+        let k = (j * columns + i) / 2;
+        let inset = (s - self.marker_mm) / 2.0;
+        let (lx, ly) = (x_mm - i as f64 * s - inset, y_mm - j as f64 * s - inset);
+        if lx < 0.0 || ly < 0.0 || lx >= self.marker_mm || ly >= self.marker_mm {
+            return Some(Ink::White);
+        }
+        let cell = self.marker_mm / self.cells_side as f64;
+        let (cx, cy) = ((lx / cell) as usize, (ly / cell) as usize);
+        let last = self.cells_side - 1;
+        let black = self.cells[k][cy.min(last) * self.cells_side + cx.min(last)];
+        Some(if black { Ink::Black } else { Ink::White })
+    }
+}
+
 /// A printed board of either kind.
 #[derive(Debug, Clone, PartialEq)]
 pub enum PrintedBoard {
     Checkerboard(BoardLayout),
     Aruco(ArucoLayout),
+    Charuco(CharucoLayout),
 }
 
 impl PrintedBoard {
@@ -209,6 +311,7 @@ impl PrintedBoard {
         match self {
             PrintedBoard::Checkerboard(b) => b.ink_at(x_mm, y_mm),
             PrintedBoard::Aruco(b) => b.ink_at(x_mm, y_mm),
+            PrintedBoard::Charuco(b) => b.ink_at(x_mm, y_mm),
         }
     }
 
@@ -216,15 +319,18 @@ impl PrintedBoard {
         match self {
             PrintedBoard::Checkerboard(b) => b.paper_bounds_mm(),
             PrintedBoard::Aruco(b) => b.paper_bounds_mm(),
+            PrintedBoard::Charuco(b) => b.paper_bounds_mm(),
         }
     }
 
     /// The points a pose is measured from, in the board frame (mm): the inner
-    /// corners of a checkerboard, every marker's four corners of an ArUco board.
+    /// corners of a checkerboard, every marker's four corners of an ArUco board,
+    /// the chessboard corners of a ChArUco board.
     pub fn feature_points_mm(&self) -> Vec<Point2<f64>> {
         match self {
             PrintedBoard::Checkerboard(b) => b.corners_in_board_mm(),
             PrintedBoard::Aruco(b) => b.ids().filter_map(|id| b.marker_corners_mm(id)).flatten().collect(),
+            PrintedBoard::Charuco(b) => b.corners_mm(),
         }
     }
 
@@ -239,6 +345,10 @@ impl PrintedBoard {
                 let [w, h] = b.span_mm();
                 Point2::new(w / 2.0, h / 2.0)
             }
+            PrintedBoard::Charuco(b) => Point2::new(
+                b.squares[0] as f64 * b.square_mm / 2.0,
+                b.squares[1] as f64 * b.square_mm / 2.0,
+            ),
         }
     }
 }
@@ -282,5 +392,47 @@ mod tests {
         assert!(b.marker_corners_mm(15).is_none());
         let printed = PrintedBoard::Aruco(b);
         assert_eq!(printed.centre_mm(), Point2::new(72.0, 72.0));
+    }
+
+    #[test]
+    fn charuco_layout_prints_what_opencv_draws() {
+        use opencv::prelude::*;
+        // 5x7 squares of 100 px: every square, marker and cell edge on a pixel edge.
+        let spec = crate::spec::rig::CharucoBoard {
+            squares: [5, 7],
+            square_mm: 10.0,
+            marker_mm: 6.0,
+            dictionary: "DICT_4X4_50".into(),
+            first_id: 0,
+        };
+        let layout = CharucoLayout::new(&spec).unwrap();
+        let (_, mut board) = crate::detect::charuco_calibration::CharucoSpec {
+            squares: spec.squares,
+            square_mm: spec.square_mm,
+            marker_mm: spec.marker_mm,
+            dictionary: spec.dictionary.clone(),
+        }
+        .board()
+        .unwrap();
+        let mut drawn = opencv::core::Mat::default();
+        board.draw(opencv::core::Size::new(500, 700), &mut drawn, 0, 1).unwrap();
+        let mut differ = 0;
+        for y in 0..700 {
+            for x in 0..500 {
+                let ink = layout.ink_at((x as f64 + 0.5) / 10.0, (y as f64 + 0.5) / 10.0).unwrap();
+                let black = *drawn.at_2d::<u8>(y, x).unwrap() < 128;
+                differ += usize::from(black != (ink == Ink::Black));
+            }
+        }
+        assert_eq!(differ, 0, "pixels that differ from OpenCV's drawing");
+        // OpenCV's corner ids and marker ids, row by row.
+        assert_eq!(layout.corners_mm().len(), 24);
+        assert_eq!(layout.corners_mm()[5], Point2::new(20.0, 20.0));
+        assert_eq!(board.chessboard_corners().get(5).unwrap().x, 20.0);
+        assert_eq!(layout.ids(), 0..17);
+        let moved = CharucoLayout::new(&crate::spec::rig::CharucoBoard { first_id: 17, ..spec }).unwrap();
+        assert_eq!(moved.ids(), 17..34);
+        assert_ne!(moved.cells[0], layout.cells[0], "marker 17 is printed, not marker 0");
+        assert_eq!(PrintedBoard::Charuco(layout).centre_mm(), Point2::new(25.0, 35.0));
     }
 }

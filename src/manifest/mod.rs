@@ -11,6 +11,7 @@ pub mod init;
 pub mod locate;
 pub mod raw;
 mod realism;
+mod rig_check;
 mod spheres;
 pub mod tracked;
 mod tracked_raw;

@@ -457,3 +457,97 @@ fn nesting_past_the_limit_is_refused_with_its_line() {
     let shallow = format!("{}{}", "[".repeat(20), "]".repeat(20));
     assert!(checker::too_deep(&format!("a: {shallow}\nb:\n  c: 1\n")).is_none());
 }
+
+const CHARUCO_RIG: &str = "rig:
+  charuco:
+    probe_board: {squares: [11, 11], square_mm: 13.0, marker_mm: 10.0, dictionary: DICT_4X4_250}
+    phantom_board: {squares: [11, 11], square_mm: 13.0, marker_mm: 10.0, dictionary: DICT_4X4_250, first_id: 60}
+camera:";
+
+#[test]
+fn charuco_rig_parses_and_its_mistakes_are_located() {
+    let good = GOOD.replacen(
+        "rig:\n  checkerboard:\n    probe_board: {inner_corners: [10, 10], square_mm: 13.0, id_dots: 1}\n    phantom_board: {inner_corners: [10, 10], square_mm: 13.0, id_dots: 2}\ncamera:",
+        CHARUCO_RIG,
+        1,
+    );
+    let m = parse(&good).expect("ChArUco manifest");
+    assert!(matches!(
+        m.rig,
+        Rig::Charuco {
+            min_corners: 6,
+            detector_params: None,
+            ..
+        }
+    ));
+    let shared = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/opencv-aruco/tutorial_dict.yml");
+    let cases = [
+        (
+            "DICT_4X4_250, first_id: 60}",
+            "DICT_4X4_250, first_id: 30}",
+            "rig.charuco.phantom_board.first_id",
+            "overlap the probe board's 0..59",
+        ),
+        (
+            "DICT_4X4_250, first_id: 60}",
+            "DICT_4X4_250, first_id: 200}",
+            "rig.charuco.phantom_board.first_id",
+            "needs ids up to 259, the dictionary `DICT_4X4_250` has 250",
+        ),
+        (
+            "marker_mm: 10.0, dictionary: DICT_4X4_250}",
+            "marker_mm: 13.0, dictionary: DICT_4X4_250}",
+            "rig.charuco.probe_board.marker_mm",
+            "a marker is smaller than its square (13 mm), got 13",
+        ),
+        (
+            "squares: [11, 11], square_mm: 13.0, marker_mm: 10.0, dictionary: DICT_4X4_250}",
+            "squares: [1, 11], square_mm: 13.0, marker_mm: 10.0, dictionary: DICT_4X4_250}",
+            "rig.charuco.probe_board.squares",
+            "2x2 to 101x101 squares, got 1x11",
+        ),
+        (
+            "dictionary: DICT_4X4_250}",
+            "dictionary: DICT_4X4_25O}",
+            "rig.charuco.probe_board.dictionary",
+            "unknown ArUco dictionary `DICT_4X4_25O`",
+        ),
+        (
+            "dictionary: DICT_4X4_250}",
+            "dictionary: no_such_dict.yml}",
+            "rig.charuco.probe_board.dictionary",
+            "no_such_dict.yml` does not exist",
+        ),
+        (
+            "first_id: 60}\n",
+            "first_id: 60}\n    min_corners: 3\n",
+            "rig.charuco.min_corners",
+            "a pose needs at least 4 corners, got 3",
+        ),
+        (
+            "first_id: 60}\n",
+            "first_id: 60}\n    detector_params: no_params.yml\n",
+            "rig.charuco.detector_params",
+            "no_params.yml` does not exist",
+        ),
+    ];
+    for (from, to, field, message) in cases {
+        let errors = parse(&good.replacen(from, to, 1)).unwrap_err();
+        let e = &errors.0[0];
+        assert_eq!(e.field, field, "{errors}");
+        assert!(e.message.contains(message) && e.line.is_some(), "{errors}");
+    }
+    // A custom dictionary file (tutorial_dict.yml: 35 markers of 6x6 bits) is read and held to its size.
+    if shared.is_file() {
+        let custom = good
+            .replace("squares: [11, 11]", "squares: [5, 5]")
+            .replace("first_id: 60", "first_id: 12")
+            .replace("dictionary: DICT_4X4_250", &format!("dictionary: {}", shared.display()));
+        assert!(matches!(
+            parse(&custom).expect("custom dictionary").rig,
+            Rig::Charuco { .. }
+        ));
+        let errors = parse(&custom.replace("first_id: 12", "first_id: 30")).unwrap_err();
+        assert!(errors.0[0].message.contains("needs ids up to 41"), "{errors}");
+    }
+}

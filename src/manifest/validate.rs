@@ -3,18 +3,18 @@
 
 use crate::spec::phantom::Phantom;
 use crate::spec::render::{RenderSpec, RENDERED_TRACKER_POSES};
-use crate::spec::rig::{ArucoBoard, Board, Rig};
+use crate::spec::rig::{Board, Rig};
 use raw::SolveVariant;
 use std::path::{Path, PathBuf};
 
 use super::*;
-use crate::core::limits::{MAX_BOARD_MARKERS, MAX_CALIBRATION_VIEWS, MAX_FRAMES, MAX_IMAGE_PIXELS};
+use crate::core::limits::{MAX_CALIBRATION_VIEWS, MAX_FRAMES, MAX_IMAGE_PIXELS};
 
 pub(super) fn validate(c: &mut Checker<'_>, base: &Path, raw: raw::RawManifest, path: &Path, text: &str) -> Manifest {
     c.name("experiment", &raw.experiment);
     phantom_section(c, &raw);
     solve_section(c, &raw);
-    rig_section(c, &raw);
+    let rig = super::rig_check::rig_section(c, base, &raw);
     let camera = poses_section(c, base, &raw);
     let spacing = raw.bscan.spacing_mm_per_px;
     c.positive("bscan.spacing_mm_per_px[0]", spacing[0]);
@@ -35,7 +35,7 @@ pub(super) fn validate(c: &mut Checker<'_>, base: &Path, raw: raw::RawManifest, 
         experiment: raw.experiment,
         description: raw.description,
         phantom: raw.phantom,
-        rig: raw.rig,
+        rig,
         camera,
         bscan_spacing_mm_per_px: spacing,
         arc_detection: arc,
@@ -191,6 +191,20 @@ fn validate_bscan(c: &mut Checker<'_>, field: &str, spec: &RenderSpec) {
             format!("must be a fraction between 0 and 1, got {}", spec.occlusion_rate),
         );
     }
+    if let Some(o) = &spec.occluders {
+        for (name, rate) in [
+            ("hand_rate", o.hand_rate),
+            ("cable_rate", o.cable_rate),
+            ("rim_rate", o.rim_rate),
+        ] {
+            if !(0.0..=1.0).contains(&rate) {
+                c.fail(
+                    &format!("{field}.occluders.{name}"),
+                    format!("must be a fraction between 0 and 1, got {rate}"),
+                );
+            }
+        }
+    }
     for (name, v) in [
         ("outlier_rate", b.outlier_rate),
         ("missing_rate", b.missing_rate),
@@ -316,96 +330,6 @@ fn solve_section(c: &mut Checker<'_>, raw: &raw::RawManifest) {
     if let Some(t) = &raw.solve.initial_marker_T_image {
         c.finite("solve.initial_marker_T_image.rotation_deg", &t.rotation_deg);
         c.finite("solve.initial_marker_T_image.translation_mm", &t.translation_mm);
-    }
-}
-
-/// The rig section: boards that can be told apart, known ArUco dictionaries.
-fn rig_section(c: &mut Checker<'_>, raw: &raw::RawManifest) {
-    match &raw.rig {
-        Rig::Checkerboard {
-            probe_board,
-            phantom_board,
-        } => {
-            c.board("rig.checkerboard.probe_board", probe_board);
-            c.board("rig.checkerboard.phantom_board", phantom_board);
-            if probe_board.id_dots == phantom_board.id_dots {
-                c.fail(
-                    "rig.checkerboard.phantom_board.id_dots",
-                    "the probe board and the phantom board must carry a different number of identification dots",
-                );
-            }
-            for (name, b) in [("probe_board", probe_board), ("phantom_board", phantom_board)] {
-                if !(1..=2).contains(&b.id_dots) {
-                    c.fail(&format!("rig.checkerboard.{name}.id_dots"), "must be 1 or 2");
-                }
-            }
-        }
-        Rig::Aruco { .. } => {}
-    }
-    if let Rig::Aruco {
-        dictionary,
-        probe_board,
-        phantom_board,
-        min_markers,
-        ..
-    } = &raw.rig
-    {
-        let size = crate::detect::aruco::predefined_size(dictionary).filter(|_| {
-            crate::detect::aruco::DICTIONARY_NAMES
-                .iter()
-                .any(|(n, _)| n == dictionary)
-        });
-        if size.is_none() {
-            c.fail(
-                "rig.aruco.dictionary",
-                format!("unknown ArUco dictionary `{dictionary}` (OpenCV's names, e.g. DICT_4X4_50)"),
-            );
-        }
-        for (name, b) in [("probe_board", probe_board), ("phantom_board", phantom_board)] {
-            let field = format!("rig.aruco.{name}");
-            if b.markers[0] < 1 || b.markers[1] < 1 || b.markers.iter().any(|&n| n > MAX_BOARD_MARKERS) {
-                c.fail(
-                    &format!("{field}.markers"),
-                    format!("1x1 to {MAX_BOARD_MARKERS}x{MAX_BOARD_MARKERS} markers"),
-                );
-                continue;
-            }
-            c.positive(&format!("{field}.marker_mm"), b.marker_mm);
-            c.at_least(&format!("{field}.separation_mm"), b.separation_mm, 0.0);
-            let last = b.first_id as usize + b.markers[0] as usize * b.markers[1] as usize;
-            if let Some((count, _)) = size {
-                if last > count {
-                    c.fail(
-                        &format!("{field}.first_id"),
-                        format!(
-                            "ids {}..{} do not fit in {dictionary} ({count} markers)",
-                            b.first_id,
-                            last - 1
-                        ),
-                    );
-                }
-            }
-        }
-        let range = |b: &ArucoBoard| {
-            let first = b.first_id as u64;
-            first..first + b.markers[0].min(MAX_BOARD_MARKERS) as u64 * b.markers[1].min(MAX_BOARD_MARKERS) as u64
-        };
-        let (p, q) = (range(probe_board), range(phantom_board));
-        if p.start < q.end && q.start < p.end {
-            c.fail(
-                "rig.aruco.phantom_board.first_id",
-                format!(
-                    "marker ids {}..{} overlap the probe board's {}..{}: the boards are told apart by id",
-                    q.start,
-                    q.end - 1,
-                    p.start,
-                    p.end - 1
-                ),
-            );
-        }
-        if *min_markers < 1 {
-            c.fail("rig.aruco.min_markers", "must be at least 1");
-        }
     }
 }
 

@@ -25,6 +25,20 @@ pub enum Rig {
         #[serde(default = "default_min_markers")]
         min_markers: usize,
     },
+    /// ChArUco boards (ArUco markers in the white squares of a chessboard):
+    /// the chessboard corners between found markers are interpolated, so a
+    /// partly hidden board still gives its visible corners, each identified.
+    Charuco {
+        probe_board: CharucoBoard,
+        phantom_board: CharucoBoard,
+        /// Fewest chessboard corners of a board for a pose.
+        #[serde(default = "default_min_corners")]
+        min_corners: usize,
+        /// An OpenCV detector parameters file (`detector_params.yml`, as
+        /// OpenCV's samples write it); absent: OpenCV's defaults.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        detector_params: Option<String>,
+    },
 }
 
 fn default_aruco_window() -> u32 {
@@ -32,6 +46,35 @@ fn default_aruco_window() -> u32 {
 }
 fn default_min_markers() -> usize {
     4
+}
+fn default_min_corners() -> usize {
+    6
+}
+
+/// A ChArUco board as OpenCV's `CharucoBoard` lays it out: `squares[0] x
+/// squares[1]` squares, the top-left one black, a marker centred in every
+/// white square, ids `first_id..` row by row from the top.
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct CharucoBoard {
+    /// Squares `[x, y]`.
+    pub squares: [u32; 2],
+    pub square_mm: f64,
+    pub marker_mm: f64,
+    /// OpenCV's predefined dictionary name (`DICT_6X6_250`) or a dictionary
+    /// file (OpenCV FileStorage, as `tutorial_dict.yml`), relative to the manifest.
+    pub dictionary: String,
+    /// Id of the board's first marker (OpenCV's boards start at 0); two boards
+    /// of one dictionary must not share ids.
+    #[serde(default)]
+    pub first_id: u32,
+}
+
+impl CharucoBoard {
+    /// Markers on the board: one per white square.
+    pub fn markers(&self) -> u32 {
+        self.squares[0] * self.squares[1] / 2
+    }
 }
 
 /// A grid board of ArUco markers with consecutive ids from `first_id`, row by row.
