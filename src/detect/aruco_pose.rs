@@ -48,15 +48,25 @@ fn aruco_board_pose(
             corners_px.push(*px);
         }
     }
-    // Planar targets admit two poses (IPPE gives both); when both explain the
-    // corners about equally, the pose is ambiguous and the frame is not trusted.
-    let image = image_points(&corners_px);
+    planar_pose(camera, name, &object, &corners_px)
+}
+
+/// A planar board's pose from its identified points (board mm, z = 0) and
+/// their pixels. Planar targets admit two poses (IPPE gives both); when both
+/// explain the points about equally, the pose is ambiguous and refused.
+pub(super) fn planar_pose(
+    camera: &CameraIntrinsics,
+    name: &'static str,
+    object: &Vector<opencv::core::Point3f>,
+    corners_px: &[[f64; 2]],
+) -> opencv::Result<Result<BoardObservation, BoardRejection>> {
+    let image = image_points(corners_px);
     let (k, d) = (camera.camera_matrix_mat()?, camera.distortion_mat()?);
     let mut rvecs = Vector::<Mat>::new();
     let mut tvecs = Vector::<Mat>::new();
     let mut errors = Mat::default();
     let solutions = calib3d::solve_pnp_generic(
-        &object,
+        object,
         &image,
         &k,
         &d,
@@ -71,7 +81,7 @@ fn aruco_board_pose(
     if solutions < 1 {
         return Ok(Err(BoardRejection::NoPose {
             board: name,
-            markers: mine.len(),
+            points: corners_px.len(),
         }));
     }
     if solutions >= 2 {
@@ -91,7 +101,7 @@ fn aruco_board_pose(
             }));
         }
     }
-    let observation = pnp(camera, &object, &corners_px, Some((&rvecs.get(0)?, &tvecs.get(0)?)))?;
+    let observation = pnp(camera, object, corners_px, Some((&rvecs.get(0)?, &tvecs.get(0)?)))?;
     Ok(Ok(observation))
 }
 

@@ -16,7 +16,7 @@ use opencv::{calib3d, imgproc};
 
 use crate::core::geometry::{rigid_from_parts, Rigid};
 use crate::detect::aruco;
-use crate::detect::board::{ArucoLayout, BoardLayout, PrintedBoard};
+use crate::detect::board::{ArucoLayout, BoardLayout, CharucoLayout, PrintedBoard};
 use crate::detect::corners::{detect_chessboard_reduced, image_points, object_points, SubPix};
 use crate::io::camera_model::CameraIntrinsics;
 
@@ -67,8 +67,16 @@ pub enum BoardRejection {
         total: usize,
         needed: usize,
     },
-    #[error("{board} board: no pose from {markers} markers")]
-    NoPose { board: &'static str, markers: usize },
+    #[error("{board} board: no pose from {points} points")]
+    NoPose { board: &'static str, points: usize },
+    #[error("{board} board: {found} of {total} ChArUco corners from {markers} markers (need {needed})")]
+    TooFewCorners {
+        board: &'static str,
+        found: usize,
+        total: usize,
+        markers: usize,
+        needed: usize,
+    },
     /// Both planar-PnP solutions explain the corners about equally.
     #[error("{board} board: ambiguous pose, two solutions {apart_deg:.1}° apart fit with {:.2} and {:.2} px", .errors_px[0], .errors_px[1])]
     AmbiguousPose {
@@ -350,6 +358,12 @@ pub enum Detection {
         subpixel_half_window_px: u32,
         min_markers: usize,
     },
+    Charuco {
+        /// Fewest chessboard corners of a board for its pose.
+        min_corners: usize,
+        /// OpenCV detector parameters file; `None`: OpenCV's defaults.
+        detector_params: Option<std::path::PathBuf>,
+    },
 }
 
 /// The rig's two boards as printed, and how to find them.
@@ -402,6 +416,19 @@ impl RigBoards {
                     },
                 }
             }
+            Rig::Charuco {
+                probe_board,
+                phantom_board,
+                min_corners,
+                detector_params,
+            } => RigBoards {
+                probe: PrintedBoard::Charuco(CharucoLayout::new(probe_board)?),
+                phantom: PrintedBoard::Charuco(CharucoLayout::new(phantom_board)?),
+                detection: Detection::Charuco {
+                    min_corners: *min_corners,
+                    detector_params: detector_params.as_ref().map(std::path::PathBuf::from),
+                },
+            },
         })
     }
 }

@@ -9,6 +9,7 @@ pub mod board_pose;
 pub mod camera_calibration;
 pub mod camera_refinement;
 pub mod charuco_calibration;
+pub mod charuco_pose;
 pub mod circle;
 pub mod corners;
 pub mod fan;

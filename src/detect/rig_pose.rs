@@ -1,5 +1,6 @@
 //! Both boards of a rig in one photo, found as the rig's kind is found:
-//! checkerboards ([`super::board_pose`]) or ArUco grids ([`super::aruco_pose`]).
+//! checkerboards ([`super::board_pose`]), ArUco grids ([`super::aruco_pose`])
+//! or ChArUco boards ([`super::charuco_pose`]).
 
 use opencv::core::Mat;
 
@@ -30,6 +31,21 @@ pub fn estimate(
                 min_markers,
             },
         ) => super::aruco_pose::estimate_aruco(image, camera, probe, phantom, *subpixel_half_window_px, *min_markers),
+        (
+            PrintedBoard::Charuco(probe),
+            PrintedBoard::Charuco(phantom),
+            Detection::Charuco {
+                min_corners,
+                detector_params,
+            },
+        ) => super::charuco_pose::estimate_charuco(
+            image,
+            camera,
+            probe,
+            phantom,
+            *min_corners,
+            detector_params.as_deref(),
+        ),
         _ => Ok(Err(BoardRejection::MixedRig)),
     }
 }

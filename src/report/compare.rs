@@ -40,6 +40,10 @@ pub(crate) fn rig_label(rig: &Rig) -> String {
             "ArUco {} {}x{} markers of {} mm",
             dictionary, probe_board.markers[0], probe_board.markers[1], probe_board.marker_mm
         ),
+        Rig::Charuco { probe_board, .. } => format!(
+            "ChArUco {} {}x{} squares of {} mm",
+            probe_board.dictionary, probe_board.squares[0], probe_board.squares[1], probe_board.square_mm
+        ),
     }
 }
 
@@ -193,6 +197,23 @@ pub fn column(manifest: &Manifest, run: &DatasetRun) -> CompareColumn {
             rejected_at(Stage::BoardPose).to_string(),
         ),
         ("rejected: arc".to_string(), rejected_at(Stage::Arc).to_string()),
+        ("board points per frame, median: probe / phantom".to_string(), {
+            let median_points = |get: fn(&crate::detect::board_pose::FramePoses) -> usize| {
+                let mut n: Vec<f64> = used
+                    .iter()
+                    .filter_map(|f| f.poses.as_ref().map(|p| get(p) as f64))
+                    .filter(|n| *n > 0.0)
+                    .collect();
+                (!n.is_empty()).then(|| crate::core::stats::median(&mut n))
+            };
+            match (
+                median_points(|p| p.camera_T_marker.corners_px.len()),
+                median_points(|p| p.camera_T_phantom.corners_px.len()),
+            ) {
+                (Some(a), Some(b)) => format!("{a:.0} / {b:.0}"),
+                _ => "—".into(),
+            }
+        }),
         ("probe board reprojection RMS (px)".to_string(), mm(probe_rms)),
         ("phantom board reprojection RMS (px)".to_string(), mm(phantom_rms)),
         (

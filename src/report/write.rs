@@ -122,6 +122,20 @@ pub fn frames_table(run: &DatasetRun) -> PolarsResult<DataFrame> {
             "phantom_board_rms_px".into(),
             opt(&|r| r.poses.as_ref().map(|p| p.camera_T_phantom.reprojection_rms_px)),
         ),
+        // The points each board's pose is solved from: a checkerboard's inner
+        // corners, four per ArUco marker, a ChArUco board's found corners.
+        Column::new(
+            "probe_board_points".into(),
+            f.iter()
+                .map(|r| r.poses.as_ref().map(|p| p.camera_T_marker.corners_px.len() as u32))
+                .collect::<Vec<_>>(),
+        ),
+        Column::new(
+            "phantom_board_points".into(),
+            f.iter()
+                .map(|r| r.poses.as_ref().map(|p| p.camera_T_phantom.corners_px.len() as u32))
+                .collect::<Vec<_>>(),
+        ),
         Column::new(
             "arc_centre_u_px".into(),
             opt(&|r| r.arc.as_ref().map(|a| a.centre_px[0])),
