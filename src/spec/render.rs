@@ -23,6 +23,10 @@ pub struct RenderSpec {
     /// Fraction of photos with something (a finger, a cable) across the probe board.
     #[serde(default = "default_occlusion")]
     pub occlusion_rate: f64,
+    /// Named occluders of a handheld session (the hand, the probe cable, the
+    /// tank rim), each at its stated rate; absent: none beyond `occlusion_rate`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub occluders: Option<SessionOccluders>,
     #[serde(default)]
     pub bscan: BscanRender,
     /// The true calibration; absent: the probe casing's nominal mount for the board size.
@@ -55,6 +59,20 @@ impl Default for TrackerNoise {
             rotation_sd_deg: 0.1,
         }
     }
+}
+
+/// How often each occluder of a handheld session lies over a board in a photo
+/// (fractions of photos, drawn independently per photo and occluder). The
+/// shapes are stated in `synth::occluders`.
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct SessionOccluders {
+    /// Two fingers of the hand holding the probe over the probe board's lower edge.
+    pub hand_rate: f64,
+    /// The probe's cable across the probe board.
+    pub cable_rate: f64,
+    /// The tank's rim over the phantom board's lower rows.
+    pub rim_rate: f64,
 }
 
 fn default_occlusion() -> f64 {

@@ -62,8 +62,8 @@ pub struct Photometry {
 pub struct PlacedBoard<'a> {
     pub camera_T_board: Rigid,
     pub layout: &'a PrintedBoard,
-    /// Something dark lying across the board.
-    pub occluder: Option<Occluder>,
+    /// Things lying across the board (a finger, a cable, a rim), relative to its centre.
+    pub occluders: Vec<Occluder>,
     /// The printed board's true size per nominal size (1: printed exactly).
     pub print_scale: f64,
     /// The board's bow along its x axis: the sagitta (mm, along the board's z)
@@ -89,6 +89,9 @@ const TIME_OF_SUBSAMPLE: [usize; 9] = [4, 0, 7, 2, 8, 5, 1, 6, 3];
 const BLACK_REFLECTANCE: f32 = 0.07;
 const WHITE_REFLECTANCE: f32 = 0.88;
 const OCCLUDER_REFLECTANCE: f32 = 0.22;
+/// How far beyond a board's paper its occluders are drawn, mm (a long one,
+/// as a tank rim, is cut there and does not hide the other board).
+const OCCLUDER_REACH_MM: f64 = 40.0;
 
 /// Each board as a plane in the camera frame: origin, normal, and the inverse pose.
 struct Plane<'a> {
@@ -96,14 +99,15 @@ struct Plane<'a> {
     normal: Vector3<f32>,
     board_T_camera: Rigid,
     layout: &'a PrintedBoard,
-    occluder: Option<(Occluder, [f64; 2])>,
+    occluders: &'a [Occluder],
+    centre: [f64; 2],
     scale: f64,
     /// Sagitta, middle and half-width of the bow along x (board mm).
     bow: Option<(f64, f64, f64)>,
 }
 
 /// The boards' planes at `time_s` into the exposure (a moving board moved on).
-fn planes_at<'a>(boards: &[PlacedBoard<'a>], time_s: f64) -> Vec<Plane<'a>> {
+fn planes_at<'a>(boards: &'a [PlacedBoard<'a>], time_s: f64) -> Vec<Plane<'a>> {
     boards
         .iter()
         .map(|b| {
@@ -118,10 +122,11 @@ fn planes_at<'a>(boards: &[PlacedBoard<'a>], time_s: f64) -> Vec<Plane<'a>> {
                 normal: (pose.rotation * Vector3::z()).cast::<f32>(),
                 board_T_camera: pose.inverse(),
                 layout: b.layout,
-                occluder: b.occluder.map(|o| {
+                occluders: &b.occluders,
+                centre: {
                     let c = b.layout.centre_mm();
-                    (o, [c.x, c.y])
-                }),
+                    [c.x, c.y]
+                },
                 scale: b.print_scale,
                 bow: (b.bow_mm != 0.0).then(|| {
                     let [x0, _, x1, _] = b.layout.paper_bounds_mm();
@@ -161,9 +166,13 @@ fn nearest_hit(planes: &[Plane<'_>], dir: &Vector3<f32>) -> Option<(f32, f32)> {
         if t <= 0.0 || best.is_some_and(|(bt, _)| bt <= t) {
             continue;
         }
-        let covered = plane
-            .occluder
-            .is_some_and(|(o, c)| o.covers(local.x - c[0], local.y - c[1]));
+        let c = plane.centre;
+        let [x0, y0, x1, y1] = plane.layout.paper_bounds_mm();
+        let near_paper = local.x >= x0 - OCCLUDER_REACH_MM
+            && local.x <= x1 + OCCLUDER_REACH_MM
+            && local.y >= y0 - OCCLUDER_REACH_MM
+            && local.y <= y1 + OCCLUDER_REACH_MM;
+        let covered = near_paper && plane.occluders.iter().any(|o| o.covers(local.x - c[0], local.y - c[1]));
         if covered {
             best = Some((t, OCCLUDER_REFLECTANCE));
         } else if let Some(ink) = plane.layout.ink_at(local.x / plane.scale, local.y / plane.scale) {

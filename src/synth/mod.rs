@@ -10,6 +10,7 @@ pub mod board_seat;
 pub mod bscan_geometry;
 pub mod bscan_render;
 pub mod camera_render;
+pub mod occluders;
 pub mod placement;
 pub mod printable;
 pub mod realism;
@@ -243,6 +244,9 @@ struct GroundTruthFrame {
     wire_dots_px: Vec<crate::io::truth::WireDot>,
     bubbles: Vec<Bubble>,
     occluder: Option<scene::Occluder>,
+    /// The session's named occluders in this photo (`render.occluders`).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    stated_occluders: Vec<occluders::PlacedOccluder>,
 }
 
 #[derive(Serialize)]
@@ -355,7 +359,7 @@ fn render_calibration_views(
             let board = PlacedBoard {
                 camera_T_board: scene.camera_T_calibration_board[view],
                 layout: &calibration_board,
-                occluder: None,
+                occluders: Vec::new(),
                 print_scale: 1.0,
                 bow_mm: 0.0,
                 motion: None,
@@ -387,6 +391,37 @@ fn write_json<T: Serialize>(path: &Path, value: &T) -> Result<(), SynthError> {
         message: e.to_string(),
     })?;
     std::fs::write(path, text).map_err(io_err(path))
+}
+
+/// The two boards of frame photo: the probe board where the marker is (with
+/// the plan's and the session's occluders), the phantom board where it stands.
+fn frame_boards<'a>(
+    scene: &'a scene::Scene,
+    camera_T_marker_photo: Rigid,
+    plan: &scene::FramePlan,
+    stated: &occluders::PhotoOccluders,
+    systematic: &realism::Systematic,
+    motion: Option<camera_render::BoardMotion>,
+) -> [PlacedBoard<'a>; 2] {
+    let camera_T_phantom = scene.camera_T_world * scene.world_T_phantom;
+    [
+        PlacedBoard {
+            camera_T_board: camera_T_marker_photo,
+            layout: &scene.probe_board,
+            occluders: plan.occluder.into_iter().chain(stated.probe()).collect(),
+            print_scale: systematic.print_scale[0],
+            bow_mm: systematic.bow_mm[0],
+            motion,
+        },
+        PlacedBoard {
+            camera_T_board: camera_T_phantom,
+            layout: &scene.phantom_board,
+            occluders: stated.phantom().collect(),
+            print_scale: systematic.print_scale[1],
+            bow_mm: systematic.bow_mm[1],
+            motion: None,
+        },
+    ]
 }
 
 fn render_into(lab: &Lab<'_>, spec: &RenderSpec, folder: &Path) -> Result<(), SynthError> {
@@ -424,24 +459,14 @@ fn render_into(lab: &Lab<'_>, spec: &RenderSpec, folder: &Path) -> Result<(), Sy
         let plan = &scene.frames[k];
         let mut rng = Rng::fork(spec.seed, 10_000 + k as u64);
         let camera_T_marker_photo = scene.camera_T_world * plan.world_T_marker_photo;
-        let boards = [
-            PlacedBoard {
-                camera_T_board: camera_T_marker_photo,
-                layout: &scene.probe_board,
-                occluder: plan.occluder,
-                print_scale: systematic.print_scale[0],
-                bow_mm: systematic.bow_mm[0],
-                motion: motions[k],
-            },
-            PlacedBoard {
-                camera_T_board: camera_T_phantom,
-                layout: &scene.phantom_board,
-                occluder: None,
-                print_scale: systematic.print_scale[1],
-                bow_mm: systematic.bow_mm[1],
-                motion: None,
-            },
-        ];
+        let stated = occluders::draw(
+            spec.occluders.as_ref(),
+            &scene.probe_board,
+            &scene.phantom_board,
+            spec.seed,
+            k,
+        );
+        let boards = frame_boards(&scene, camera_T_marker_photo, plan, &stated, &systematic, motions[k]);
         let photo = camera_render::render_photo(&scene.camera, &rays, &boards, photometry, &mut rng)?;
         let photo_path = frames_dir.join(photo_name(k, jpeg));
         match jpeg {
@@ -464,6 +489,7 @@ fn render_into(lab: &Lab<'_>, spec: &RenderSpec, folder: &Path) -> Result<(), Sy
             wire_dots_px,
             bubbles,
             occluder: plan.occluder,
+            stated_occluders: stated.all,
         })
     });
     progress.finish();
