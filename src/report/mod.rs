@@ -5,6 +5,7 @@
 
 pub mod ablation;
 pub mod baseline;
+pub mod chapter_table;
 pub mod check;
 pub mod compare;
 pub mod console;
@@ -24,6 +25,7 @@ pub mod provenance;
 pub mod reconstruct;
 pub mod render;
 pub mod resolve;
+pub mod rig_comparison;
 pub mod segment;
 pub mod study;
 pub mod summary;

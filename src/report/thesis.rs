@@ -9,8 +9,9 @@ use std::path::Path;
 
 use serde::Serialize;
 
+use super::chapter_table::{fmt, summary, Row, Table};
 use crate::evaluate::{AxisStats, STAT_ROWS};
-use crate::report::summary::{BreSummary, RunSummary, Summary};
+use crate::report::summary::{BreSummary, Summary};
 
 /// One of the thesis's three-axis tables (Std./Mean/Min/Max × x, y, z).
 struct AxisTable {
@@ -138,50 +139,11 @@ pub const DATASET3_THESIS: [[[f64; 4]; 4]; 3] = [
     ],
 ];
 
-/// A table row: a label and its cells (already formatted).
-#[derive(Debug, Clone, Serialize, PartialEq)]
-pub struct Row {
-    pub label: String,
-    pub cells: Vec<String>,
-}
-
-#[derive(Debug, Clone, Serialize, PartialEq)]
-pub struct Table {
-    pub id: String,
-    pub title: String,
-    pub note: String,
-    /// Column groups (e.g. x, y, z or the cut-offs), each with the sub-columns `sub`.
-    pub groups: Vec<String>,
-    pub sub: Vec<String>,
-    /// Row blocks (e.g. one per axis); a block's label spans its rows.
-    pub blocks: Vec<(String, Vec<Row>)>,
-    /// LaTeX column spans of the groups (`3-4`), after the label columns.
-    pub spans: Vec<String>,
-}
-
-impl Table {
-    fn with_spans(mut self) -> Table {
-        let lead = if self.blocks.len() > 1 { 2 } else { 1 };
-        let n = self.sub.len();
-        self.spans = (0..self.groups.len())
-            .map(|g| format!("{}-{}", lead + g * n + 1, lead + (g + 1) * n))
-            .collect();
-        self
-    }
-}
-
 /// The whole chapter.
 #[derive(Debug, Clone, Serialize, PartialEq)]
 pub struct Chapter {
     pub tables: Vec<Table>,
     pub missing: Vec<String>,
-}
-
-fn fmt(v: Option<f64>) -> String {
-    match v {
-        Some(v) if v.is_finite() => format!("{v:.3}"),
-        _ => "—".into(),
-    }
 }
 
 /// The frames each cut-off kept, beside the thesis's Dataset 3.
@@ -197,14 +159,6 @@ fn kept_note(s: &Summary) -> String {
         ours.join(", "),
         thesis.join(" / ")
     )
-}
-
-/// A camera run's summary under `root`, if it is there and reads.
-fn summary(root: &Path, experiment: &str, dataset: &str) -> Option<Summary> {
-    match RunSummary::read(&root.join(experiment).join(dataset).join("summary.json")).ok()? {
-        RunSummary::Camera(s) => Some(*s),
-        RunSummary::Tracked(_) => None,
-    }
 }
 
 fn truth_note(s: &Summary) -> String {
@@ -237,6 +191,10 @@ pub fn chapter(root: &Path) -> Chapter {
     match summary(root, experiment, dataset) {
         Some(s) => tables.push(dataset3_table(&s)),
         None => missing.push(format!("{experiment}/{dataset}")),
+    }
+    match super::rig_comparison::rigs_table(root) {
+        Ok(t) => tables.push(t),
+        Err(absent) => missing.extend(absent),
     }
     tables.push(sigma_table());
     Chapter { tables, missing }
@@ -273,6 +231,7 @@ fn axis_table(t: &AxisTable, s: &Summary) -> Table {
         sub: vec!["probecal".into(), "thesis".into()],
         blocks: vec![(String::new(), rows)],
         spans: Vec::new(),
+        thesis_columns: true,
     }
     .with_spans()
 }
@@ -326,6 +285,7 @@ fn dataset3_table(s: &Summary) -> Table {
         sub: vec!["probecal".into(), "thesis".into()],
         blocks,
         spans: Vec::new(),
+        thesis_columns: true,
     }
     .with_spans()
 }
@@ -353,6 +313,7 @@ fn sigma_table() -> Table {
                 .collect(),
         )],
         spans: Vec::new(),
+        thesis_columns: true,
     }
     .with_spans()
 }
