@@ -52,12 +52,29 @@ pub enum StudyMerge {
         #[arg(long, default_value = "reports/study")]
         out: PathBuf,
     },
+    /// Pair two studies on the seeds they share: per method the mean difference
+    /// of the seeds' errors (B minus A), its bootstrap 90 % interval and the seeds
+    /// each was the lower on; the frames each kept. Printed, and written as JSON
+    /// with --out
+    Compare {
+        /// The first study: its study.json or its folder.
+        a: PathBuf,
+        /// The second study, compared against the first.
+        b: PathBuf,
+        /// Only this method (by its name in the studies' tables).
+        #[arg(long)]
+        method: Option<String>,
+        /// Write the comparison here as JSON (and beside it the Markdown, .md).
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
 }
 
 /// `probecal study` or `probecal study merge`; the exit code.
 pub fn dispatch(args: StudyArgs) -> Result<(), Failure> {
     match &args.merge {
         Some(StudyMerge::Merge { shards, out }) => merge(shards, out),
+        Some(StudyMerge::Compare { a, b, method, out }) => compare(a, b, method.as_deref(), out.as_deref()),
         None => command(&args),
     }
 }
@@ -130,5 +147,22 @@ pub fn merge(files: &[PathBuf], out: &Path) -> Result<(), Failure> {
     let sigma = sigma_table();
     write(out, &sigma, Some(&monte_carlo)).map_err(|e| Failure::failed(format!("{}: {e}", out.display())))?;
     eprintln!("{} shards merged; written to {}", shards.len(), out.display());
+    Ok(())
+}
+
+/// `probecal study compare`: the paired comparison, printed and written to `out`.
+pub fn compare(a: &Path, b: &Path, method: Option<&str>, out: Option<&Path>) -> Result<(), Failure> {
+    use crate::report::study_compare;
+    let paired = study_compare::compare(a, b, method).map_err(Failure::bad_input)?;
+    let markdown = study_compare::markdown(&paired);
+    println!("{markdown}");
+    if let Some(out) = out {
+        let json = serde_json::to_string_pretty(&paired).map_err(|e| Failure::failed(e.to_string()))?;
+        let write = |path: &Path, bytes: &[u8]| {
+            crate::io::fs::write_atomic(path, bytes).map_err(|e| Failure::failed(format!("{}: {e}", path.display())))
+        };
+        write(out, format!("{json}\n").as_bytes())?;
+        write(&out.with_extension("md"), markdown.as_bytes())?;
+    }
     Ok(())
 }

@@ -211,9 +211,39 @@ pub fn rms_ratio_interval(pairs: &[(f64, f64)], level: f64) -> Option<[f64; 2]> 
     interval.iter().all(|v| v.is_finite()).then_some(interval)
 }
 
+/// A percentile-bootstrap interval at `level` of the mean of paired
+/// differences (one per seed), resampling the seeds with a fixed stream; `None`
+/// below two differences or with a non-finite one.
+pub fn mean_difference_interval(differences: &[f64], level: f64) -> Option<[f64; 2]> {
+    let n = differences.len();
+    if n < 2 || !differences.iter().all(|d| d.is_finite()) || !(level > 0.0 && level < 1.0) {
+        return None;
+    }
+    let mut rng = crate::core::rng::Rng::new(0x0b00_7572_a901);
+    let means: Vec<f64> = (0..BOOTSTRAP_RESAMPLES)
+        .map(|_| (0..n).map(|_| differences[rng.below(n)]).sum::<f64>() / n as f64)
+        .collect();
+    let tail = (1.0 - level) / 2.0;
+    Some([percentile(&means, tail), percentile(&means, 1.0 - tail)])
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_mean_difference_interval_holds_zero_only_for_differences_in_the_noise() {
+        // Differences around +0.05 with spread 0.01: the interval is clear of zero.
+        let clear: Vec<f64> = (0..12).map(|k| 0.05 + 0.01 * ((k as f64) * 1.7).sin()).collect();
+        let [lo, hi] = mean_difference_interval(&clear, 0.9).unwrap();
+        assert!(lo > 0.03 && hi < 0.07 && lo < hi, "{lo} {hi}");
+        // Symmetric differences about zero: the interval holds it.
+        let noise: Vec<f64> = (0..12).map(|k| if k % 2 == 0 { 0.05 } else { -0.05 }).collect();
+        let [lo, hi] = mean_difference_interval(&noise, 0.9).unwrap();
+        assert!(lo < 0.0 && hi > 0.0, "{lo} {hi}");
+        assert!(mean_difference_interval(&[1.0], 0.9).is_none());
+        assert!(mean_difference_interval(&[1.0, f64::NAN], 0.9).is_none());
+    }
 
     #[test]
     fn hand_computed_values() {

@@ -28,6 +28,7 @@ pub mod resolve;
 pub mod rig_comparison;
 pub mod segment;
 pub mod study;
+pub mod study_compare;
 pub mod summary;
 pub mod templating;
 pub mod temporal;
