@@ -1,0 +1,98 @@
+//! `probecal study compare`: two studies paired on the seeds they share.
+
+mod common;
+
+use common::{probecal, scratch};
+use serde_json::{json, Value};
+
+/// A study file: per seed (seed, error of `a`, error of `b`, frames kept).
+fn study(experiment: &str, seeds: &[(u64, f64, f64, usize)]) -> Value {
+    let methods: Vec<Value> = ["cutoff_worst_first", "ransac"]
+        .iter()
+        .map(|m| json!({"method": m, "mean_mm": 0.0, "p95_mm": 0.0, "rms_mm": 0.0}))
+        .collect();
+    let seeds: Vec<Value> = seeds
+        .iter()
+        .map(|(seed, a, b, frames)| {
+            json!({
+                "seed": seed,
+                "rms_error_mm": [["cutoff_worst_first", a], ["ransac", b]],
+                "crlb_rms_mm": null,
+                "frames_used": frames,
+            })
+        })
+        .collect();
+    json!({
+        "sigma_table": [],
+        "monte_carlo": {
+            "experiment": experiment,
+            "seeds": seeds,
+            "methods": methods,
+            "crlb_rms_mm": 0.0,
+        }
+    })
+}
+
+#[test]
+fn pairs_on_common_seeds_and_says_when_the_interval_holds_zero() {
+    let dir = scratch("study_compare", "pairs");
+    std::fs::create_dir_all(dir.join("a")).unwrap();
+    // Study b: cutoff_worst_first 0.10 mm higher on every seed; ransac ± 0.05 about a's.
+    let a: Vec<(u64, f64, f64, usize)> = (1000..1012).map(|s| (s, 0.5 + 0.01 * (s % 3) as f64, 0.4, 48)).collect();
+    let b: Vec<(u64, f64, f64, usize)> = (1002..1016)
+        .map(|s| {
+            let wobble = if s % 2 == 0 { 0.05 } else { -0.05 };
+            (s, 0.6 + 0.01 * (s % 3) as f64, 0.4 + wobble, 30 + (s % 4) as usize)
+        })
+        .collect();
+    std::fs::write(dir.join("a/study.json"), study("first", &a).to_string()).unwrap();
+    std::fs::write(dir.join("b.json"), study("second", &b).to_string()).unwrap();
+    let out = dir.join("paired.json");
+    let r = probecal()
+        .args(["study", "compare"])
+        .arg(dir.join("a"))
+        .arg(dir.join("b.json"))
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let printed = String::from_utf8_lossy(&r.stdout);
+    assert!(printed.contains("paired on 10 common seeds (1002–1011)"), "{printed}");
+    let paired: Value = serde_json::from_str(&std::fs::read_to_string(&out).unwrap()).unwrap();
+    assert_eq!(paired["seeds"].as_array().unwrap().len(), 10);
+    let method = |name: &str| {
+        paired["methods"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|m| m["method"] == name)
+            .unwrap()
+            .clone()
+    };
+    let worse = method("cutoff_worst_first");
+    assert!((worse["mean_difference_mm"].as_f64().unwrap() - 0.1).abs() < 1e-9);
+    assert_eq!(worse["verdict"], "higher");
+    assert_eq!(worse["a_lower_seeds"], 10);
+    let same = method("ransac");
+    let [lo, hi] = [0, 1].map(|i| same["interval_90_mm"][i].as_f64().unwrap());
+    assert!(lo < 0.0 && hi > 0.0, "{lo} {hi}");
+    assert_eq!(same["verdict"], "no difference shown");
+    assert_eq!(paired["frames_kept"]["min_b"], 30);
+    assert!(out.with_extension("md").is_file());
+
+    // Too few common seeds, and a file that is not a study: clear errors, exit 2.
+    std::fs::write(dir.join("far.json"), study("far", &[(5000, 0.1, 0.1, 10)]).to_string()).unwrap();
+    std::fs::write(dir.join("not.json"), "{\"sigma_table\": 3}").unwrap();
+    for (other, message) in [("far.json", "share 0 seeds"), ("not.json", "not.json")] {
+        let r = probecal()
+            .args(["study", "compare"])
+            .arg(dir.join("a"))
+            .arg(dir.join(other))
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&r.stderr);
+        assert_eq!(r.status.code(), Some(2), "{stderr}");
+        assert!(stderr.contains(message), "{stderr}");
+    }
+}
