@@ -206,3 +206,37 @@ pub fn detect_with(
     markers.sort_by_key(|m| m.id);
     Ok(markers)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn detector_parameters_are_read_from_opencvs_file_and_checked() {
+        let dir = std::env::temp_dir().join(format!("probecal-aruco-params-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let good = dir.join("detector_params.yml");
+        // As OpenCV's samples write it; a key left out keeps its default.
+        std::fs::write(
+            &good,
+            "%YAML:1.0\nadaptiveThreshWinSizeMin: 5\nadaptiveThreshWinSizeMax: 31\nadaptiveThreshWinSizeStep: 4\ncornerRefinementMethod: 1\n",
+        )
+        .unwrap();
+        let p = detector_parameters(Some(&good)).unwrap();
+        assert_eq!(p.adaptive_thresh_win_size_min(), 5);
+        assert_eq!(p.adaptive_thresh_win_size_max(), 31);
+        assert_eq!(p.corner_refinement_method(), 1);
+        let defaults = detector_parameters(None).unwrap();
+        assert_eq!(p.min_marker_perimeter_rate(), defaults.min_marker_perimeter_rate());
+        let bad = dir.join("bad.yml");
+        std::fs::write(&bad, "%YAML:1.0\nadaptiveThreshWinSizeMin: 1\n").unwrap();
+        let e = detector_parameters(Some(&bad)).err().unwrap().to_string();
+        assert!(e.contains("bad.yml") && e.contains("adaptiveThreshWinSizeMin 1"), "{e}");
+        let e = detector_parameters(Some(&dir.join("none.yml")))
+            .err()
+            .unwrap()
+            .to_string();
+        assert!(e.contains("no such file"), "{e}");
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+}

@@ -169,6 +169,33 @@ fn truth_rows(
     explanation
 }
 
+/// The points each board's pose was solved from, over a run's used frames.
+pub(crate) struct BoardPoints {
+    pub median: [f64; 2],
+    pub fewest: [usize; 2],
+}
+
+/// Probe's and phantom's, or `None` when no used frame has board points (tracker poses).
+pub(crate) fn board_points(run: &DatasetRun) -> Option<BoardPoints> {
+    let counts: Vec<[usize; 2]> = run
+        .frames
+        .iter()
+        .filter(|f| f.rejection.is_none())
+        .filter_map(|f| f.poses.as_ref())
+        .map(|p| [p.camera_T_marker.corners_px.len(), p.camera_T_phantom.corners_px.len()])
+        .filter(|c| c[0] > 0 && c[1] > 0)
+        .collect();
+    if counts.is_empty() {
+        return None;
+    }
+    let median = [0, 1].map(|k| {
+        let mut v: Vec<f64> = counts.iter().map(|c| c[k] as f64).collect();
+        crate::core::stats::median(&mut v)
+    });
+    let fewest = [0, 1].map(|k| counts.iter().map(|c| c[k]).min().unwrap_or_default());
+    Some(BoardPoints { median, fewest })
+}
+
 /// Builds one column from a dataset run.
 pub fn column(manifest: &Manifest, run: &DatasetRun) -> CompareColumn {
     let used: Vec<_> = run.frames.iter().filter(|f| f.rejection.is_none()).collect();
@@ -197,23 +224,10 @@ pub fn column(manifest: &Manifest, run: &DatasetRun) -> CompareColumn {
             rejected_at(Stage::BoardPose).to_string(),
         ),
         ("rejected: arc".to_string(), rejected_at(Stage::Arc).to_string()),
-        ("board points per frame, median: probe / phantom".to_string(), {
-            let median_points = |get: fn(&crate::detect::board_pose::FramePoses) -> usize| {
-                let mut n: Vec<f64> = used
-                    .iter()
-                    .filter_map(|f| f.poses.as_ref().map(|p| get(p) as f64))
-                    .filter(|n| *n > 0.0)
-                    .collect();
-                (!n.is_empty()).then(|| crate::core::stats::median(&mut n))
-            };
-            match (
-                median_points(|p| p.camera_T_marker.corners_px.len()),
-                median_points(|p| p.camera_T_phantom.corners_px.len()),
-            ) {
-                (Some(a), Some(b)) => format!("{a:.0} / {b:.0}"),
-                _ => "—".into(),
-            }
-        }),
+        (
+            "board points per frame, median: probe / phantom".to_string(),
+            board_points(run).map_or("—".into(), |p| format!("{:.0} / {:.0}", p.median[0], p.median[1])),
+        ),
         ("probe board reprojection RMS (px)".to_string(), mm(probe_rms)),
         ("phantom board reprojection RMS (px)".to_string(), mm(phantom_rms)),
         (

@@ -76,9 +76,17 @@ pub(super) fn setup_rows(run: &DatasetRun, manifest: &crate::manifest::Manifest)
         ),
         _ => super::compare::rig_label(&manifest.rig),
     };
-    vec![
-        kv("phantom", phantom),
-        kv("pose source", rig),
+    let mut rows = vec![kv("phantom", phantom), kv("pose source", rig)];
+    if let Some(p) = super::compare::board_points(run) {
+        rows.push(kv(
+            "board points per used frame: probe / phantom",
+            format!(
+                "median {:.0} / {:.0}, fewest {} / {} (frames.csv: probe_board_points, phantom_board_points)",
+                p.median[0], p.median[1], p.fewest[0], p.fewest[1]
+            ),
+        ));
+    }
+    rows.extend([
         kv("camera", run.camera.source.clone()),
         kv(
             "dataset",
@@ -103,7 +111,8 @@ pub(super) fn setup_rows(run: &DatasetRun, manifest: &crate::manifest::Manifest)
             "inputs",
             format!("{} files; their SHA-256 in provenance.json", run.input_files.len()),
         ),
-    ]
+    ]);
+    rows
 }
 
 pub(super) fn stat_rows(stats: &BreStats) -> Vec<StatRow> {
