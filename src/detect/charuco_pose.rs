@@ -121,7 +121,7 @@ fn refine_corner(image: &Mat, start: [f64; 2], marker_corners: &[[f64; 2]]) -> R
     let half = (nearest / std::f64::consts::SQRT_2 - 1.0)
         .floor()
         .min(REFINE_MAX_HALF_WINDOW_PX as f64);
-    if !(half >= 2.0) {
+    if half.is_nan() || half < 2.0 {
         return Ok(start);
     }
     let half = half as i32;
