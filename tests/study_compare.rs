@@ -38,7 +38,9 @@ fn pairs_on_common_seeds_and_says_when_the_interval_holds_zero() {
     let dir = scratch("study_compare", "pairs");
     std::fs::create_dir_all(dir.join("a")).unwrap();
     // Study b: cutoff_worst_first 0.10 mm higher on every seed; ransac ± 0.05 about a's.
-    let a: Vec<(u64, f64, f64, usize)> = (1000..1012).map(|s| (s, 0.5 + 0.01 * (s % 3) as f64, 0.4, 48)).collect();
+    let a: Vec<(u64, f64, f64, usize)> = (1000..1012)
+        .map(|s| (s, 0.5 + 0.01 * (s % 3) as f64, 0.4, 48))
+        .collect();
     let b: Vec<(u64, f64, f64, usize)> = (1002..1016)
         .map(|s| {
             let wobble = if s % 2 == 0 { 0.05 } else { -0.05 };
@@ -95,4 +97,40 @@ fn pairs_on_common_seeds_and_says_when_the_interval_holds_zero() {
         assert_eq!(r.status.code(), Some(2), "{stderr}");
         assert!(stderr.contains(message), "{stderr}");
     }
+}
+
+/// The committed paired comparisons (`reports/study/rigs/*.json`) are what
+/// `study compare` makes of the committed studies today.
+#[test]
+fn committed_paired_comparisons_regenerate() {
+    let rigs = common::root().join("reports/study/rigs");
+    let dir = scratch("study_compare", "committed");
+    std::fs::create_dir_all(&dir).unwrap();
+    let mut checked = 0;
+    for entry in std::fs::read_dir(&rigs).unwrap() {
+        let path = entry.unwrap().path();
+        if path.extension().is_none_or(|e| e != "json") {
+            continue;
+        }
+        let committed: Value = serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+        let out = dir.join(path.file_name().unwrap());
+        let r = probecal()
+            .current_dir(common::root())
+            .args(["study", "compare"])
+            .arg(committed["a_file"].as_str().unwrap())
+            .arg(committed["b_file"].as_str().unwrap())
+            .arg("--out")
+            .arg(&out)
+            .output()
+            .unwrap();
+        assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+        assert_eq!(
+            std::fs::read_to_string(&out).unwrap(),
+            std::fs::read_to_string(&path).unwrap(),
+            "{} does not regenerate",
+            path.display()
+        );
+        checked += 1;
+    }
+    assert!(checked >= 3, "{checked} paired comparisons in {}", rigs.display());
 }

@@ -8,7 +8,17 @@ mod common;
 use common::{probecal, root, scratch};
 
 /// (manifest, committed study folder under `reports/`).
-const STUDIES: [(&str, &str); 25] = [
+const STUDIES: [(&str, &str); 29] = [
+    ("experiments/hemisphere_charuco.yaml", "study/rigs/charuco"),
+    ("experiments/hemisphere_aruco.yaml", "study/rigs/aruco"),
+    (
+        "experiments/hemisphere_charuco_occluded.yaml",
+        "study/rigs/charuco_occluded",
+    ),
+    (
+        "experiments/hemisphere_checkerboard_occluded.yaml",
+        "study/rigs/checkerboard_occluded",
+    ),
     ("experiments/hemisphere_checkerboard.yaml", "study"),
     ("experiments/studies/hemisphere_true_camera.yaml", "study/true_camera"),
     (
