@@ -336,8 +336,11 @@ pub fn layout(chapter: &Chapter) -> String {
                     .cells
                     .iter()
                     .map(|c| {
+                        let count = |v: &str| !v.is_empty() && v.chars().all(|ch| ch.is_ascii_digit());
                         if c.parse::<f64>().is_ok() && c.split('.').nth(1).is_some_and(|d| d.len() == 3) {
                             "#.###"
+                        } else if c.split_once(" / ").is_some_and(|(a, b)| count(a) && count(b)) {
+                            "# / #"
                         } else {
                             "?"
                         }
