@@ -105,9 +105,20 @@ fn segment_and_compare(config: &Path, out: &Path, name: &str) -> serde_json::Val
         }
     }
     let mean = distances.iter().sum::<f64>() / distances.len() as f64;
-    println!("{name}: {found} of 196 frames PLUS segmented are found; mean distance {mean:.3} px");
-    assert!(found as f64 >= 0.98 * 196.0, "{name}: {found} of 196");
-    assert!(mean <= 1.5, "{name}: mean distance to PLUS's points {mean} px");
+    let worst = distances.iter().copied().fold(0.0, f64::max);
+    println!("{name}: {found} of 196 frames PLUS segmented are found; mean distance {mean:.3} px, worst {worst:.2} px");
+    // The image cleaned as PLUS cleans it (bars, then the disk): every frame PLUS
+    // segmented, no other, and no dot on a line PLUS's bars remove (the disk
+    // alone found 195 of them, 3 others, and one dot 11 px from PLUS's).
+    assert_eq!(found, 196, "{name}: {found} of 196");
+    let extra: Vec<&usize> = ours
+        .iter()
+        .filter(|(f, p)| !p.is_empty() && !plus.get(f).is_some_and(|b| b.0))
+        .map(|(f, _)| f)
+        .collect();
+    assert!(extra.is_empty(), "{name}: frames PLUS did not segment: {extra:?}");
+    assert!(mean <= 0.6, "{name}: mean distance to PLUS's points {mean} px");
+    assert!(worst <= 3.0, "{name}: a dot {worst} px from PLUS's");
     let summary: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
     assert_eq!(summary["frames"], 201);

@@ -131,7 +131,7 @@ fn a_scanner_showing_the_patterns_further_apart_is_segmented_as_plus_would() {
         summary["not_found"][0]["reason"]
             .as_str()
             .unwrap()
-            .starts_with("segmentation: line pair distance 22.78 mm, limit 22.00 mm (MaxLinePairDistanceErrorPercent)"),
+            .starts_with("segmentation: line pair distance 22.77 mm, limit 22.00 mm (MaxLinePairDistanceErrorPercent)"),
         "{}",
         summary["not_found"][0]
     );

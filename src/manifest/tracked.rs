@@ -347,6 +347,12 @@ fn check_segmentation(c: &mut Checker<'_>, seg: &Segmentation, nwires: usize) {
         );
     }
     c.at_least(&format!("{sf}.opening_radius_mm"), seg.opening_radius_mm, 0.0);
+    if !(0.0..=50.0).contains(&seg.opening_bar_size_mm) {
+        c.fail(
+            &format!("{sf}.opening_bar_size_mm"),
+            format!("must be 0 (no bars) to 50 mm, got {}", seg.opening_bar_size_mm),
+        );
+    }
     if seg.opening_radius_px.is_some_and(|r| r > 50) {
         c.fail(&format!("{sf}.opening_radius_px"), "must be at most 50 px");
     }

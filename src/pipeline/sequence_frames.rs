@@ -215,30 +215,29 @@ pub fn segment_frame(
             return frame;
         }
     }
-    let opened;
-    let cleaned;
+    let without_overlay;
     let mut pixels = sequence.pixels(index);
     if let Some(overlay) = inputs.overlay {
-        cleaned = overlay.remove(pixels);
-        pixels = &cleaned;
+        without_overlay = overlay.remove(pixels);
+        pixels = &without_overlay;
     }
-    let mut centre_pixels = pixels;
-    let radius_px = inputs.segmentation.opening_radius_for(inputs.spacing_guess_mm_per_px);
-    if radius_px > 0 {
-        match nwire::open_image(pixels, sequence.width, sequence.height, radius_px) {
-            Ok(p) => {
-                opened = p;
-                centre_pixels = &opened;
-            }
-            Err(e) => {
-                frame.rejected = Some(TrackedRejection::Opening(e.to_string()));
-                return frame;
-            }
-        }
-    }
-    let spots = nwire::find_spots(
+    let cleaned = match nwire::clean(
         pixels,
-        centre_pixels,
+        sequence.width,
+        sequence.height,
+        inputs.clip,
+        inputs.segmentation.bar_px_for(inputs.spacing_guess_mm_per_px),
+        inputs.segmentation.opening_radius_for(inputs.spacing_guess_mm_per_px) as usize,
+    ) {
+        Ok(c) => c,
+        Err(e) => {
+            frame.rejected = Some(TrackedRejection::Opening(e.to_string()));
+            return frame;
+        }
+    };
+    let spots = nwire::find_spots(
+        &cleaned.pixels,
+        pixels,
         sequence.width,
         sequence.height,
         inputs.clip,

@@ -8,6 +8,10 @@
 //! `W12 + alpha (W32 - W12)` in the phantom frame, where W12 (W32) is the crossing
 //! of the infinite lines of wires 1 and 2 (3 and 2): similar triangles.
 //!
+//! Each image is first cleaned as PLUS cleans it ([`clean`]: long bright lines
+//! removed, then an opening with a disk), and its dots are the regions of the
+//! cleaned image at or above the frame's threshold ([`find_spots`]).
+//!
 //! The pattern search takes PLUS's device-set settings with PLUS's meaning
 //! (`PlusFidLabeling`, `PlusFidLineFinder`): rows (PLUS's lines) of three
 //! collinear dots at an angle within `MinThetaDegrees`..`MaxThetaDegrees`; every
@@ -19,13 +23,15 @@
 //! their patterns' planes, the rows' lengths stretched alike, and the middle dots
 //! as far apart as the phantom puts them, each within the same percentage.
 
+mod morphology;
 mod search;
 mod settings;
 mod spots;
 
+pub use morphology::{clean, region_of_interest, Cleaned};
 pub use search::{segment, FailedCheck, NWireDots, NWireRejection, PatternGeometry, CHECKS};
 pub use settings::{RowOrder, Segmentation, SegmentationOverrides, Side};
-pub use spots::{find_spots, open_image, DotCandidate};
+pub use spots::{find_spots, DotCandidate};
 
 #[cfg(test)]
 mod tests {

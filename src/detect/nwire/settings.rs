@@ -8,8 +8,8 @@ use crate::io::plus::config::PlusConfig;
 /// Settings of the dot segmentation (each with the PLUS attribute it stands for).
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Segmentation {
-    /// Pixels brighter than this grey level belong to a dot; absent: each
-    /// frame's own, `threshold_percent` % of its brightest pixel after the opening
+    /// Cleaned pixels at or above this grey level belong to a dot; absent: each
+    /// frame's own, `threshold_percent` % of its brightest pixel after the clean-up
     /// (inside the clip rectangle).
     pub threshold_grey: Option<u8>,
     /// The frame's threshold as a share of its brightest opened pixel, %
@@ -26,6 +26,10 @@ pub struct Segmentation {
     /// The opening's radius in the image, mm (`MorphologicalOpeningCircleRadiusMm`):
     /// thinner than a wire's echo, thicker than speckle.
     pub opening_radius_mm: f64,
+    /// Half the length of the bars whose openings are subtracted first, mm
+    /// (`MorphologicalOpeningBarSizeMm`; 0: none): bright lines longer than
+    /// twice this (the phantom's walls, reverberations) leave the image.
+    pub opening_bar_size_mm: f64,
     /// How many of the brightest spots are considered
     /// (`NumberOfMaximumFiducialPointCandidates`).
     pub max_candidates: usize,
@@ -78,6 +82,8 @@ pub struct SegmentationOverrides {
     #[serde(skip_serializing_if = "Option::is_none")]
     pub opening_radius_mm: Option<f64>,
     #[serde(skip_serializing_if = "Option::is_none")]
+    pub opening_bar_size_mm: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub max_candidates: Option<usize>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub collinear_tolerance_mm: Option<f64>,
@@ -113,6 +119,7 @@ impl SegmentationOverrides {
             min_dot_px,
             core_fraction,
             opening_radius_mm,
+            opening_bar_size_mm,
             max_candidates,
             collinear_tolerance_mm,
             min_row_angle_deg,
@@ -164,6 +171,7 @@ impl Default for Segmentation {
             core_fraction: 0.5,
             opening_radius_px: None,
             opening_radius_mm: 0.27,
+            opening_bar_size_mm: 2.0,
             max_candidates: 20,
             collinear_tolerance_mm: 0.6,
             min_row_angle_deg: -70.0,
@@ -193,6 +201,7 @@ impl Segmentation {
             .unwrap_or((defaults.min_row_angle_deg, defaults.max_row_angle_deg));
         Segmentation {
             opening_radius_mm: s.opening_radius_mm.unwrap_or(defaults.opening_radius_mm),
+            opening_bar_size_mm: s.opening_bar_size_mm.unwrap_or(defaults.opening_bar_size_mm),
             threshold_percent: s.threshold_percent.unwrap_or(defaults.threshold_percent),
             collinear_tolerance_mm: s.collinear_tolerance_mm.unwrap_or(defaults.collinear_tolerance_mm),
             row_gap_tolerance_percent: s
@@ -218,8 +227,14 @@ impl Segmentation {
             .unwrap_or_else(|| (self.opening_radius_mm / spacing_mm_per_px).round().clamp(0.0, 50.0) as u32)
     }
 
+    /// The bars' half length in pixels for images of about `spacing_mm_per_px`
+    /// (PLUS rounds it the same way).
+    pub fn bar_px_for(&self, spacing_mm_per_px: f64) -> usize {
+        (self.opening_bar_size_mm / spacing_mm_per_px).round().clamp(0.0, 200.0) as usize
+    }
+
     /// One frame's grey threshold: the manifest's, or `threshold_percent` % of the
-    /// brightest pixel of `centre_pixels` (the opened image) in `clip`, at least 1.
+    /// brightest pixel of `centre_pixels` (the cleaned image) in `clip`, at least 1.
     pub fn threshold_for(&self, centre_pixels: &[u8], width: usize, height: usize, clip: [usize; 4]) -> u8 {
         if let Some(t) = self.threshold_grey {
             return t;

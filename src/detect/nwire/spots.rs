@@ -1,5 +1,6 @@
-//! The bright spots of a B-scan that may be wire dots: a morphological
-//! opening, each frame's threshold, connected regions, their cores' centres.
+//! The bright spots of a B-scan that may be wire dots: each frame's threshold on
+//! the cleaned image (`super::morphology`), connected regions, their cores'
+//! centres.
 
 use super::settings::Segmentation;
 
@@ -13,37 +14,14 @@ pub struct DotCandidate {
     pub weight: f64,
 }
 
-/// Grey-level morphological opening with a disk (erosion, then dilation): removes
-/// bright structures thinner than the disk (speckle, the streaks of comet tails)
-/// and keeps the dots' shape.
-pub fn open_image(pixels: &[u8], width: usize, height: usize, radius_px: u32) -> Result<Vec<u8>, opencv::Error> {
-    use opencv::core::{Mat, Point, Size, BORDER_CONSTANT};
-    use opencv::imgproc;
-    use opencv::prelude::*;
-    let src = Mat::new_rows_cols_with_data(height as i32, width as i32, pixels)?;
-    let d = 2 * radius_px as i32 + 1;
-    let kernel = imgproc::get_structuring_element(imgproc::MORPH_ELLIPSE, Size::new(d, d), Point::new(-1, -1))?;
-    let mut out = Mat::default();
-    imgproc::morphology_ex(
-        &src,
-        &mut out,
-        imgproc::MORPH_OPEN,
-        &kernel,
-        Point::new(-1, -1),
-        1,
-        BORDER_CONSTANT,
-        imgproc::morphology_default_border_value()?,
-    )?;
-    Ok(out.data_bytes()?.to_vec())
-}
-
 /// Bright spots in the clip rectangle, strongest first. Spots are the connected
-/// regions above the threshold in `pixels`; their centres are weighted by
-/// `centre_pixels` (e.g. the opened image), falling back to `pixels` where that
-/// leaves nothing.
+/// regions (8-neighbours) of `cleaned` (the image after
+/// [`super::morphology::clean`]) at or above the frame's threshold; their centres
+/// are weighted by `cleaned` over their cores, their strength is the sum of
+/// `cleaned` over them, or of `original` with `original_intensity_score`.
 pub fn find_spots(
-    pixels: &[u8],
-    centre_pixels: &[u8],
+    cleaned: &[u8],
+    original: &[u8],
     width: usize,
     height: usize,
     clip: [usize; 4],
@@ -51,14 +29,15 @@ pub fn find_spots(
 ) -> Vec<DotCandidate> {
     let [u0, v0, w, h] = clip;
     let (u1, v1) = ((u0 + w).min(width), (v0 + h).min(height));
-    let t = settings.threshold_for(centre_pixels, width, height, clip);
+    let pixels = cleaned;
+    let t = settings.threshold_for(cleaned, width, height, clip);
     let mut seen = vec![false; width * height];
     let mut spots = Vec::new();
     let mut stack = Vec::new();
     for v in v0..v1 {
         for u in u0..u1 {
             let i = v * width + u;
-            if seen[i] || pixels[i] <= t {
+            if seen[i] || pixels[i] < t {
                 continue;
             }
             seen[i] = true;
@@ -74,7 +53,7 @@ pub fn find_spots(
                             continue;
                         }
                         let k = nv as usize * width + nu as usize;
-                        if !seen[k] && pixels[k] > t {
+                        if !seen[k] && pixels[k] >= t {
                             seen[k] = true;
                             stack.push(k);
                         }
@@ -85,9 +64,9 @@ pub fn find_spots(
                 continue;
             }
             let scored = if settings.original_intensity_score {
-                pixels
+                original
             } else {
-                centre_pixels
+                cleaned
             };
             let weight: f64 = members.iter().map(|&j| f64::from(scored[j])).sum();
             // The centre from the dot's core: grey levels above a fraction of its peak.
@@ -105,17 +84,22 @@ pub fn find_spots(
                 }
                 (sw, su, sv)
             };
-            let (mut sw, mut su, mut sv) = centre(centre_pixels);
-            if sw <= 0.0 {
-                (sw, su, sv) = centre(pixels);
-            }
-            if sw > 0.0 {
-                spots.push(DotCandidate {
-                    centre_px: [su / sw, sv / sw],
-                    pixels: members.len(),
-                    weight,
-                });
-            }
+            let (sw, su, sv) = centre(cleaned);
+            // A flat spot (no grey level above its core level): its pixels' mean.
+            let centre_px = if sw > 0.0 {
+                [su / sw, sv / sw]
+            } else {
+                let n = members.len() as f64;
+                [
+                    members.iter().map(|&j| (j % width) as f64).sum::<f64>() / n,
+                    members.iter().map(|&j| (j / width) as f64).sum::<f64>() / n,
+                ]
+            };
+            spots.push(DotCandidate {
+                centre_px,
+                pixels: members.len(),
+                weight,
+            });
         }
     }
     spots.sort_by(|a, b| {

@@ -85,8 +85,8 @@ pub struct PlusSegmentation {
     pub max_angle_difference_deg: Option<f64>,
     /// `MinThetaDegrees`, `MaxThetaDegrees`.
     pub theta_range_deg: Option<(f64, f64)>,
-    /// `MorphologicalOpeningBarSizeMm`: read and checked; probecal's opening is
-    /// the disk alone.
+    /// `MorphologicalOpeningBarSizeMm`: the bars whose openings are subtracted
+    /// before the disk's (`detect::nwire::clean`).
     pub opening_bar_size_mm: Option<f64>,
     /// `UseOriginalImageIntensityForDotIntensityScore`.
     pub original_intensity_score: Option<bool>,
