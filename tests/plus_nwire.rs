@@ -163,10 +163,41 @@ fn experiment_on_plus_data_chooses_on_calibration_frames_and_compares_like_for_l
         294
     );
     assert!((pre3d - plus).abs() < 0.05, "ours {pre3d} mm, PLUS's matrix {plus} mm");
+    // The two paired frame by frame: the mean difference inside its interval,
+    // which is what the page's sentence reads.
+    let paired = &summary["validation"]["ours_minus_plus_matrix_mm"];
+    assert_eq!(paired["frames"].as_u64().unwrap(), 103, "{paired}");
+    let d = paired["mean"].as_f64().unwrap();
+    let (lo, hi) = (
+        paired["interval_90"][0].as_f64().unwrap(),
+        paired["interval_90"][1].as_f64().unwrap(),
+    );
+    assert!(lo < d && d < hi && hi - lo < 0.1, "{paired}");
+    let verdict = if hi < 0.0 {
+        "probecal lower"
+    } else if lo > 0.0 {
+        "PLUS's matrix lower"
+    } else {
+        "not told apart"
+    };
+    let page = std::fs::read_to_string(folder.join("report.html"))
+        .unwrap()
+        .replace("&#x27;", "'");
+    assert!(
+        page.contains(&format!("{d:+.3} mm")) && page.contains(verdict),
+        "{paired}"
+    );
     // The model: every candidate of the family scored on the calibration frames
     // alone, and the chosen one within one standard error of the best.
     let selection = &summary["model_selection"];
-    assert_eq!(selection["frames"].as_u64().unwrap(), 190);
+    // The frames segmented are PLUS's 184 of 190, frame for frame.
+    assert_eq!(selection["frames"].as_u64().unwrap(), 184);
+    let compared = &summary["calibration"]["frames_compared"];
+    assert_eq!(
+        (compared["ours"].as_u64(), compared["both"].as_u64()),
+        (Some(184), Some(184)),
+        "{compared}"
+    );
     let candidates = selection["candidates"].as_array().unwrap();
     assert_eq!(candidates.len(), 6);
     let score = |c: &serde_json::Value| c["cv_pre3d_mm"]["mean"].as_f64().unwrap();
@@ -179,8 +210,6 @@ fn experiment_on_plus_data_chooses_on_calibration_frames_and_compares_like_for_l
         .unwrap();
     let se = best["cv_pre3d_mm"]["std"].as_f64().unwrap() / (best["cv_pre3d_mm"]["n"].as_f64().unwrap()).sqrt();
     assert!(score(chosen) <= score(best) + se, "{selection}");
-    // PLUS segmented 184 of 190 calibration frames.
-    assert!(summary["frames"]["calibration"]["segmented"].as_u64().unwrap() >= 184);
     assert_eq!(summary["validation"]["pre3d_mm"]["n"].as_u64().unwrap(), 294);
     // The pixel size comes out near PLUS's 0.0803 x 0.0745 mm.
     let s = &summary["image_to_probe"]["spacing_mm_per_px"];

@@ -119,6 +119,9 @@ pub fn tracked_run(run: &TrackedRun, summary: &TrackedSummary, folder: &std::pat
             f3(v.same_frames_pre3d_mm.map(|s| s.mean)),
             f3(v.plus_matrix_pre3d_mm.map(|s| s.mean)),
         );
+        if let Some(d) = v.ours_minus_plus_matrix_mm {
+            println!("{}", d.sentence("probecal", "PLUS's matrix"));
+        }
         println!(
             "PLUS's published validation PRE3D: {} mm on its own dots{}",
             f3(plus.published_validation_pre3d_mm.mean),

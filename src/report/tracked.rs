@@ -7,7 +7,7 @@ use nalgebra::{Matrix3, Matrix4};
 use polars::prelude::*;
 
 use crate::core::geometry::{euler_zyx_deg, Rigid};
-use crate::core::stats::{best_95, mean_sd_of, MeanSd};
+use crate::core::stats::{best_95, block_mean_interval, mean, mean_sd_of, MeanSd};
 use crate::evaluate::pose_coverage::AngleRange;
 use crate::io::fs::write_atomic;
 use crate::io::plus::result::PlusResult;
@@ -16,10 +16,14 @@ use crate::pipeline::tracked::{Role, TrackedRun};
 use crate::pipeline::tracked_resolution::ValidationResolution;
 use crate::report::error::OutputError;
 use crate::report::summary::{
-    to_text, CandidateScore, ConstraintCounts, FramesCompared, ImageToProbeSummary, ModelSelectionSummary, ParameterSd,
-    PlusResultSummary, Pre3d, PublishedPre3d, Segmented, TrackedFrameCounts, TrackedSummary, TrackedTolerances,
-    TRACKED_KIND,
+    to_text, CandidateScore, ConstraintCounts, FramesCompared, ImageToProbeSummary, ModelSelectionSummary,
+    PairedDifference, ParameterSd, PlusResultSummary, Pre3d, PublishedPre3d, Segmented, TrackedFrameCounts,
+    TrackedSummary, TrackedTolerances, TRACKED_KIND,
 };
+
+/// Consecutive frames per block of the paired comparison's bootstrap, as the
+/// validation resolution's.
+const PAIRED_BLOCK_FRAMES: usize = 10;
 
 /// PRE3D of `image_to_probe` (PLUS's `Calibration` matrix) on `role`'s used
 /// dots and poses in the frames `keep` admits, with the phantom's registration
@@ -91,22 +95,39 @@ fn pre3d(run: &TrackedRun, manifest: &TrackedManifest, plus: Option<&PlusResult>
         .collect();
     let matrix = pre3d_of_matrix(run, manifest, &plus.image_to_probe, role, keep);
     let fit = &run.fit;
-    let same: Vec<f64> = run
+    let plus_map = |pixel: [f64; 2]| {
+        plus.image_to_probe
+            .transform_point(&nalgebra::Point3::new(pixel[0], pixel[1], 0.0))
+    };
+    let mut same = Vec::new();
+    let mut differences = Vec::new();
+    for f in run
         .frames
         .iter()
         .filter(|f| f.role == role && f.rejected.is_none() && keep(f.index))
-        .flat_map(|f| {
-            crate::pipeline::tracked::pre3d(
-                f,
-                &manifest.nwires,
-                |pixel| fit.image_to_probe.apply(pixel),
-                &fit.phantom_correction,
-            )
-        })
-        .collect();
+    {
+        let ours = crate::pipeline::tracked::pre3d(
+            f,
+            &manifest.nwires,
+            |pixel| fit.image_to_probe.apply(pixel),
+            &fit.phantom_correction,
+        );
+        let theirs = crate::pipeline::tracked::pre3d(f, &manifest.nwires, plus_map, &Rigid::identity());
+        if let (Some(a), Some(b)) = (mean(ours.iter().copied()), mean(theirs.iter().copied())) {
+            differences.push(a - b);
+        }
+        same.extend(ours);
+    }
     out.plus_matrix_pre3d_mm = best_95(&matrix);
     out.plus_matrix_pre3d_all_mm = mean_sd_of(&matrix);
     out.same_frames_pre3d_mm = best_95(&same);
+    out.ours_minus_plus_matrix_mm = mean(differences.iter().copied()).map(|m| PairedDifference {
+        mean: m,
+        interval_90: block_mean_interval(&differences, PAIRED_BLOCK_FRAMES, 0.9),
+        frames: differences.len(),
+        block_frames: PAIRED_BLOCK_FRAMES,
+        frames_won: differences.iter().filter(|d| **d < 0.0).count(),
+    });
     out.frames_compared = Some(FramesCompared {
         ours: used.len(),
         plus: theirs.map(|t| t.len()),
@@ -524,6 +545,11 @@ fn render_pages(
     ctx.insert("translation", &format!("[{:.2}, {:.2}, {:.2}]", t.x, t.y, t.z));
     let pre3d = pre3d_rows(summary);
     ctx.insert("pre3d", &pre3d);
+    let paired = summary
+        .validation
+        .ours_minus_plus_matrix_mm
+        .map(|d| d.sentence("probecal", "PLUS's matrix"));
+    ctx.insert("paired", &paired);
     ctx.insert("resolution", &resolution_rows(&summary.resolution));
     let gates: Vec<serde_json::Value> = summary
         .gates

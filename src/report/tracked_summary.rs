@@ -132,6 +132,57 @@ pub struct Pre3d {
     /// How many frames each used.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub frames_compared: Option<FramesCompared>,
+    /// Ours less PLUS's matrix, paired frame by frame on the same frames.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ours_minus_plus_matrix_mm: Option<PairedDifference>,
+}
+
+/// Two calibrations on the same frames: each frame's mean PRE3D over all its
+/// points under one less the other's, their mean over the frames, and its
+/// moving-block bootstrap 90 % interval (blocks of `block_frames` consecutive
+/// frames, since neighbouring frames of a sweep err alike).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+pub struct PairedDifference {
+    pub mean: f64,
+    pub interval_90: Option<[f64; 2]>,
+    pub frames: usize,
+    pub block_frames: usize,
+    /// Frames on which the first was the lower.
+    pub frames_won: usize,
+}
+
+impl PairedDifference {
+    /// In words, by its interval: lower, higher, or no difference told apart.
+    pub fn verdict(&self) -> &'static str {
+        match self.interval_90 {
+            Some([_, hi]) if hi < 0.0 => "lower",
+            Some([lo, _]) if lo > 0.0 => "higher",
+            _ => "not told apart",
+        }
+    }
+
+    /// One sentence: `first` less `second` on the paired frames, its interval,
+    /// the frames won and the verdict.
+    pub fn sentence(&self, first: &str, second: &str) -> String {
+        let interval = self
+            .interval_90
+            .map(|[lo, hi]| {
+                format!(
+                    "90 % interval {lo:+.3} to {hi:+.3} mm, blocks of {} frames",
+                    self.block_frames
+                )
+            })
+            .unwrap_or_else(|| "too few frames for an interval".into());
+        let verdict = match self.verdict() {
+            "lower" => format!("{first} lower"),
+            "higher" => format!("{second} lower"),
+            other => other.to_string(),
+        };
+        format!(
+            "{first} less {second}, frame by frame on {} frames: {:+.3} mm ({interval}; {first} lower on {} of them): {verdict}",
+            self.frames, self.mean, self.frames_won
+        )
+    }
 }
 
 /// Frames of one sequence: used here, segmented by PLUS (when its file lists
