@@ -15,7 +15,11 @@ pub struct WriteError {
 
 /// Writes `bytes` to `path` through a temporary file in the same folder, renamed
 /// into place: a reader sees the old file or the new one, never half of one.
+/// The temporary file is created new ([`create_temp_beside`]), so nothing
+/// planted at its name (a file, a link to elsewhere) is written through; a
+/// link at `path` itself is replaced, not followed.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), WriteError> {
+    use std::io::Write;
     let err = |e: std::io::Error| WriteError {
         path: path.to_path_buf(),
         message: e.to_string(),
@@ -23,12 +27,40 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), WriteError> {
     if let Some(parent) = path.parent() {
         std::fs::create_dir_all(parent).map_err(err)?;
     }
-    let tmp = path.with_file_name(format!(
-        ".{}.tmp",
-        path.file_name().map(|n| n.to_string_lossy()).unwrap_or_default()
-    ));
-    std::fs::write(&tmp, bytes).map_err(err)?;
-    std::fs::rename(&tmp, path).map_err(err)
+    let (tmp, mut file) = create_temp_beside(path).map_err(err)?;
+    let written = file.write_all(bytes).and_then(|_| file.flush());
+    drop(file);
+    if let Err(e) = written.and_then(|_| std::fs::rename(&tmp, path)) {
+        let _ = std::fs::remove_file(&tmp);
+        return Err(err(e));
+    }
+    Ok(())
+}
+
+/// Temporary files made by this process so far (part of their names).
+static TEMP_COUNTER: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+
+/// A new, empty file beside `path` whose name no other writer predicts
+/// (`.<name>.<process>-<count>-<clock>.tmp`), created exclusively
+/// (`create_new`: an existing file or link there is an error, never opened),
+/// with its path. Tries a few names before giving up.
+pub fn create_temp_beside(path: &Path) -> std::io::Result<(PathBuf, std::fs::File)> {
+    let name = path.file_name().map(|n| n.to_string_lossy()).unwrap_or_default();
+    let mut last = None;
+    for _ in 0..16 {
+        let count = TEMP_COUNTER.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        let clock = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map(|d| d.subsec_nanos() ^ (d.as_secs() as u32))
+            .unwrap_or(0);
+        let tmp = path.with_file_name(format!(".{name}.{}-{count}-{clock:08x}.tmp", std::process::id()));
+        match std::fs::OpenOptions::new().write(true).create_new(true).open(&tmp) {
+            Ok(file) => return Ok((tmp, file)),
+            Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => last = Some(e),
+            Err(e) => return Err(e),
+        }
+    }
+    Err(last.unwrap_or_else(|| std::io::Error::other("no free temporary name")))
 }
 
 /// Writes each `(name, bytes)` under `folder` with [`write_atomic`] (folders made
@@ -223,13 +255,13 @@ impl Lock {
             path: path.to_path_buf(),
             source,
         };
-        let mut file = std::fs::OpenOptions::new()
-            .read(true)
-            .write(true)
-            .create(true)
-            .truncate(false)
-            .open(path)
-            .map_err(fail)?;
+        let mut options = std::fs::OpenOptions::new();
+        options.read(true).write(true).create(true).truncate(false);
+        // A link planted at the lock's name is refused, not followed: the
+        // claim truncates the file it opens.
+        #[cfg(unix)]
+        std::os::unix::fs::OpenOptionsExt::custom_flags(&mut options, libc::O_NOFOLLOW);
+        let mut file = options.open(path).map_err(fail)?;
         match file.try_lock() {
             Ok(()) => {}
             Err(std::fs::TryLockError::WouldBlock) => {
@@ -360,6 +392,44 @@ impl Staged {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Links planted where a writer puts its files lead nowhere: the old fixed
+    /// temporary name, the output itself, the lock.
+    #[cfg(unix)]
+    #[test]
+    fn planted_links_are_never_written_through() {
+        let dir = std::env::temp_dir().join(format!("probecal-links-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(dir.join("out")).unwrap();
+        let outside = dir.join("outside.txt");
+        std::fs::write(&outside, "precious").unwrap();
+        let out = dir.join("out");
+        std::os::unix::fs::symlink(&outside, out.join(".summary.json.tmp")).unwrap();
+        std::os::unix::fs::symlink(&outside, out.join("report.html")).unwrap();
+        write_atomic(&out.join("summary.json"), b"{}").unwrap();
+        write_atomic(&out.join("report.html"), b"<p>").unwrap();
+        assert_eq!(std::fs::read_to_string(&outside).unwrap(), "precious");
+        assert_eq!(std::fs::read_to_string(out.join("summary.json")).unwrap(), "{}");
+        assert!(!out.join("report.html").is_symlink(), "the link is replaced");
+        std::os::unix::fs::symlink(&outside, out.join(".probecal.lock")).unwrap();
+        let refused = Lock::acquire(&out.join(".probecal.lock")).unwrap_err();
+        assert!(refused.to_string().contains(".probecal.lock"), "{refused}");
+        assert_eq!(std::fs::read_to_string(&outside).unwrap(), "precious");
+        // Temporary names differ call by call and are all gone afterwards.
+        let (a, fa) = create_temp_beside(&out.join("x")).unwrap();
+        let (b, fb) = create_temp_beside(&out.join("x")).unwrap();
+        assert_ne!(a, b);
+        drop((fa, fb));
+        std::fs::remove_file(a).unwrap();
+        std::fs::remove_file(b).unwrap();
+        let tmp: Vec<_> = std::fs::read_dir(&out)
+            .unwrap()
+            .filter_map(|e| e.ok())
+            .filter(|e| e.file_name().to_string_lossy().ends_with(".tmp") && !e.path().is_symlink())
+            .collect();
+        assert!(tmp.is_empty());
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 
     #[test]
     fn a_file_rewritten_at_once_is_hashed_again() {

@@ -77,18 +77,12 @@ impl Gray8 {
 
     fn write_encoded(&self, path: &Path, extension: &str, params: &Vector<i32>) -> Result<(), ImageError> {
         let mat = self.to_mat()?;
-        let mut tmp = path.as_os_str().to_owned();
-        tmp.push(".tmp");
-        let tmp = std::path::PathBuf::from(tmp);
-        let write_err = |message: String| ImageError::Write {
-            path: path.to_path_buf(),
-            message,
-        };
         let mut buffer = Vector::<u8>::new();
         imgcodecs::imencode(extension, &mat, &mut buffer, params)?;
-        std::fs::write(&tmp, buffer.as_slice()).map_err(|e| write_err(e.to_string()))?;
-        std::fs::rename(&tmp, path).map_err(|e| write_err(e.to_string()))?;
-        Ok(())
+        crate::io::fs::write_atomic(path, buffer.as_slice()).map_err(|e| ImageError::Write {
+            path: path.to_path_buf(),
+            message: e.message,
+        })
     }
 }
 
@@ -313,7 +307,12 @@ mod header_tests {
             })
             .collect();
         assert!(sizes[0] > sizes[1], "a lower quality compresses more: {sizes:?}");
-        assert!(!dir.join("q95.jpg.tmp").exists());
+        let left: Vec<String> = std::fs::read_dir(&dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().to_string())
+            .filter(|n| n.ends_with(".tmp"))
+            .collect();
+        assert!(left.is_empty(), "{left:?}");
         std::fs::remove_dir_all(&dir).unwrap();
     }
 

@@ -418,8 +418,7 @@ fn batch(session: &Session<'_>, inputs: &TrackedInputs, min_frames: usize) -> Re
         .sequence
         .as_ref()
         .ok_or_else(|| "no image was received".to_string())?;
-    std::fs::write(&session.received_path, sequence.to_file_bytes())
-        .map_err(|e| format!("{}: {e}", session.received_path.display()))?;
+    crate::io::fs::write_atomic(&session.received_path, &sequence.to_file_bytes()).map_err(|e| e.to_string())?;
     let mut received = inputs.clone();
     received.calibration_sequence = session.received_path.clone();
     tracked::run(&received, min_frames).map_err(|e| e.to_string())

@@ -143,12 +143,11 @@ pub fn write(
     folder: &Path,
 ) -> Result<IgtlSummary, OutputError> {
     let s = summary(run, settings);
-    let io = |e: std::io::Error| OutputError::Io {
-        path: folder.to_path_buf(),
-        message: e.to_string(),
-    };
-    std::fs::write(folder.join("summary.json"), super::summary::to_text(&s)?).map_err(io)?;
-    std::fs::write(folder.join("live.csv"), super::live::frames_csv(&run.frames)).map_err(io)?;
+    crate::io::fs::write_atomic(&folder.join("summary.json"), super::summary::to_text(&s)?.as_bytes())?;
+    crate::io::fs::write_atomic(
+        &folder.join("live.csv"),
+        super::live::frames_csv(&run.frames).as_bytes(),
+    )?;
     if let Ok(batch) = &run.final_run {
         let mut inputs = crate::pipeline::tracked::TrackedInputs::from_manifest(manifest);
         inputs.calibration_sequence = folder.join("received.igs.mha");

@@ -381,7 +381,7 @@ pub fn write(root: &Path) -> Result<Option<Chapter>, OutputError> {
         return Ok(None);
     };
     for (file, text) in [("thesis.html", html), ("thesis.tex", tex)] {
-        std::fs::write(root.join(file), text).map_err(|e| OutputError::io(root.join(file), e))?;
+        crate::io::fs::write_atomic(&root.join(file), text.as_bytes())?;
     }
     Ok(Some(chapter))
 }
