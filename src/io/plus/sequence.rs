@@ -89,29 +89,44 @@ pub enum Samples<'a> {
     F32(&'a [f32]),
 }
 
-/// Largest frame count and image size accepted (guards the allocation against a
-/// corrupt header).
-const MAX_PIXELS: usize = 1 << 32;
+/// Most bytes of samples a sequence may hold, all frames together (4 GiB): a
+/// corrupt or hostile header is refused before anything is allocated for it.
+pub const MAX_SAMPLE_BYTES: usize = 1 << 32;
+
+/// Most pixels of one frame (8192 x 8192): far beyond any B-scan.
+pub const MAX_FRAME_PIXELS: usize = 1 << 26;
+
+/// A sequence file's bytes, refused unread when it is larger than any
+/// sequence probecal takes (its samples' limit and 64 MiB of header).
+fn read_bounded(path: &Path) -> Result<Vec<u8>, SequenceError> {
+    let fail = |message: String| SequenceError {
+        path: path.to_path_buf(),
+        line: None,
+        message,
+    };
+    let limit = (MAX_SAMPLE_BYTES + (64 << 20)) as u64;
+    let size = std::fs::metadata(path)
+        .map_err(|e| fail(format!("cannot read: {e}")))?
+        .len();
+    if size > limit {
+        return Err(fail(format!(
+            "{size} bytes: larger than any sequence probecal reads ({limit} bytes)"
+        )));
+    }
+    std::fs::read(path).map_err(|e| fail(format!("cannot read: {e}")))
+}
 
 impl Sequence {
     /// Reads and checks a sequence file.
     pub fn read(path: &Path) -> Result<Sequence, SequenceError> {
-        let bytes = std::fs::read(path).map_err(|e| SequenceError {
-            path: path.to_path_buf(),
-            line: None,
-            message: format!("cannot read: {e}"),
-        })?;
+        let bytes = read_bounded(path)?;
         Sequence::parse(path, &bytes)
     }
 
     /// Reads a sequence of 8-bit or 32-bit float images (volume reconstruction
     /// takes both; [`Sequence::samples`] gives either).
     pub fn read_any(path: &Path) -> Result<Sequence, SequenceError> {
-        let bytes = std::fs::read(path).map_err(|e| SequenceError {
-            path: path.to_path_buf(),
-            line: None,
-            message: format!("cannot read: {e}"),
-        })?;
+        let bytes = read_bounded(path)?;
         Sequence::parse_with(path, &bytes, true)
     }
 
@@ -139,16 +154,6 @@ impl Sequence {
         };
         let dims = get("DimSize")?;
         let (width, height, count) = dimensions(dims, &fail)?;
-        let expected = width
-            .checked_mul(height)
-            .and_then(|p| p.checked_mul(count))
-            .filter(|&p| p <= MAX_PIXELS)
-            .ok_or_else(|| {
-                fail(
-                    Some(dims.line),
-                    format!("`DimSize = {}` is implausibly large", dims.value),
-                )
-            })?;
         let float = check_element(
             get("ElementType")?,
             header.get("ElementNumberOfChannels"),
@@ -156,7 +161,21 @@ impl Sequence {
             &fail,
         )?;
         let sample_bytes = if float { 4 } else { 1 };
-        let expected = expected * sample_bytes;
+        let frame_pixels = width.checked_mul(height).filter(|&p| p <= MAX_FRAME_PIXELS);
+        let expected = frame_pixels
+            .and_then(|p| p.checked_mul(count))
+            .and_then(|p| p.checked_mul(sample_bytes))
+            .filter(|&b| b <= MAX_SAMPLE_BYTES)
+            .ok_or_else(|| {
+                fail(
+                    Some(dims.line),
+                    format!(
+                        "`DimSize = {}` is implausibly large: at most {MAX_FRAME_PIXELS} pixels a frame and {} GiB of samples in all",
+                        dims.value,
+                        MAX_SAMPLE_BYTES >> 30
+                    ),
+                )
+            })?;
         let compressed = compressed_flag(header.get("CompressedData"), &fail)?;
         if per_frame.len() != count || per_frame.keys().next_back().is_some_and(|&last| last + 1 != count) {
             let last = per_frame.keys().next_back().map(|l| l + 1).unwrap_or(0);

@@ -71,18 +71,35 @@ pub(super) fn read_header(
             let name = rest[digits.len()..].strip_prefix('_');
             match (digits.parse::<usize>(), name) {
                 (Ok(index), Some(name)) if !name.is_empty() => {
-                    per_frame.entry(index).or_default().insert(name.to_string(), field);
+                    // `Seq_Frame0005_X` and `Seq_Frame00005_X` are one field.
+                    if let Some(first) = per_frame.entry(index).or_default().insert(name.to_string(), field) {
+                        return Err(twice(&format!("frame {index}'s `{name}`"), first.line, line_no, fail));
+                    }
                 }
                 _ => return Err(fail(Some(line_no), format!("`{key}`: expected `Seq_FrameNNNN_<Name>`"))),
             }
-        } else {
-            header.insert(key, field);
+        } else if let Some(first) = header.insert(key.clone(), field) {
+            return Err(twice(&format!("`{key}`"), first.line, line_no, fail));
         }
     }
     Err(fail(
         Some(line_no),
         "no `ElementDataFile = LOCAL` line: the header never ends (file cut off?)".into(),
     ))
+}
+
+/// A header field given a second time: refused, since which one counts would
+/// be a guess.
+fn twice(
+    what: &str,
+    first: usize,
+    again: usize,
+    fail: &dyn Fn(Option<usize>, String) -> SequenceError,
+) -> SequenceError {
+    fail(
+        Some(again),
+        format!("{what} is given twice (lines {first} and {again}); a field may be given once"),
+    )
 }
 
 /// `DimSize`: width, height and frames (`0 0 N` for a tracker-only sequence).
@@ -237,7 +254,9 @@ pub(super) fn pixel_bytes(
             ));
         }
     }
-    let mut out = Vec::with_capacity(expected);
+    // zlib expands at most about 1032 times: a short file that claims a large
+    // image gets no large allocation before its bytes are decoded.
+    let mut out = Vec::with_capacity(expected.min(data.len().saturating_mul(1032)));
     let mut decoder = flate2::read::ZlibDecoder::new(data).take(expected as u64 + 1);
     decoder.read_to_end(&mut out).map_err(|e| {
         fail(
