@@ -277,7 +277,7 @@ fn phantom_parts(c: &mut Checker<'_>, base: &Path, phantom: &TrackedPhantom) -> 
                             );
                         }
                         parts.nwires = config.nwires.clone();
-                        match config.transform(phantom_frame, reference_frame) {
+                        match config.rigid_transform(phantom_frame, reference_frame) {
                             Ok(m) => parts.reference_T_phantom = m,
                             Err(e) => c.fail(config_field, e.to_string()),
                         }

@@ -53,7 +53,7 @@ pub fn run(sequence: &Path, config: &Path) -> Result<SegmentRun, TrackedError> {
     let file = Sequence::read(sequence)?;
     let segmentation = settings_of(&config_file);
     let given = config_file.clip_rectangle_px.map(|(o, s)| [o[0], o[1], s[0], s[1]]);
-    let (clip, overlay) = clip_or_overlay(&file, given, &segmentation, spacing);
+    let (clip, overlay) = clip_or_overlay(&file, given, &segmentation, spacing)?;
     let inputs = SegmentationInputs {
         nwires: &config_file.nwires,
         spacing_guess_mm_per_px: spacing,

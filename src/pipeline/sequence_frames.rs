@@ -286,16 +286,34 @@ pub fn constraints(frame: &TrackedFrame, nwires: &[NWire]) -> FrameConstraints {
     out
 }
 
-/// The clip rectangle given, or the whole image with the overlay of `sequence`
-/// found (when it has enough frames to tell the drawn from the imaged).
+/// The clip rectangle given (refused when it reaches beyond the images), or the
+/// whole image with the overlay of `sequence` found (when it has enough frames
+/// to tell the drawn from the imaged).
 pub fn clip_or_overlay(
     sequence: &Sequence,
     clip: Option<[usize; 4]>,
     segmentation: &Segmentation,
     spacing_guess_mm_per_px: f64,
-) -> ([usize; 4], Option<Overlay>) {
-    match clip {
-        Some(clip) => (clip, None),
+) -> Result<([usize; 4], Option<Overlay>), crate::pipeline::tracked::TrackedError> {
+    Ok(match clip {
+        Some([u, v, w, h]) => {
+            let inside = u.checked_add(w).is_some_and(|r| r <= sequence.width)
+                && v.checked_add(h).is_some_and(|b| b <= sequence.height)
+                && w > 0
+                && h > 0;
+            if !inside {
+                return Err(crate::pipeline::tracked::TrackedError::ClipOutside {
+                    sequence: sequence.path.clone(),
+                    u,
+                    v,
+                    w,
+                    h,
+                    width: sequence.width,
+                    height: sequence.height,
+                });
+            }
+            ([u, v, w, h], None)
+        }
         None => (
             [0, 0, sequence.width, sequence.height],
             Overlay::find(
@@ -306,5 +324,5 @@ pub fn clip_or_overlay(
                 segmentation.opening_radius_for(spacing_guess_mm_per_px).max(1) as usize,
             ),
         ),
-    }
+    })
 }

@@ -103,6 +103,18 @@ pub enum TrackedError {
         want_width: usize,
         want_height: usize,
     },
+    #[error(
+        "{sequence}: the clip rectangle (origin {u} {v}, size {w} {h} px) reaches beyond the {width}x{height} px B-scans"
+    )]
+    ClipOutside {
+        sequence: PathBuf,
+        u: usize,
+        v: usize,
+        w: usize,
+        h: usize,
+        width: usize,
+        height: usize,
+    },
 }
 
 /// The tracked run's accuracy gates.
@@ -290,15 +302,19 @@ pub fn segmentation_inputs<'a>(
 
 /// Each frame of `sequence` segmented, inside the clip rectangle or with the
 /// sequence's own overlay left out; the overlay's pixel count.
-fn segment_sequence(sequence: &Sequence, role: Role, inputs: &TrackedInputs) -> (Vec<TrackedFrame>, Option<usize>) {
+fn segment_sequence(
+    sequence: &Sequence,
+    role: Role,
+    inputs: &TrackedInputs,
+) -> Result<(Vec<TrackedFrame>, Option<usize>), TrackedError> {
     let (clip, overlay) = clip_or_overlay(
         sequence,
         inputs.clip_rectangle_px,
         &inputs.segmentation,
         inputs.spacing_guess_mm_per_px,
-    );
+    )?;
     let frames = segment_frames(sequence, role, &segmentation_inputs(inputs, clip, overlay.as_ref()));
-    (frames, overlay.map(|o| o.pixels()))
+    Ok((frames, overlay.map(|o| o.pixels())))
 }
 
 pub fn fit_settings(inputs: &TrackedInputs) -> FitSettings {
@@ -337,7 +353,7 @@ fn lag_from_sweep(
 pub fn run(inputs: &TrackedInputs, min_frames: usize) -> Result<TrackedRun, TrackedError> {
     let calibration = Sequence::read(&inputs.calibration_sequence)?;
     let image_size_px = [calibration.width, calibration.height];
-    let (mut frames, overlay_px) = segment_sequence(&calibration, Role::Calibration, inputs);
+    let (mut frames, overlay_px) = segment_sequence(&calibration, Role::Calibration, inputs)?;
     // The tracker's lag, from the calibration frames alone.
     let mut sweep_lag = None;
     let time_offset_s = match &inputs.time_offset {
@@ -366,7 +382,7 @@ pub fn run(inputs: &TrackedInputs, min_frames: usize) -> Result<TrackedRun, Trac
                 want_height: image_size_px[1],
             });
         }
-        let (mut more, _) = segment_sequence(&validation, Role::Validation, inputs);
+        let (mut more, _) = segment_sequence(&validation, Role::Validation, inputs)?;
         attach_poses(&validation, &mut more, inputs, time_offset_s);
         frames.extend(more);
     }

@@ -1,6 +1,7 @@
 //! PLUS device-set configuration XML: `CoordinateDefinitions` (fixed transforms),
 //! `PhantomDefinition` (N-wire patterns) and the `Segmentation` hints.
 
+use super::xml_limits::{rigid_fault, wire_end_fault, MAX_CLIP_PX};
 use std::path::{Path, PathBuf};
 
 use nalgebra::{Matrix4, Point3};
@@ -101,18 +102,7 @@ impl PlusConfig {
         let doc = parse_xml(path, text)?;
         let x = Xml { path, doc: &doc };
 
-        let mut transforms = Vec::new();
-        for node in doc.descendants().filter(|n| n.has_tag_name("CoordinateDefinitions")) {
-            for t in node.children().filter(|n| n.has_tag_name("Transform")) {
-                let m = x.numbers(t, "Matrix", 16)?;
-                transforms.push(FixedTransform {
-                    from: x.attr(t, "From")?.to_string(),
-                    to: x.attr(t, "To")?.to_string(),
-                    matrix: Matrix4::from_fn(|r, c| m[r * 4 + c]),
-                    line: x.line(t),
-                });
-            }
-        }
+        let transforms = fixed_transforms(&x)?;
 
         let mut nwires = Vec::new();
         let mut wire_ids = Vec::new();
@@ -131,6 +121,9 @@ impl PlusConfig {
                     wire_ids.push(w.attribute("Id").or(w.attribute("Name")).unwrap_or("").to_string());
                     let front = x.numbers(w, "EndPointFront", 3)?;
                     let back = x.numbers(w, "EndPointBack", 3)?;
+                    if let Some(why) = wire_end_fault(&front).or_else(|| wire_end_fault(&back)) {
+                        return Err(x.fail(w, why));
+                    }
                     Ok(WireSegment {
                         name: w.attribute("Name").unwrap_or("").to_string(),
                         front_in_phantom_mm: Point3::new(front[0], front[1], front[2]),
@@ -153,15 +146,24 @@ impl PlusConfig {
             .find(|n| n.has_tag_name("Segmentation") && n.attribute("ApproximateSpacingMmPerPixel").is_some())
         {
             let s = x.numbers(seg, "ApproximateSpacingMmPerPixel", 1)?[0];
-            if s <= 0.0 {
-                return Err(x.fail(seg, format!("`ApproximateSpacingMmPerPixel` must be positive, got {s}")));
+            if !(0.001..=10.0).contains(&s) {
+                return Err(x.fail(
+                    seg,
+                    format!("`ApproximateSpacingMmPerPixel` must be 0.001 to 10 mm per pixel, got {s}"),
+                ));
             }
             approximate_spacing_mm_per_px = Some(s);
             if seg.attribute("ClipRectangleOrigin").is_some() {
                 let o = x.numbers(seg, "ClipRectangleOrigin", 2)?;
                 let z = x.numbers(seg, "ClipRectangleSize", 2)?;
-                if o.iter().chain(&z).any(|v| *v < 0.0) {
-                    return Err(x.fail(seg, "the clip rectangle has a negative coordinate".into()));
+                if o.iter()
+                    .chain(&z)
+                    .any(|v| *v < 0.0 || *v > MAX_CLIP_PX || v.fract() != 0.0)
+                {
+                    return Err(x.fail(
+                        seg,
+                        format!("the clip rectangle {o:?} + {z:?} must be whole pixels from 0 to {MAX_CLIP_PX}"),
+                    ));
                 }
                 clip_rectangle_px = Some(([o[0] as usize, o[1] as usize], [z[0] as usize, z[1] as usize]));
             }
@@ -191,6 +193,24 @@ impl PlusConfig {
         })
     }
 
+    /// The fixed transform `to_T_from` that must be rigid (a phantom's
+    /// registration): refused, naming its line, when it scales or mirrors.
+    pub fn rigid_transform(&self, from: &str, to: &str) -> Result<Matrix4<f64>, ConfigError> {
+        let m = self.transform(from, to)?;
+        match rigid_fault(&m) {
+            None => Ok(m),
+            Some(why) => Err(ConfigError {
+                path: self.path.clone(),
+                line: self
+                    .transforms
+                    .iter()
+                    .find(|t| (t.from == from && t.to == to) || (t.from == to && t.to == from))
+                    .map(|t| t.line),
+                message: format!("transform {from}To{to} is {why}; a phantom's registration must be rigid"),
+            }),
+        }
+    }
+
     /// The fixed transform `to_T_from`, found directly or as the inverse of `from_T_to`.
     pub fn transform(&self, from: &str, to: &str) -> Result<Matrix4<f64>, ConfigError> {
         if let Some(t) = self.transforms.iter().find(|t| t.from == from && t.to == to) {
@@ -209,6 +229,24 @@ impl PlusConfig {
             message: format!("CoordinateDefinitions has no transform {from}To{to} (nor its inverse)"),
         })
     }
+}
+
+/// The `CoordinateDefinitions` transforms, each defined once and affine.
+fn fixed_transforms(x: &Xml) -> Result<Vec<FixedTransform>, ConfigError> {
+    let mut transforms = Vec::new();
+    for node in x.doc.descendants().filter(|n| n.has_tag_name("CoordinateDefinitions")) {
+        for t in node.children().filter(|n| n.has_tag_name("Transform")) {
+            let m = x.numbers(t, "Matrix", 16)?;
+            transforms.push(FixedTransform {
+                from: x.attr(t, "From")?.to_string(),
+                to: x.attr(t, "To")?.to_string(),
+                matrix: Matrix4::from_fn(|r, c| m[r * 4 + c]),
+                line: x.line(t),
+            });
+        }
+    }
+    super::xml_limits::check_transforms(x.path, &transforms)?;
+    Ok(transforms)
 }
 
 /// The `Segmentation` element's settings of the dot segmentation, each a
@@ -291,15 +329,26 @@ fn theta_range(x: &Xml, seg: roxmltree::Node) -> Result<Option<(f64, f64)>, Conf
 
 /// A PLUS XML file's text, an error naming the file when it cannot be read.
 pub(crate) fn read_text(path: &Path) -> Result<String, ConfigError> {
-    std::fs::read_to_string(path).map_err(|e| ConfigError {
+    let fail = |message: String| ConfigError {
         path: path.to_path_buf(),
         line: None,
-        message: format!("cannot read: {e}"),
-    })
+        message,
+    };
+    let size = std::fs::metadata(path)
+        .map_err(|e| fail(format!("cannot read: {e}")))?
+        .len();
+    if size > super::xml_limits::MAX_XML_BYTES {
+        return Err(fail(format!(
+            "{size} bytes: larger than any PLUS XML file probecal reads ({} bytes)",
+            super::xml_limits::MAX_XML_BYTES
+        )));
+    }
+    std::fs::read_to_string(path).map_err(|e| fail(format!("cannot read: {e}")))
 }
 
 /// Parses XML, a syntax error naming the file and line.
 pub(crate) fn parse_xml<'input>(path: &Path, text: &'input str) -> Result<roxmltree::Document<'input>, ConfigError> {
+    super::xml_limits::check_size_and_depth(path, text)?;
     roxmltree::Document::parse(text).map_err(|e| ConfigError {
         path: path.to_path_buf(),
         line: Some(e.pos().row as usize),

@@ -8,3 +8,4 @@ pub mod sequence;
 mod sequence_header;
 mod sequence_writer;
 pub mod volume_config;
+pub mod xml_limits;
