@@ -11,4 +11,5 @@ pub mod plus;
 pub mod stl;
 pub mod tracker_poses;
 pub mod truth;
+pub mod unique_keys;
 pub mod volume_file;

@@ -24,7 +24,8 @@ pub struct Metric {
 #[serde(deny_unknown_fields)]
 pub struct Baseline {
     pub experiment: String,
-    /// dataset → metric name → metric.
+    /// dataset → metric name → metric (each given once).
+    #[serde(deserialize_with = "crate::io::unique_keys::map_of_maps")]
     pub datasets: BTreeMap<String, BTreeMap<String, Metric>>,
 }
 

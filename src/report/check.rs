@@ -168,8 +168,8 @@ pub fn find_summaries(inputs: &[PathBuf]) -> Result<Vec<FoundSummary>, CheckErro
         .collect()
 }
 
-/// Reads a baseline file.
-pub fn load_baseline(path: &Path) -> Result<Baseline, CheckError> {
+/// Reads the baseline file of `experiment`.
+pub fn load_baseline(path: &Path, experiment: &str) -> Result<Baseline, CheckError> {
     let text = std::fs::read_to_string(path).map_err(|e| CheckError::Read {
         path: path.to_path_buf(),
         message: e.to_string(),
@@ -182,6 +182,12 @@ pub fn load_baseline(path: &Path) -> Result<Baseline, CheckError> {
         path: path.to_path_buf(),
         message,
     };
+    if baseline.experiment != experiment {
+        return Err(bad(format!(
+            "field `experiment` names `{}`, but this is the baseline of `{experiment}`; a baseline judges only its own experiment",
+            baseline.experiment
+        )));
+    }
     if baseline.datasets.is_empty() {
         return Err(bad(
             "holds no dataset: a baseline that judges nothing passes everything".into(),
@@ -220,7 +226,7 @@ pub fn update(runs: &[FoundSummary], baselines: &Path, allow_drop: bool) -> Resu
     for (experiment, runs) in by_experiment {
         let path = baseline_path(baselines, experiment);
         let mut baseline = if path.is_file() {
-            load_baseline(&path)?
+            load_baseline(&path, experiment)?
         } else {
             Baseline {
                 experiment: experiment.to_string(),
@@ -296,7 +302,7 @@ pub fn compare(runs: &[FoundSummary], baselines: &Path) -> Result<Vec<Comparison
                 run,
             });
         }
-        let baseline = load_baseline(&path)?;
+        let baseline = load_baseline(&path, &r.experiment)?;
         let Some(expected) = baseline.datasets.get(&r.dataset) else {
             return Err(CheckError::Read {
                 path,
@@ -506,10 +512,23 @@ mod tests {
                 "experiment: e\ndatasets: {d: {m: {value: 1.0, tolerance: -0.1}}}\n",
                 "d.m.tolerance is -0.1",
             ),
+            // A key given twice, at either level, and another experiment's file.
+            (
+                "experiment: e\ndatasets:\n  d:\n    m: {value: 1.0, tolerance: 0.1}\n  d:\n    m: {value: 9.0, tolerance: 0.1}\n",
+                "`d` is given twice",
+            ),
+            (
+                "experiment: e\ndatasets: {d: {m: {value: 1.0, tolerance: 0.1}, m: {value: 9.0, tolerance: 0.1}}}\n",
+                "`m` is given twice",
+            ),
+            (
+                "experiment: other\ndatasets: {d: {m: {value: 1.0, tolerance: 0.1}}}\n",
+                "field `experiment` names `other`, but this is the baseline of `e`",
+            ),
         ] {
             let path = dir.join("bad.yaml");
             std::fs::write(&path, text).unwrap();
-            let e = load_baseline(&path).unwrap_err().to_string();
+            let e = load_baseline(&path, "e").unwrap_err().to_string();
             assert!(e.contains(expect), "{e}");
         }
         std::fs::remove_dir_all(&dir).ok();

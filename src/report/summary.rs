@@ -71,6 +71,7 @@ pub struct FrameCounts {
     pub used: usize,
     pub rejected: usize,
     /// Stage label → frames it rejected.
+    #[serde(deserialize_with = "crate::io::unique_keys::map")]
     pub rejected_by_stage: BTreeMap<String, usize>,
 }
 
