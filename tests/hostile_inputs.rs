@@ -1,0 +1,207 @@
+//! Inputs made to mislead, each refused where it enters with an error naming
+//! the file (and the line where there is one), no panic or abort, and nothing
+//! written: header fields given twice, sizes that would allocate gigabytes,
+//! device sets nested past any parser's stack, transforms that scale, rectangles
+//! outside the image, wires kilometres away, baselines of another experiment.
+
+mod common;
+
+use std::path::{Path, PathBuf};
+
+use common::{probecal, scratch, shared_data};
+
+const SET: &str = "plus-fcal2.0-3nwires";
+const CONFIG: &str = "PlusDeviceSet_fCal_Sim_SpatialCalibration_2.0.xml";
+const VALIDATION: &str = "fCal_Test_Validation_3NWires_fCal2.0.igs.mha";
+
+/// A small uncompressed sequence of `frames` grey frames, 40x30 px, with
+/// `extra` header lines before the data.
+fn tiny_sequence(frames: usize, dims: &str, extra: &str) -> Vec<u8> {
+    let mut text = format!(
+        "ObjectType = Image\nNDims = 3\nCompressedData = False\nDimSize = {dims}\nElementType = MET_UCHAR\n{extra}"
+    );
+    for i in 0..frames {
+        text += &format!("Seq_Frame{i:04}_Timestamp = {}\n", i as f64 * 0.1);
+        text += &format!("Seq_Frame{i:04}_ImageStatus = OK\n");
+    }
+    text += "ElementDataFile = LOCAL\n";
+    let mut bytes = text.into_bytes();
+    bytes.extend(std::iter::repeat_n(7u8, 40 * 30 * frames));
+    bytes
+}
+
+/// `probecal segment` on `sequence` with `config`: stderr, after checking that
+/// it failed with exit code 1 (not a panic's 101 or an abort's signal) and
+/// wrote nothing.
+fn segment_refused(dir: &Path, sequence: &Path, config: &Path) -> String {
+    let out = dir.join("out");
+    let r = probecal()
+        .arg("segment")
+        .arg(sequence)
+        .arg("--config")
+        .arg(config)
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&r.stderr).to_string();
+    assert_eq!(r.status.code(), Some(1), "{stderr}");
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    assert!(!out.exists(), "nothing is written on an error: {stderr}");
+    stderr
+}
+
+fn write(dir: &Path, name: &str, bytes: &[u8]) -> PathBuf {
+    std::fs::create_dir_all(dir).unwrap();
+    let path = dir.join(name);
+    std::fs::write(&path, bytes).unwrap();
+    path
+}
+
+#[test]
+#[ignore = "needs ../shared/data (full tier: scripts/test.sh)"]
+fn sequence_headers_that_say_two_things_or_too_much_are_refused() {
+    let dir = scratch("hostile_inputs", "sequences");
+    let config = shared_data(SET, CONFIG);
+    // One frame's field under two spellings of its index: the same field twice.
+    let twice = tiny_sequence(2, "40 30 2", "Seq_Frame00000_Timestamp = 99\n");
+    let path = write(&dir, "twice.mha", &twice);
+    let e = segment_refused(&dir, &path, &config);
+    assert!(
+        e.contains("twice.mha:7: frame 0's `Timestamp` is given twice (lines 6 and 7)"),
+        "{e}"
+    );
+    // A second DimSize.
+    let dims = tiny_sequence(2, "40 30 2", "DimSize = 40 30 1\n");
+    let path = write(&dir, "dims.mha", &dims);
+    let e = segment_refused(&dir, &path, &config);
+    assert!(
+        e.contains("dims.mha:6: `DimSize` is given twice (lines 4 and 6)"),
+        "{e}"
+    );
+    // A header that asks for 4 Gpx of one frame in a file of a few hundred
+    // bytes: refused before anything is allocated.
+    let huge = tiny_sequence(0, "65536 65536 1", "Seq_Frame0000_Timestamp = 0\n");
+    let path = write(&dir, "huge.mha", &huge[..huge.len().min(400)]);
+    let e = segment_refused(&dir, &path, &config);
+    assert!(
+        e.contains("huge.mha:4: `DimSize = 65536 65536 1` is implausibly large: at most 67108864 pixels a frame"),
+        "{e}"
+    );
+}
+
+/// The shared device set with `from` replaced by `to` (which must occur).
+fn device_set(dir: &Path, name: &str, from: &str, to: &str) -> PathBuf {
+    device_set_edits(dir, name, &[(from, to)])
+}
+
+/// The shared device set with each `(from, to)` replaced in turn.
+fn device_set_edits(dir: &Path, name: &str, edits: &[(&str, &str)]) -> PathBuf {
+    let mut text = std::fs::read_to_string(shared_data(SET, CONFIG)).unwrap();
+    for (from, to) in edits {
+        assert!(text.contains(from), "`{from}` is not in the device set");
+        text = text.replacen(from, to, 1);
+    }
+    write(dir, name, text.as_bytes())
+}
+
+#[test]
+#[ignore = "needs ../shared/data (full tier: scripts/test.sh)"]
+fn device_sets_are_held_to_physical_values() {
+    let dir = scratch("hostile_inputs", "device_sets");
+    let sequence = shared_data(SET, VALIDATION);
+    // Nested 100 000 deep: refused before parsing, not a stack overflow.
+    let deep = format!(
+        "<PlusConfiguration>{}{}</PlusConfiguration>",
+        "<a>".repeat(100_000),
+        "</a>".repeat(100_000)
+    );
+    let path = write(&dir, "deep.xml", deep.as_bytes());
+    let e = segment_refused(&dir, &path, &path);
+    assert!(e.contains("deep.xml: elements nested more than 256 deep"), "{e}");
+    // A transform defined twice (here as its own inverse).
+    let again = "<Transform From=\"Reference\" To=\"Phantom\" Matrix=\"1 0 0 0 0 1 0 0 0 0 1 0 0 0 0 1\"/>\n    <Transform From=\"Phantom\" To=\"Reference\"";
+    let path = device_set(&dir, "again.xml", "<Transform From=\"Phantom\" To=\"Reference\"", again);
+    let e = segment_refused(&dir, &path, &path);
+    assert!(
+        e.contains("transform PhantomToReference is defined again (first as ReferenceToPhantom on line"),
+        "{e}"
+    );
+    // The clip rectangle past the 820x616 B-scans.
+    let path = device_set(
+        &dir,
+        "clip.xml",
+        "ClipRectangleSize=\"766 562\"",
+        "ClipRectangleSize=\"900 562\"",
+    );
+    let e = segment_refused(&dir, &sequence, &path);
+    assert!(
+        e.contains("the clip rectangle (origin 27 27, size 900 562 px) reaches beyond the 820x616 px B-scans"),
+        "{e}"
+    );
+    // A wire 10 km away.
+    let path = device_set(
+        &dir,
+        "wire.xml",
+        "EndPointFront=\"30.0 0.0 20.0\"",
+        "EndPointFront=\"1e7 0.0 20.0\"",
+    );
+    let e = segment_refused(&dir, &sequence, &path);
+    assert!(
+        e.contains("wire.xml:") && e.contains("is beyond ±2000 mm of the phantom's origin"),
+        "{e}"
+    );
+    // A pixel size of a kilometre.
+    let path = device_set(
+        &dir,
+        "spacing.xml",
+        "ApproximateSpacingMmPerPixel=\"0.078\"",
+        "ApproximateSpacingMmPerPixel=\"1e6\"",
+    );
+    let e = segment_refused(&dir, &sequence, &path);
+    assert!(
+        e.contains("`ApproximateSpacingMmPerPixel` must be 0.001 to 10 mm per pixel, got 1000000"),
+        "{e}"
+    );
+}
+
+#[test]
+#[ignore = "needs ../shared/data (full tier: scripts/test.sh)"]
+fn a_phantom_registration_that_scales_is_refused_not_absorbed() {
+    // PhantomToReference scaled x2: before, the pixel size absorbed the scale,
+    // PRE3D doubled, and the run ended with exit 0.
+    let dir = scratch("hostile_inputs", "scaled_registration");
+    let config = device_set_edits(
+        &dir,
+        "scaled.xml",
+        &[
+            (
+                "-0.0167397  -0.0153548  -0.999742  15.6642",
+                "-0.0334794  -0.0307096  -1.999484  15.6642",
+            ),
+            (
+                "-0.999834  0.0075107  0.0166258  -25.3628",
+                "-1.999668  0.0150214  0.0332516  -25.3628",
+            ),
+            (
+                "0.00725347  0.999854  -0.015478  -40.7799",
+                "0.01450694  1.999708  -0.030956  -40.7799",
+            ),
+        ],
+    );
+    let manifest = format!(
+        "experiment: scaled_registration\ntracking:\n  plus_sequence:\n    dataset: fcal2\n    calibration: {}\n    validation: {}\nphantom:\n  nwire:\n    plus_config: {}\n",
+        shared_data(SET, "fCal_Test_Calibration_3NWires_fCal2.0.igs.mha").display(),
+        shared_data(SET, VALIDATION).display(),
+        config.display()
+    );
+    let path = write(&dir, "scaled.yaml", manifest.as_bytes());
+    let r = probecal().arg("validate").arg(&path).output().unwrap();
+    let stderr = String::from_utf8_lossy(&r.stderr);
+    assert_ne!(r.status.code(), Some(0), "{stderr}");
+    assert!(
+        stderr.contains("transform PhantomToReference is not rigid: its axes are 2.0000, 2.0000, 2.0000 long"),
+        "{stderr}"
+    );
+    assert!(stderr.contains("scaled.xml:43"), "the transform's line: {stderr}");
+}
