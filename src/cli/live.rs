@@ -32,9 +32,9 @@ pub(super) fn shown(terminal: bool, text: &str) {
 
 pub fn command(manifest: &Path, out: &Path, source: &LiveSource) -> Result<(), Failure> {
     let speed = source.speed;
-    if !(speed.is_finite() && speed >= 0.0) {
+    if !(speed == 0.0 || (0.01..=100.0).contains(&speed)) {
         return Err(Failure::bad_input(format!(
-            "--speed {speed}: a replay speed is a number ≥ 0 (0: as fast as the frames are processed)"
+            "--speed {speed}: a replay speed is 0 (as fast as the frames are processed) or 0.01 to 100 (times the recorded pace)"
         )));
     }
     let mut all = crate::pipeline::experiment::load_all(&[manifest.to_path_buf()]).map_err(Failure::bad_input)?;

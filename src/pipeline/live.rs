@@ -181,6 +181,33 @@ pub(super) fn live_offset_s(inputs: &TrackedInputs) -> Result<f64, TrackedError>
     })
 }
 
+/// Longest pause between two frames a paced replay waits out, s (of the
+/// recording's own time).
+pub const MAX_REPLAY_GAP_S: f64 = 10.0;
+
+/// A paced replay waits for each frame's timestamp: a clock that stands still,
+/// runs backwards or jumps (by years, or to a number no wait can hold) is
+/// refused, naming the frame, before anything waits.
+fn refuse_unpaced(sequence: &Sequence, times: &[Option<f64>]) -> Result<(), TrackedError> {
+    let fault = crate::pipeline::sequence_frames::clock_fault(sequence).or_else(|| {
+        times.windows(2).enumerate().find_map(|(i, w)| match (w[0], w[1]) {
+            (Some(a), Some(b)) if b - a > MAX_REPLAY_GAP_S => Some(format!(
+                "frame {} comes {:.3e} s after frame {i}, more than {MAX_REPLAY_GAP_S} s: a paced replay would wait that long (replay with --speed 0)",
+                i + 1,
+                b - a
+            )),
+            _ => None,
+        })
+    });
+    match fault {
+        None => Ok(()),
+        Some(fault) => Err(TrackedError::Clock {
+            sequence: sequence.path.clone(),
+            fault,
+        }),
+    }
+}
+
 /// Replays the calibration sequence of `inputs` and calibrates as frames arrive;
 /// `show` sees each frame's outcome. The batch run on the whole recording follows.
 pub fn run(
@@ -199,6 +226,9 @@ pub fn run(
     let mut state = State::new(inputs);
     let n = sequence.frames.len();
     let times: Vec<Option<f64>> = (0..n).map(|i| tracked::timestamp_s(&sequence, i)).collect();
+    if replay.speed > 0.0 {
+        refuse_unpaced(&sequence, &times)?;
+    }
     let first_time = times.iter().flatten().next().copied().unwrap_or(0.0);
     let recorded_rate_hz = match (times.first().copied().flatten(), times.last().copied().flatten()) {
         (Some(a), Some(b)) if b > a && n > 1 => (n - 1) as f64 / (b - a),

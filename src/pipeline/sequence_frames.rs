@@ -251,6 +251,28 @@ pub fn segment_frame(
     frame
 }
 
+/// Why `sequence`'s clock cannot time its frames, if it cannot: a frame
+/// without a finite `Timestamp`, or one not after the frame before it (a clock
+/// that stands still or runs backwards).
+pub fn clock_fault(sequence: &Sequence) -> Option<String> {
+    let mut previous: Option<(usize, f64)> = None;
+    for index in 0..sequence.frames.len() {
+        let Some(t) = timestamp_s(sequence, index) else {
+            return Some(format!("frame {index} has no finite `Timestamp`"));
+        };
+        if let Some((before, t0)) = previous {
+            if t <= t0 {
+                return Some(format!(
+                    "frame {index}'s `Timestamp` {t} s is not after frame {before}'s {t0} s: the clock {}",
+                    if t == t0 { "stands still" } else { "runs backwards" }
+                ));
+            }
+        }
+        previous = Some((index, t));
+    }
+    None
+}
+
 /// A frame's timestamp, s; `None` when it is missing or not a finite number
 /// (a `nan` parses as a number but times nothing).
 pub fn timestamp_s(sequence: &Sequence, index: usize) -> Option<f64> {

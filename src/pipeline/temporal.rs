@@ -52,7 +52,25 @@ pub enum TemporalError {
     /// A signal that does not vary (a probe held still) has no lag to find.
     #[error("unresolved: the {which} signal does not vary (SD {sd:.3e}): too little motion to tell the lag")]
     NoMotion { which: &'static str, sd: f64 },
+    #[error("{path}: {fault}; the lag cannot be estimated on this clock")]
+    Clock { path: PathBuf, fault: String },
+    #[error(
+        "{path}: frame {frame}'s probe is {distance_mm:.0} mm from the reference, beyond any tracker's workspace ({MAX_WORKSPACE_MM} mm)"
+    )]
+    OutsideWorkspace {
+        path: PathBuf,
+        frame: usize,
+        distance_mm: f64,
+    },
+    #[error("unresolved: the correlation peaks at {peak_correlation:.3} (lag {lag_s:+.3} s), weaker than {MIN_PEAK_CORRELATION}: the two signals do not show one motion")]
+    Weak { lag_s: f64, peak_correlation: f64 },
 }
+
+/// Farthest a tracked probe can be from its reference, mm.
+pub const MAX_WORKSPACE_MM: f64 = 5000.0;
+
+/// Weakest peak correlation taken as the same motion seen twice.
+pub const MIN_PEAK_CORRELATION: f64 = 0.5;
 
 /// The lag at which two signals of the same motion line up best.
 #[derive(Debug, Clone)]
@@ -104,9 +122,22 @@ pub fn correlate(first: &[(f64, f64)], second: &[(f64, f64)]) -> Result<Correlat
         }
         let p = normalised(&p);
         let ncc = v.iter().zip(&p).map(|(a, b)| a * b).sum::<f64>() / v.len() as f64;
+        if !ncc.is_finite() {
+            return Err(TemporalError::NoMotion {
+                which: "second",
+                sd: f64::NAN,
+            });
+        }
         curve.push((lag, ncc));
     }
-    peak(curve)
+    let found = peak(curve)?;
+    if found.peak_correlation.abs() < MIN_PEAK_CORRELATION {
+        return Err(TemporalError::Weak {
+            lag_s: found.lag_s,
+            peak_correlation: found.peak_correlation,
+        });
+    }
+    Ok(found)
 }
 
 /// The peak (of either sign) of a correlation `curve` over evenly spaced lags,
@@ -215,6 +246,13 @@ fn tracker_signal(seq: &Sequence, probe: &str, reference: &str) -> Result<Vec<(f
             probe_to_reference[(2, 3)],
         );
         if position.iter().all(|v| v.is_finite()) {
+            if position.norm() > MAX_WORKSPACE_MM {
+                return Err(TemporalError::OutsideWorkspace {
+                    path: seq.path.clone(),
+                    frame: i,
+                    distance_mm: position.norm(),
+                });
+            }
             positions.push((t, position));
         }
     }
@@ -248,6 +286,12 @@ fn tracker_signal(seq: &Sequence, probe: &str, reference: &str) -> Result<Vec<(f
 /// Estimates the tracker's lag from a video and a tracker recording.
 pub fn run(video_path: &Path, tracker_path: &Path, probe: &str, reference: &str) -> Result<TemporalRun, TemporalError> {
     let video = Sequence::read(video_path)?;
+    if let Some(fault) = crate::pipeline::sequence_frames::clock_fault(&video) {
+        return Err(TemporalError::Clock {
+            path: video_path.to_path_buf(),
+            fault,
+        });
+    }
     let frames: Vec<VideoFrame> = (0..video.frames.len())
         .map(|index| {
             Ok(VideoFrame {
@@ -277,6 +321,12 @@ pub fn run(video_path: &Path, tracker_path: &Path, probe: &str, reference: &str)
         });
     }
     let tracker = Sequence::read(tracker_path)?;
+    if let Some(fault) = crate::pipeline::sequence_frames::clock_fault(&tracker) {
+        return Err(TemporalError::Clock {
+            path: tracker_path.to_path_buf(),
+            fault,
+        });
+    }
     let tracker_signal = tracker_signal(&tracker, probe, reference)?;
     let found = correlate(&video_signal, &tracker_signal)?;
     Ok(TemporalRun {

@@ -6,7 +6,7 @@
 //! ([`crate::detect::nwire`]); build constraints in the probe frame; fit `Calibration`
 //! ([`crate::estimate::image_to_probe`]); evaluate PRE3D on the validation frames.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use nalgebra::{Matrix4, Point3};
 
@@ -103,6 +103,12 @@ pub enum TrackedError {
         want_width: usize,
         want_height: usize,
     },
+    #[error("{sequence}: {fault}; the tracker's lag cannot be applied on this clock")]
+    Clock { sequence: PathBuf, fault: String },
+    #[error(
+        "{validation} is the same recording as the calibration sequence {calibration}: its PRE3D would score the calibration on its own frames; give a held-out recording, or none"
+    )]
+    SameRecording { calibration: PathBuf, validation: PathBuf },
     #[error(
         "{sequence}: the clip rectangle (origin {u} {v}, size {w} {h} px) reaches beyond the {width}x{height} px B-scans"
     )]
@@ -349,6 +355,45 @@ fn lag_from_sweep(
     }
 }
 
+/// A lag is applied by interpolating between frames by their timestamps: a
+/// clock that stands still or runs backwards would interpolate the wrong way.
+fn refuse_clock(sequence: &Sequence, time_offset_s: f64) -> Result<(), TrackedError> {
+    if time_offset_s == 0.0 {
+        return Ok(());
+    }
+    match crate::pipeline::sequence_frames::clock_fault(sequence) {
+        None => Ok(()),
+        Some(fault) => Err(TrackedError::Clock {
+            sequence: sequence.path.clone(),
+            fault,
+        }),
+    }
+}
+
+/// A validation sequence that is the calibration sequence (the same file, or
+/// the same bytes) would score the calibration on its own frames.
+fn refuse_same_recording(calibration: &Path, validation: &Path) -> Result<(), TrackedError> {
+    let same_file = matches!(
+        (calibration.canonicalize(), validation.canonicalize()),
+        (Ok(a), Ok(b)) if a == b
+    );
+    let same_bytes = || {
+        let size = |p: &Path| std::fs::metadata(p).map(|m| m.len()).ok();
+        size(calibration).is_some_and(|s| Some(s) == size(validation))
+            && matches!(
+                (crate::io::fs::file_sha256(calibration), crate::io::fs::file_sha256(validation)),
+                (Ok(a), Ok(b)) if a == b
+            )
+    };
+    if same_file || same_bytes() {
+        return Err(TrackedError::SameRecording {
+            calibration: calibration.to_path_buf(),
+            validation: validation.to_path_buf(),
+        });
+    }
+    Ok(())
+}
+
 /// Runs the tracked pipeline.
 pub fn run(inputs: &TrackedInputs, min_frames: usize) -> Result<TrackedRun, TrackedError> {
     let calibration = Sequence::read(&inputs.calibration_sequence)?;
@@ -363,16 +408,25 @@ pub fn run(inputs: &TrackedInputs, min_frames: usize) -> Result<TrackedRun, Trac
                 .tracker_lag_s
         }
         TimeOffset::Estimate => {
-            let found = lag_from_sweep(&calibration, &mut frames, inputs);
+            let found = match crate::pipeline::sequence_frames::clock_fault(&calibration) {
+                Some(fault) => crate::pipeline::sweep_lag::SweepLag {
+                    unresolved: Some(format!("{}: {fault}", inputs.calibration_sequence.display())),
+                    ..Default::default()
+                },
+                None => lag_from_sweep(&calibration, &mut frames, inputs),
+            };
             let lag = found.lag_s.unwrap_or(0.0);
             sweep_lag = Some(found);
             lag
         }
     };
+    refuse_clock(&calibration, time_offset_s)?;
     attach_poses(&calibration, &mut frames, inputs, time_offset_s);
     drop(calibration);
     if let Some(path) = &inputs.validation_sequence {
+        refuse_same_recording(&inputs.calibration_sequence, path)?;
         let validation = Sequence::read(path)?;
+        refuse_clock(&validation, time_offset_s)?;
         if [validation.width, validation.height] != image_size_px {
             return Err(TrackedError::SizeMismatch {
                 sequence: path.clone(),
