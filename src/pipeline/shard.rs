@@ -91,7 +91,38 @@ pub fn read(path: &Path) -> Result<ShardFile, ShardError> {
         message: e.to_string(),
     };
     let text = std::fs::read_to_string(path).map_err(|e| file_error(&e))?;
-    serde_yaml::from_str(&text).map_err(|e| file_error(&e))
+    let file: ShardFile = serde_yaml::from_str(&text).map_err(|e| file_error(&e))?;
+    implausible(&file).map_or(Ok(file), |why| Err(file_error(&why)))
+}
+
+/// Largest error a seed may report, mm: far beyond any calibration that ran.
+const MAX_SEED_ERROR_MM: f64 = 1000.0;
+
+/// Why a shard's numbers cannot be a study's outcomes, if they cannot: an
+/// error or a bound that is negative, not finite or absurd, a method listed
+/// twice for one seed.
+fn implausible(file: &ShardFile) -> Option<String> {
+    let plausible = |v: f64| v.is_finite() && (0.0..=MAX_SEED_ERROR_MM).contains(&v);
+    for r in &file.results {
+        for (i, (method, rms)) in r.rms_error_mm.iter().enumerate() {
+            if !plausible(*rms) {
+                return Some(format!(
+                    "seed {}: method `{method}`'s RMS error {rms} mm is not an error (0 to {MAX_SEED_ERROR_MM} mm)",
+                    r.seed
+                ));
+            }
+            if r.rms_error_mm[..i].iter().any(|(m, _)| m == method) {
+                return Some(format!("seed {}: method `{method}` is listed twice", r.seed));
+            }
+        }
+        if let Some(bound) = r.crlb_rms_mm.filter(|b| !plausible(*b)) {
+            return Some(format!(
+                "seed {}: the bound {bound} mm is not an error (0 to {MAX_SEED_ERROR_MM} mm)",
+                r.seed
+            ));
+        }
+    }
+    None
 }
 
 /// Why shards cannot be read, written or joined into one study.
@@ -211,6 +242,37 @@ mod tests {
             crlb_rms_mm: Some(2.0f64.sqrt() / 10.0),
             frames_used: 40,
         }
+    }
+
+    /// A negative, absurd or not-a-number error, or a method listed twice, is
+    /// refused when the shard is read, naming the file: merged, it would be a
+    /// study's mean.
+    #[test]
+    fn implausible_outcomes_are_refused_on_reading() {
+        let dir = std::env::temp_dir().join(format!("probecal-shard-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let (_, good) = shard(1, 1, 2);
+        let path = write(&dir, &good).unwrap();
+        assert_eq!(read(&path).unwrap(), good);
+        for (edit, expect) in [
+            ((0usize, -0.3), "method `reported`'s RMS error -0.3 mm is not an error"),
+            ((1usize, f64::NAN), "method `lmeds`'s RMS error NaN mm is not an error"),
+            ((0usize, 5e3), "RMS error 5000 mm is not an error"),
+        ] {
+            let mut bad = good.clone();
+            bad.results[1].rms_error_mm[edit.0].1 = edit.1;
+            let path = write(&dir, &bad).unwrap();
+            let e = read(&path).unwrap_err().to_string();
+            assert!(e.contains(&path.display().to_string()) && e.contains(expect), "{e}");
+        }
+        let mut twice = good.clone();
+        twice.results[0].rms_error_mm[1].0 = "reported".into();
+        let path = write(&dir, &twice).unwrap();
+        assert!(read(&path)
+            .unwrap_err()
+            .to_string()
+            .contains("method `reported` is listed twice"));
+        std::fs::remove_dir_all(&dir).ok();
     }
 
     fn shard(index: u64, count: u64, seeds: u64) -> (PathBuf, ShardFile) {
