@@ -205,3 +205,222 @@ fn a_phantom_registration_that_scales_is_refused_not_absorbed() {
     );
     assert!(stderr.contains("scaled.xml:43"), "the transform's line: {stderr}");
 }
+
+const TANK: &str = "plus-temporal-watertank";
+
+/// A copy of sequence `source` as `out` whose header lines are passed through
+/// `edit` (the pixel data after `ElementDataFile` kept as it is).
+fn edited_sequence(source: &Path, out: &Path, edit: impl Fn(&str) -> String) {
+    let bytes = std::fs::read(source).unwrap();
+    let marker = b"ElementDataFile = LOCAL\n";
+    let end = bytes.windows(marker.len()).position(|w| w == marker).unwrap();
+    let header = String::from_utf8(bytes[..end].to_vec()).unwrap();
+    let mut text: String = header.lines().map(|l| edit(l) + "\n").collect();
+    text += "ElementDataFile = LOCAL\n";
+    let mut data = text.into_bytes();
+    data.extend_from_slice(&bytes[end + marker.len()..]);
+    std::fs::write(out, data).unwrap();
+}
+
+/// `line`'s frame index and value when it is `Seq_FrameNNNN_<field> = value`.
+fn frame_field(line: &str, field: &str) -> Option<(usize, String)> {
+    let rest = line.strip_prefix("Seq_Frame")?;
+    let (index, rest) = rest.split_once('_')?;
+    let value = rest.strip_prefix(field)?.strip_prefix(" = ")?;
+    Some((index.parse().ok()?, value.to_string()))
+}
+
+fn temporal(dir: &Path, tracker: &Path) -> (Option<i32>, String) {
+    let r = probecal()
+        .arg("temporal")
+        .arg("--tracker")
+        .arg(tracker)
+        .arg("--video")
+        .arg(shared_data(TANK, "WaterTankBottomTranslationVideoBuffer.igs.mha"))
+        .arg("--out")
+        .arg(dir.join("out"))
+        .output()
+        .unwrap();
+    (r.status.code(), String::from_utf8_lossy(&r.stderr).to_string())
+}
+
+#[test]
+#[ignore = "needs ../shared/data (full tier: scripts/test.sh)"]
+fn temporal_refuses_a_clock_or_a_sample_it_cannot_trust() {
+    let dir = scratch("hostile_inputs", "temporal");
+    std::fs::create_dir_all(&dir).unwrap();
+    let source = shared_data(TANK, "WaterTankBottomTranslationTrackerBuffer.igs.mha");
+    // Frame 100's timestamp equal to frame 99's: the clock stands still.
+    let still = dir.join("still.igs.mha");
+    let text = std::fs::read(&source).unwrap();
+    let header = String::from_utf8_lossy(&text[..text.len().min(2_000_000)]).to_string();
+    let t99 = header
+        .lines()
+        .find_map(|l| frame_field(l, "Timestamp").filter(|(i, _)| *i == 99).map(|(_, v)| v))
+        .unwrap();
+    edited_sequence(&source, &still, |l| match frame_field(l, "Timestamp") {
+        Some((100, _)) => format!("Seq_Frame0100_Timestamp = {t99}"),
+        _ => l.to_string(),
+    });
+    let (code, e) = temporal(&dir, &still);
+    assert_eq!(code, Some(1), "{e}");
+    assert!(
+        e.contains("still.igs.mha: frame 100's `Timestamp`") && e.contains("the clock stands still"),
+        "{e}"
+    );
+    // One probe sample a thousand kilometres away.
+    let far = dir.join("far.igs.mha");
+    edited_sequence(&source, &far, |l| match frame_field(l, "ProbeToTrackerTransform") {
+        Some((300, v)) => {
+            let mut n: Vec<String> = v.split_whitespace().map(str::to_string).collect();
+            n[3] = "1e9".into();
+            format!("Seq_Frame0300_ProbeToTrackerTransform = {}", n.join(" "))
+        }
+        _ => l.to_string(),
+    });
+    let (code, e) = temporal(&dir, &far);
+    assert_eq!(code, Some(1), "{e}");
+    assert!(
+        e.contains("far.igs.mha: frame 300's probe is") && e.contains("beyond any tracker's workspace"),
+        "{e}"
+    );
+    assert!(!dir.join("out").exists());
+}
+
+/// A tracked manifest over the fCal sequences `calibration` and `validation`.
+fn fcal_manifest(dir: &Path, name: &str, calibration: &Path, validation: &Path, offset: &str) -> PathBuf {
+    let text = format!(
+        "experiment: {name}\ntracking:\n  plus_sequence:\n    dataset: fcal2\n    calibration: {}\n    validation: {}\n    time_offset_s: {offset}\nphantom:\n  nwire:\n    plus_config: {}\n",
+        calibration.display(),
+        validation.display(),
+        shared_data(SET, CONFIG).display()
+    );
+    write(dir, &format!("{name}.yaml"), text.as_bytes())
+}
+
+fn run_into(manifest: &Path, out: &Path) -> (Option<i32>, String) {
+    let r = probecal()
+        .args(["run", "--quiet", "--out"])
+        .arg(out)
+        .arg(manifest)
+        .output()
+        .unwrap();
+    (r.status.code(), String::from_utf8_lossy(&r.stderr).to_string())
+}
+
+#[test]
+#[ignore = "needs ../shared/data (full tier: scripts/test.sh)"]
+fn tracked_runs_check_their_clock_and_their_validation_recording() {
+    let dir = scratch("hostile_inputs", "tracked_clock");
+    std::fs::create_dir_all(&dir).unwrap();
+    let calibration = shared_data(SET, "fCal_Test_Calibration_3NWires_fCal2.0.igs.mha");
+    let validation = shared_data(SET, VALIDATION);
+    // The validation sequence is the calibration sequence (a copy): refused,
+    // it would score the calibration on its own frames.
+    let copy = dir.join("copy.igs.mha");
+    std::fs::copy(&calibration, &copy).unwrap();
+    let m = fcal_manifest(&dir, "same", &calibration, &copy, "0.0");
+    let (code, e) = run_into(&m, &dir.join("out_same"));
+    assert_ne!(code, Some(0), "{e}");
+    assert!(
+        e.contains("copy.igs.mha is the same recording as the calibration sequence"),
+        "{e}"
+    );
+    // A clock that runs backwards at frame 60.
+    let backwards = dir.join("backwards.igs.mha");
+    edited_sequence(&calibration, &backwards, |l| match frame_field(l, "Timestamp") {
+        Some((60, v)) => format!("Seq_Frame0060_Timestamp = {}", v.parse::<f64>().unwrap() - 30.0),
+        _ => l.to_string(),
+    });
+    // A fixed lag cannot be applied on it ...
+    let m = fcal_manifest(&dir, "fixed_lag", &backwards, &validation, "0.05");
+    let (code, e) = run_into(&m, &dir.join("out_fixed"));
+    assert_ne!(code, Some(0), "{e}");
+    assert!(
+        e.contains("frame 60's `Timestamp`") && e.contains("the clock runs backwards"),
+        "{e}"
+    );
+    // ... and an estimate is unresolved, none applied, said in summary.json.
+    let m = fcal_manifest(&dir, "estimated", &backwards, &validation, "estimate");
+    let out = dir.join("out_estimate");
+    let (code, e) = run_into(&m, &out);
+    assert_eq!(code, Some(0), "{e}");
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("estimated/fcal2/summary.json")).unwrap()).unwrap();
+    let why = summary["time_offset_estimate"]["unresolved"]
+        .as_str()
+        .unwrap_or_default();
+    assert!(
+        why.contains("the clock runs backwards"),
+        "{}",
+        summary["time_offset_estimate"]
+    );
+    assert_eq!(summary["time_offset_s"], 0.0);
+    assert!(summary["time_offset_estimate"]["lag_s"].is_null());
+}
+
+#[test]
+#[ignore = "needs ../shared/data (full tier: scripts/test.sh)"]
+fn a_replay_never_waits_on_an_untrusted_clock_or_speed() {
+    let dir = scratch("hostile_inputs", "live_clock");
+    std::fs::create_dir_all(&dir).unwrap();
+    let calibration = shared_data(SET, "fCal_Test_Calibration_3NWires_fCal2.0.igs.mha");
+    // Frames from 50 on a year later: a paced replay would sleep for a year.
+    let jump = dir.join("jump.igs.mha");
+    edited_sequence(&calibration, &jump, |l| match frame_field(l, "Timestamp") {
+        Some((i, v)) if i >= 50 => format!("Seq_Frame{i:04}_Timestamp = {}", v.parse::<f64>().unwrap() + 3.15e7),
+        _ => l.to_string(),
+    });
+    let m = fcal_manifest(&dir, "jump", &jump, &shared_data(SET, VALIDATION), "0.0");
+    let live = |speed: &str| {
+        let r = probecal()
+            .arg("live")
+            .arg(&m)
+            .arg(format!("--speed={speed}"))
+            .arg("--out")
+            .arg(dir.join("out"))
+            .output()
+            .unwrap();
+        (r.status.code(), String::from_utf8_lossy(&r.stderr).to_string())
+    };
+    let started = std::time::Instant::now();
+    let (code, e) = live("1");
+    assert_ne!(code, Some(0), "{e}");
+    assert!(
+        e.contains("frame 50 comes 3.150e7 s after frame 49, more than 10 s"),
+        "{e}"
+    );
+    assert!(started.elapsed().as_secs() < 60, "refused before any wait");
+    // A speed that turns the recording's seconds into centuries, or NaN.
+    for speed in ["1e-300", "NaN", "-1"] {
+        let (code, e) = live(speed);
+        assert_eq!(code, Some(2), "{speed}: {e}");
+        assert!(e.contains("a replay speed is 0"), "{e}");
+    }
+    assert!(!dir.join("out").exists());
+}
+
+#[test]
+fn a_camera_board_larger_than_any_printed_one_is_refused() {
+    for (arg, value) in [("--board", "50000x50000"), ("--charuco", "500x7")] {
+        let mut c = probecal();
+        c.args([
+            "calibrate-camera",
+            "x.png",
+            arg,
+            value,
+            "--square-mm",
+            "10",
+            "--out",
+            "never.yml",
+        ]);
+        if arg == "--charuco" {
+            c.args(["--marker-mm", "7", "--dictionary", "DICT_4X4_50"]);
+        }
+        let r = c.output().unwrap();
+        let e = String::from_utf8_lossy(&r.stderr);
+        assert_eq!(r.status.code(), Some(2), "{e}");
+        assert!(e.contains("a board has at most"), "{e}");
+        assert!(!Path::new("never.yml").exists());
+    }
+}
