@@ -7,6 +7,7 @@ pub mod fs;
 pub mod igtl;
 pub mod image;
 pub mod json;
+pub mod output;
 pub mod plus;
 pub mod stl;
 pub mod tracker_poses;

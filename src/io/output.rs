@@ -1,0 +1,202 @@
+//! The one output discipline of every command that writes a folder: the
+//! folder is claimed (a lock beside it, so two commands never write it at
+//! once), refused when it holds or is one of the command's inputs, or when it
+//! exists and another command (or no command) wrote it, unless `--force`; the
+//! new content is written beside it and swapped in only on success, with a
+//! marker naming the command; on failure the old folder is untouched and the
+//! partial one removed.
+
+use std::path::{Path, PathBuf};
+
+use super::fs::{write_atomic, Lock, LockError, Staged, WriteError};
+
+/// The file in an output folder naming the command that wrote it.
+pub const MARKER: &str = ".probecal-output";
+
+/// Why an output folder cannot be claimed.
+#[derive(Debug, thiserror::Error)]
+pub enum OutputRefusal {
+    #[error("--out {}: {reason}", out.display())]
+    Refused { out: PathBuf, reason: String },
+    #[error("{0}")]
+    Lock(#[from] LockError),
+    #[error("{0}")]
+    Write(#[from] WriteError),
+}
+
+/// `path` made absolute with its links resolved, as far as it exists.
+pub fn resolved(path: &Path) -> PathBuf {
+    if let Ok(p) = path.canonicalize() {
+        return p;
+    }
+    match (path.parent(), path.file_name()) {
+        (Some(parent), Some(name)) if !parent.as_os_str().is_empty() => resolved(parent).join(name),
+        _ => std::path::absolute(path).unwrap_or_else(|_| path.to_path_buf()),
+    }
+}
+
+/// Why `out` may not be written as `command`'s output folder given its
+/// `inputs`, if it may not.
+pub fn refusal(out: &Path, command: &str, inputs: &[&Path], force: bool) -> Option<String> {
+    let target = resolved(out);
+    for input in inputs {
+        let input_path = resolved(input);
+        if input_path == target || input_path.starts_with(&target) {
+            return Some(format!(
+                "would replace {}, which `probecal {command}` reads; choose another --out",
+                input.display()
+            ));
+        }
+        if input.is_dir() && target.starts_with(&input_path) {
+            return Some(format!(
+                "lies inside {}, which `probecal {command}` reads; choose another --out",
+                input.display()
+            ));
+        }
+    }
+    if out.is_file() || out.is_symlink() && !out.is_dir() {
+        return Some("is a file, not a folder; choose another --out".into());
+    }
+    if !out.is_dir() || force {
+        return None;
+    }
+    let empty = std::fs::read_dir(out).map(|mut d| d.next().is_none()).unwrap_or(false);
+    if empty {
+        return None;
+    }
+    match std::fs::read_to_string(out.join(MARKER)) {
+        Ok(writer) if writer.trim() == command => None,
+        Ok(writer) => Some(format!(
+            "holds the output of `probecal {}`; pass --force to replace it, or choose another --out",
+            writer.trim()
+        )),
+        Err(_) => Some(
+            "exists and was not written by this command (a run's folder, your files?); pass --force to replace it, or choose another --out"
+                .into(),
+        ),
+    }
+}
+
+/// Why `out` may not be written as an output file of `command`, if it may
+/// not: it is one of the command's input files, or a folder.
+pub fn file_refusal(out: &Path, command: &str, inputs: &[&Path]) -> Option<String> {
+    let target = resolved(out);
+    if let Some(input) = inputs.iter().find(|i| resolved(i) == target) {
+        return Some(format!(
+            "is {}, which `probecal {command}` reads; choose another output file",
+            input.display()
+        ));
+    }
+    out.is_dir().then(|| "is a folder; name a file".to_string())
+}
+
+/// The lock that claims output folder `out` (`.<name>.lock` beside it).
+pub fn lock(out: &Path) -> Result<Lock, LockError> {
+    let name = out
+        .file_name()
+        .map(|n| n.to_string_lossy().to_string())
+        .unwrap_or_default();
+    Lock::acquire(&out.with_file_name(format!(".{name}.lock")))
+}
+
+/// A claimed output folder, being written beside its final place.
+#[derive(Debug)]
+pub struct OutputFolder {
+    staged: Option<Staged>,
+    command: String,
+    _lock: Lock,
+}
+
+impl OutputFolder {
+    /// Claims `out` for `command`, whose inputs are `inputs` (files or folders).
+    pub fn claim(out: &Path, command: &str, inputs: &[&Path], force: bool) -> Result<OutputFolder, OutputRefusal> {
+        if let Some(reason) = refusal(out, command, inputs, force) {
+            return Err(OutputRefusal::Refused {
+                out: out.to_path_buf(),
+                reason,
+            });
+        }
+        let lock = lock(out)?;
+        let staged = Staged::begin(out)?;
+        Ok(OutputFolder {
+            staged: Some(staged),
+            command: command.to_string(),
+            _lock: lock,
+        })
+    }
+
+    /// Where the new content is written.
+    pub fn path(&self) -> &Path {
+        self.staged.as_ref().map(|s| s.path()).unwrap_or(Path::new(""))
+    }
+
+    /// Marks the new content as this command's and swaps it in.
+    pub fn commit(mut self) -> Result<(), WriteError> {
+        let staged = self.staged.take().expect("an output folder is committed once");
+        write_atomic(&staged.path().join(MARKER), format!("{}\n", self.command).as_bytes())?;
+        staged.commit()
+    }
+}
+
+impl Drop for OutputFolder {
+    /// Not committed: what was written is removed; the old folder stays.
+    fn drop(&mut self) {
+        if let Some(staged) = self.staged.take() {
+            let _ = std::fs::remove_dir_all(staged.path());
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn outputs_are_claimed_checked_and_swapped_in_whole() {
+        let dir = std::env::temp_dir().join(format!("probecal-output-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(dir.join("inputs")).unwrap();
+        let input = dir.join("inputs/seq.mha");
+        std::fs::write(&input, "x").unwrap();
+        let out = dir.join("out");
+        // Written whole, with its marker; the same command may write it again.
+        let folder = OutputFolder::claim(&out, "segment", &[&input], false).unwrap();
+        std::fs::write(folder.path().join("a.txt"), "1").unwrap();
+        assert!(!out.exists(), "nothing in place before the commit");
+        folder.commit().unwrap();
+        assert_eq!(std::fs::read_to_string(out.join(MARKER)).unwrap(), "segment\n");
+        let again = OutputFolder::claim(&out, "segment", &[&input], false).unwrap();
+        // A second claim while the first holds it is refused.
+        let busy = OutputFolder::claim(&out, "segment", &[&input], false).unwrap_err();
+        assert!(busy.to_string().contains("is writing here"), "{busy}");
+        drop(again);
+        assert!(out.join("a.txt").is_file(), "a dropped claim leaves the old folder");
+        // Another command's folder, a folder of one's own files, an input, the
+        // folder holding an input, and a file are refused.
+        let e = OutputFolder::claim(&out, "temporal", &[], false).unwrap_err();
+        assert!(e.to_string().contains("holds the output of `probecal segment`"), "{e}");
+        assert!(
+            OutputFolder::claim(&out, "temporal", &[], true).is_ok(),
+            "--force replaces it"
+        );
+        let e = OutputFolder::claim(&dir.join("inputs"), "segment", &[&input], true).unwrap_err();
+        assert!(e.to_string().contains("would replace"), "{e}");
+        let e = OutputFolder::claim(&input, "segment", &[&input], true).unwrap_err();
+        assert!(e.to_string().contains("would replace"), "{e}");
+        let e = OutputFolder::claim(&dir.join("inputs/sub"), "run", &[&dir.join("inputs")], true).unwrap_err();
+        assert!(e.to_string().contains("lies inside"), "{e}");
+        std::fs::write(dir.join("inputs/notes.txt"), "mine").unwrap();
+        let e = OutputFolder::claim(&dir.join("inputs"), "segment", &[], false).unwrap_err();
+        assert!(e.to_string().contains("was not written by this command"), "{e}");
+        let e = OutputFolder::claim(&dir.join("inputs/notes.txt"), "segment", &[], true).unwrap_err();
+        assert!(e.to_string().contains("is a file"), "{e}");
+        // An output file that is an input, or a folder.
+        let e = file_refusal(&dir.join("inputs/../inputs/seq.mha"), "calibrate-camera", &[&input]).unwrap();
+        assert!(e.contains("which `probecal calibrate-camera` reads"), "{e}");
+        assert!(file_refusal(&dir.join("inputs"), "phantom", &[])
+            .unwrap()
+            .contains("is a folder"));
+        assert_eq!(file_refusal(&dir.join("new.yml"), "calibrate-camera", &[&input]), None);
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+}
