@@ -22,7 +22,7 @@ trap 'rm -rf "$scratch"' EXIT
 keep() { # the case's folder without its volumes
   rm -rf "$reports/reconstruction/$1"
   mkdir -p "$reports/reconstruction/$1"
-  find "$scratch/$1" -maxdepth 1 -type f ! -name 'volume.*' -exec cp {} "$reports/reconstruction/$1/" \;
+  find "$scratch/$1" -maxdepth 1 -type f ! -name 'volume.*' ! -name '.*' -exec cp {} "$reports/reconstruction/$1/" \;
 }
 for case in SpinePhantom_NN_MEAN:NNMEAN SpinePhantom_LN_MAXI:LNMAXI SonixRP_TRUS_D70mm_LN_MEAN:LNMEAN; do
   name="${case%%:*}"

@@ -13,7 +13,7 @@ pub fn command(images: &[PathBuf], board: [u32; 2], square_mm: f64, out: &Path) 
             "--square-mm must be a positive number, got {square_mm}"
         )));
     }
-    output_folder(out)?;
+    output_file(out, images)?;
     let cal = crate::detect::camera_calibration::calibrate_from(
         images,
         board,
@@ -49,7 +49,7 @@ pub fn charuco_command(
     out: &Path,
 ) -> Result<(), Failure> {
     spec.board().map_err(Failure::bad_input)?;
-    output_folder(out)?;
+    output_file(out, images)?;
     let images = crate::detect::camera_calibration::collect_images(images).map_err(Failure::failed)?;
     let cal = crate::detect::charuco_calibration::calibrate(&images, spec).map_err(Failure::failed)?;
     crate::report::console::camera_calibration(&cal);
@@ -69,8 +69,15 @@ pub fn charuco_command(
     Ok(())
 }
 
-/// Makes `out`'s folder before the work, so a finished calibration has somewhere to go.
-fn output_folder(out: &Path) -> Result<(), Failure> {
+/// Refuses an output that is one of the images (or their folder's images), or
+/// a folder; makes `out`'s folder before the work, so a finished calibration
+/// has somewhere to go.
+fn output_file(out: &Path, images: &[PathBuf]) -> Result<(), Failure> {
+    let listed = crate::detect::camera_calibration::collect_images(images).unwrap_or_default();
+    let read: Vec<&Path> = images.iter().chain(&listed).map(PathBuf::as_path).collect();
+    if let Some(why) = crate::io::output::file_refusal(out, "calibrate-camera", &read) {
+        return Err(Failure::bad_input(format!("--out {}: {why}", out.display())));
+    }
     if let Some(parent) = out.parent().filter(|p| !p.as_os_str().is_empty()) {
         std::fs::create_dir_all(parent)
             .map_err(|e| Failure::failed(format!("{}: cannot create the output's folder: {e}", parent.display())))?;

@@ -18,6 +18,8 @@ pub struct LiveSource {
     pub speed: f64,
     pub watch: Option<PathBuf>,
     pub idle_s: f64,
+    /// Replace --out even when another command (or no command) wrote it.
+    pub force: bool,
 }
 
 /// Shows a frame's line: replacing the last on a terminal, one per line otherwise.
@@ -46,7 +48,10 @@ pub fn command(manifest: &Path, out: &Path, source: &LiveSource) -> Result<(), F
                 idle_s: source.idle_s,
                 poll_ms: 20,
             };
-            return folder_command(&m, &watch, out);
+            let folder = crate::io::output::OutputFolder::claim(out, "live", &[manifest, &watch.folder], source.force)
+                .map_err(Failure::failed)?;
+            folder_command(&m, &watch, folder.path())?;
+            return folder.commit().map_err(Failure::failed);
         }
         (Some(Experiment::Tracked(_)), Some(_)) => {
             return Err(Failure::bad_input(format!(
@@ -61,19 +66,24 @@ pub fn command(manifest: &Path, out: &Path, source: &LiveSource) -> Result<(), F
             )))
         }
     };
+    let inputs = TrackedInputs::from_manifest(&m);
+    let mut read: Vec<&Path> = vec![manifest, &inputs.calibration_sequence];
+    read.extend(inputs.validation_sequence.as_deref());
+    let folder = crate::io::output::OutputFolder::claim(out, "live", &read, source.force).map_err(Failure::failed)?;
     if let Some(note) = estimated_lag_note(&m.time_offset) {
         eprintln!("{note}");
     }
     let replay = Replay { speed };
     let terminal = std::io::stderr().is_terminal();
     let mut show = |f: &crate::pipeline::live::LiveFrame| shown(terminal, &crate::report::live::line(f));
-    let run = crate::pipeline::live::run(&TrackedInputs::from_manifest(&m), m.min_frames, replay, &mut show);
+    let run = crate::pipeline::live::run(&inputs, m.min_frames, replay, &mut show);
     if terminal {
         eprintln!();
     }
     let run = run.map_err(Failure::failed)?;
-    let s = crate::report::live::write(&run, replay, out)
+    let s = crate::report::live::write(&run, replay, folder.path())
         .map_err(|e| Failure::failed(format!("{}: {e}", out.display())))?;
+    folder.commit().map_err(Failure::failed)?;
     println!(
         "{} frames at {:.1} frames/s recorded; work per frame {:.1} ms mean, {:.1} ms max ({}); final validation PRE3D {}; written to {}",
         s.frames,

@@ -18,7 +18,19 @@ use crate::pipeline::live_igtl::StreamSettings;
 use crate::pipeline::live_volume::VolumeRequest;
 use crate::pipeline::tracked::TrackedInputs;
 
-pub fn command(manifest: &Path, address: &str, volume: Option<VolumeRequest>, out: &Path) -> Result<(), Failure> {
+pub fn command(
+    manifest: &Path,
+    address: &str,
+    volume: Option<VolumeRequest>,
+    out: &Path,
+    force: bool,
+) -> Result<(), Failure> {
+    let mut read = vec![manifest];
+    read.extend(volume.as_ref().map(|v| v.config.as_path()));
+    if let Some(reason) = crate::io::output::refusal(out, "live", &read, force) {
+        return Err(Failure::bad_input(format!("--out {}: {reason}", out.display())));
+    }
+    let _lock = crate::io::output::lock(out).map_err(Failure::failed)?;
     let mut all = crate::pipeline::experiment::load_all(&[manifest.to_path_buf()]).map_err(Failure::bad_input)?;
     if let Some(request) = &volume {
         crate::pipeline::live_volume::LiveVolume::open(request).map_err(Failure::bad_input)?;
@@ -95,6 +107,8 @@ fn session(
             s.images_received, s.frames
         )));
     }
+    crate::io::fs::write_atomic(&staged.path().join(crate::io::output::MARKER), b"live\n")
+        .map_err(|e| Failure::failed(e.to_string()))?;
     staged.commit().map_err(|e| Failure::failed(e.to_string()))?;
     let latency = s
         .latency_ms

@@ -145,6 +145,9 @@ enum Command {
         /// With --reconstruct: send the volume every this many inserted frames.
         #[arg(long, default_value_t = 10, requires = "reconstruct")]
         volume_every: usize,
+        /// Replace --out even when another command (or no command) wrote it.
+        #[arg(long)]
+        force: bool,
     },
     /// Solve a run again from its own folder (the frames' poses and feature pixels
     /// in `solve_inputs.yaml`, the manifest it ran with) and compare with its summary.
@@ -167,6 +170,9 @@ enum Command {
         /// Output folder: summary.json, lines.csv, report.html.
         #[arg(long)]
         out: PathBuf,
+        /// Replace --out even when another command (or no command) wrote it.
+        #[arg(long)]
+        force: bool,
     },
     /// Error budget of a rendered rig: its dataset rendered with its error sources
     /// (render.realism) all on, all off, each left out and each alone;
@@ -281,7 +287,12 @@ pub fn main() -> ExitCode {
             allow_drop,
         } => failure::exit_code(check::command(&runs, &baselines, update, allow_drop)),
         Command::Validate { manifests } => failure::exit_code(manifests::validate(&manifests)),
-        Command::Temporal { tracker, video, out } => failure::exit_code(temporal::command(&video, &tracker, &out)),
+        Command::Temporal {
+            tracker,
+            video,
+            out,
+            force,
+        } => failure::exit_code(temporal::command(&video, &tracker, &out, force)),
         Command::Segment(args) => failure::exit_code(segment::command(&args)),
         Command::Live {
             manifest,
@@ -292,6 +303,7 @@ pub fn main() -> ExitCode {
             igtl,
             reconstruct,
             volume_every,
+            force,
         } => match igtl {
             Some(address) => {
                 let volume = reconstruct.map(|config| crate::pipeline::live_volume::VolumeRequest {
@@ -299,9 +311,18 @@ pub fn main() -> ExitCode {
                     every: volume_every,
                     device: "Volume".into(),
                 });
-                failure::exit_code(live_igtl::command(&manifest, &address, volume, &out))
+                failure::exit_code(live_igtl::command(&manifest, &address, volume, &out, force))
             }
-            None => failure::exit_code(live::command(&manifest, &out, &LiveSource { speed, watch, idle_s })),
+            None => failure::exit_code(live::command(
+                &manifest,
+                &out,
+                &LiveSource {
+                    speed,
+                    watch,
+                    idle_s,
+                    force,
+                },
+            )),
         },
         Command::Study(args) => failure::exit_code(study::dispatch(args)),
         Command::Synth { manifests, datasets } => failure::exit_code(manifests::synth(&manifests, &datasets)),

@@ -18,6 +18,11 @@ pub fn command(manifest: &Path, stl: &Path) -> Result<(), Failure> {
             stl.display()
         )));
     }
+    for written in [stl, sheet_path.as_path()] {
+        if let Some(why) = crate::io::output::file_refusal(written, "phantom", &[manifest]) {
+            return Err(Failure::bad_input(format!("{}: {why}", written.display())));
+        }
+    }
     let (manifest, render) = rendered_lab(manifest).map_err(Failure::bad_input)?;
     let at = |e: &dyn std::fmt::Display| Failure::bad_input(format!("{}: {e}", manifest.path.display()));
     let rig = RigBoards::from_rig(&manifest.rig).map_err(|e| at(&format!("field `rig`: {e}")))?;

@@ -40,9 +40,19 @@ pub struct ReconstructArgs {
     /// same inputs give byte-identical outputs.
     #[arg(long)]
     pub no_times: bool,
+    /// Replace --out even when another command (or no command) wrote it.
+    #[arg(long)]
+    pub force: bool,
 }
 
 pub fn command(args: &ReconstructArgs) -> Result<(), Failure> {
+    let mut read: Vec<&std::path::Path> = vec![&args.sequence, &args.config];
+    read.extend(args.calibration.as_deref());
+    read.extend(args.compare.as_deref());
+    // A folder of an earlier reconstruction (before folders were marked) is this command's.
+    let replace = args.force || crate::report::reconstruct::holds_reconstruction(&args.out);
+    let folder =
+        crate::io::output::OutputFolder::claim(&args.out, "reconstruct", &read, replace).map_err(Failure::failed)?;
     let inputs = ReconstructInputs {
         sequence: args.sequence.clone(),
         config: args.config.clone(),
@@ -63,7 +73,8 @@ pub fn command(args: &ReconstructArgs) -> Result<(), Failure> {
         nrrd: args.nrrd,
         compare: args.compare.as_deref().zip(reference.as_ref()),
     };
-    crate::report::reconstruct::write(&run, &args.out, &options).map_err(Failure::failed)?;
+    crate::report::reconstruct::write(&run, folder.path(), &options).map_err(Failure::failed)?;
+    folder.commit().map_err(Failure::failed)?;
     if !run.skipped.is_empty() {
         eprintln!(
             "warning: {} of {} frames skipped (first: frame {}: {}); see summary.json",

@@ -21,6 +21,9 @@ pub struct SegmentArgs {
     /// on the page and in summary.json.
     #[arg(long)]
     pub plus_baseline: Option<std::path::PathBuf>,
+    /// Replace --out even when another command (or no command) wrote it.
+    #[arg(long)]
+    pub force: bool,
 }
 
 /// `probecal segment`: exit code 0 on success, 1 when the inputs cannot be read
@@ -28,12 +31,19 @@ pub struct SegmentArgs {
 pub fn command(args: &SegmentArgs) -> Result<(), Failure> {
     let (sequence, config, out) = (&args.sequence, &args.config, &args.out);
     let plus_baseline = args.plus_baseline.as_deref();
+    let inputs: Vec<&std::path::Path> = [Some(sequence.as_path()), Some(config.as_path()), plus_baseline]
+        .into_iter()
+        .flatten()
+        .collect();
+    let folder =
+        crate::io::output::OutputFolder::claim(out, "segment", &inputs, args.force).map_err(Failure::failed)?;
     let run = crate::pipeline::segment::run(sequence, config).map_err(Failure::failed)?;
     let baseline = plus_baseline
         .map(|p| against_plus(&run, p))
         .transpose()
         .map_err(Failure::failed)?;
-    crate::report::segment::write(&run, baseline.as_ref(), out).map_err(Failure::failed)?;
+    crate::report::segment::write(&run, baseline.as_ref(), folder.path()).map_err(Failure::failed)?;
+    folder.commit().map_err(Failure::failed)?;
     let found = run.frames.iter().filter(|f| f.rejected.is_none()).count();
     let role = crate::pipeline::sequence_frames::Role::Calibration;
     if let Some(w) = crate::pipeline::sequence_frames::rejection_warning(&run.frames, role, "sequence") {

@@ -5,10 +5,13 @@ use std::path::Path;
 
 use super::failure::Failure;
 
-pub fn command(video: &Path, tracker: &Path, out: &Path) -> Result<(), Failure> {
+pub fn command(video: &Path, tracker: &Path, out: &Path, force: bool) -> Result<(), Failure> {
+    let folder =
+        crate::io::output::OutputFolder::claim(out, "temporal", &[video, tracker], force).map_err(Failure::failed)?;
     let run = crate::pipeline::temporal::run(video, tracker, "ProbeToTracker", "ReferenceToTracker")
         .map_err(Failure::failed)?;
-    crate::report::temporal::write(&run, out).map_err(Failure::failed)?;
+    crate::report::temporal::write(&run, folder.path()).map_err(Failure::failed)?;
+    folder.commit().map_err(Failure::failed)?;
     println!("tracker lag {:.4} s; written to {}", run.tracker_lag_s, out.display());
     Ok(())
 }

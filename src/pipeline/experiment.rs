@@ -142,6 +142,19 @@ fn inputs_of(experiment: &Experiment) -> Vec<PathBuf> {
 /// with one folder, an existing folder without `--force`, or a folder that would
 /// be replaced while it holds an input of the run (or the datasets' cache).
 fn refusal(experiments: &[Experiment], options: &RunOptions<'_>) -> Option<String> {
+    // Run folders and cached datasets are named alike: one folder for both
+    // would let each replace the other.
+    let (out, cache) = (
+        crate::io::output::resolved(options.out),
+        crate::io::output::resolved(options.datasets),
+    );
+    if out.starts_with(&cache) || cache.starts_with(&out) {
+        return Some(format!(
+            "--out {} and --datasets {} overlap: a run's folder and a cached dataset could replace each other; give them separate folders",
+            options.out.display(),
+            options.datasets.display()
+        ));
+    }
     for (i, m) in experiments.iter().enumerate() {
         if let Some(other) = experiments[..i].iter().find(|o| o.experiment() == m.experiment()) {
             return Some(format!(

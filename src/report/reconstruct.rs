@@ -8,7 +8,7 @@
 
 use std::path::Path;
 
-use crate::io::fs::{display_path, Staged};
+use crate::io::fs::display_path;
 use crate::io::volume_file::{metaimage_bytes, nrrd_bytes, VolumeHeader};
 use crate::pipeline::reconstruct::{AnyVolume, Reconstruction};
 use crate::report::error::OutputError;
@@ -315,40 +315,35 @@ pub fn agreement(
     out
 }
 
-/// Writes all outputs into `out` (swapped in whole).
-pub fn write(r: &Reconstruction, out: &Path, options: &WriteOptions) -> Result<(), OutputError> {
-    check_out(out)?;
+/// Whether `out` holds a reconstruction already (its summary.json is of kind
+/// "reconstruction"): one `reconstruct` may replace.
+pub fn holds_reconstruction(out: &Path) -> bool {
+    out.is_dir() && check_out(out).is_ok()
+}
+
+/// Writes all outputs into `dir` (a claimed output folder, swapped in by its
+/// owner).
+pub fn write(r: &Reconstruction, dir: &Path, options: &WriteOptions) -> Result<(), OutputError> {
     let header = header(&r.volume);
     let data = r.volume.bytes();
     let pictures = pictures(&r.volume);
-    let staged = Staged::begin(out)?;
-    let dir = staged.path().to_path_buf();
     let write = |name: &str, bytes: &[u8]| crate::io::fs::write_atomic(&dir.join(name), bytes);
-    let result = (|| -> Result<(), OutputError> {
-        let volume = metaimage_bytes(&header, &data);
-        write("volume.mha", &volume)?;
-        if let Some((path, reference)) = options.compare {
-            write(
-                "agreement.json",
-                serde_json::to_string_pretty(&agreement(r, &volume, path, reference))?.as_bytes(),
-            )?;
-        }
-        if options.nrrd {
-            write("volume.nrrd", &nrrd_bytes(&header, &data))?;
-        }
-        for p in &pictures {
-            write(p.name, &png_bytes(p)?)?;
-        }
-        let json = serde_json::to_string_pretty(&summary(r))?;
-        write("summary.json", json.as_bytes())?;
-        write("report.html", html(r, &pictures).as_bytes())?;
-        Ok(())
-    })();
-    match result {
-        Ok(()) => Ok(staged.commit()?),
-        Err(e) => {
-            let _ = staged.abandon();
-            Err(e)
-        }
+    let volume = metaimage_bytes(&header, &data);
+    write("volume.mha", &volume)?;
+    if let Some((path, reference)) = options.compare {
+        write(
+            "agreement.json",
+            serde_json::to_string_pretty(&agreement(r, &volume, path, reference))?.as_bytes(),
+        )?;
     }
+    if options.nrrd {
+        write("volume.nrrd", &nrrd_bytes(&header, &data))?;
+    }
+    for p in &pictures {
+        write(p.name, &png_bytes(p)?)?;
+    }
+    let json = serde_json::to_string_pretty(&summary(r))?;
+    write("summary.json", json.as_bytes())?;
+    write("report.html", html(r, &pictures).as_bytes())?;
+    Ok(())
 }
