@@ -424,3 +424,118 @@ fn a_camera_board_larger_than_any_printed_one_is_refused() {
         assert!(!Path::new("never.yml").exists());
     }
 }
+
+fn segment_into(sequence: &Path, config: &Path, out: &Path, force: bool) -> (Option<i32>, String) {
+    let mut c = probecal();
+    c.arg("segment")
+        .arg(sequence)
+        .arg("--config")
+        .arg(config)
+        .arg("--out")
+        .arg(out);
+    if force {
+        c.arg("--force");
+    }
+    let r = c.output().unwrap();
+    (r.status.code(), String::from_utf8_lossy(&r.stderr).to_string())
+}
+
+#[test]
+#[ignore = "needs ../shared/data (full tier: scripts/test.sh)"]
+fn every_command_writes_its_own_folder_whole_and_nothing_else() {
+    let dir = scratch("hostile_inputs", "outputs");
+    std::fs::create_dir_all(&dir).unwrap();
+    // A copy of the inputs in a folder of their own.
+    let inputs = dir.join("inputs");
+    std::fs::create_dir_all(&inputs).unwrap();
+    let sequence = inputs.join("validation.igs.mha");
+    let config = inputs.join("device_set.xml");
+    std::fs::copy(shared_data(SET, VALIDATION), &sequence).unwrap();
+    std::fs::copy(shared_data(SET, CONFIG), &config).unwrap();
+    let before = std::fs::read(&config).unwrap();
+    // --out the inputs' folder, or an input file: refused even with --force.
+    for out in [&inputs, &config] {
+        let (code, e) = segment_into(&sequence, &config, out, true);
+        assert_eq!(code, Some(1), "{e}");
+        assert!(
+            e.contains("which `probecal segment` reads; choose another --out"),
+            "{e}"
+        );
+    }
+    assert_eq!(std::fs::read(&config).unwrap(), before, "the input is untouched");
+    // A folder someone else wrote (here: a run's) is replaced only with --force.
+    let theirs = dir.join("theirs");
+    std::fs::create_dir_all(&theirs).unwrap();
+    std::fs::write(theirs.join("summary.json"), "{\"kind\": \"tracked\"}").unwrap();
+    let (code, e) = segment_into(&sequence, &config, &theirs, false);
+    assert_eq!(code, Some(1), "{e}");
+    assert!(
+        e.contains("was not written by this command") && e.contains("pass --force"),
+        "{e}"
+    );
+    assert_eq!(
+        std::fs::read_to_string(theirs.join("summary.json")).unwrap(),
+        "{\"kind\": \"tracked\"}"
+    );
+    // Two segmentations into one folder: the second replaces the first whole
+    // (no gallery of the first left among the second's).
+    let out = dir.join("segmented");
+    let vlc = shared_data(
+        "plus-segmentation-vlcus",
+        "SegmentationTest_VLCUS_RandomStepperMotionData2.igs.mha",
+    );
+    let vlc_config = shared_data(
+        "plus-segmentation-vlcus",
+        "PlusDeviceSet_iCal_CalibrationOnly_VLCUS_FrameGrabber.xml",
+    );
+    assert_eq!(segment_into(&vlc, &vlc_config, &out, false).0, Some(0));
+    assert_eq!(std::fs::read_dir(out.join("gallery")).unwrap().count(), 201);
+    let (code, e) = segment_into(&sequence, &config, &out, false);
+    assert_eq!(code, Some(0), "{e}");
+    assert_eq!(std::fs::read_dir(out.join("gallery")).unwrap().count(), 103);
+    // temporal into segment's folder: another command's, refused.
+    let r = probecal()
+        .arg("temporal")
+        .arg("--tracker")
+        .arg(shared_data(TANK, "WaterTankBottomTranslationTrackerBuffer.igs.mha"))
+        .arg("--video")
+        .arg(shared_data(TANK, "WaterTankBottomTranslationVideoBuffer.igs.mha"))
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .unwrap();
+    let e = String::from_utf8_lossy(&r.stderr);
+    assert_eq!(r.status.code(), Some(1), "{e}");
+    assert!(e.contains("holds the output of `probecal segment`"), "{e}");
+    // calibrate-camera writing over one of its photos.
+    let photo = dir.join("left01.jpg");
+    std::fs::copy(shared_data("opencv-chessboard", "left01.jpg"), &photo).unwrap();
+    let jpeg = std::fs::read(&photo).unwrap();
+    let r = probecal()
+        .arg("calibrate-camera")
+        .arg(&photo)
+        .args(["--board", "9x6", "--square-mm", "25", "--out"])
+        .arg(&photo)
+        .output()
+        .unwrap();
+    let e = String::from_utf8_lossy(&r.stderr);
+    assert_eq!(r.status.code(), Some(2), "{e}");
+    assert!(e.contains("which `probecal calibrate-camera` reads"), "{e}");
+    assert_eq!(std::fs::read(&photo).unwrap(), jpeg);
+    // A run whose --out is its dataset cache.
+    let r = probecal()
+        .arg("run")
+        .arg(common::root().join("tests/fixtures/hemisphere_small.yaml"))
+        .arg("--out")
+        .arg(dir.join("shared"))
+        .arg("--datasets")
+        .arg(dir.join("shared"))
+        .output()
+        .unwrap();
+    let e = String::from_utf8_lossy(&r.stderr);
+    assert_eq!(r.status.code(), Some(2), "{e}");
+    assert!(
+        e.contains("overlap: a run's folder and a cached dataset could replace each other"),
+        "{e}"
+    );
+}
