@@ -25,18 +25,23 @@ impl PlusResult {
         let text = read_text(path)?;
         let doc = parse_xml(path, &text)?;
         let x = Xml { path, doc: &doc };
-        let transform = doc
-            .descendants()
-            .find(|n| {
-                n.has_tag_name("Transform")
-                    && n.attribute("From") == Some("Image")
-                    && n.attribute("To") == Some("Probe")
-            })
-            .ok_or_else(|| ConfigError {
-                path: path.to_path_buf(),
-                line: None,
-                message: "no <Transform From=\"Image\" To=\"Probe\">".into(),
-            })?;
+        let mut found = doc.descendants().filter(|n| {
+            n.has_tag_name("Transform") && n.attribute("From") == Some("Image") && n.attribute("To") == Some("Probe")
+        });
+        let transform = found.next().ok_or_else(|| ConfigError {
+            path: path.to_path_buf(),
+            line: None,
+            message: "no <Transform From=\"Image\" To=\"Probe\">".into(),
+        })?;
+        if let Some(second) = found.next() {
+            return Err(x.fail(
+                second,
+                format!(
+                    "a second <Transform From=\"Image\" To=\"Probe\"> (the first is on line {}): which one is PLUS's result?",
+                    x.line(transform)
+                ),
+            ));
+        }
         let numbers = x.numbers(transform, "Matrix", 16)?;
         let stats = doc
             .descendants()
@@ -61,5 +66,26 @@ impl PlusResult {
             calibration_mean_mm: stat("CalibrationMeanMm"),
             calibration_std_mm: stat("CalibrationStdDevMm"),
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_second_image_to_probe_is_refused_at_its_line() {
+        let dir = std::env::temp_dir().join(format!("probecal-result-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("result.xml");
+        let t = "<Transform From=\"Image\" To=\"Probe\" Matrix=\"1 0 0 0 0 1 0 0 0 0 1 0 0 0 0 1\"/>";
+        std::fs::write(
+            &path,
+            format!("<R>\n<CalibrationResults>\n{t}\n{t}\n</CalibrationResults>\n</R>\n"),
+        )
+        .unwrap();
+        let e = PlusResult::read(&path).unwrap_err().to_string();
+        assert!(e.ends_with(":4: a second <Transform From=\"Image\" To=\"Probe\"> (the first is on line 3): which one is PLUS's result?"), "{e}");
+        std::fs::remove_dir_all(&dir).ok();
     }
 }
