@@ -40,6 +40,8 @@ pub enum ArucoError {
     UnknownDictionary(String),
     #[error("{path}: not an OpenCV ArUco dictionary file (nmarkers, markersize, marker_N)")]
     BadDictionaryFile { path: String },
+    #[error("{path}: {reason}")]
+    Refused { path: String, reason: String },
     #[error("{path}: not an OpenCV ArUco detector parameters file ({reason})")]
     BadParametersFile { path: String, reason: String },
     #[error("{0}")]
@@ -71,6 +73,9 @@ pub fn detector_parameters(file: Option<&Path>) -> Result<Ptr<DetectorParameters
     };
     if !path.is_file() {
         return Err(bad("no such file".into()));
+    }
+    if let Some(why) = crate::io::storage::refusal(path) {
+        return Err(bad(why));
     }
     let fs = FileStorage::new_def(
         path.to_string_lossy().as_ref(),
@@ -130,6 +135,12 @@ pub fn dictionary_file(path: &Path) -> Result<Ptr<Dictionary>, ArucoError> {
     };
     if !path.is_file() {
         return Err(bad());
+    }
+    if let Some(reason) = crate::io::storage::refusal(path) {
+        return Err(ArucoError::Refused {
+            path: path.display().to_string(),
+            reason,
+        });
     }
     let fs = FileStorage::new_def(
         path.to_string_lossy().as_ref(),

@@ -30,6 +30,8 @@ pub struct CameraIntrinsics {
 pub enum IntrinsicsError {
     #[error("{path}: cannot open as OpenCV FileStorage (missing, or not YAML/XML)")]
     Open { path: PathBuf },
+    #[error("{path}: {reason}")]
+    Refused { path: PathBuf, reason: String },
     #[error("{path}: field `{field}` {problem}")]
     Field {
         path: PathBuf,
@@ -116,6 +118,12 @@ impl CameraIntrinsics {
         };
         if !path.is_file() {
             return Err(open_err());
+        }
+        if let Some(reason) = crate::io::storage::refusal(path) {
+            return Err(IntrinsicsError::Refused {
+                path: path.to_path_buf(),
+                reason,
+            });
         }
         let fs = FileStorage::new_def(
             path.to_string_lossy().as_ref(),

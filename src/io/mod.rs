@@ -10,6 +10,7 @@ pub mod json;
 pub mod output;
 pub mod plus;
 pub mod stl;
+pub mod storage;
 pub mod tracker_poses;
 pub mod truth;
 pub mod unique_keys;
