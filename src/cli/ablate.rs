@@ -23,11 +23,16 @@ pub struct AblateArgs {
     /// Run only these variants (e.g. "only speed_of_sound"; repeatable).
     #[arg(long)]
     pub only: Vec<String>,
+    /// Replace --out even when another command (or no command) wrote it.
+    #[arg(long)]
+    pub force: bool,
 }
 
 pub fn command(args: &AblateArgs) -> Result<(), Failure> {
     let (manifest_path, out) = (&args.manifest, &args.out);
     let manifest = crate::manifest::Manifest::load(manifest_path).map_err(Failure::bad_input)?;
+    let folder = crate::io::output::OutputFolder::claim(out, "ablate", &[manifest_path, &args.datasets], args.force)
+        .map_err(Failure::failed)?;
     let result =
         crate::pipeline::ablation::ablate(&manifest, &args.datasets, args.keep_datasets, &args.only, &mut |line| {
             eprintln!("{line}")
@@ -39,7 +44,8 @@ pub fn command(args: &AblateArgs) -> Result<(), Failure> {
         }
         Err(e) => return Err(Failure::failed(e)),
     };
-    let md = crate::report::ablation::write(&a, out).map_err(Failure::failed)?;
+    let md = crate::report::ablation::write(&a, folder.path()).map_err(Failure::failed)?;
+    folder.commit().map_err(Failure::failed)?;
     print!("{md}");
     println!(
         "\nwritten to {} (ablation.json, ablation.md, ablation.html)",

@@ -186,6 +186,9 @@ enum Command {
         /// Output folder: design.json, design.md.
         #[arg(long)]
         out: PathBuf,
+        /// Replace --out even when another command (or no command) wrote it.
+        #[arg(long)]
+        force: bool,
     },
     /// A dome phantom's printable model (plate, riser, domes, board seat) as a
     /// binary STL in mm, and its sheet (sizes, domes, seat) as <name>.json.
@@ -328,7 +331,7 @@ pub fn main() -> ExitCode {
         Command::Synth { manifests, datasets } => failure::exit_code(manifests::synth(&manifests, &datasets)),
         Command::Resolve { run } => failure::exit_code(resolve::command(&run)),
         Command::Ablate(args) => failure::exit_code(ablate::command(&args)),
-        Command::Design { manifest, out } => failure::exit_code(design::command(&manifest, &out)),
+        Command::Design { manifest, out, force } => failure::exit_code(design::command(&manifest, &out, force)),
         Command::Phantom { manifest, stl } => failure::exit_code(phantom::command(&manifest, &stl)),
         Command::Reconstruct(args) => failure::exit_code(reconstruct::command(&args)),
         Command::CalibrateCamera {
