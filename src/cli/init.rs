@@ -60,6 +60,18 @@ pub fn command(args: &InitArgs) -> u8 {
 }
 
 fn write(args: &InitArgs) -> Result<(), InitError> {
+    // Even with --force, the manifest never replaces the recording it describes.
+    let read: Vec<&std::path::Path> = [&args.plus_config, &args.calibration, &args.validation, &args.folder]
+        .into_iter()
+        .flatten()
+        .map(|p| p.as_path())
+        .collect();
+    if let Some(why) = crate::io::output::file_refusal(&args.out, "init", &read) {
+        return Err(InitError::Input {
+            path: args.out.clone(),
+            message: why,
+        });
+    }
     if args.out.exists() && !args.force {
         return Err(InitError::Input {
             path: args.out.clone(),

@@ -153,6 +153,13 @@ pub fn merge(files: &[PathBuf], out: &Path) -> Result<(), Failure> {
 /// `probecal study compare`: the paired comparison, printed and written to `out`.
 pub fn compare(a: &Path, b: &Path, method: Option<&str>, out: Option<&Path>) -> Result<(), Failure> {
     use crate::report::study_compare;
+    if let Some(out) = out {
+        for written in [out.to_path_buf(), out.with_extension("md")] {
+            if let Some(why) = crate::io::output::file_refusal(&written, "study compare", &[a, b]) {
+                return Err(Failure::bad_input(format!("{}: {why}", written.display())));
+            }
+        }
+    }
     let paired = study_compare::compare(a, b, method).map_err(Failure::bad_input)?;
     let markdown = study_compare::markdown(&paired);
     println!("{markdown}");
