@@ -308,6 +308,19 @@ pub fn constraints(frame: &TrackedFrame, nwires: &[NWire]) -> FrameConstraints {
     out
 }
 
+/// A clip rectangle that reaches beyond its sequence's B-scans.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("{}: the clip rectangle (origin {u} {v}, size {w} {h} px) reaches beyond the {width}x{height} px B-scans", sequence.display())]
+pub struct ClipOutside {
+    pub sequence: std::path::PathBuf,
+    pub u: usize,
+    pub v: usize,
+    pub w: usize,
+    pub h: usize,
+    pub width: usize,
+    pub height: usize,
+}
+
 /// The clip rectangle given (refused when it reaches beyond the images), or the
 /// whole image with the overlay of `sequence` found (when it has enough frames
 /// to tell the drawn from the imaged).
@@ -316,7 +329,7 @@ pub fn clip_or_overlay(
     clip: Option<[usize; 4]>,
     segmentation: &Segmentation,
     spacing_guess_mm_per_px: f64,
-) -> Result<([usize; 4], Option<Overlay>), crate::pipeline::tracked::TrackedError> {
+) -> Result<([usize; 4], Option<Overlay>), ClipOutside> {
     Ok(match clip {
         Some([u, v, w, h]) => {
             let inside = u.checked_add(w).is_some_and(|r| r <= sequence.width)
@@ -324,7 +337,7 @@ pub fn clip_or_overlay(
                 && w > 0
                 && h > 0;
             if !inside {
-                return Err(crate::pipeline::tracked::TrackedError::ClipOutside {
+                return Err(ClipOutside {
                     sequence: sequence.path.clone(),
                     u,
                     v,

@@ -109,18 +109,8 @@ pub enum TrackedError {
         "{validation} is the same recording as the calibration sequence {calibration}: its PRE3D would score the calibration on its own frames; give a held-out recording, or none"
     )]
     SameRecording { calibration: PathBuf, validation: PathBuf },
-    #[error(
-        "{sequence}: the clip rectangle (origin {u} {v}, size {w} {h} px) reaches beyond the {width}x{height} px B-scans"
-    )]
-    ClipOutside {
-        sequence: PathBuf,
-        u: usize,
-        v: usize,
-        w: usize,
-        h: usize,
-        width: usize,
-        height: usize,
-    },
+    #[error("{0}")]
+    ClipOutside(#[from] crate::pipeline::sequence_frames::ClipOutside),
 }
 
 /// The tracked run's accuracy gates.
