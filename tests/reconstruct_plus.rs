@@ -428,7 +428,7 @@ fn unusable_inputs_are_refused_and_nothing_is_written() {
         let stderr = String::from_utf8_lossy(&r.stderr);
         assert_eq!(
             r.status.code(),
-            Some(if want.contains("not hold a reconstruction") {
+            Some(if want.contains("was not written by this command") {
                 1
             } else {
                 2
@@ -482,7 +482,7 @@ fn unusable_inputs_are_refused_and_nothing_is_written() {
         &sweep,
         &config("SpinePhantom_LN_MAXI"),
         &theirs,
-        "does not hold a reconstruction",
+        "exists and was not written by this command",
     );
     assert_eq!(std::fs::read_to_string(theirs.join("notes.txt")).unwrap(), "mine");
 }

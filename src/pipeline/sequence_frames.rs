@@ -251,14 +251,16 @@ pub fn segment_frame(
     frame
 }
 
-/// Why `sequence`'s clock cannot time its frames, if it cannot: a frame
-/// without a finite `Timestamp`, or one not after the frame before it (a clock
-/// that stands still or runs backwards).
+/// Why `sequence`'s clock cannot time its frames, if it cannot: a frame's
+/// `Timestamp` not after the last timed frame before it (a clock that stands
+/// still or runs backwards). A frame without a finite timestamp is its own
+/// frame's fault (rejected with that reason where a time is needed), not the
+/// clock's.
 pub fn clock_fault(sequence: &Sequence) -> Option<String> {
     let mut previous: Option<(usize, f64)> = None;
     for index in 0..sequence.frames.len() {
         let Some(t) = timestamp_s(sequence, index) else {
-            return Some(format!("frame {index} has no finite `Timestamp`"));
+            continue;
         };
         if let Some((before, t0)) = previous {
             if t <= t0 {
