@@ -6,9 +6,10 @@ use std::path::{Path, PathBuf};
 
 use super::failure::Failure;
 use crate::core::limits::MAX_SEEDS;
+use crate::io::output::OutputFiles;
 use crate::pipeline::shard::{self, Shard, ShardFile};
 use crate::pipeline::study::BoundModel;
-use crate::report::study::{sigma_table, write};
+use crate::report::study::{sigma_table, write, STUDY_FILES};
 
 /// `probecal study`'s arguments.
 #[derive(Debug, Clone, clap::Args)]
@@ -38,6 +39,10 @@ pub struct StudyArgs {
     /// Keep the rendered datasets (they are removed after each seed's run).
     #[arg(long)]
     pub keep_datasets: bool,
+    /// Replace study files (or a shard file) in --out that another command, or
+    /// none, wrote.
+    #[arg(long)]
+    pub force: bool,
 }
 
 /// `probecal study merge`.
@@ -51,6 +56,9 @@ pub enum StudyMerge {
         /// Output folder of the joined study.
         #[arg(long, default_value = "reports/study")]
         out: PathBuf,
+        /// Replace study files in --out that another command, or none, wrote.
+        #[arg(long)]
+        force: bool,
     },
     /// Pair two studies on the seeds they share: per method the mean difference
     /// of the seeds' errors (B minus A), its bootstrap 90 % interval and the seeds
@@ -73,7 +81,7 @@ pub enum StudyMerge {
 /// `probecal study` or `probecal study merge`; the exit code.
 pub fn dispatch(args: StudyArgs) -> Result<(), Failure> {
     match &args.merge {
-        Some(StudyMerge::Merge { shards, out }) => merge(shards, out),
+        Some(StudyMerge::Merge { shards, out, force }) => merge(shards, out, *force),
         Some(StudyMerge::Compare { a, b, method, out }) => compare(a, b, method.as_deref(), out.as_deref()),
         None => command(&args),
     }
@@ -98,6 +106,8 @@ pub fn command(request: &StudyArgs) -> Result<(), Failure> {
     if let Some(shard) = request.shard {
         let (_, manifest_sha256) =
             crate::io::fs::file_sha256(path).map_err(|e| Failure::bad_input(format!("{}: {e}", path.display())))?;
+        let name = shard.file_name();
+        let claim = claim(&request.out, &[&name], &[path, &request.datasets], request.force, false)?;
         let mine = shard.seeds_of(&all);
         let results =
             crate::pipeline::study::seed_results(&manifest, &mine, &request.datasets, request.keep_datasets, &mut log)
@@ -113,6 +123,7 @@ pub fn command(request: &StudyArgs) -> Result<(), Failure> {
         };
         let written = shard::write(&request.out, &file)
             .map_err(|e| Failure::failed(format!("{}: {e}", request.out.display())))?;
+        claim.commit().map_err(Failure::failed)?;
         eprintln!(
             "shard {}/{}: {} seeds; written to {}",
             shard.index,
@@ -122,6 +133,13 @@ pub fn command(request: &StudyArgs) -> Result<(), Failure> {
         );
         return Ok(());
     }
+    let claim = claim(
+        &request.out,
+        &STUDY_FILES,
+        &[path, &request.datasets],
+        request.force,
+        true,
+    )?;
     let sigma = sigma_table();
     let monte_carlo = if all.is_empty() {
         None
@@ -132,12 +150,15 @@ pub fn command(request: &StudyArgs) -> Result<(), Failure> {
         )
     };
     write(&request.out, &sigma, monte_carlo.as_ref()).map_err(Failure::failed)?;
+    claim.commit().map_err(Failure::failed)?;
     eprintln!("written to {}", request.out.display());
     Ok(())
 }
 
 /// `probecal study merge`: the study from its shard files, written to `out`.
-pub fn merge(files: &[PathBuf], out: &Path) -> Result<(), Failure> {
+pub fn merge(files: &[PathBuf], out: &Path, force: bool) -> Result<(), Failure> {
+    let inputs: Vec<&Path> = files.iter().map(PathBuf::as_path).collect();
+    let claim = claim(out, &STUDY_FILES, &inputs, force, true)?;
     let mut shards = Vec::new();
     for path in files {
         shards.push((path.clone(), shard::read(path).map_err(Failure::bad_input)?));
@@ -146,8 +167,14 @@ pub fn merge(files: &[PathBuf], out: &Path) -> Result<(), Failure> {
     let monte_carlo = crate::pipeline::study::summarise(&experiment, bound, results);
     let sigma = sigma_table();
     write(out, &sigma, Some(&monte_carlo)).map_err(|e| Failure::failed(format!("{}: {e}", out.display())))?;
+    claim.commit().map_err(Failure::failed)?;
     eprintln!("{} shards merged; written to {}", shards.len(), out.display());
     Ok(())
+}
+
+/// `out` claimed for a study's `names`; refused before any seed is rendered.
+fn claim(out: &Path, names: &[&str], inputs: &[&Path], force: bool, exclusive: bool) -> Result<OutputFiles, Failure> {
+    Ok(OutputFiles::claim(out, "study", names, inputs, force, exclusive)?)
 }
 
 /// `probecal study compare`: the paired comparison, printed and written to `out`.

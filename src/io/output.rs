@@ -54,8 +54,8 @@ pub fn refusal(out: &Path, command: &str, inputs: &[&Path], force: bool) -> Opti
             ));
         }
     }
-    if out.is_file() || out.is_symlink() && !out.is_dir() {
-        return Some("is a file, not a folder; choose another --out".into());
+    if let Some(why) = not_a_folder(out) {
+        return Some(why);
     }
     if !out.is_dir() || force {
         return None;
@@ -64,17 +64,30 @@ pub fn refusal(out: &Path, command: &str, inputs: &[&Path], force: bool) -> Opti
     if empty {
         return None;
     }
-    match std::fs::read_to_string(out.join(MARKER)) {
-        Ok(writer) if writer.trim() == command => None,
-        Ok(writer) => Some(format!(
-            "holds the output of `probecal {}`; pass --force to replace it, or choose another --out",
-            writer.trim()
-        )),
-        Err(_) => Some(
+    match written_by(out, command) {
+        Some(verdict) => verdict,
+        None => Some(
             "exists and was not written by this command (a run's folder, your files?); pass --force to replace it, or choose another --out"
                 .into(),
         ),
     }
+}
+
+/// What `out`'s marker says: `Some(None)` written by `command`, `Some(Some(why))`
+/// by another command, `None` no marker.
+fn written_by(out: &Path, command: &str) -> Option<Option<String>> {
+    let writer = std::fs::read_to_string(out.join(MARKER)).ok()?;
+    Some((writer.trim() != command).then(|| {
+        format!(
+            "holds the output of `probecal {}`; pass --force to replace it, or choose another --out",
+            writer.trim()
+        )
+    }))
+}
+
+/// Why `out` cannot be an output folder at all: it is a file (or a link to one).
+fn not_a_folder(out: &Path) -> Option<String> {
+    (out.is_file() || out.is_symlink() && !out.is_dir()).then(|| "is a file, not a folder; choose another --out".into())
 }
 
 /// Why `out` may not be written as an output file of `command`, if it may
@@ -147,6 +160,87 @@ impl Drop for OutputFolder {
     }
 }
 
+/// Why `names` may not be written into `out` as `command`'s files, if they
+/// may not. The folder is shared with files the command leaves alone (studies
+/// nested in a study's folder, the other shards of one study), so only the
+/// named files are at stake: one of them is an input, the folder lies inside an
+/// input folder, or, without `force`, the folder is another command's or holds
+/// one of the names without saying this command wrote it.
+pub fn files_refusal(out: &Path, command: &str, names: &[&str], inputs: &[&Path], force: bool) -> Option<String> {
+    if let Some(why) = not_a_folder(out) {
+        return Some(why);
+    }
+    let target = resolved(out);
+    for input in inputs {
+        let input_path = resolved(input);
+        if let Some(name) = names.iter().find(|n| target.join(n) == input_path) {
+            return Some(format!(
+                "its {name} would replace {}, which `probecal {command}` reads; choose another --out",
+                input.display()
+            ));
+        }
+        if input.is_dir() && target.starts_with(&input_path) {
+            return Some(format!(
+                "lies inside {}, which `probecal {command}` reads; choose another --out",
+                input.display()
+            ));
+        }
+    }
+    if force {
+        return None;
+    }
+    match written_by(out, command) {
+        Some(verdict) => verdict,
+        None => names.iter().find(|n| out.join(n).exists()).map(|name| {
+            format!(
+                "holds {name}, which this command did not write; pass --force to replace it, or choose another --out"
+            )
+        }),
+    }
+}
+
+/// Named files claimed in a folder they share with others: each is written
+/// whole (`write_atomic`), and the folder's marker names the command once
+/// they are.
+#[derive(Debug)]
+pub struct OutputFiles {
+    folder: PathBuf,
+    command: String,
+    _lock: Option<Lock>,
+}
+
+impl OutputFiles {
+    /// Claims `names` in `out` for `command`; `exclusive`: one process at a
+    /// time (the lock beside the folder), else several may write their own
+    /// names at once (the shards of one study).
+    pub fn claim(
+        out: &Path,
+        command: &str,
+        names: &[&str],
+        inputs: &[&Path],
+        force: bool,
+        exclusive: bool,
+    ) -> Result<OutputFiles, OutputRefusal> {
+        if let Some(reason) = files_refusal(out, command, names, inputs, force) {
+            return Err(OutputRefusal::Refused {
+                out: out.to_path_buf(),
+                reason,
+            });
+        }
+        let lock = if exclusive { Some(lock(out)?) } else { None };
+        Ok(OutputFiles {
+            folder: out.to_path_buf(),
+            command: command.to_string(),
+            _lock: lock,
+        })
+    }
+
+    /// Marks the folder as this command's, once its files are written.
+    pub fn commit(self) -> Result<(), WriteError> {
+        write_atomic(&self.folder.join(MARKER), format!("{}\n", self.command).as_bytes())
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -197,6 +291,62 @@ mod tests {
             .unwrap()
             .contains("is a folder"));
         assert_eq!(file_refusal(&dir.join("new.yml"), "calibrate-camera", &[&input]), None);
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn named_files_are_claimed_in_a_shared_folder() {
+        let dir = std::env::temp_dir().join(format!("probecal-output-files-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(dir.join("study/shards")).unwrap();
+        let shard = dir.join("study/shards/shard_1_of_2.yaml");
+        std::fs::write(&shard, "x").unwrap();
+        let names = ["study.json", "study.md"];
+        // Shards inside the folder are left alone; the folder is marked.
+        let files = OutputFiles::claim(&dir.join("study"), "study", &names, &[&shard], false, true).unwrap();
+        let busy = OutputFiles::claim(&dir.join("study"), "study", &names, &[], false, true).unwrap_err();
+        assert!(busy.to_string().contains("is writing here"), "{busy}");
+        std::fs::write(dir.join("study/study.json"), "{}").unwrap();
+        files.commit().unwrap();
+        assert_eq!(
+            std::fs::read_to_string(dir.join("study").join(MARKER)).unwrap(),
+            "study\n"
+        );
+        assert!(OutputFiles::claim(&dir.join("study"), "study", &names, &[], false, true).is_ok());
+        // Another command's folder; an input under an output's name; a folder
+        // inside an input folder; a name present in an unmarked folder.
+        let e = files_refusal(&dir.join("study"), "segment", &names, &[], false).unwrap();
+        assert!(e.contains("holds the output of `probecal study`"), "{e}");
+        let e = files_refusal(
+            &dir.join("study/shards"),
+            "study",
+            &["shard_1_of_2.yaml"],
+            &[&shard],
+            true,
+        )
+        .unwrap();
+        assert!(e.contains("its shard_1_of_2.yaml would replace"), "{e}");
+        let e = files_refusal(
+            &dir.join("study/shards/x"),
+            "study",
+            &names,
+            &[&dir.join("study/shards")],
+            true,
+        )
+        .unwrap();
+        assert!(e.contains("lies inside"), "{e}");
+        let e = files_refusal(&dir.join("study/shards"), "study", &["shard_1_of_2.yaml"], &[], false).unwrap();
+        assert!(
+            e.contains("holds shard_1_of_2.yaml, which this command did not write"),
+            "{e}"
+        );
+        assert_eq!(
+            files_refusal(&dir.join("study/shards"), "study", &["shard_2_of_2.yaml"], &[], false),
+            None
+        );
+        assert!(files_refusal(&shard, "study", &names, &[], true)
+            .unwrap()
+            .contains("is a file"));
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }

@@ -19,7 +19,7 @@ impl StudyFile {
     pub fn read(path: &Path) -> Result<StudyFile, crate::report::error::ReadError> {
         let fail = |e: &dyn std::fmt::Display| crate::report::error::ReadError::new(path, e);
         let text = std::fs::read_to_string(path).map_err(|e| fail(&e))?;
-        serde_json::from_str(&text).map_err(|e| fail(&e))
+        crate::io::unique_keys::json(&text).map_err(|e| fail(&e))
     }
 }
 
@@ -147,6 +147,9 @@ pub(super) fn html(md: &str) -> String {
         "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>probecal studies</title>\n<style>body{{font-family:sans-serif;max-width:60rem;margin:2rem auto;padding:0 1rem}}table{{border-collapse:collapse;margin:1rem 0}}td,th{{border:1px solid #bbb;padding:.3rem .6rem;text-align:right}}td:first-child,th:first-child{{text-align:left}}</style></head><body>\n{body}</body></html>\n"
     )
 }
+
+/// The files a study writes into its folder.
+pub const STUDY_FILES: [&str; 3] = ["study.json", "study.md", "study.html"];
 
 /// Writes `study.json`, `study.md` and `study.html` into `out`.
 pub fn write(out: &Path, sigma: &[SigmaRow], monte_carlo: Option<&MonteCarlo>) -> std::io::Result<()> {
