@@ -456,7 +456,7 @@ fn every_command_writes_its_own_folder_whole_and_nothing_else() {
     // --out the inputs' folder, or an input file: refused even with --force.
     for out in [&inputs, &config] {
         let (code, e) = segment_into(&sequence, &config, out, true);
-        assert_eq!(code, Some(1), "{e}");
+        assert_eq!(code, Some(2), "{e}");
         assert!(
             e.contains("which `probecal segment` reads; choose another --out"),
             "{e}"
@@ -468,7 +468,7 @@ fn every_command_writes_its_own_folder_whole_and_nothing_else() {
     std::fs::create_dir_all(&theirs).unwrap();
     std::fs::write(theirs.join("summary.json"), "{\"kind\": \"tracked\"}").unwrap();
     let (code, e) = segment_into(&sequence, &config, &theirs, false);
-    assert_eq!(code, Some(1), "{e}");
+    assert_eq!(code, Some(2), "{e}");
     assert!(
         e.contains("was not written by this command") && e.contains("pass --force"),
         "{e}"
@@ -505,7 +505,7 @@ fn every_command_writes_its_own_folder_whole_and_nothing_else() {
         .output()
         .unwrap();
     let e = String::from_utf8_lossy(&r.stderr);
-    assert_eq!(r.status.code(), Some(1), "{e}");
+    assert_eq!(r.status.code(), Some(2), "{e}");
     assert!(e.contains("holds the output of `probecal segment`"), "{e}");
     // calibrate-camera writing over one of its photos.
     let photo = dir.join("left01.jpg");

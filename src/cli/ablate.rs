@@ -31,8 +31,7 @@ pub struct AblateArgs {
 pub fn command(args: &AblateArgs) -> Result<(), Failure> {
     let (manifest_path, out) = (&args.manifest, &args.out);
     let manifest = crate::manifest::Manifest::load(manifest_path).map_err(Failure::bad_input)?;
-    let folder = crate::io::output::OutputFolder::claim(out, "ablate", &[manifest_path, &args.datasets], args.force)
-        .map_err(Failure::failed)?;
+    let folder = crate::io::output::OutputFolder::claim(out, "ablate", &[manifest_path, &args.datasets], args.force)?;
     let result =
         crate::pipeline::ablation::ablate(&manifest, &args.datasets, args.keep_datasets, &args.only, &mut |line| {
             eprintln!("{line}")

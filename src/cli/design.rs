@@ -6,7 +6,7 @@ use std::path::Path;
 use super::failure::Failure;
 
 pub fn command(manifest: &Path, out: &Path, force: bool) -> Result<(), Failure> {
-    let folder = crate::io::output::OutputFolder::claim(out, "design", &[manifest], force).map_err(Failure::failed)?;
+    let folder = crate::io::output::OutputFolder::claim(out, "design", &[manifest], force)?;
     let (manifest, spec) = crate::report::phantom::rendered_lab(manifest).map_err(Failure::bad_input)?;
     let rows = crate::pipeline::design::design(&manifest, &spec)
         .map_err(|e| Failure::bad_input(format!("{}: {e}", manifest.path.display())))?;

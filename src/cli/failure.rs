@@ -31,6 +31,17 @@ impl Failure {
     }
 }
 
+/// An output that may not be claimed is bad input (2); a lock held by
+/// another process or a folder that cannot be written is a failed run (1).
+impl From<crate::io::output::OutputRefusal> for Failure {
+    fn from(e: crate::io::output::OutputRefusal) -> Failure {
+        match e {
+            crate::io::output::OutputRefusal::Refused { .. } => Failure::bad_input(e),
+            _ => Failure::failed(e),
+        }
+    }
+}
+
 /// Prints a command's failure and gives its exit code (0 on success).
 pub fn exit_code(result: Result<(), Failure>) -> u8 {
     match result {

@@ -51,8 +51,7 @@ pub fn command(args: &ReconstructArgs) -> Result<(), Failure> {
     read.extend(args.compare.as_deref());
     // A folder of an earlier reconstruction (before folders were marked) is this command's.
     let replace = args.force || crate::report::reconstruct::holds_reconstruction(&args.out);
-    let folder =
-        crate::io::output::OutputFolder::claim(&args.out, "reconstruct", &read, replace).map_err(Failure::failed)?;
+    let folder = crate::io::output::OutputFolder::claim(&args.out, "reconstruct", &read, replace)?;
     let inputs = ReconstructInputs {
         sequence: args.sequence.clone(),
         config: args.config.clone(),

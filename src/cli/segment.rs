@@ -35,8 +35,7 @@ pub fn command(args: &SegmentArgs) -> Result<(), Failure> {
         .into_iter()
         .flatten()
         .collect();
-    let folder =
-        crate::io::output::OutputFolder::claim(out, "segment", &inputs, args.force).map_err(Failure::failed)?;
+    let folder = crate::io::output::OutputFolder::claim(out, "segment", &inputs, args.force)?;
     let run = crate::pipeline::segment::run(sequence, config).map_err(Failure::failed)?;
     let baseline = plus_baseline
         .map(|p| against_plus(&run, p))
