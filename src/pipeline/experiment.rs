@@ -166,6 +166,9 @@ fn refusal(experiments: &[Experiment], options: &RunOptions<'_>) -> Option<Strin
             ));
         }
     }
+    if let Some(reason) = pages_refusal(experiments, options.out) {
+        return Some(reason);
+    }
     for m in experiments {
         let folder = options.out.join(m.experiment());
         if !folder.exists() {
@@ -188,6 +191,46 @@ fn refusal(experiments: &[Experiment], options: &RunOptions<'_>) -> Option<Strin
                     input.display()
                 ));
             }
+        }
+    }
+    None
+}
+
+/// The pages a run or a comparison writes at the top of `--out`.
+pub const TOP_PAGES: [&str; 6] = [
+    "index.html",
+    "compare.html",
+    "compare.md",
+    "compare.tex",
+    "thesis.html",
+    "thesis.tex",
+];
+
+/// Why `out` cannot hold the experiments' top pages, if it cannot: it lies
+/// inside a folder the run reads, or one of the pages would replace an input.
+fn pages_refusal(experiments: &[Experiment], out: &Path) -> Option<String> {
+    if out.is_file() {
+        return Some(format!(
+            "--out {} is a file, not a folder; choose another --out",
+            out.display()
+        ));
+    }
+    let target = crate::io::output::resolved(out);
+    for input in experiments.iter().flat_map(inputs_of) {
+        let input_path = crate::io::output::resolved(&input);
+        if input.is_dir() && target.starts_with(&input_path) {
+            return Some(format!(
+                "--out {} lies inside {}, which the run reads; choose another --out",
+                out.display(),
+                input.display()
+            ));
+        }
+        if let Some(page) = TOP_PAGES.iter().find(|p| target.join(p) == input_path) {
+            return Some(format!(
+                "--out {}: its {page} would replace {}, which the run reads; choose another --out",
+                out.display(),
+                input.display()
+            ));
         }
     }
     None
