@@ -91,7 +91,7 @@ impl GroundTruth {
             message,
         };
         let text = std::fs::read_to_string(&path).map_err(|e| bad(e.to_string()))?;
-        let raw: RawTruth = serde_json::from_str(&text).map_err(|e| bad(e.to_string()))?;
+        let raw: RawTruth = crate::io::unique_keys::json(&text).map_err(|e| bad(e.to_string()))?;
         Ok(Some(GroundTruth {
             marker_T_image: rigid_from_rows(&raw.marker_T_image).map_err(|e| bad(format!("marker_T_image: {e}")))?,
             camera_T_phantom: rigid_from_rows(&raw.camera_T_phantom)

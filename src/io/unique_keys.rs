@@ -1,6 +1,7 @@
 //! Maps read from YAML or JSON with every key given once: serde keeps the last
 //! of two equal keys without a word, so a file could say two things and be
-//! read as one of them. Use with `#[serde(deserialize_with = "...")]`.
+//! read as one of them. Use with `#[serde(deserialize_with = "...")]`, or read
+//! whole JSON files with [`json`] and [`json_value`].
 
 use std::collections::BTreeMap;
 use std::fmt;
@@ -62,6 +63,82 @@ where
     Ok(outer.into_iter().map(|(k, v)| (k, v.0)).collect())
 }
 
+/// A JSON value of any shape in which no object gives a key twice.
+struct UniqueJson(serde_json::Value);
+
+impl<'de> Deserialize<'de> for UniqueJson {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        d.deserialize_any(UniqueJsonVisitor).map(UniqueJson)
+    }
+}
+
+struct UniqueJsonVisitor;
+
+impl<'de> Visitor<'de> for UniqueJsonVisitor {
+    type Value = serde_json::Value;
+
+    fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+        f.write_str("JSON whose objects give every key once")
+    }
+    fn visit_bool<E: Error>(self, v: bool) -> Result<Self::Value, E> {
+        Ok(v.into())
+    }
+    fn visit_i64<E: Error>(self, v: i64) -> Result<Self::Value, E> {
+        Ok(v.into())
+    }
+    fn visit_u64<E: Error>(self, v: u64) -> Result<Self::Value, E> {
+        Ok(v.into())
+    }
+    fn visit_f64<E: Error>(self, v: f64) -> Result<Self::Value, E> {
+        Ok(v.into())
+    }
+    fn visit_str<E: Error>(self, v: &str) -> Result<Self::Value, E> {
+        Ok(v.into())
+    }
+    fn visit_string<E: Error>(self, v: String) -> Result<Self::Value, E> {
+        Ok(v.into())
+    }
+    fn visit_unit<E: Error>(self) -> Result<Self::Value, E> {
+        Ok(serde_json::Value::Null)
+    }
+    fn visit_none<E: Error>(self) -> Result<Self::Value, E> {
+        Ok(serde_json::Value::Null)
+    }
+    fn visit_seq<A: serde::de::SeqAccess<'de>>(self, mut access: A) -> Result<Self::Value, A::Error> {
+        let mut items = Vec::new();
+        while let Some(UniqueJson(v)) = access.next_element()? {
+            items.push(v);
+        }
+        Ok(serde_json::Value::Array(items))
+    }
+    fn visit_map<A: MapAccess<'de>>(self, mut access: A) -> Result<Self::Value, A::Error> {
+        let mut out = serde_json::Map::new();
+        while let Some(key) = access.next_key::<String>()? {
+            if out.contains_key(&key) {
+                return Err(A::Error::custom(format!(
+                    "`{key}` is given twice; a key may be given once"
+                )));
+            }
+            let UniqueJson(value) = access.next_value()?;
+            out.insert(key, value);
+        }
+        Ok(serde_json::Value::Object(out))
+    }
+}
+
+/// `text` read as JSON, refused (at the line of the second) when any object
+/// in it gives a key twice.
+pub fn json_value(text: &str) -> Result<serde_json::Value, serde_json::Error> {
+    serde_json::from_str::<UniqueJson>(text).map(|u| u.0)
+}
+
+/// `text` read as JSON into `T`, refused when any object gives a key twice
+/// (which `T`'s own maps would keep the last of).
+pub fn json<T: serde::de::DeserializeOwned>(text: &str) -> Result<T, serde_json::Error> {
+    json_value(text)?;
+    serde_json::from_str(text)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -83,5 +160,19 @@ mod tests {
         assert!(inner.to_string().contains("`x` is given twice"), "{inner}");
         let json = serde_json::from_str::<Doc>(r#"{"datasets": {"a": {"x": 1, "x": 9}}}"#).unwrap_err();
         assert!(json.to_string().contains("`x` is given twice"), "{json}");
+    }
+
+    #[test]
+    fn json_of_any_shape_gives_every_key_once() {
+        let text = "{\"a\": [1, {\"b\": null}], \"c\": {\"d\": 2.5, \"e\": \"x\"}, \"f\": true}";
+        assert_eq!(
+            json_value(text).unwrap(),
+            serde_json::from_str::<serde_json::Value>(text).unwrap()
+        );
+        let deep = json_value("{\"a\": [1, {\"b\": 1,\n \"b\": 2}]}").unwrap_err();
+        assert!(deep.to_string().contains("`b` is given twice"), "{deep}");
+        assert_eq!(deep.line(), 2, "{deep}");
+        let top = json::<serde_json::Value>("{\"kind\": 1, \"kind\": 2}").unwrap_err();
+        assert!(top.to_string().contains("`kind` is given twice"), "{top}");
     }
 }

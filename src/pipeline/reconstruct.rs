@@ -104,7 +104,7 @@ pub fn run_image_to_probe(folder: &Path) -> Result<Matrix4<f64>, ReconstructErro
             folder.display()
         ))
     })?;
-    let json: serde_json::Value = serde_json::from_str(&text).map_err(|e| fail(format!("not JSON: {e}")))?;
+    let json = crate::io::unique_keys::json_value(&text).map_err(|e| fail(format!("not JSON: {e}")))?;
     let rows = json
         .pointer("/image_to_probe/matrix")
         .and_then(|m| serde_json::from_value::<Vec<Vec<f64>>>(m.clone()).ok())
@@ -127,11 +127,13 @@ fn clip(settings: &VolumeSettings, width: usize, height: usize) -> Result<([usiz
         [0, 0] => [width, height],
         s => s,
     };
-    if ox >= width || oy >= height || sx == 0 || sy == 0 {
+    // PLUS clips a rectangle reaching past the frames to them without a word;
+    // probecal asks for the rectangle meant.
+    if ox + sx > width || oy + sy > height || sx == 0 || sy == 0 {
         return Err(ReconstructError::Input {
             path: settings.path.clone(),
             message: format!(
-                "line {}: clip rectangle at ({ox}, {oy}) size {sx}x{sy} lies outside the {width}x{height} frames",
+                "line {}: clip rectangle at ({ox}, {oy}) size {sx}x{sy} reaches beyond the {width}x{height} frames",
                 settings.line
             ),
         });
@@ -174,12 +176,16 @@ fn grid_and_paste(
     let (width, height) = (sequence.width, sequence.height);
     let (clip_px, far_px) = clip(settings, width, height)?;
     let grid = match (settings.origin_mm, settings.extent) {
-        (Some(origin), Some(extent)) => Grid::from_extent(origin, settings.spacing_mm, extent)?,
+        (Some(origin), Some(extent)) => Grid::from_extent(origin, settings.spacing_mm, extent),
         _ => {
             let matrices: Vec<_> = poses.iter().map(|p| p.reference_T_pixel).collect();
-            Grid::fit(&matrices, [clip_px[0], clip_px[1]], far_px, settings.spacing_mm)?
+            Grid::fit(&matrices, [clip_px[0], clip_px[1]], far_px, settings.spacing_mm)
         }
-    };
+    }
+    .map_err(|e| ReconstructError::Input {
+        path: settings.path.clone(),
+        message: format!("line {}: {e}", settings.line),
+    })?;
     Ok((grid, paste_settings(settings, width, height)?))
 }
 

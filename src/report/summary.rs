@@ -502,7 +502,7 @@ impl RunSummary {
 
     /// Parses a summary's text read from `path` (the kind from its `kind` field).
     pub fn parse(text: &str, path: &Path) -> Result<RunSummary, ReadError> {
-        let value: serde_json::Value = serde_json::from_str(text).map_err(|e| ReadError::new(path, e))?;
+        let value = crate::io::unique_keys::json_value(text).map_err(|e| ReadError::new(path, e))?;
         let tracked = value.get("kind").and_then(|k| k.as_str()) == Some(TRACKED_KIND);
         let described = |e: serde_path_to_error::Error<serde_json::Error>| {
             let field = e.path().to_string();
