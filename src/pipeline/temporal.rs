@@ -64,6 +64,13 @@ pub enum TemporalError {
     },
     #[error("unresolved: the correlation peaks at {peak_correlation:.3} (lag {lag_s:+.3} s), weaker than {MIN_PEAK_CORRELATION}: the two signals do not show one motion")]
     Weak { lag_s: f64, peak_correlation: f64 },
+    /// A sample (or the correlation made of them) that is not a number.
+    #[error("unresolved: the {which} signal's sample at {time_s} s is {value}, not a finite number")]
+    NotFinite {
+        which: &'static str,
+        time_s: f64,
+        value: f64,
+    },
 }
 
 /// Farthest a tracked probe can be from its reference, mm.
@@ -93,6 +100,11 @@ pub fn correlate(first: &[(f64, f64)], second: &[(f64, f64)]) -> Result<Correlat
     let (Some(f0), Some(f1), Some(s0), Some(s1)) = (first.first(), first.last(), second.first(), second.last()) else {
         return Err(TemporalError::NoOverlap { overlap_s: 0.0 });
     };
+    for (which, signal) in [("first", first), ("second", second)] {
+        if let Some(&(time_s, value)) = signal.iter().find(|(t, v)| !t.is_finite() || !v.is_finite()) {
+            return Err(TemporalError::NotFinite { which, time_s, value });
+        }
+    }
     let start = f0.0.max(s0.0 + MAX_LAG_S);
     let end = f1.0.min(s1.0 - MAX_LAG_S);
     if end - start < 4.0 * MAX_LAG_S {
@@ -123,9 +135,10 @@ pub fn correlate(first: &[(f64, f64)], second: &[(f64, f64)]) -> Result<Correlat
         let p = normalised(&p);
         let ncc = v.iter().zip(&p).map(|(a, b)| a * b).sum::<f64>() / v.len() as f64;
         if !ncc.is_finite() {
-            return Err(TemporalError::NoMotion {
-                which: "second",
-                sd: f64::NAN,
+            return Err(TemporalError::NotFinite {
+                which: "correlation",
+                time_s: lag,
+                value: ncc,
             });
         }
         curve.push((lag, ncc));
@@ -364,6 +377,48 @@ mod tests {
         let still: Vec<(f64, f64)> = (0..400).map(|k| (k as f64 * 0.05, 3.0)).collect();
         let e = correlate(&signal(0.0), &still).unwrap_err();
         assert!(matches!(e, TemporalError::NoMotion { .. }), "{e}");
+    }
+
+    /// The same motion buried in noise three times its size peaks inside the
+    /// search but too weakly to be taken; a sample that is not a number is
+    /// named, not turned into a correlation.
+    #[test]
+    fn a_weak_peak_or_a_sample_not_a_number_is_unresolved() {
+        let mut state = 12345u64;
+        let mut noise = || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+        };
+        let motion = |t: f64| (0.9 * t).sin() + 0.3 * (2.3 * t).sin();
+        let first: Vec<(f64, f64)> = (0..400).map(|k| (k as f64 * 0.05, motion(k as f64 * 0.05))).collect();
+        let buried: Vec<(f64, f64)> = (0..400)
+            .map(|k| {
+                let t = k as f64 * 0.05;
+                (t, 0.3 * motion(t - 0.12) + 1.1 * noise())
+            })
+            .collect();
+        match correlate(&first, &buried).unwrap_err() {
+            TemporalError::Weak {
+                lag_s,
+                peak_correlation,
+            } => {
+                assert!(lag_s.abs() < MAX_LAG_S, "{lag_s}");
+                assert!(
+                    peak_correlation > 0.1 && peak_correlation < MIN_PEAK_CORRELATION,
+                    "{peak_correlation}"
+                );
+            }
+            e => panic!("not refused as weak: {e}"),
+        }
+        let mut gap = first.clone();
+        gap[200].1 = f64::NAN;
+        let e = correlate(&first, &gap).unwrap_err();
+        assert!(
+            e.to_string() == "unresolved: the second signal's sample at 10 s is NaN, not a finite number",
+            "{e}"
+        );
     }
 
     #[test]
