@@ -19,6 +19,9 @@ pub const MAX_BOARD_MARKERS: u32 = 50;
 pub const MAX_IMAGE_PIXELS: u64 = 100_000_000;
 /// Side of one image, px.
 pub const MAX_IMAGE_SIDE_PX: u64 = 30_000;
+/// Bytes of one image file, read whole before it is decoded: the largest
+/// image at 16 bits in four channels, rounded up (1 GiB).
+pub const MAX_IMAGE_FILE_BYTES: u64 = 1 << 30;
 /// Worker threads.
 pub const MAX_THREADS: usize = 256;
 /// Nesting of a manifest's YAML (mappings and sequences inside each other).

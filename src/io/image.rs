@@ -1,6 +1,6 @@
 //! 8-bit grey images on disk and their exchange with OpenCV.
 
-use crate::core::limits::{MAX_IMAGE_PIXELS, MAX_IMAGE_SIDE_PX};
+use crate::core::limits::{MAX_IMAGE_FILE_BYTES, MAX_IMAGE_PIXELS, MAX_IMAGE_SIDE_PX};
 use std::path::{Path, PathBuf};
 
 use opencv::core::{Mat, Vector, CV_8UC1};
@@ -14,7 +14,7 @@ pub enum ImageError {
     Missing { path: PathBuf },
     #[error("{path}: image file is empty (0 bytes)")]
     Empty { path: PathBuf },
-    #[error("{path}: not a decodable image (truncated or not PNG/JPEG)")]
+    #[error("{path}: not a decodable image (truncated, or not a PNG, JPEG, BMP or TIFF whose header gives its size)")]
     Undecodable { path: PathBuf },
     #[error("{path}: image is {got_w}x{got_h} px, expected {want_w}x{want_h}")]
     WrongSize {
@@ -31,6 +31,8 @@ pub enum ImageError {
         height: u64,
         limit: u64,
     },
+    #[error("{path}: the file is {bytes} bytes, more than the {limit} an image file may be")]
+    FileTooLarge { path: PathBuf, bytes: u64, limit: u64 },
     #[error("{path}: cannot write image: {message}")]
     Write { path: PathBuf, message: String },
     #[error("opencv: {0}")]
@@ -95,11 +97,19 @@ pub fn encode_png_bgr(bgr: &[u8], width: usize, height: usize) -> Result<Vec<u8>
     Ok(buffer.to_vec())
 }
 
-/// Width and height from a PNG's or a JPEG's header, read before decoding; `None`
-/// for other formats or a header that cannot be read (the decoder then says so).
+/// Width and height from a PNG's, a JPEG's, a BMP's or a TIFF's header, read
+/// before decoding; `None` for other formats or a header that cannot be read
+/// (such a file is not decoded).
 pub fn header_size(bytes: &[u8]) -> Option<(u64, u64)> {
     let be16 = |i: usize| Some(u16::from_be_bytes([*bytes.get(i)?, *bytes.get(i + 1)?]) as u64);
     let be32 = |i: usize| Some(u32::from_be_bytes(bytes.get(i..i + 4)?.try_into().ok()?) as u64);
+    if bytes.starts_with(b"BM") {
+        let le32 = |i: usize| Some(i32::from_le_bytes(bytes.get(i..i + 4)?.try_into().ok()?));
+        return Some((le32(18)?.unsigned_abs() as u64, le32(22)?.unsigned_abs() as u64));
+    }
+    if bytes.starts_with(b"II*\0") || bytes.starts_with(b"MM\0*") {
+        return tiff_size(bytes);
+    }
     if bytes.starts_with(b"\x89PNG\r\n\x1a\n") && bytes.get(12..16) == Some(b"IHDR") {
         return Some((be32(16)?, be32(20)?));
     }
@@ -111,6 +121,10 @@ pub fn header_size(bytes: &[u8]) -> Option<(u64, u64)> {
                 return None;
             }
             let marker = bytes[i + 1];
+            if marker == 0xFF {
+                i += 1; // a fill byte before the marker
+                continue;
+            }
             if (0xC0..=0xCF).contains(&marker) && ![0xC4, 0xC8, 0xCC].contains(&marker) {
                 return Some((be16(i + 7)?, be16(i + 5)?));
             }
@@ -118,6 +132,45 @@ pub fn header_size(bytes: &[u8]) -> Option<(u64, u64)> {
         }
     }
     None
+}
+
+/// Width and height from the first image directory of a TIFF (tags 256 and
+/// 257, 16 or 32 bits).
+fn tiff_size(bytes: &[u8]) -> Option<(u64, u64)> {
+    let little = bytes.starts_with(b"II");
+    let u16_at = |i: usize| {
+        let b: [u8; 2] = bytes.get(i..i + 2)?.try_into().ok()?;
+        Some(if little {
+            u16::from_le_bytes(b)
+        } else {
+            u16::from_be_bytes(b)
+        } as u64)
+    };
+    let u32_at = |i: usize| {
+        let b: [u8; 4] = bytes.get(i..i + 4)?.try_into().ok()?;
+        Some(if little {
+            u32::from_le_bytes(b)
+        } else {
+            u32::from_be_bytes(b)
+        } as u64)
+    };
+    let directory = usize::try_from(u32_at(4)?).ok()?;
+    let entries = u16_at(directory)? as usize;
+    let (mut width, mut height) = (None, None);
+    for k in 0..entries {
+        let entry = directory + 2 + 12 * k;
+        let value = match u16_at(entry + 2)? {
+            3 => u16_at(entry + 8)?,
+            4 => u32_at(entry + 8)?,
+            _ => continue,
+        };
+        match u16_at(entry)? {
+            256 => width = Some(value),
+            257 => height = Some(value),
+            _ => {}
+        }
+    }
+    Some((width?, height?))
 }
 
 /// Whether a PNG or JPEG file has been written to its end: PNG's `IEND` chunk,
@@ -148,18 +201,30 @@ pub fn read_gray(path: &Path) -> Result<Mat, ImageError> {
             path: path.to_path_buf(),
         });
     }
+    if meta.len() > MAX_IMAGE_FILE_BYTES {
+        return Err(ImageError::FileTooLarge {
+            path: path.to_path_buf(),
+            bytes: meta.len(),
+            limit: MAX_IMAGE_FILE_BYTES,
+        });
+    }
     let bytes = std::fs::read(path).map_err(|_| ImageError::Missing {
         path: path.to_path_buf(),
     })?;
-    if let Some((width, height)) = header_size(&bytes) {
-        if width * height > MAX_IMAGE_PIXELS || width.max(height) > MAX_IMAGE_SIDE_PX {
-            return Err(ImageError::TooLarge {
-                path: path.to_path_buf(),
-                width,
-                height,
-                limit: MAX_IMAGE_PIXELS,
-            });
-        }
+    // Only an image whose size its header gives is decoded: the size is
+    // checked before OpenCV allocates for it (a small file can claim gigapixels).
+    let Some((width, height)) = header_size(&bytes) else {
+        return Err(ImageError::Undecodable {
+            path: path.to_path_buf(),
+        });
+    };
+    if width * height > MAX_IMAGE_PIXELS || width.max(height) > MAX_IMAGE_SIDE_PX {
+        return Err(ImageError::TooLarge {
+            path: path.to_path_buf(),
+            width,
+            height,
+            limit: MAX_IMAGE_PIXELS,
+        });
     }
     if let Some(mat) = decode_gray8_png(&bytes) {
         return Ok(mat);
@@ -266,19 +331,15 @@ mod header_tests {
     use super::*;
 
     #[test]
-    fn png_and_jpeg_headers_give_the_size_before_decoding() {
+    fn image_headers_give_the_size_before_decoding() {
         let mat = Mat::new_rows_cols_with_default(30, 40, CV_8UC1, opencv::core::Scalar::all(9.0)).unwrap();
-        for ext in [".png", ".jpg"] {
+        for ext in [".png", ".jpg", ".bmp", ".tif"] {
             let mut buffer = Vector::<u8>::new();
             imgcodecs::imencode(ext, &mat, &mut buffer, &Vector::new()).unwrap();
             assert_eq!(header_size(buffer.as_slice()), Some((40, 30)), "{ext}");
         }
         assert_eq!(header_size(b"GIF89a"), None);
-        assert_eq!(
-            header_size(&[0xFF, 0xD8, 0xFF]),
-            None,
-            "a cut-off header is left to the decoder"
-        );
+        assert_eq!(header_size(&[0xFF, 0xD8, 0xFF]), None, "a cut-off header is not read");
     }
 
     #[test]
