@@ -15,3 +15,4 @@ pub mod tracker_poses;
 pub mod truth;
 pub mod unique_keys;
 pub mod volume_file;
+pub mod yaml_limits;

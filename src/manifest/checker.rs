@@ -7,6 +7,7 @@ use std::path::{Path, PathBuf};
 
 use super::*;
 use crate::core::limits::{MAX_BOARD_CORNERS, MAX_YAML_DEPTH};
+use crate::io::yaml_limits::too_deep;
 
 pub(crate) struct Checker<'a> {
     pub(crate) file: &'a Path,
@@ -133,40 +134,6 @@ fn strip_position<'a>(message: &'a str, field: &str) -> &'a str {
 }
 
 /// Deserialises YAML into `T`, locating an error by file, field path and line.
-/// The first line (1-based) where the YAML nests deeper than [`MAX_YAML_DEPTH`]
-/// (indented blocks and `[`/`{` inside each other), and how deep; checked before
-/// parsing, whose time grows fast with the depth.
-pub(super) fn too_deep(text: &str) -> Option<(usize, usize)> {
-    let mut indents: Vec<usize> = Vec::new();
-    let mut flow = 0usize;
-    for (i, line) in text.lines().enumerate() {
-        let content = line.trim_start();
-        if flow == 0 && !(content.is_empty() || content.starts_with('#')) {
-            let indent = line.len() - content.len();
-            while indents.last().is_some_and(|&top| top >= indent) {
-                indents.pop();
-            }
-            indents.push(indent);
-        }
-        let mut quote = None;
-        for c in content.chars() {
-            match (quote, c) {
-                (None, '#') => break,
-                (None, '"' | '\'') => quote = Some(c),
-                (Some(q), c) if c == q => quote = None,
-                (None, '[' | '{') => flow += 1,
-                (None, ']' | '}') => flow = flow.saturating_sub(1),
-                _ => {}
-            }
-            let depth = indents.len() + flow;
-            if depth > MAX_YAML_DEPTH {
-                return Some((i + 1, depth));
-            }
-        }
-    }
-    None
-}
-
 pub(crate) fn deserialize_located<T: serde::de::DeserializeOwned>(
     path: &Path,
     text: &str,

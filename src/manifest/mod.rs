@@ -147,21 +147,32 @@ pub enum Experiment {
     Tracked(Box<tracked::TrackedManifest>),
 }
 
+/// A manifest's text, bounded in size and depth before anything parses it.
+fn read_manifest(path: &Path) -> Result<String, ManifestErrors> {
+    crate::io::yaml_limits::read(path, "a manifest").map_err(|e| {
+        ManifestErrors(vec![ManifestError {
+            file: path.to_path_buf(),
+            field: String::new(),
+            line: e.line,
+            message: match e.line {
+                Some(_) => e.message,
+                None => format!("cannot read the manifest: {}", e.message),
+            },
+        }])
+    })
+}
+
 impl Experiment {
     /// Reads a manifest, telling the kinds apart by a top-level `tracking` key.
     pub fn load(path: &Path) -> Result<Experiment, ManifestErrors> {
-        let text = std::fs::read_to_string(path).map_err(|e| {
-            ManifestErrors(vec![ManifestError {
-                file: path.to_path_buf(),
-                field: String::new(),
-                line: None,
-                message: format!("cannot read the manifest: {e}"),
-            }])
-        })?;
-        let is_tracked = serde_yaml::from_str::<serde_yaml::Value>(&text)
-            .ok()
-            .and_then(|v| v.as_mapping().map(|m| m.contains_key("tracking")))
-            .unwrap_or(false);
+        let text = read_manifest(path)?;
+        // A manifest YAML cannot read (a key given twice, bad syntax) is told
+        // apart by its top-level `tracking:` line, so that its own reader
+        // gives the error.
+        let is_tracked = match serde_yaml::from_str::<serde_yaml::Value>(&text) {
+            Ok(v) => v.as_mapping().is_some_and(|m| m.contains_key("tracking")),
+            Err(_) => text.lines().any(|l| l.trim_end().starts_with("tracking:")),
+        };
         if is_tracked {
             tracked::TrackedManifest::from_text(path, &text).map(|m| Experiment::Tracked(Box::new(m)))
         } else {
@@ -194,14 +205,7 @@ impl Experiment {
 impl Manifest {
     /// Reads, parses and validates a manifest file.
     pub fn load(path: &Path) -> Result<Manifest, ManifestErrors> {
-        let text = std::fs::read_to_string(path).map_err(|e| {
-            ManifestErrors(vec![ManifestError {
-                file: path.to_path_buf(),
-                field: String::new(),
-                line: None,
-                message: format!("cannot read the manifest: {e}"),
-            }])
-        })?;
+        let text = read_manifest(path)?;
         Manifest::from_text(path, &text)
     }
 

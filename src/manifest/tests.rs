@@ -455,7 +455,7 @@ fn nesting_past_the_limit_is_refused_with_its_line() {
     let e = parse(&text).unwrap_err().to_string();
     assert!(e.contains(":2: nested 33 levels deep"), "{e}");
     let shallow = format!("{}{}", "[".repeat(20), "]".repeat(20));
-    assert!(checker::too_deep(&format!("a: {shallow}\nb:\n  c: 1\n")).is_none());
+    assert!(crate::io::yaml_limits::too_deep(&format!("a: {shallow}\nb:\n  c: 1\n")).is_none());
 }
 
 const CHARUCO_RIG: &str = "rig:

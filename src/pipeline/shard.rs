@@ -90,7 +90,7 @@ pub fn read(path: &Path) -> Result<ShardFile, ShardError> {
         path: path.to_path_buf(),
         message: e.to_string(),
     };
-    let text = std::fs::read_to_string(path).map_err(|e| file_error(&e))?;
+    let text = crate::io::yaml_limits::read(path, "a shard file").map_err(|e| file_error(&e))?;
     let file: ShardFile = serde_yaml::from_str(&text).map_err(|e| file_error(&e))?;
     implausible(&file).map_or(Ok(file), |why| Err(file_error(&why)))
 }

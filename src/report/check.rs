@@ -170,7 +170,7 @@ pub fn find_summaries(inputs: &[PathBuf]) -> Result<Vec<FoundSummary>, CheckErro
 
 /// Reads the baseline file of `experiment`.
 pub fn load_baseline(path: &Path, experiment: &str) -> Result<Baseline, CheckError> {
-    let text = std::fs::read_to_string(path).map_err(|e| CheckError::Read {
+    let text = crate::io::yaml_limits::read(path, "a baseline").map_err(|e| CheckError::Read {
         path: path.to_path_buf(),
         message: e.to_string(),
     })?;
