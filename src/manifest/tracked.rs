@@ -40,6 +40,7 @@ use crate::core::limits::MAX_FOLDS;
 use crate::detect::nwire::Segmentation;
 use crate::estimate::image_to_probe::{ConstraintModel, PixelModel};
 use crate::io::plus::config::PlusConfig;
+use crate::io::plus::xml_limits::{MAX_CLIP_PX, MAX_WIRE_COORDINATE_MM};
 use crate::io::tracker_poses::{check_near_rigid, ORTHONORMAL_TOLERANCE};
 use crate::spec::nwire::{NWire, WireSegment};
 
@@ -212,10 +213,15 @@ fn time_offset(c: &mut Checker<'_>, base: &Path, seq: &PlusSequence) -> TimeOffs
             ),
         },
         other => {
+            let got = match other {
+                OffsetSetting::Seconds(s) => format!("{s} s"),
+                OffsetSetting::Word(w) => format!("`{w}`"),
+                OffsetSetting::Temporal { .. } => "a temporal calibration".into(),
+            };
             c.fail(
                 &format!("{f}.time_offset_s"),
                 format!(
-                    "must be `estimate`, seconds between -1 and 1, or `{{temporal: {{tracker, video}}}}`, got {other:?}"
+                    "must be `estimate`, seconds between -1 and 1, or `{{temporal: {{tracker, video}}}}`, got {got}"
                 ),
             );
             TimeOffset::Fixed(0.0)
@@ -304,11 +310,11 @@ fn phantom_parts(c: &mut Checker<'_>, base: &Path, phantom: &TrackedPhantom) -> 
                     w.front_in_phantom_mm
                         .iter()
                         .chain(w.back_in_phantom_mm.iter())
-                        .any(|v| !v.is_finite())
+                        .any(|v| !v.is_finite() || v.abs() > MAX_WIRE_COORDINATE_MM)
                 }) {
                     c.fail(
                         &format!("phantom.nwire.patterns[{i}].wires"),
-                        "has a non-finite end point",
+                        format!("has an end point not a finite number within ±{MAX_WIRE_COORDINATE_MM} mm of the phantom's origin"),
                     );
                     continue;
                 }
@@ -401,6 +407,11 @@ fn check_segmentation(c: &mut Checker<'_>, seg: &Segmentation, nwires: usize) {
     if let Some(r) = seg.clip_rectangle_px {
         if r[2] == 0 || r[3] == 0 {
             c.fail(&format!("{sf}.clip_rectangle_px"), "has zero width or height");
+        } else if r.iter().any(|&v| v as f64 > MAX_CLIP_PX) {
+            c.fail(
+                &format!("{sf}.clip_rectangle_px"),
+                format!("must be whole pixels up to {MAX_CLIP_PX}, got {r:?}"),
+            );
         }
     }
 }

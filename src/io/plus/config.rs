@@ -159,10 +159,13 @@ impl PlusConfig {
                 if o.iter()
                     .chain(&z)
                     .any(|v| *v < 0.0 || *v > MAX_CLIP_PX || v.fract() != 0.0)
+                    || z.iter().any(|v| *v < 1.0)
                 {
                     return Err(x.fail(
                         seg,
-                        format!("the clip rectangle {o:?} + {z:?} must be whole pixels from 0 to {MAX_CLIP_PX}"),
+                        format!(
+                            "the clip rectangle {o:?} + {z:?} must be whole pixels from 0 to {MAX_CLIP_PX}, its size at least 1"
+                        ),
                     ));
                 }
                 clip_rectangle_px = Some(([o[0] as usize, o[1] as usize], [z[0] as usize, z[1] as usize]));
@@ -250,29 +253,36 @@ fn fixed_transforms(x: &Xml) -> Result<Vec<FixedTransform>, ConfigError> {
 }
 
 /// The `Segmentation` element's settings of the dot segmentation, each a
-/// positive number where given, the tolerances below their ranges' ends.
+/// positive number up to a physical ceiling where given (sizes in mm, counts
+/// whole), the percentages and tolerances below their ranges' ends.
 fn segmentation_settings(x: &Xml, seg: roxmltree::Node) -> Result<PlusSegmentation, ConfigError> {
-    let positive = |name: &str| -> Result<Option<f64>, ConfigError> {
+    let positive = |name: &str, most: f64| -> Result<Option<f64>, ConfigError> {
         if seg.attribute(name).is_none() {
             return Ok(None);
         }
         let v = x.numbers(seg, name, 1)?[0];
-        if !(v.is_finite() && v > 0.0) {
-            return Err(x.fail(seg, format!("`{name}` must be a positive number, got {v}")));
+        if !(v.is_finite() && v > 0.0 && v <= most) {
+            return Err(x.fail(seg, format!("`{name}` must be a positive number up to {most}, got {v}")));
         }
         Ok(Some(v))
     };
+    let count = |name: &str, most: f64| -> Result<Option<usize>, ConfigError> {
+        match positive(name, most)? {
+            Some(v) if v.fract() != 0.0 => Err(x.fail(seg, format!("`{name}` must be a whole number, got {v}"))),
+            v => Ok(v.map(|n| n as usize)),
+        }
+    };
     let segmentation = PlusSegmentation {
-        opening_radius_mm: positive("MorphologicalOpeningCircleRadiusMm")?,
-        threshold_percent: positive("ThresholdImagePercent")?.filter(|p| *p < 100.0),
-        collinear_tolerance_mm: positive("CollinearPointsMaxDistanceFromLineMm")?,
-        max_candidates: positive("NumberOfMaximumFiducialPointCandidates")?.map(|n| n.round() as usize),
-        row_gap_tolerance_percent: positive("MaxLinePairDistanceErrorPercent")?,
-        max_row_shift_mm: positive("MaxLineShiftMm")?,
-        angle_tolerance_deg: positive("AngleToleranceDegrees")?,
-        max_angle_difference_deg: positive("MaxAngleDifferenceDegrees")?,
+        opening_radius_mm: positive("MorphologicalOpeningCircleRadiusMm", 10.0)?,
+        threshold_percent: positive("ThresholdImagePercent", 100.0)?,
+        collinear_tolerance_mm: positive("CollinearPointsMaxDistanceFromLineMm", 50.0)?,
+        max_candidates: count("NumberOfMaximumFiducialPointCandidates", 10_000.0)?,
+        row_gap_tolerance_percent: positive("MaxLinePairDistanceErrorPercent", 100.0)?,
+        max_row_shift_mm: positive("MaxLineShiftMm", 500.0)?,
+        angle_tolerance_deg: positive("AngleToleranceDegrees", 90.0)?,
+        max_angle_difference_deg: positive("MaxAngleDifferenceDegrees", 90.0)?,
         theta_range_deg: theta_range(x, seg)?,
-        opening_bar_size_mm: positive("MorphologicalOpeningBarSizeMm")?,
+        opening_bar_size_mm: positive("MorphologicalOpeningBarSizeMm", 50.0)?,
         original_intensity_score: match seg.attribute("UseOriginalImageIntensityForDotIntensityScore") {
             None => None,
             Some(v) if v.eq_ignore_ascii_case("true") || v == "1" => Some(true),
@@ -286,6 +296,7 @@ fn segmentation_settings(x: &Xml, seg: roxmltree::Node) -> Result<PlusSegmentati
         },
     };
     for (name, value, most) in [
+        ("ThresholdImagePercent", segmentation.threshold_percent, 100.0),
         (
             "MaxLinePairDistanceErrorPercent",
             segmentation.row_gap_tolerance_percent,

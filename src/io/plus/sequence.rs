@@ -15,7 +15,8 @@ use std::path::{Path, PathBuf};
 
 pub use super::orientation::Orientation;
 use super::sequence_header::{
-    check_element, compressed_flag, dimensions, orientation, pixel_bytes, read_header, samples_in_mf, Header,
+    check_element, check_ndims, compressed_flag, dimensions, orientation, pixel_bytes, read_header, samples_in_mf,
+    Header,
 };
 use crate::core::geometry::{rigid_from_rows, Rigid};
 
@@ -154,6 +155,7 @@ impl Sequence {
         };
         let dims = get("DimSize")?;
         let (width, height, count) = dimensions(dims, &fail)?;
+        check_ndims(header.get("NDims"), dims, &fail)?;
         let float = check_element(
             get("ElementType")?,
             header.get("ElementNumberOfChannels"),

@@ -14,6 +14,13 @@ pub(super) struct Header {
     pub(super) data_start: usize,
 }
 
+/// Longest header read, bytes: a PLUS header is about 1 KB a frame, and a
+/// sequence holds at most `MAX_FRAMES` frames.
+const MAX_HEADER_BYTES: usize = 256 << 20;
+
+/// Most header fields besides the frames' own (PLUS writes about twenty).
+const MAX_HEADER_FIELDS: usize = 10_000;
+
 /// Reads `Key = value` lines up to `ElementDataFile = LOCAL`.
 pub(super) fn read_header(
     bytes: &[u8],
@@ -24,6 +31,14 @@ pub(super) fn read_header(
     let mut offset = 0usize;
     let mut line_no = 0usize;
     while offset < bytes.len() {
+        if offset > MAX_HEADER_BYTES || header.len() > MAX_HEADER_FIELDS {
+            return Err(fail(
+                Some(line_no),
+                format!(
+                    "the header goes on past {MAX_HEADER_BYTES} bytes or {MAX_HEADER_FIELDS} fields besides the frames' (data before `ElementDataFile`?)"
+                ),
+            ));
+        }
         let end = bytes[offset..]
             .iter()
             .position(|&b| b == b'\n')
@@ -268,4 +283,25 @@ pub(super) fn pixel_bytes(
         )
     })?;
     Ok(out)
+}
+
+/// `NDims`, where given, must count `DimSize`'s sizes: a header that says two
+/// things about its shape is refused.
+pub(super) fn check_ndims(
+    ndims: Option<&Field>,
+    dims: &Field,
+    fail: &dyn Fn(Option<usize>, String) -> SequenceError,
+) -> Result<(), SequenceError> {
+    let Some(n) = ndims else { return Ok(()) };
+    let given = dims.value.split_whitespace().count();
+    if n.value.parse::<usize>().ok() == Some(given) {
+        return Ok(());
+    }
+    Err(fail(
+        Some(n.line),
+        format!(
+            "`NDims = {}` contradicts `DimSize = {}` (line {}), which has {given} sizes",
+            n.value, dims.value, dims.line
+        ),
+    ))
 }

@@ -304,6 +304,8 @@ impl Reader<'_, '_, '_> {
     }
 
     fn fan(&self) -> Result<Option<Fan>, ConfigError> {
+        /// Farthest fan coordinate, px: beyond any B-scan's size.
+        const MAX_FAN_PX: f64 = 65_535.0;
         if self.switch("EnableFanAnglesAutoDetect")? {
             return Err(self.fail(
                 "`EnableFanAnglesAutoDetect=\"TRUE\"` is not supported by probecal: give the fan's angles".into(),
@@ -321,9 +323,9 @@ impl Reader<'_, '_, '_> {
         let origin = self.optional("FanOriginPixel", 2)?.unwrap_or(vec![0.0, 0.0]);
         let start = self.optional_number("FanRadiusStartPixel")?.unwrap_or(0.0);
         let stop = self.optional_number("FanRadiusStopPixel")?.unwrap_or(500.0);
-        if start < 0.0 || stop <= start {
+        if start < 0.0 || stop <= start || stop > MAX_FAN_PX || origin.iter().any(|c| c.abs() > MAX_FAN_PX) {
             return Err(self.fail(format!(
-                "`FanRadiusStartPixel` {start} and `FanRadiusStopPixel` {stop}: need 0 <= start < stop"
+                "`FanOriginPixel` {origin:?}, `FanRadiusStartPixel` {start} and `FanRadiusStopPixel` {stop}: need 0 <= start < stop and every one within {MAX_FAN_PX} px"
             )));
         }
         Ok(Some(Fan {
