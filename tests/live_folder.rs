@@ -108,8 +108,8 @@ fn a_watch_needs_an_existing_folder_and_a_sensible_idle_time() {
             1,
             "the watched folder does not exist",
         ),
-        ("/tmp", "0", 2, "--idle-s 0"),
-        ("/tmp", "nan", 2, "--idle-s NaN"),
+        ("/tmp", "0", 2, "invalid value '0' for '--idle-s <IDLE_S>'"),
+        ("/tmp", "nan", 2, "invalid value 'nan' for '--idle-s <IDLE_S>'"),
     ];
     for (folder, idle, code, message) in cases {
         let r = probecal()

@@ -8,11 +8,6 @@ use super::failure::Failure;
 use crate::io::camera_model::ViewFate;
 
 pub fn command(images: &[PathBuf], board: [u32; 2], square_mm: f64, out: &Path) -> Result<(), Failure> {
-    if !(square_mm.is_finite() && square_mm > 0.0) {
-        return Err(Failure::bad_input(format!(
-            "--square-mm must be a positive number, got {square_mm}"
-        )));
-    }
     output_file(out, images)?;
     let cal = crate::detect::camera_calibration::calibrate_from(
         images,
@@ -83,4 +78,17 @@ fn output_file(out: &Path, images: &[PathBuf]) -> Result<(), Failure> {
             .map_err(|e| Failure::failed(format!("{}: cannot create the output's folder: {e}", parent.display())))?;
     }
     Ok(())
+}
+
+/// Largest board square, mm (a ten-metre square is no printed board).
+const MAX_SQUARE_MM: f64 = 10_000.0;
+
+/// `--square-mm`: a positive size up to [`MAX_SQUARE_MM`].
+pub(crate) fn parse_square_mm(text: &str) -> Result<f64, String> {
+    match text.parse::<f64>() {
+        Ok(v) if v.is_finite() && v > 0.0 && v <= MAX_SQUARE_MM => Ok(v),
+        _ => Err(format!(
+            "--square-mm must be a positive number up to {MAX_SQUARE_MM}, got `{text}`"
+        )),
+    }
 }

@@ -48,8 +48,7 @@ pub fn command(manifest: &Path, out: &Path, source: &LiveSource) -> Result<(), F
                 idle_s: source.idle_s,
                 poll_ms: 20,
             };
-            let folder = crate::io::output::OutputFolder::claim(out, "live", &[manifest, &watch.folder], source.force)
-                .map_err(Failure::failed)?;
+            let folder = crate::io::output::OutputFolder::claim(out, "live", &[manifest, &watch.folder], source.force)?;
             folder_command(&m, &watch, folder.path())?;
             return folder.commit().map_err(Failure::failed);
         }
@@ -69,7 +68,7 @@ pub fn command(manifest: &Path, out: &Path, source: &LiveSource) -> Result<(), F
     let inputs = TrackedInputs::from_manifest(&m);
     let mut read: Vec<&Path> = vec![manifest, &inputs.calibration_sequence];
     read.extend(inputs.validation_sequence.as_deref());
-    let folder = crate::io::output::OutputFolder::claim(out, "live", &read, source.force).map_err(Failure::failed)?;
+    let folder = crate::io::output::OutputFolder::claim(out, "live", &read, source.force)?;
     if let Some(note) = estimated_lag_note(&m.time_offset) {
         eprintln!("{note}");
     }
@@ -99,12 +98,6 @@ pub fn command(manifest: &Path, out: &Path, source: &LiveSource) -> Result<(), F
 
 /// `probecal live <camera manifest> --watch <folder> --out <dir>`.
 fn folder_command(manifest: &Manifest, watch: &Watch, out: &Path) -> Result<(), Failure> {
-    if !(watch.idle_s.is_finite() && watch.idle_s > 0.0 && watch.idle_s <= 86_400.0) {
-        return Err(Failure::bad_input(format!(
-            "--idle-s {}: a time in seconds, above 0 and at most a day",
-            watch.idle_s
-        )));
-    }
     let terminal = std::io::stderr().is_terminal();
     let mut show =
         |f: &crate::pipeline::live_folder::FolderFrame| shown(terminal, &crate::report::live_folder::line(f));
@@ -133,4 +126,24 @@ pub(super) fn estimated_lag_note(offset: &crate::manifest::tracked::TimeOffset) 
     matches!(offset, crate::manifest::tracked::TimeOffset::Estimate).then_some(
         "lag: 0 s while frames arrive (time_offset_s: estimate); the final calibration estimates it from all frames",
     )
+}
+
+/// `--idle-s`: a positive number of seconds, at most a day.
+pub(crate) fn parse_idle_s(text: &str) -> Result<f64, String> {
+    match text.parse::<f64>() {
+        Ok(v) if v.is_finite() && v > 0.0 && v <= 86_400.0 => Ok(v),
+        _ => Err(format!(
+            "`{text}` is not a number of seconds above 0 and at most 86400 (a day)"
+        )),
+    }
+}
+
+/// `--igtl`: HOST:PORT, the port 1 to 65535.
+pub(crate) fn parse_address(text: &str) -> Result<String, String> {
+    let fail = || format!("`{text}` is not HOST:PORT with a port from 1 to 65535 (e.g. localhost:18944)");
+    let (host, port) = text.rsplit_once(':').ok_or_else(fail)?;
+    match port.parse::<u16>() {
+        Ok(p) if p > 0 && !host.is_empty() => Ok(text.to_string()),
+        _ => Err(fail()),
+    }
 }

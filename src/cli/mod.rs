@@ -129,13 +129,13 @@ enum Command {
         #[arg(long)]
         watch: Option<PathBuf>,
         /// With --watch: no new frame for this long ends the acquisition, s.
-        #[arg(long, default_value_t = 10.0)]
+        #[arg(long, default_value_t = 10.0, value_parser = live::parse_idle_s)]
         idle_s: f64,
         /// A tracked manifest: take the frames from an OpenIGTLink server
         /// (PlusServer) at HOST:PORT instead of its sequence file, and send the
         /// calibration back (device names and the stream's end in the
         /// manifest's `live:`).
-        #[arg(long, value_name = "HOST:PORT", conflicts_with_all = ["watch", "speed"])]
+        #[arg(long, value_name = "HOST:PORT", conflicts_with_all = ["watch", "speed"], value_parser = live::parse_address)]
         igtl: Option<String>,
         /// With --igtl: reconstruct a volume while the frames arrive, with this
         /// PLUS device set's <VolumeReconstruction> (OutputOrigin and
@@ -143,8 +143,8 @@ enum Command {
         #[arg(long, value_name = "DEVICE_SET", requires = "igtl")]
         reconstruct: Option<PathBuf>,
         /// With --reconstruct: send the volume every this many inserted frames.
-        #[arg(long, default_value_t = 10, requires = "reconstruct")]
-        volume_every: usize,
+        #[arg(long, default_value_t = 10, requires = "reconstruct", value_parser = clap::value_parser!(u32).range(1..=1_000_000))]
+        volume_every: u32,
         /// Replace --out even when another command (or no command) wrote it.
         #[arg(long)]
         force: bool,
@@ -216,7 +216,7 @@ enum Command {
         #[arg(long, value_parser = crate::detect::camera_calibration::parse_squares, requires_all = ["marker_mm", "dictionary"])]
         charuco: Option<[u32; 2]>,
         /// Square size in millimetres (or any unit: the translations come out in it).
-        #[arg(long)]
+        #[arg(long, value_parser = camera::parse_square_mm)]
         square_mm: f64,
         /// A ChArUco board's marker size, in the unit of --square-mm.
         #[arg(long, requires = "charuco")]
@@ -311,7 +311,7 @@ pub fn main() -> ExitCode {
             Some(address) => {
                 let volume = reconstruct.map(|config| crate::pipeline::live_volume::VolumeRequest {
                     config,
-                    every: volume_every,
+                    every: volume_every as usize,
                     device: "Volume".into(),
                 });
                 failure::exit_code(live_igtl::command(&manifest, &address, volume, &out, force))
