@@ -21,7 +21,25 @@ pub struct RayMap {
     height: usize,
     /// (w+1) x (h+1) normalised undistorted coordinates of the pixel corners.
     corners: Vec<[f32; 2]>,
+    /// Per pixel, the sum over its 9 sub-samples of the background's reflectance
+    /// (what a pixel whose rays meet no board sees; the same for every photo).
+    background_sum: Vec<f32>,
 }
+
+/// The sub-samples of a pixel, as fractions of its extent.
+const SUB: [f32; 3] = [1.0 / 6.0, 0.5, 5.0 / 6.0];
+
+/// The background's reflectance along a normalised ray: a dull surface with a slow texture.
+#[inline]
+fn background(ray: [f32; 2], focal: [f32; 2], principal: [f32; 2]) -> f32 {
+    let u = focal[0] * ray[0] + principal[0];
+    let v = focal[1] * ray[1] + principal[1];
+    0.30 + 0.06 * ((u * 0.011).sin() * (v * 0.007).cos()) + 0.03 * ((u + v) * 0.031).sin()
+}
+
+/// How far outside a board's reach (in normalised coordinates, about a pixel)
+/// a ray is still traced: far beyond the rounding of the ray and the hit.
+const REACH_MARGIN: f32 = 2e-3;
 
 impl RayMap {
     pub fn new(camera: &CameraIntrinsics) -> RayMap {
@@ -33,7 +51,43 @@ impl RayMap {
                 corners.push([nx as f32, ny as f32]);
             }
         }
-        RayMap { width, height, corners }
+        let mut map = RayMap {
+            width,
+            height,
+            corners,
+            background_sum: Vec::new(),
+        };
+        let (focal, principal) = focal_and_principal(camera);
+        let mut background_sum = Vec::with_capacity(width * height);
+        for y in 0..height {
+            for x in 0..width {
+                let mut sum = 0f32;
+                for &sy in &SUB {
+                    for &sx in &SUB {
+                        sum += background(map.ray(x, y, sx, sy), focal, principal);
+                    }
+                }
+                background_sum.push(sum);
+            }
+        }
+        map.background_sum = background_sum;
+        map
+    }
+
+    /// The box (min x, min y, max x, max y) of the normalised rays through pixel (x, y).
+    #[inline]
+    fn pixel_box(&self, x: usize, y: usize) -> [f32; 4] {
+        let stride = self.width + 1;
+        let corners = [
+            self.corners[y * stride + x],
+            self.corners[y * stride + x + 1],
+            self.corners[(y + 1) * stride + x],
+            self.corners[(y + 1) * stride + x + 1],
+        ];
+        corners.iter().fold(
+            [f32::INFINITY, f32::INFINITY, f32::NEG_INFINITY, f32::NEG_INFINITY],
+            |b, c| [b[0].min(c[0]), b[1].min(c[1]), b[2].max(c[0]), b[3].max(c[1])],
+        )
     }
 
     /// Normalised ray of a point inside pixel (x, y) at fractions (fx, fy) of its extent.
@@ -48,6 +102,13 @@ impl RayMap {
         let bottom = [c[0] + (d[0] - c[0]) * fx, c[1] + (d[1] - c[1]) * fx];
         [top[0] + (bottom[0] - top[0]) * fy, top[1] + (bottom[1] - top[1]) * fy]
     }
+}
+
+fn focal_and_principal(camera: &CameraIntrinsics) -> ([f32; 2], [f32; 2]) {
+    (
+        [camera.fx() as f32, camera.fy() as f32],
+        [camera.cx() as f32, camera.cy() as f32],
+    )
 }
 
 /// Photometric settings of one photo.
@@ -104,6 +165,114 @@ struct Plane<'a> {
     scale: f64,
     /// Sagitta, middle and half-width of the bow along x (board mm).
     bow: Option<(f64, f64, f64)>,
+    /// The box of normalised rays that can meet the board's paper or its
+    /// occluders (`None`: the board reaches behind the camera; every ray is traced).
+    reach: Option<Reach>,
+}
+
+/// The normalised rays that can meet a board: the box around them and their
+/// convex hull (counter-clockwise), both widened by [`REACH_MARGIN`].
+struct Reach {
+    bounds: [f32; 4],
+    hull: Vec<[f32; 2]>,
+}
+
+impl Reach {
+    /// Whether some ray inside `rays` (a box of normalised coordinates) may be in reach.
+    #[inline]
+    fn may_meet(&self, rays: &[f32; 4]) -> bool {
+        let r = &self.bounds;
+        if rays[0] > r[2] || rays[2] < r[0] || rays[1] > r[3] || rays[3] < r[1] {
+            return false;
+        }
+        // Separated when all four corners of the box lie outside one edge of the hull.
+        let corners = [
+            [rays[0], rays[1]],
+            [rays[2], rays[1]],
+            [rays[0], rays[3]],
+            [rays[2], rays[3]],
+        ];
+        let n = self.hull.len();
+        !(0..n).any(|i| {
+            let (a, b) = (self.hull[i], self.hull[(i + 1) % n]);
+            let (ex, ey) = (b[0] - a[0], b[1] - a[1]);
+            let margin = REACH_MARGIN * (ex * ex + ey * ey).sqrt();
+            corners
+                .iter()
+                .all(|c| ex * (c[1] - a[1]) - ey * (c[0] - a[0]) < -margin)
+        })
+    }
+}
+
+/// The convex hull of points, counter-clockwise (Andrew's monotone chain).
+fn convex_hull(mut points: Vec<[f32; 2]>) -> Vec<[f32; 2]> {
+    points.sort_by(|a, b| a[0].total_cmp(&b[0]).then(a[1].total_cmp(&b[1])));
+    points.dedup();
+    if points.len() < 3 {
+        return points;
+    }
+    let cross = |o: [f32; 2], a: [f32; 2], b: [f32; 2]| (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0]);
+    let mut hull: Vec<[f32; 2]> = Vec::with_capacity(2 * points.len());
+    for pass in [points.clone(), points.iter().rev().copied().collect()] {
+        let start = hull.len();
+        for p in pass {
+            while hull.len() >= start + 2 && cross(hull[hull.len() - 2], hull[hull.len() - 1], p) <= 0.0 {
+                hull.pop();
+            }
+            hull.push(p);
+        }
+        hull.pop();
+    }
+    hull
+}
+
+impl Plane<'_> {
+    /// Whether a ray inside `rays` (a box of normalised coordinates) can meet the board.
+    #[inline]
+    fn may_meet(&self, rays: &[f32; 4]) -> bool {
+        self.reach.as_ref().is_none_or(|r| r.may_meet(rays))
+    }
+}
+
+/// The normalised rays that can meet what a ray is traced for on a board: its
+/// paper (scaled as printed) and, if it has occluders, their reach around it,
+/// over the bow's heights. The projection of that box, if it lies in front of the camera.
+fn reach_of(pose: &Rigid, board: &PlacedBoard<'_>) -> Option<Reach> {
+    let [x0, y0, x1, y1] = board.layout.paper_bounds_mm();
+    let (scale, bow_mm) = (board.print_scale, board.bow_mm);
+    let mut xs = [x0 * scale, x1 * scale];
+    let mut ys = [y0 * scale, y1 * scale];
+    if !board.occluders.is_empty() {
+        xs = [xs[0].min(x0 - OCCLUDER_REACH_MM), xs[1].max(x1 + OCCLUDER_REACH_MM)];
+        ys = [ys[0].min(y0 - OCCLUDER_REACH_MM), ys[1].max(y1 + OCCLUDER_REACH_MM)];
+    }
+    let zs = [bow_mm.min(0.0), bow_mm.max(0.0)];
+    let mut reach = [f32::INFINITY, f32::INFINITY, f32::NEG_INFINITY, f32::NEG_INFINITY];
+    let mut projected = Vec::with_capacity(8);
+    for x in xs {
+        for y in ys {
+            for z in zs {
+                let p = pose * Point3::new(x, y, z);
+                if p.z.is_nan() || p.z <= 1.0 {
+                    return None;
+                }
+                let (nx, ny) = ((p.x / p.z) as f32, (p.y / p.z) as f32);
+                reach = [reach[0].min(nx), reach[1].min(ny), reach[2].max(nx), reach[3].max(ny)];
+                projected.push([nx, ny]);
+            }
+        }
+    }
+    let hull = convex_hull(projected);
+    Some(Reach {
+        bounds: [
+            reach[0] - REACH_MARGIN,
+            reach[1] - REACH_MARGIN,
+            reach[2] + REACH_MARGIN,
+            reach[3] + REACH_MARGIN,
+        ],
+        // A degenerate hull (a board seen edge-on) separates nothing: only the box counts.
+        hull: if hull.len() >= 3 { hull } else { Vec::new() },
+    })
 }
 
 /// The boards' planes at `time_s` into the exposure (a moving board moved on).
@@ -133,6 +302,7 @@ fn planes_at<'a>(boards: &'a [PlacedBoard<'a>], time_s: f64) -> Vec<Plane<'a>> {
                     let [x0, x1] = [x0 * b.print_scale, x1 * b.print_scale];
                     (b.bow_mm, (x0 + x1) / 2.0, (x1 - x0) / 2.0)
                 }),
+                reach: reach_of(&pose, b),
             }
         })
         .collect()
@@ -140,9 +310,12 @@ fn planes_at<'a>(boards: &'a [PlacedBoard<'a>], time_s: f64) -> Vec<Plane<'a>> {
 
 /// The nearest board surface a camera ray meets: its distance along the ray and
 /// its reflectance (ink, paper, or the occluder over it).
-fn nearest_hit(planes: &[Plane<'_>], dir: &Vector3<f32>) -> Option<(f32, f32)> {
+fn nearest_hit(planes: &[Plane<'_>], dir: &Vector3<f32>, pixel_rays: &[f32; 4]) -> Option<(f32, f32)> {
     let mut best: Option<(f32, f32)> = None;
     for plane in planes {
+        if !plane.may_meet(pixel_rays) {
+            continue;
+        }
         let denom = plane.normal.dot(dir);
         if denom.abs() < 1e-6 {
             continue;
@@ -220,35 +393,30 @@ pub fn render_photo(
     ];
     let exposure = rng.uniform(0.9, 1.05) as f32;
     let diag = ((w * w + h * h) as f32).sqrt();
-    let (fx, cx, fy, cy) = (
-        camera.fx() as f32,
-        camera.cx() as f32,
-        camera.fy() as f32,
-        camera.cy() as f32,
-    );
+    let (focal, principal) = focal_and_principal(camera);
+    let ([fx, _], [cx, cy]) = (focal, principal);
 
     let mut levels = vec![0f32; w * h];
-    const SUB: [f32; 3] = [1.0 / 6.0, 0.5, 5.0 / 6.0];
     for y in 0..h {
         for x in 0..w {
-            let mut reflectance = 0f32;
-            for (iy, &sy) in SUB.iter().enumerate() {
-                for (ix, &sx) in SUB.iter().enumerate() {
-                    let planes = &planes_per_time[TIME_OF_SUBSAMPLE[iy * 3 + ix] % planes_per_time.len()];
-                    let [nx, ny] = rays.ray(x, y, sx, sy);
-                    let dir = Vector3::new(nx, ny, 1.0);
-                    let best = nearest_hit(planes, &dir);
-                    reflectance += match best {
-                        Some((_, r)) => r,
-                        None => {
-                            // Background: a dull surface with a slow texture.
-                            let u = fx * nx + cx;
-                            let v = fy * ny + cy;
-                            0.30 + 0.06 * ((u * 0.011).sin() * (v * 0.007).cos()) + 0.03 * ((u + v) * 0.031).sin()
-                        }
-                    };
+            let pixel_rays = rays.pixel_box(x, y);
+            let mut reflectance = if planes_per_time.iter().flatten().any(|p| p.may_meet(&pixel_rays)) {
+                let mut sum = 0f32;
+                for (iy, &sy) in SUB.iter().enumerate() {
+                    for (ix, &sx) in SUB.iter().enumerate() {
+                        let planes = &planes_per_time[TIME_OF_SUBSAMPLE[iy * 3 + ix] % planes_per_time.len()];
+                        let ray = rays.ray(x, y, sx, sy);
+                        let dir = Vector3::new(ray[0], ray[1], 1.0);
+                        sum += match nearest_hit(planes, &dir, &pixel_rays) {
+                            Some((_, r)) => r,
+                            None => background(ray, focal, principal),
+                        };
+                    }
                 }
-            }
+                sum
+            } else {
+                rays.background_sum[y * w + x]
+            };
             reflectance /= 9.0;
             let (xf, yf) = (x as f32, y as f32);
             let ramp =
@@ -265,4 +433,27 @@ pub fn render_photo(
         *v += rng.normal(0.0, photometry.noise_grey_levels) as f32;
     }
     Ok(Gray8::from_levels(w, h, &levels))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_box_is_in_reach_unless_outside_the_hull() {
+        let hull = convex_hull(vec![[0.0, 0.0], [1.0, 0.0], [0.5, 0.5], [1.0, 1.0], [0.0, 1.0]]);
+        assert_eq!(hull.len(), 4, "the inner point is not on the hull: {hull:?}");
+        // A diamond: the box's corners outside it but inside its bounds.
+        let diamond = Reach {
+            bounds: [-1.0, -1.0, 1.0, 1.0],
+            hull: convex_hull(vec![[1.0, 0.0], [0.0, 1.0], [-1.0, 0.0], [0.0, -1.0]]),
+        };
+        assert!(diamond.may_meet(&[-0.1, -0.1, 0.1, 0.1]), "the middle");
+        assert!(diamond.may_meet(&[0.4, 0.4, 0.6, 0.6]), "across an edge");
+        assert!(
+            !diamond.may_meet(&[0.8, 0.8, 0.9, 0.9]),
+            "a corner of the bounds, off the diamond"
+        );
+        assert!(!diamond.may_meet(&[2.0, 0.0, 2.1, 0.1]), "off the bounds");
+    }
 }
