@@ -271,7 +271,6 @@ pub struct EvaluationInputs<'a> {
     pub rule: CutoffRule,
     pub min_frames: usize,
     pub variant: Variant,
-    pub truth: Option<TrueCalibration>,
 }
 
 impl CutoffRule {
@@ -331,12 +330,13 @@ pub fn select_below(
 }
 
 /// The threshold table: for each cut-off, the frames kept, their calibration,
-/// its BRE statistics and (rendered data) its error against the truth.
+/// and its BRE statistics. The error against the truth (rendered data) is
+/// scored after every estimate is made (`pipeline::truth::score_run`).
 pub fn threshold_table(frames: &[Correspondence], inputs: &EvaluationInputs<'_>) -> PolarsResult<Vec<ThresholdRow>> {
     let mut rows = Vec::new();
     for &cutoff in inputs.cutoffs_mm {
         let (kept, fit) = select_below(frames, cutoff, inputs);
-        let (stats, truth) = match &fit {
+        let stats = match &fit {
             Ok(fit) => {
                 // One sample per feature (the thesis's one per frame, for one feature a frame).
                 let values: Vec<[f64; 3]> = kept
@@ -344,19 +344,16 @@ pub fn threshold_table(frames: &[Correspondence], inputs: &EvaluationInputs<'_>)
                     .flat_map(|f| f.residuals_in_phantom(fit, inputs.spacing))
                     .map(|d| [d.x.abs(), d.y.abs(), d.z.abs()])
                     .collect();
-                let truth = inputs
-                    .truth
-                    .map(|t| compare_mapped(fit, inputs.spacing, &t, inputs.spacing));
-                (Some(bre_stats(&values)?), truth)
+                Some(bre_stats(&values)?)
             }
-            Err(_) => (None, None),
+            Err(_) => None,
         };
         rows.push(ThresholdRow {
             cutoff_mm: cutoff,
             frames: kept.iter().map(|f| f.frame).collect(),
             fit,
             stats,
-            truth,
+            truth: None,
         });
     }
     Ok(rows)

@@ -84,12 +84,6 @@ fn blank_record(files: &FrameFiles) -> FrameRecord {
         features_px: Vec::new(),
         wire_labels: Vec::new(),
         bre_mm: None,
-        truth_kind: None,
-        truth_arc_centre_error_px: None,
-        truth_elevation_offset_mm: None,
-        truth_probe_pose_error: None,
-        truth_phantom_pose_error: None,
-        truth_probe_depth_error_mm: None,
         bscan_size_px: None,
     }
 }

@@ -9,12 +9,12 @@ use super::record::{FrameRecord, Method, MethodResult, ResamplingSummary};
 use crate::core::geometry::Calibration;
 use crate::core::geometry::Rigid;
 use crate::estimate::correspondence::{self, Correspondence};
-use crate::estimate::horn::{HornError, HornFit};
+use crate::estimate::horn::HornError;
 use crate::estimate::image_to_probe::{self, Constraint};
 use crate::estimate::robust::{self, RobustMethod, RobustSettings};
 use crate::estimate::sphere_fit::{self, ArcFrame, SphereSettings};
 use crate::evaluate::resampling::{self, FitInputs};
-use crate::evaluate::{self, CutoffRule, ThresholdRow, TruthComparison};
+use crate::evaluate::{CutoffRule, ThresholdRow};
 use crate::manifest::Manifest;
 
 /// Leave-one-out PRE, CR over half-splits and bootstrap intervals of the frames
@@ -32,23 +32,6 @@ pub fn resampling_stage(
         reproducibility: resampling::reproducibility(frames, inputs, v.cr_half_splits, v.seed)?,
         bootstrap: resampling::bootstrap(frames, &full, inputs, v.bootstrap_resamples, v.seed)?,
     })
-}
-
-/// Ground-truth error of a calibration that maps pixels with `spacing` (the truth
-/// maps them with the manifest's `truth_spacing`).
-fn truth_of(
-    marker_T_image: &Rigid,
-    spacing: [f64; 2],
-    truth_spacing: [f64; 2],
-    truth: Option<evaluate::TrueCalibration>,
-) -> Option<TruthComparison> {
-    let t = truth?;
-    let estimate = HornFit {
-        target_T_source: *marker_T_image,
-        scale: 1.0,
-        rms_residual_mm: 0.0,
-    };
-    Some(evaluate::compare_mapped(&estimate, spacing, &t, truth_spacing))
 }
 
 /// The frames (their numbers) an estimator did not keep.
@@ -75,12 +58,11 @@ pub struct MethodInputs<'a> {
     pub fit: &'a FitInputs<'a>,
     pub feature_in_phantom_mm: [f64; 3],
     pub sphere_radius_mm: Option<f64>,
-    /// `marker_T_image` and the B-scan size of the truth (evaluation only).
-    pub truth: Option<evaluate::TrueCalibration>,
 }
 
 impl MethodInputs<'_> {
-    /// An estimator's result on these frames, scored against the truth when given.
+    /// An estimator's result on these frames (scored against the truth, when
+    /// there is one, after every estimate is made).
     fn result(
         &self,
         method: Method,
@@ -95,7 +77,7 @@ impl MethodInputs<'_> {
             frames_left_out,
             marker_T_image: *m,
             spacing_mm_per_px: s,
-            truth: truth_of(m, s, self.fit.spacing, self.truth),
+            truth: None,
         }
     }
 }

@@ -169,15 +169,6 @@ pub struct FrameRecord {
     pub wire_labels: Vec<String>,
     /// All-frames BRE `[x, y, z]` and 3D distance, mm (used frames).
     pub bre_mm: Option<([f64; 3], f64)>,
-    /// Truth: frame kind and errors of the detections (rendered data).
-    pub truth_kind: Option<String>,
-    pub truth_arc_centre_error_px: Option<f64>,
-    pub truth_elevation_offset_mm: Option<f64>,
-    pub truth_probe_pose_error: Option<(f64, f64)>,
-    /// Phantom board pose error (mm, degrees) against the truth.
-    pub truth_phantom_pose_error: Option<(f64, f64)>,
-    /// Probe board position error along the camera's viewing axis, mm.
-    pub truth_probe_depth_error_mm: Option<f64>,
     /// Size of the B-scan image, px (when it could be read).
     pub bscan_size_px: Option<[usize; 2]>,
 }
@@ -222,10 +213,29 @@ pub struct GateResult {
     pub passed: bool,
 }
 
+/// One frame against the rendered truth: its kind and the errors of its
+/// detections. Kept apart from the frame's record, which the estimators read,
+/// and made only after every estimate is.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct FrameTruth {
+    pub kind: String,
+    pub elevation_offset_mm: f64,
+    /// The feature pixels' distance from the truth's (mean over wire dots), px.
+    pub arc_centre_error_px: Option<f64>,
+    /// Probe board pose error (mm, degrees).
+    pub probe_pose_error: Option<(f64, f64)>,
+    /// Phantom board pose error (mm, degrees).
+    pub phantom_pose_error: Option<(f64, f64)>,
+    /// Probe board position error along the camera's viewing axis, mm.
+    pub probe_depth_error_mm: Option<f64>,
+}
+
 /// Truth for the whole dataset.
 #[derive(Debug, Clone)]
 pub struct TruthSummary {
     pub calibration: TruthComparison,
+    /// Each frame the truth describes, by frame number.
+    pub frames: std::collections::BTreeMap<usize, FrameTruth>,
     /// `None` without a camera (tracker poses).
     pub camera_focal_error_px: Option<f64>,
     pub camera_principal_error_px: Option<f64>,

@@ -236,8 +236,7 @@ impl SolveInputs {
 /// Solves a run's inputs again, as the run did (no truth: nothing is scored).
 pub fn solve_again(inputs: &SolveInputs) -> Result<Calibrations, SolveInputsError> {
     let (pairs, settings) = inputs.pairs_and_settings()?;
-    solve::calibrate(&pairs, &settings, None, &inputs.dataset)
-        .map_err(|e: RunError| SolveInputsError::Solve(Box::new(e)))
+    solve::calibrate(&pairs, &settings, &inputs.dataset).map_err(|e: RunError| SolveInputsError::Solve(Box::new(e)))
 }
 
 /// Why a stored pose is not a rigid transform.

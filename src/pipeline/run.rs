@@ -3,9 +3,10 @@
 //! dataset (render or folder) → camera intrinsics (stage 1, [`super::camera`]) →
 //! per frame: board poses (stage 2) and the phantom's feature (stage 3,
 //! [`super::frames`]) → point pairs and Horn (stage 4, [`super::solve`]) → BRE,
-//! threshold table (stage 5, [`crate::evaluate`]), ground truth
-//! ([`super::truth`]), the other estimators and the resampling metrics
-//! ([`super::methods`]). Every frame's fate is kept: used, or rejected with the
+//! threshold table (stage 5, [`crate::evaluate`]), the other estimators and the
+//! resampling metrics ([`super::methods`]) → and only then the ground truth
+//! (rendered data, [`super::truth`]), which scores the estimates and is read by
+//! nothing before it. Every frame's fate is kept: used, or rejected with the
 //! stage and the reason.
 
 use std::path::{Path, PathBuf};
@@ -110,7 +111,6 @@ pub fn run_dataset(
     let Calibrated {
         correspondences,
         start_guess,
-        truth,
         solve_settings,
         solved:
             solve::Calibrations {
@@ -120,18 +120,13 @@ pub fn run_dataset(
                 primary,
             },
     } = clock.time("calibration and evaluation", || {
-        calibrate(manifest, &name, &folder, &mut frames, targets, log)
+        calibrate(manifest, &name, &mut frames, targets, log)
     })?;
-    let truth_transform = truth.as_ref().map(true_calibration);
-    let truth_summary = score_truth(manifest, truth.as_ref(), &thresholds[primary], &mut frames, &camera);
     let fit_inputs = FitInputs {
         spacing,
         variant: settings::variant(manifest),
         start: start.as_ref(),
-        image_size_px: truth_transform
-            .map(|t| t.image_size_px)
-            .or_else(|| frames.iter().find_map(|f| f.bscan_size_px))
-            .unwrap_or([0, 0]),
+        image_size_px: frames.iter().find_map(|f| f.bscan_size_px).unwrap_or([0, 0]),
     };
     let estimators = Estimators {
         manifest,
@@ -145,12 +140,11 @@ pub fn run_dataset(
             fit: &fit_inputs,
             feature_in_phantom_mm: [0.0; 3],
             sphere_radius_mm: None,
-            truth: truth_transform,
         },
     };
     let (validation, methods) = clock.time("methods and validation metrics", || estimators.run(log));
-    Ok(DatasetRun {
-        gates: evaluate_gates(manifest, &thresholds[primary], truth_summary.as_ref(), &methods),
+    let mut run = DatasetRun {
+        gates: Vec::new(),
         input_files: input_files(manifest, &folder, &files, &camera),
         experiment: manifest.experiment.clone(),
         dataset: name,
@@ -163,7 +157,7 @@ pub fn run_dataset(
         solve: solve_settings,
         thresholds,
         primary,
-        truth: truth_summary,
+        truth: None,
         spacing_mm_per_px: spacing,
         feature_in_phantom_mm: match targets {
             Targets::Point(p) => Some(p),
@@ -172,31 +166,33 @@ pub fn run_dataset(
         methods,
         start_guess,
         validation,
-        timings_s: clock.into_timings(),
+        timings_s: Vec::new(),
         seed: match &dataset.source {
             DatasetSource::Render(spec) => Some(spec.seed),
             DatasetSource::Folder(_) => None,
         },
-    })
+    };
+    score_against_truth(manifest, &mut run)?;
+    run.gates = evaluate_gates(manifest, &run.thresholds[run.primary], run.truth.as_ref(), &run.methods);
+    run.timings_s = clock.into_timings();
+    Ok(run)
 }
 
-/// The calibration's comparison with the ground truth, whenever truth was given
-/// (and the reported calibration's fit succeeded); a dome phantom's arcs are
-/// checked against the noise model the bound assumes.
-fn score_truth(
-    manifest: &Manifest,
-    truth: Option<&GroundTruth>,
-    reported: &ThresholdRow,
-    frames: &mut [super::record::FrameRecord],
-    camera: &super::record::CameraStage,
-) -> Option<TruthSummary> {
-    let arcs_against = truth::ArcCheck {
-        spacing_mm_per_px: manifest.bscan_spacing_mm_per_px,
-        noise: super::design::edge_noise(manifest),
-    };
-    truth
-        .zip(reported.truth)
-        .map(|(t, calibration)| truth::score(frames, t, camera, calibration, &arcs_against))
+/// Only now, with every estimate made, is the dataset's truth (rendered data)
+/// read: to score the estimates, never to make them.
+fn score_against_truth(manifest: &Manifest, run: &mut DatasetRun) -> Result<(), RunError> {
+    let truth = GroundTruth::load(&run.dataset_folder).map_err(|source| RunError::Truth {
+        dataset: run.dataset.clone(),
+        source,
+    })?;
+    if let Some(t) = &truth {
+        let arcs_against = truth::ArcCheck {
+            spacing_mm_per_px: manifest.bscan_spacing_mm_per_px,
+            noise: super::design::edge_noise(manifest),
+        };
+        truth::score_run(run, t, &arcs_against);
+    }
+    Ok(())
 }
 
 /// Logs the camera's intrinsics: as calibrated (with its RMS), or as refined
@@ -216,12 +212,10 @@ fn log_camera(camera: &super::record::CameraStage, refined: bool, log: &mut dyn 
     }
 }
 
-/// The point pairs, the calibration at every cut-off and the ground truth (read
-/// only to score the estimates).
+/// The point pairs and the calibration at every cut-off.
 struct Calibrated {
     correspondences: Vec<Correspondence>,
     start_guess: Option<crate::estimate::start_basin::StartGuess>,
-    truth: Option<GroundTruth>,
     solve_settings: super::record::SolveSettings,
     solved: solve::Calibrations,
 }
@@ -230,7 +224,6 @@ struct Calibrated {
 fn calibrate(
     manifest: &Manifest,
     name: &str,
-    folder: &Path,
     frames: &mut [super::record::FrameRecord],
     targets: Targets<'_>,
     log: &mut dyn FnMut(&str),
@@ -246,23 +239,12 @@ fn calibrate(
     };
     let (correspondences, start_guess) = solve::point_pairs(frames, targets, &pairing, log)?;
     solve::enough_frames(frames, &correspondences, min_frames, name)?;
-    // Ground truth (rendered data) is read only to score the estimates.
-    let truth = GroundTruth::load(folder).map_err(|source| RunError::Truth {
-        dataset: name.to_string(),
-        source,
-    })?;
     let solve_settings = settings::solve(manifest);
-    let solved = solve::calibrate(
-        &correspondences,
-        &solve_settings,
-        truth.as_ref().map(true_calibration),
-        name,
-    )?;
+    let solved = solve::calibrate(&correspondences, &solve_settings, name)?;
     solve::record_bre(frames, &correspondences, &solved.all_frames_fit, spacing);
     Ok(Calibrated {
         correspondences,
         start_guess,
-        truth,
         solve_settings,
         solved,
     })

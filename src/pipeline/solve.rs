@@ -264,14 +264,8 @@ impl Calibrations {
 }
 
 /// Solves `pairs` on all frames, then at every cut-off (frames above it removed
-/// worst first); `truth` (evaluation only) scores each cut-off's calibration.
-/// The run and `probecal resolve` both solve through here.
-pub fn calibrate(
-    pairs: &[Correspondence],
-    settings: &SolveSettings,
-    truth: Option<crate::evaluate::TrueCalibration>,
-    dataset: &str,
-) -> Result<Calibrations, RunError> {
+/// worst first). The run and `probecal resolve` both solve through here.
+pub fn calibrate(pairs: &[Correspondence], settings: &SolveSettings, dataset: &str) -> Result<Calibrations, RunError> {
     let spacing = settings.spacing_mm_per_px;
     let all_frames_fit = correspondence::solve(
         pairs,
@@ -291,7 +285,6 @@ pub fn calibrate(
         rule: settings.rule,
         min_frames: settings.min_frames,
         variant: settings.variant,
-        truth,
     };
     let thresholds = evaluate::threshold_table(pairs, &inputs)?;
     let primary = thresholds

@@ -1,20 +1,23 @@
 //! The run against the rendered truth (evaluation only, after every estimate is
 //! made): each frame's feature pixels and board poses, and the camera.
 
-use super::record::{CameraStage, FrameRecord, TruthSummary};
+use std::collections::BTreeMap;
+
+use super::record::{CameraStage, DatasetRun, FrameRecord, FrameTruth, MethodResult, TruthSummary};
 use super::settings;
 use crate::core::geometry::{rigid_from_rows, rotation_angle_between_deg, Rigid};
 use crate::core::stats::mean_max;
 use crate::detect::camera_refinement::calibration_information;
 use crate::detect::projection::{intrinsics_vector, IntrinsicsVector};
+use crate::estimate::horn::HornFit;
 use crate::evaluate::arc_noise::{self, ArcAgainstTruth, ArcNoiseCheck};
 use crate::evaluate::sphere_bound::EdgeNoise;
-use crate::evaluate::TruthComparison;
+use crate::evaluate::{TrueCalibration, TruthComparison};
 use crate::io::truth::{GroundTruth, TruthCamera};
 
 /// The evaluation's view of a rendered dataset's truth.
-pub fn true_calibration(t: &GroundTruth) -> crate::evaluate::TrueCalibration {
-    crate::evaluate::TrueCalibration {
+pub fn true_calibration(t: &GroundTruth) -> TrueCalibration {
+    TrueCalibration {
         marker_T_image: t.marker_T_image,
         image_size_px: t.bscan_size_px,
         range_scale: t.range_scale,
@@ -29,10 +32,45 @@ pub struct ArcCheck {
     pub noise: EdgeNoise,
 }
 
-/// Scores every frame against the truth (kept on its record) and sums up the
-/// dataset; `calibration` is the reported calibration's comparison.
-pub fn score(
-    frames: &mut [FrameRecord],
+/// Scores a finished run against its dataset's truth: each cut-off's
+/// calibration, each estimator's, every frame's detections and the camera.
+/// Called after every estimate is made, it writes only truth records (the
+/// frames' records are read, never written), so no estimator can read the
+/// truth: `tests/truth_blind.rs` runs each phantom with and without
+/// `ground_truth.json` and requires the same estimates.
+pub fn score_run(run: &mut DatasetRun, t: &GroundTruth, arcs_against: &ArcCheck) {
+    let truth = true_calibration(t);
+    let spacing = run.solve.spacing_mm_per_px;
+    for row in &mut run.thresholds {
+        row.truth = row
+            .fit
+            .as_ref()
+            .ok()
+            .map(|fit| crate::evaluate::compare_mapped(fit, spacing, &truth, spacing));
+    }
+    for m in &mut run.methods {
+        m.truth = Some(method_against(m, spacing, &truth));
+    }
+    run.truth = run.thresholds[run.primary]
+        .truth
+        .map(|calibration| score(&run.frames, t, &run.camera, calibration, arcs_against));
+}
+
+/// An estimator's error against the truth: its calibration maps pixels with
+/// its own pixel size, the truth with the run's (`truth_spacing`).
+fn method_against(m: &MethodResult, truth_spacing: [f64; 2], truth: &TrueCalibration) -> TruthComparison {
+    let estimate = HornFit {
+        target_T_source: m.marker_T_image,
+        scale: 1.0,
+        rms_residual_mm: 0.0,
+    };
+    crate::evaluate::compare_mapped(&estimate, m.spacing_mm_per_px, truth, truth_spacing)
+}
+
+/// Scores every frame against the truth and sums up the dataset;
+/// `calibration` is the reported calibration's comparison.
+fn score(
+    frames: &[FrameRecord],
     t: &GroundTruth,
     camera: &CameraStage,
     calibration: TruthComparison,
@@ -42,10 +80,14 @@ pub fn score(
     let mut pose_t = Vec::new();
     let mut pose_r = Vec::new();
     let mut phantom_t = Vec::new();
-    for f in frames.iter_mut() {
+    let mut frame_truths = BTreeMap::new();
+    for f in frames {
         let Some(tf) = t.frame(f.files.frame) else { continue };
-        f.truth_kind = Some(tf.kind.clone());
-        f.truth_elevation_offset_mm = Some(tf.elevation_offset_mm);
+        let mut ft = FrameTruth {
+            kind: tf.kind.clone(),
+            elevation_offset_mm: tf.elevation_offset_mm,
+            ..FrameTruth::default()
+        };
         let distance = |a: [f64; 2], b: [f64; 2]| ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2)).sqrt();
         // The feature pixels against the truth: the centre's projection, or each
         // paired wire dot against its wire's true dot.
@@ -64,7 +106,7 @@ pub fn score(
             (!errors.is_empty()).then(|| errors.iter().sum::<f64>() / errors.len() as f64)
         };
         if let Some(e) = error {
-            f.truth_arc_centre_error_px = Some(e);
+            ft.arc_centre_error_px = Some(e);
             if f.rejection.is_none() && tf.kind == "normal" {
                 arc_errors.push(e);
             }
@@ -86,20 +128,22 @@ pub fn score(
             (f.pose_pair(), rigid_from_rows(true_marker))
         {
             let (dt, dr) = pose_error(&camera_T_marker, &true_pose);
-            f.truth_probe_pose_error = Some((dt, dr));
-            f.truth_probe_depth_error_mm =
+            ft.probe_pose_error = Some((dt, dr));
+            ft.probe_depth_error_mm =
                 Some((camera_T_marker.translation.vector.z - true_pose.translation.vector.z).abs());
             pose_t.push(dt);
             pose_r.push(dr);
             let (pt, pr) = pose_error(&camera_T_phantom, &t.camera_T_phantom);
-            f.truth_phantom_pose_error = Some((pt, pr));
+            ft.phantom_pose_error = Some((pt, pr));
             phantom_t.push(pt);
         }
+        frame_truths.insert(f.files.frame, ft);
     }
     let tk = &t.camera.camera_matrix;
     let arc_noise = arc_noise_check(frames, t, arcs_against);
     TruthSummary {
         calibration,
+        frames: frame_truths,
         camera_focal_error_px: camera
             .intrinsics
             .as_ref()

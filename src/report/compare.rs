@@ -118,11 +118,12 @@ fn truth_rows(
         "truth: translation (mm)".into(),
         format!("{:.3}", c.translation_error_mm),
     ));
-    let probe_t = mean(used.iter().filter_map(|f| f.truth_probe_pose_error.map(|e| e.0)));
-    let probe_r = mean(used.iter().filter_map(|f| f.truth_probe_pose_error.map(|e| e.1)));
-    let probe_depth = mean(used.iter().filter_map(|f| f.truth_probe_depth_error_mm));
-    let phantom_t = mean(used.iter().filter_map(|f| f.truth_phantom_pose_error.map(|e| e.0)));
-    let phantom_r = mean(used.iter().filter_map(|f| f.truth_phantom_pose_error.map(|e| e.1)));
+    let used_truth: Vec<_> = used.iter().filter_map(|f| t.frames.get(&f.files.frame)).collect();
+    let probe_t = mean(used_truth.iter().filter_map(|f| f.probe_pose_error.map(|e| e.0)));
+    let probe_r = mean(used_truth.iter().filter_map(|f| f.probe_pose_error.map(|e| e.1)));
+    let probe_depth = mean(used_truth.iter().filter_map(|f| f.probe_depth_error_mm));
+    let phantom_t = mean(used_truth.iter().filter_map(|f| f.phantom_pose_error.map(|e| e.0)));
+    let phantom_r = mean(used_truth.iter().filter_map(|f| f.phantom_pose_error.map(|e| e.1)));
     // Lever arm: from the probe board's origin to the image centre, through the estimate.
     let fit = run.primary_fit();
     let [w, h] = used.iter().find_map(|f| f.bscan_size_px).unwrap_or([0, 0]);

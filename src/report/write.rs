@@ -7,7 +7,7 @@ use std::path::Path;
 use polars::prelude::*;
 
 use crate::evaluate::trim_number;
-use crate::pipeline::record::DatasetRun;
+use crate::pipeline::record::{DatasetRun, FrameTruth};
 use crate::pipeline::resolve::{SolveInputs, SOLVE_INPUTS_FILE};
 use crate::report::summary::{to_text, Summary};
 
@@ -17,38 +17,39 @@ use crate::io::fs::{display_path, WriteError};
 pub use super::error::OutputError;
 
 /// The frames' truth columns (rendered datasets; empty otherwise).
-fn truth_columns(f: &[crate::pipeline::record::FrameRecord]) -> Vec<Column> {
-    let opt = |get: &dyn Fn(&crate::pipeline::record::FrameRecord) -> Option<f64>| {
-        f.iter().map(get).collect::<Vec<Option<f64>>>()
-    };
+fn truth_columns(run: &DatasetRun) -> Vec<Column> {
+    let truths: Vec<Option<&FrameTruth>> = run
+        .frames
+        .iter()
+        .map(|r| run.truth.as_ref().and_then(|t| t.frames.get(&r.files.frame)))
+        .collect();
+    let opt =
+        |get: &dyn Fn(&FrameTruth) -> Option<f64>| truths.iter().map(|t| t.and_then(get)).collect::<Vec<Option<f64>>>();
     vec![
         Column::new(
             "truth_kind".into(),
-            f.iter().map(|r| r.truth_kind.clone()).collect::<Vec<_>>(),
+            truths.iter().map(|t| t.map(|t| t.kind.clone())).collect::<Vec<_>>(),
         ),
         Column::new(
             "truth_elevation_offset_mm".into(),
-            opt(&|r| r.truth_elevation_offset_mm),
+            opt(&|t| Some(t.elevation_offset_mm)),
         ),
-        Column::new(
-            "truth_arc_centre_error_px".into(),
-            opt(&|r| r.truth_arc_centre_error_px),
-        ),
+        Column::new("truth_arc_centre_error_px".into(), opt(&|t| t.arc_centre_error_px)),
         Column::new(
             "truth_probe_pose_error_mm".into(),
-            opt(&|r| r.truth_probe_pose_error.map(|e| e.0)),
+            opt(&|t| t.probe_pose_error.map(|e| e.0)),
         ),
         Column::new(
             "truth_probe_pose_error_deg".into(),
-            opt(&|r| r.truth_probe_pose_error.map(|e| e.1)),
+            opt(&|t| t.probe_pose_error.map(|e| e.1)),
         ),
         Column::new(
             "truth_phantom_pose_error_mm".into(),
-            opt(&|r| r.truth_phantom_pose_error.map(|e| e.0)),
+            opt(&|t| t.phantom_pose_error.map(|e| e.0)),
         ),
         Column::new(
             "truth_phantom_pose_error_deg".into(),
-            opt(&|r| r.truth_phantom_pose_error.map(|e| e.1)),
+            opt(&|t| t.phantom_pose_error.map(|e| e.1)),
         ),
     ]
 }
@@ -160,7 +161,7 @@ pub fn frames_table(run: &DatasetRun) -> PolarsResult<DataFrame> {
         Column::new("bre_norm_mm".into(), opt(&|r| r.bre_mm.map(|b| b.1))),
     ];
     let mut columns = columns;
-    columns.extend(truth_columns(f));
+    columns.extend(truth_columns(run));
     columns.extend(kept_columns(run));
     DataFrame::new(n, columns)
 }
