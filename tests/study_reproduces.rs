@@ -101,6 +101,9 @@ fn the_first_seed_of_every_committed_study_reproduces() {
     let mut differ = Vec::new();
     // Studies of one manifest from one seed share that seed's run: it is run once.
     let mut fresh_seeds: Vec<(&str, u64, serde_json::Value)> = Vec::new();
+    // Studies of one rig's seed under other manifests (estimator settings) copy
+    // its render (fresh for this run: the cache is keyed by inputs, not code).
+    let render_cache = scratch("study_reproduces", "render_cache");
     for (manifest, folder) in STUDIES {
         let committed_path = root().join("reports").join(folder).join("study.json");
         let committed: serde_json::Value =
@@ -116,6 +119,7 @@ fn the_first_seed_of_every_committed_study_reproduces() {
                 .arg(&out)
                 .arg("--datasets")
                 .arg(&datasets)
+                .env(probecal::synth::render_cache::ENV, &render_cache)
                 .output()
                 .unwrap();
             assert!(r.status.success(), "{manifest}: {}", String::from_utf8_lossy(&r.stderr));

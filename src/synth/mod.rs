@@ -14,6 +14,7 @@ pub mod occluders;
 pub mod placement;
 pub mod printable;
 pub mod realism;
+pub mod render_cache;
 pub mod scene;
 pub mod shape;
 
@@ -220,10 +221,20 @@ pub fn ensure_rendered(lab: &Lab<'_>, spec: &RenderSpec, folder: &Path) -> Resul
     if partial.exists() {
         std::fs::remove_dir_all(&partial).map_err(io_err(&partial))?;
     }
-    render_into(lab, spec, &partial)?;
-    let files = listing(&partial)?;
-    std::fs::write(partial.join(RENDERED_FILES), files).map_err(io_err(&partial))?;
-    std::fs::write(partial.join("render_spec.json"), &inputs_json).map_err(io_err(&partial))?;
+    let cache = render_cache::entry(&inputs_json);
+    let cached = match &cache {
+        Some(entry) => render_cache::fetch(entry, &inputs_json, &partial)?,
+        None => false,
+    };
+    if !cached {
+        render_into(lab, spec, &partial)?;
+        let files = listing(&partial)?;
+        std::fs::write(partial.join(RENDERED_FILES), files).map_err(io_err(&partial))?;
+        std::fs::write(partial.join("render_spec.json"), &inputs_json).map_err(io_err(&partial))?;
+        if let Some(entry) = &cache {
+            render_cache::store(&partial, entry)?;
+        }
+    }
     if folder.exists() {
         std::fs::remove_dir_all(folder).map_err(io_err(folder))?;
     }
