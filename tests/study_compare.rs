@@ -99,21 +99,35 @@ fn pairs_on_common_seeds_and_says_when_the_interval_holds_zero() {
     }
 }
 
-/// The committed paired comparisons (`reports/study/rigs/*.json`) are what
-/// `study compare` makes of the committed studies today.
+/// Every committed paired comparison (`reports/study/**/*_vs_*.json`).
+fn committed_comparisons() -> Vec<std::path::PathBuf> {
+    fn walk(dir: &std::path::Path, out: &mut Vec<std::path::PathBuf>) {
+        for entry in std::fs::read_dir(dir).unwrap() {
+            let path = entry.unwrap().path();
+            let name = path.file_name().unwrap().to_string_lossy().to_string();
+            if path.is_dir() {
+                walk(&path, out);
+            } else if name.ends_with(".json") && name.contains("_vs_") {
+                out.push(path);
+            }
+        }
+    }
+    let mut out = Vec::new();
+    walk(&common::root().join("reports/study"), &mut out);
+    out.sort();
+    out
+}
+
+/// The committed paired comparisons are what `study compare` makes of the
+/// committed studies today.
 #[test]
 fn committed_paired_comparisons_regenerate() {
-    let rigs = common::root().join("reports/study/rigs");
     let dir = scratch("study_compare", "committed");
     std::fs::create_dir_all(&dir).unwrap();
     let mut checked = 0;
-    for entry in std::fs::read_dir(&rigs).unwrap() {
-        let path = entry.unwrap().path();
-        if path.extension().is_none_or(|e| e != "json") {
-            continue;
-        }
+    for path in committed_comparisons() {
         let committed: Value = serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
-        let out = dir.join(path.file_name().unwrap());
+        let out = dir.join(format!("{checked}.json"));
         let r = probecal()
             .current_dir(common::root())
             .args(["study", "compare"])
@@ -132,5 +146,5 @@ fn committed_paired_comparisons_regenerate() {
         );
         checked += 1;
     }
-    assert!(checked >= 3, "{checked} paired comparisons in {}", rigs.display());
+    assert!(checked >= 3, "{checked} paired comparisons in reports/study");
 }

@@ -28,6 +28,11 @@ pub struct PairedMethod {
     pub a_lower_seeds: usize,
     /// `lower`, `higher` (b against a) or `no difference shown` (the interval holds 0).
     pub verdict: String,
+    /// Each study's RMS error over a's Cramér–Rao bound, `[a, b]`, on the common
+    /// seeds a has a bound for: when a states the rig's true model and b
+    /// misstates it (b's own ratio is over b's bound, which assumes b's model).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rms_over_a_bound: Option<[f64; 2]>,
 }
 
 /// The frames each study kept per seed.
@@ -112,6 +117,20 @@ pub fn compare(a: &Path, b: &Path, method: Option<&str>) -> Result<PairedStudies
             .filter_map(|(sa, sb)| Some((error_of(sa, &name)?, error_of(sb, &name)?)))
             .filter(|(x, y)| x.is_finite() && y.is_finite())
             .collect();
+        // (a's error, b's error, a's bound) on the seeds a has a bound for.
+        let bounded: Vec<(f64, f64, f64)> = pairs
+            .iter()
+            .filter_map(|(sa, sb)| Some((error_of(sa, &name)?, error_of(sb, &name)?, sa.crlb_rms_mm?)))
+            .collect();
+        let over_bound = |pick: fn(&(f64, f64, f64)) -> f64| {
+            let ratio: Vec<(f64, f64)> = bounded.iter().map(|t| (pick(t), t.2)).collect();
+            crate::core::stats::rms_ratio(&ratio)
+        };
+        let rms_over_a_bound = if bounded.len() == both.len() && bounded.len() >= 2 {
+            over_bound(|t| t.0).zip(over_bound(|t| t.1)).map(|(a, b)| [a, b])
+        } else {
+            None
+        };
         let diffs: Vec<f64> = both.iter().map(|(x, y)| y - x).collect();
         let Some(interval) = mean_difference_interval(&diffs, INTERVAL_LEVEL) else {
             continue;
@@ -133,6 +152,7 @@ pub fn compare(a: &Path, b: &Path, method: Option<&str>) -> Result<PairedStudies
             b_lower_seeds: diffs.iter().filter(|d| **d < 0.0).count(),
             a_lower_seeds: diffs.iter().filter(|d| **d > 0.0).count(),
             verdict: verdict.into(),
+            rms_over_a_bound,
         });
     }
     let kept = |f: &dyn Fn(&(&crate::pipeline::study::SeedResult, &crate::pipeline::study::SeedResult)) -> usize| {
@@ -167,8 +187,8 @@ pub fn markdown(p: &PairedStudies) -> String {
          Error: the RMS distance of the image's four corners and centre from the truth, per seed. \
          Difference: `{}` minus `{}`; its 90 % interval is a percentile bootstrap over the seeds.\n\n\
          Frames kept per seed: `{}` {:.1} (fewest {}), `{}` {:.1} (fewest {}).\n\n\
-         | method | {} mean (mm) | {} mean (mm) | difference (mm) | 90 % interval (mm) | seeds lower: {} / {} | verdict |\n\
-         |---|---|---|---|---|---|---|\n",
+         | method | {} mean (mm) | {} mean (mm) | difference (mm) | 90 % interval (mm) | seeds lower: {} / {} | verdict | RMS / {}'s bound: {} / {} |\n\
+         |---|---|---|---|---|---|---|---|\n",
         p.b,
         p.a,
         p.seeds.len(),
@@ -186,10 +206,16 @@ pub fn markdown(p: &PairedStudies) -> String {
         p.b,
         p.b,
         p.a,
+        p.a,
+        p.a,
+        p.b,
     );
     for m in &p.methods {
+        let bound = m
+            .rms_over_a_bound
+            .map_or("—".to_string(), |[a, b]| format!("{a:.2} / {b:.2}"));
         md.push_str(&format!(
-            "| {} | {:.3} | {:.3} | {:+.3} | {:+.3} … {:+.3} | {} / {} | {} |\n",
+            "| {} | {:.3} | {:.3} | {:+.3} | {:+.3} … {:+.3} | {} / {} | {} | {} |\n",
             m.method,
             m.mean_a_mm,
             m.mean_b_mm,
@@ -198,7 +224,8 @@ pub fn markdown(p: &PairedStudies) -> String {
             m.interval_90_mm[1],
             m.b_lower_seeds,
             m.a_lower_seeds,
-            m.verdict
+            m.verdict,
+            bound
         ));
     }
     md
