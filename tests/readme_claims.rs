@@ -28,7 +28,7 @@ fn claims(text: &str) -> Vec<(usize, String, String, String)> {
             let after = &rest[at + 5..];
             let Some(end) = after.find(" -->") else { break };
             let tag = &after[..end];
-            if let Some((file, key)) = tag.split_once('#') {
+            if let Some((file, key)) = tag.split_once('#').filter(|_| !tag.starts_with("paired ")) {
                 if file.ends_with(".json") {
                     out.push((line_no + 1, number, file.to_string(), key.to_string()));
                 }
@@ -45,6 +45,14 @@ fn lookup(json: &serde_json::Value, key: &str) -> Result<f64, String> {
         Some((p, s)) => (p, s.parse::<f64>().map_err(|e| format!("scale `{s}`: {e}"))?),
         None => (key, 1.0),
     };
+    select(json, path)?
+        .as_f64()
+        .map(|v| v * scale)
+        .ok_or_else(|| format!("`{key}` is not a number"))
+}
+
+/// The element at `path` in `json`.
+fn select<'a>(json: &'a serde_json::Value, path: &str) -> Result<&'a serde_json::Value, String> {
     let mut value = json;
     for segment in path.split('.') {
         let (name, selector) = match segment.split_once('[') {
@@ -67,10 +75,90 @@ fn lookup(json: &serde_json::Value, key: &str) -> Result<f64, String> {
             };
         }
     }
-    value
-        .as_f64()
-        .map(|v| v * scale)
-        .ok_or_else(|| format!("`{key}` is not a number"))
+    Ok(value)
+}
+
+/// The paired comparisons a page's words rest on: `<!-- paired lower: file#key -->`
+/// after a claim that the second study's error is lower than the first's
+/// (`higher`, or `none` for a claim of no difference), `key` the method's entry
+/// of a `probecal study compare` file. (line, word, file, key).
+fn paired_claims(text: &str) -> Vec<(usize, String, String, String)> {
+    let mut out = Vec::new();
+    for (line_no, line) in text.lines().enumerate() {
+        let mut rest = line;
+        while let Some(at) = rest.find("<!-- paired ") {
+            let after = &rest[at + "<!-- paired ".len()..];
+            let Some(end) = after.find(" -->") else { break };
+            let tag = &after[..end];
+            let (word, target) = tag.split_once(": ").unwrap_or((tag, ""));
+            let (file, key) = target.split_once('#').unwrap_or((target, ""));
+            out.push((line_no + 1, word.to_string(), file.to_string(), key.to_string()));
+            rest = &after[end + 4..];
+        }
+    }
+    out
+}
+
+/// Whether the words agree with the paired interval: `lower` and `higher` need
+/// an interval on that side of zero, `none` one that holds it.
+fn words_agree(word: &str, entry: &serde_json::Value) -> Result<(), String> {
+    let [low, high] = [0, 1].map(|i| entry["interval_90_mm"][i].as_f64());
+    let (Some(low), Some(high)) = (low, high) else {
+        return Err("no `interval_90_mm`".into());
+    };
+    let agrees = match word {
+        "lower" => high < 0.0,
+        "higher" => low > 0.0,
+        "none" => low <= 0.0 && high >= 0.0,
+        other => return Err(format!("`{other}` is not lower, higher or none")),
+    };
+    if agrees {
+        Ok(())
+    } else {
+        Err(format!(
+            "says `{word}`, but the 90 % interval is {low:+.3} … {high:+.3} mm"
+        ))
+    }
+}
+
+/// Paragraphs (blank-line separated) with their first line's number.
+fn paragraphs(text: &str) -> Vec<(usize, String)> {
+    let mut out: Vec<(usize, String)> = Vec::new();
+    let mut open = false;
+    for (i, line) in text.lines().enumerate() {
+        if line.trim().is_empty() {
+            open = false;
+        } else if open {
+            let last = out.last_mut().unwrap();
+            last.1.push('\n');
+            last.1.push_str(line);
+        } else {
+            out.push((i + 1, line.to_string()));
+            open = true;
+        }
+    }
+    out
+}
+
+/// A paragraph that quotes a paired difference must say which way it goes:
+/// every `<file>#methods[method=M].mean_difference_mm` it cites has a
+/// `paired` tag on the same file and method.
+fn unclaimed_differences(text: &str) -> Vec<String> {
+    let mut out = Vec::new();
+    for (line, paragraph) in paragraphs(text) {
+        let paired: Vec<(String, String)> = paired_claims(&paragraph)
+            .into_iter()
+            .map(|(_, _, file, key)| (file, key))
+            .collect();
+        for (_, _, file, key) in claims(&paragraph) {
+            if let Some(entry) = key.strip_suffix(".mean_difference_mm") {
+                if !paired.iter().any(|(f, k)| *f == file && k == entry) {
+                    out.push(format!("line {line}: {file}#{key} without its paired verdict"));
+                }
+            }
+        }
+    }
+    out
 }
 
 /// `value` written with the decimals of `written`.
@@ -126,6 +214,55 @@ fn every_tagged_number_in_readme_and_docs_is_its_committed_output() {
     }
     assert!(total >= 200, "only {total} tagged numbers in README.md and docs/");
     assert!(wrong.is_empty(), "{}", wrong.join("\n"));
+}
+
+/// Every comparative claim with a paired tag agrees with its interval, and
+/// every quoted paired difference carries one.
+#[test]
+fn every_paired_claim_agrees_with_its_interval() {
+    let root = common::root();
+    let mut wrong = Vec::new();
+    let mut total = 0;
+    for page in documents() {
+        let name = page.strip_prefix(root).unwrap().display().to_string();
+        let text = std::fs::read_to_string(&page).unwrap();
+        for (line, word, file, key) in paired_claims(&text) {
+            total += 1;
+            let path = root.join("reports").join(&file);
+            let check = std::fs::read_to_string(&path)
+                .map_err(|e| format!("{}: {e}", path.display()))
+                .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).map_err(|e| e.to_string()))
+                .and_then(|json| select(&json, &key).cloned())
+                .and_then(|entry| words_agree(&word, &entry));
+            if let Err(e) = check {
+                wrong.push(format!("{name}:{line}: reports/{file}#{key}: {e}"));
+            }
+        }
+        wrong.extend(unclaimed_differences(&text).into_iter().map(|e| format!("{name}: {e}")));
+    }
+    assert!(total >= 5, "only {total} paired claims in README.md and docs/");
+    assert!(wrong.is_empty(), "{}", wrong.join("\n"));
+}
+
+#[test]
+fn a_better_whose_interval_holds_zero_is_caught() {
+    let within = serde_json::json!({"interval_90_mm": [-0.028, 0.005]});
+    let below = serde_json::json!({"interval_90_mm": [-0.05, -0.01]});
+    assert!(words_agree("lower", &within).is_err());
+    assert!(words_agree("none", &within).is_ok());
+    assert!(words_agree("lower", &below).is_ok());
+    assert!(words_agree("none", &below).is_err());
+    assert!(words_agree("higher", &below).is_err());
+    assert!(words_agree("better", &below).is_err());
+    let text = "Lower by -0.011<!-- s/a_vs_b.json#methods[method=m].mean_difference_mm -->\n\n\
+                Lower by -0.011<!-- s/a_vs_b.json#methods[method=m].mean_difference_mm --> \
+                (<!-- paired lower: s/a_vs_b.json#methods[method=m] -->)";
+    assert_eq!(unclaimed_differences(text).len(), 1);
+    let tags = paired_claims(text);
+    assert_eq!(tags.len(), 1);
+    assert_eq!((tags[0].1.as_str(), tags[0].3.as_str()), ("lower", "methods[method=m]"));
+    // A paired tag is not taken for a number.
+    assert_eq!(claims(text).len(), 2);
 }
 
 /// The front door stays a front door: README at most 20 KB, and the section on
