@@ -8,7 +8,7 @@ mod common;
 use common::{probecal, root, scratch};
 
 /// (manifest, committed study folder under `reports/`).
-const STUDIES: [(&str, &str); 29] = [
+const STUDIES: [(&str, &str); 35] = [
     ("experiments/hemisphere_charuco.yaml", "study/rigs/charuco"),
     ("experiments/hemisphere_aruco.yaml", "study/rigs/aruco"),
     (
@@ -73,6 +73,30 @@ const STUDIES: [(&str, &str); 29] = [
     (
         "experiments/studies/spheres_edge_constant_and_obliquity.yaml",
         "study/spheres_edge/constant_and_obliquity",
+    ),
+    (
+        "experiments/studies/spheres_prior_half.yaml",
+        "study/spheres_prior/prior_half",
+    ),
+    (
+        "experiments/studies/spheres_prior_double.yaml",
+        "study/spheres_prior/prior_double",
+    ),
+    (
+        "experiments/studies/spheres_blur_half.yaml",
+        "study/spheres_prior/blur_half",
+    ),
+    (
+        "experiments/studies/spheres_blur_double.yaml",
+        "study/spheres_prior/blur_double",
+    ),
+    (
+        "experiments/studies/spheres_uniform_arcs.yaml",
+        "study/spheres_heldout/uniform_arcs",
+    ),
+    (
+        "experiments/studies/spheres_edge_slice.yaml",
+        "study/spheres_heldout/edge_slice",
     ),
     ("experiments/thesis_twin_dataset3.yaml", "study/thesis_twin_dataset3"),
     ("experiments/thesis_twin_aruco.yaml", "study/thesis_twin_aruco"),
