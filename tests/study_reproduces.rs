@@ -8,7 +8,7 @@ mod common;
 use common::{probecal, root, scratch};
 
 /// (manifest, committed study folder under `reports/`).
-const STUDIES: [(&str, &str); 35] = [
+const STUDIES: [(&str, &str); 37] = [
     ("experiments/hemisphere_charuco.yaml", "study/rigs/charuco"),
     ("experiments/hemisphere_aruco.yaml", "study/rigs/aruco"),
     (
@@ -112,6 +112,14 @@ const STUDIES: [(&str, &str); 35] = [
     (
         "experiments/studies/thesis_twin_spheres_nominal_pixels.yaml",
         "study/thesis_twin_spheres_choice/nominal_pixels",
+    ),
+    (
+        "experiments/studies/thesis_twin_spheres_refine.yaml",
+        "study/thesis_twin_spheres_heldout/refine",
+    ),
+    (
+        "experiments/studies/thesis_twin_spheres_nominal_pixels.yaml",
+        "study/thesis_twin_spheres_heldout/nominal_pixels",
     ),
 ];
 
