@@ -99,6 +99,59 @@ fn pairs_on_common_seeds_and_says_when_the_interval_holds_zero() {
     }
 }
 
+/// One method against another of the same study: each seed's error of the
+/// one less the other's; a method missing from the study, or `--method-b`
+/// alone, is refused.
+#[test]
+fn pairs_two_methods_of_one_study() {
+    let dir = scratch("study_compare", "methods");
+    std::fs::create_dir_all(&dir).unwrap();
+    // ransac 0.05 mm under cutoff_worst_first on every seed.
+    let seeds: Vec<(u64, f64, f64, usize)> = (1000..1008)
+        .map(|s| (s, 0.5 + 0.02 * (s % 4) as f64, 0.45 + 0.02 * (s % 4) as f64, 40))
+        .collect();
+    let file = dir.join("study.json");
+    std::fs::write(&file, study("one", &seeds).to_string()).unwrap();
+    let out = dir.join("paired.json");
+    let r = probecal()
+        .args(["study", "compare"])
+        .arg(&file)
+        .arg(&file)
+        .args(["--method", "cutoff_worst_first", "--method-b", "ransac", "--out"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let paired: Value = serde_json::from_str(&std::fs::read_to_string(&out).unwrap()).unwrap();
+    assert_eq!(paired["methods_paired"], json!(["cutoff_worst_first", "ransac"]));
+    let methods = paired["methods"].as_array().unwrap();
+    assert_eq!(methods.len(), 1);
+    assert!((methods[0]["mean_difference_mm"].as_f64().unwrap() + 0.05).abs() < 1e-9);
+    assert_eq!(methods[0]["verdict"], "lower");
+    assert_eq!(methods[0]["b_lower_seeds"], 8);
+    let md = std::fs::read_to_string(out.with_extension("md")).unwrap();
+    assert!(md.contains("`one ransac` against `one cutoff_worst_first`"), "{md}");
+
+    for (args, message) in [
+        (
+            vec!["--method", "cutoff_worst_first", "--method-b", "lmeds"],
+            "`lmeds` is not in it",
+        ),
+        (vec!["--method-b", "ransac"], "--method"),
+    ] {
+        let r = probecal()
+            .args(["study", "compare"])
+            .arg(&file)
+            .arg(&file)
+            .args(&args)
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&r.stderr);
+        assert_eq!(r.status.code(), Some(2), "{stderr}");
+        assert!(stderr.contains(message), "{stderr}");
+    }
+}
+
 /// Every committed paired comparison (`reports/study/**/*_vs_*.json`).
 fn committed_comparisons() -> Vec<std::path::PathBuf> {
     fn walk(dir: &std::path::Path, out: &mut Vec<std::path::PathBuf>) {
@@ -128,15 +181,18 @@ fn committed_paired_comparisons_regenerate() {
     for path in committed_comparisons() {
         let committed: Value = serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
         let out = dir.join(format!("{checked}.json"));
-        let r = probecal()
+        let mut command = probecal();
+        command
             .current_dir(common::root())
             .args(["study", "compare"])
             .arg(committed["a_file"].as_str().unwrap())
             .arg(committed["b_file"].as_str().unwrap())
             .arg("--out")
-            .arg(&out)
-            .output()
-            .unwrap();
+            .arg(&out);
+        if let Some([m, n]) = committed.get("methods_paired").map(|p| [&p[0], &p[1]]) {
+            command.args(["--method", m.as_str().unwrap(), "--method-b", n.as_str().unwrap()]);
+        }
+        let r = command.output().unwrap();
         assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
         assert_eq!(
             std::fs::read_to_string(&out).unwrap(),

@@ -72,6 +72,11 @@ pub enum StudyMerge {
         /// Only this method (by its name in the studies' tables).
         #[arg(long)]
         method: Option<String>,
+        /// Pair --method of the first study with this method of the second
+        /// (the two may be the same study): one method against another on the
+        /// same seeds.
+        #[arg(long, requires = "method")]
+        method_b: Option<String>,
         /// Write the comparison here as JSON (and beside it the Markdown, .md).
         #[arg(long)]
         out: Option<PathBuf>,
@@ -82,7 +87,13 @@ pub enum StudyMerge {
 pub fn dispatch(args: StudyArgs) -> Result<(), Failure> {
     match &args.merge {
         Some(StudyMerge::Merge { shards, out, force }) => merge(shards, out, *force),
-        Some(StudyMerge::Compare { a, b, method, out }) => compare(a, b, method.as_deref(), out.as_deref()),
+        Some(StudyMerge::Compare {
+            a,
+            b,
+            method,
+            method_b,
+            out,
+        }) => compare(a, b, [method.as_deref(), method_b.as_deref()], out.as_deref()),
         None => command(&args),
     }
 }
@@ -178,7 +189,8 @@ fn claim(out: &Path, names: &[&str], inputs: &[&Path], force: bool, exclusive: b
 }
 
 /// `probecal study compare`: the paired comparison, printed and written to `out`.
-pub fn compare(a: &Path, b: &Path, method: Option<&str>, out: Option<&Path>) -> Result<(), Failure> {
+/// `methods`: only this method, and the method of `b` it is paired with.
+pub fn compare(a: &Path, b: &Path, methods: [Option<&str>; 2], out: Option<&Path>) -> Result<(), Failure> {
     use crate::report::study_compare;
     if let Some(out) = out {
         for written in [out.to_path_buf(), out.with_extension("md")] {
@@ -187,7 +199,7 @@ pub fn compare(a: &Path, b: &Path, method: Option<&str>, out: Option<&Path>) -> 
             }
         }
     }
-    let paired = study_compare::compare(a, b, method).map_err(Failure::bad_input)?;
+    let paired = study_compare::compare(a, b, methods[0], methods[1]).map_err(Failure::bad_input)?;
     let markdown = study_compare::markdown(&paired);
     println!("{markdown}");
     if let Some(out) = out {

@@ -2,7 +2,8 @@
 //! mean difference of the seeds' errors (second minus first), its bootstrap
 //! 90 % interval over the seeds, and on how many seeds each was the lower;
 //! and the frames each kept. A difference whose interval holds zero is no
-//! difference these seeds can show.
+//! difference these seeds can show. Two methods of one study (or of two) are
+//! paired the same way: each seed's error of the one against the other's.
 
 use std::path::{Path, PathBuf};
 
@@ -10,7 +11,7 @@ use serde::{Deserialize, Serialize};
 
 use super::study::StudyFile;
 use crate::core::stats::mean_difference_interval;
-use crate::pipeline::study::{MonteCarlo, INTERVAL_LEVEL};
+use crate::pipeline::study::{MonteCarlo, SeedResult, INTERVAL_LEVEL};
 
 /// One method's paired comparison.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -51,6 +52,10 @@ pub struct PairedStudies {
     pub b: String,
     pub a_file: PathBuf,
     pub b_file: PathBuf,
+    /// When one method is paired with another (`--method` of a against
+    /// `--method-b` of b, a and b perhaps the same study): the two methods.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub methods_paired: Option<[String; 2]>,
     /// The seeds both studies ran.
     pub seeds: Vec<u64>,
     pub frames_kept: FramesKept,
@@ -67,6 +72,10 @@ pub enum CompareError {
     FewSeeds { a: PathBuf, b: PathBuf, n: usize },
     #[error("{0}: method `{1}` is not in both studies")]
     NoMethod(PathBuf, String),
+    #[error("{0}: method `{1}` is not in it")]
+    NoMethodIn(PathBuf, String),
+    #[error("--method-b needs --method: the method of the first study it is paired with")]
+    MethodBAlone,
 }
 
 /// A study file, or the `study.json` of a folder.
@@ -82,10 +91,28 @@ fn study_of(path: &Path) -> Result<(PathBuf, MonteCarlo), CompareError> {
 }
 
 /// Pairs the studies at `a` and `b` on their common seeds; every method they
-/// share, or only `method`.
-pub fn compare(a: &Path, b: &Path, method: Option<&str>) -> Result<PairedStudies, CompareError> {
+/// share, or only `method`; or, with `method_b`, a's `method` against b's
+/// `method_b`.
+pub fn compare(
+    a: &Path,
+    b: &Path,
+    method: Option<&str>,
+    method_b: Option<&str>,
+) -> Result<PairedStudies, CompareError> {
     let (a_file, a_mc) = study_of(a)?;
     let (b_file, b_mc) = study_of(b)?;
+    let methods_paired = match (method, method_b) {
+        (None, Some(_)) => return Err(CompareError::MethodBAlone),
+        (Some(m), Some(n)) => {
+            for (file, mc, name) in [(&a_file, &a_mc, m), (&b_file, &b_mc, n)] {
+                if !mc.methods.iter().any(|x| x.method == name) {
+                    return Err(CompareError::NoMethodIn(file.clone(), name.to_string()));
+                }
+            }
+            Some([m.to_string(), n.to_string()])
+        }
+        _ => None,
+    };
     let pairs: Vec<_> = a_mc
         .seeds
         .iter()
@@ -98,64 +125,29 @@ pub fn compare(a: &Path, b: &Path, method: Option<&str>) -> Result<PairedStudies
             n: pairs.len(),
         });
     }
-    let names: Vec<String> = a_mc
-        .methods
-        .iter()
-        .map(|m| m.method.clone())
-        .filter(|m| b_mc.methods.iter().any(|n| &n.method == m))
-        .filter(|m| method.is_none_or(|want| want == m))
-        .collect();
+    // (a's method, b's method) pairs.
+    let names: Vec<(String, String)> = match &methods_paired {
+        Some([m, n]) => vec![(m.clone(), n.clone())],
+        None => a_mc
+            .methods
+            .iter()
+            .map(|m| m.method.clone())
+            .filter(|m| b_mc.methods.iter().any(|n| &n.method == m))
+            .filter(|m| method.is_none_or(|want| want == m))
+            .map(|m| (m.clone(), m))
+            .collect(),
+    };
     if let Some(want) = method.filter(|_| names.is_empty()) {
         return Err(CompareError::NoMethod(b_file, want.to_string()));
     }
-    let error_of =
-        |r: &crate::pipeline::study::SeedResult, m: &str| r.rms_error_mm.iter().find(|(n, _)| n == m).map(|(_, e)| *e);
-    let mut methods = Vec::new();
-    for name in names {
-        let both: Vec<(f64, f64)> = pairs
-            .iter()
-            .filter_map(|(sa, sb)| Some((error_of(sa, &name)?, error_of(sb, &name)?)))
-            .filter(|(x, y)| x.is_finite() && y.is_finite())
-            .collect();
-        // (a's error, b's error, a's bound) on the seeds a has a bound for.
-        let bounded: Vec<(f64, f64, f64)> = pairs
-            .iter()
-            .filter_map(|(sa, sb)| Some((error_of(sa, &name)?, error_of(sb, &name)?, sa.crlb_rms_mm?)))
-            .collect();
-        let over_bound = |pick: fn(&(f64, f64, f64)) -> f64| {
-            let ratio: Vec<(f64, f64)> = bounded.iter().map(|t| (pick(t), t.2)).collect();
-            crate::core::stats::rms_ratio(&ratio)
-        };
-        let rms_over_a_bound = if bounded.len() == both.len() && bounded.len() >= 2 {
-            over_bound(|t| t.0).zip(over_bound(|t| t.1)).map(|(a, b)| [a, b])
-        } else {
-            None
-        };
-        let diffs: Vec<f64> = both.iter().map(|(x, y)| y - x).collect();
-        let Some(interval) = mean_difference_interval(&diffs, INTERVAL_LEVEL) else {
-            continue;
-        };
-        let n = both.len() as f64;
-        let verdict = if interval[1] < 0.0 {
-            "lower"
-        } else if interval[0] > 0.0 {
-            "higher"
-        } else {
-            "no difference shown"
-        };
-        methods.push(PairedMethod {
-            method: name,
-            mean_a_mm: both.iter().map(|p| p.0).sum::<f64>() / n,
-            mean_b_mm: both.iter().map(|p| p.1).sum::<f64>() / n,
-            mean_difference_mm: diffs.iter().sum::<f64>() / n,
-            interval_90_mm: interval,
-            b_lower_seeds: diffs.iter().filter(|d| **d < 0.0).count(),
-            a_lower_seeds: diffs.iter().filter(|d| **d > 0.0).count(),
-            verdict: verdict.into(),
-            rms_over_a_bound,
-        });
-    }
-    let kept = |f: &dyn Fn(&(&crate::pipeline::study::SeedResult, &crate::pipeline::study::SeedResult)) -> usize| {
+    // a's bound is b's too only for the same rig: one study, or one method
+    // in two studies of which a states the model.
+    let same_rig = methods_paired.is_none() || a_file == b_file;
+    let methods = names
+        .into_iter()
+        .filter_map(|(name, name_b)| pair_method(&pairs, name, &name_b, same_rig))
+        .collect();
+    let kept = |f: &dyn Fn(&SeedPair) -> usize| {
         let v: Vec<usize> = pairs.iter().map(f).collect();
         (
             v.iter().sum::<usize>() as f64 / v.len() as f64,
@@ -169,6 +161,7 @@ pub fn compare(a: &Path, b: &Path, method: Option<&str>) -> Result<PairedStudies
         b: b_mc.experiment,
         a_file,
         b_file,
+        methods_paired,
         seeds: pairs.iter().map(|p| p.0.seed).collect(),
         frames_kept: FramesKept {
             mean_a,
@@ -180,35 +173,75 @@ pub fn compare(a: &Path, b: &Path, method: Option<&str>) -> Result<PairedStudies
     })
 }
 
+type SeedPair<'s> = (&'s SeedResult, &'s SeedResult);
+
+/// a's method `name` against b's `name_b` over the seed pairs; `None` when too
+/// few seeds have both errors for an interval.
+fn pair_method(pairs: &[SeedPair], name: String, name_b: &str, same_rig: bool) -> Option<PairedMethod> {
+    let error_of = |r: &SeedResult, m: &str| r.rms_error_mm.iter().find(|(n, _)| n == m).map(|(_, e)| *e);
+    let both: Vec<(f64, f64)> = pairs
+        .iter()
+        .filter_map(|(sa, sb)| Some((error_of(sa, &name)?, error_of(sb, name_b)?)))
+        .filter(|(x, y)| x.is_finite() && y.is_finite())
+        .collect();
+    // (a's error, b's error, a's bound) on the seeds a has a bound for.
+    let bounded: Vec<(f64, f64, f64)> = pairs
+        .iter()
+        .filter_map(|(sa, sb)| Some((error_of(sa, &name)?, error_of(sb, name_b)?, sa.crlb_rms_mm?)))
+        .collect();
+    let over_bound = |pick: fn(&(f64, f64, f64)) -> f64| {
+        let ratio: Vec<(f64, f64)> = bounded.iter().map(|t| (pick(t), t.2)).collect();
+        crate::core::stats::rms_ratio(&ratio)
+    };
+    let rms_over_a_bound = if same_rig && bounded.len() == both.len() && bounded.len() >= 2 {
+        over_bound(|t| t.0).zip(over_bound(|t| t.1)).map(|(a, b)| [a, b])
+    } else {
+        None
+    };
+    let diffs: Vec<f64> = both.iter().map(|(x, y)| y - x).collect();
+    let interval = mean_difference_interval(&diffs, INTERVAL_LEVEL)?;
+    let n = both.len() as f64;
+    let verdict = if interval[1] < 0.0 {
+        "lower"
+    } else if interval[0] > 0.0 {
+        "higher"
+    } else {
+        "no difference shown"
+    };
+    Some(PairedMethod {
+        method: name,
+        mean_a_mm: both.iter().map(|p| p.0).sum::<f64>() / n,
+        mean_b_mm: both.iter().map(|p| p.1).sum::<f64>() / n,
+        mean_difference_mm: diffs.iter().sum::<f64>() / n,
+        interval_90_mm: interval,
+        b_lower_seeds: diffs.iter().filter(|d| **d < 0.0).count(),
+        a_lower_seeds: diffs.iter().filter(|d| **d > 0.0).count(),
+        verdict: verdict.into(),
+        rms_over_a_bound,
+    })
+}
+
 /// The comparison as Markdown.
 pub fn markdown(p: &PairedStudies) -> String {
+    // Each side's name: the study, and when methods are paired, its method.
+    let (a, b) = match &p.methods_paired {
+        Some([m, n]) => (format!("{} {m}", p.a), format!("{} {n}", p.b)),
+        None => (p.a.clone(), p.b.clone()),
+    };
     let mut md = format!(
-        "# `{}` against `{}`, paired on {} common seeds ({}–{})\n\n\
+        "# `{b}` against `{a}`, paired on {} common seeds ({}–{})\n\n\
          Error: the RMS distance of the image's four corners and centre from the truth, per seed. \
-         Difference: `{}` minus `{}`; its 90 % interval is a percentile bootstrap over the seeds.\n\n\
-         Frames kept per seed: `{}` {:.1} (fewest {}), `{}` {:.1} (fewest {}).\n\n\
-         | method | {} mean (mm) | {} mean (mm) | difference (mm) | 90 % interval (mm) | seeds lower: {} / {} | verdict | RMS / {}'s bound: {} / {} |\n\
+         Difference: `{b}` minus `{a}`; its 90 % interval is a percentile bootstrap over the seeds.\n\n\
+         Frames kept per seed: `{a}` {:.1} (fewest {}), `{b}` {:.1} (fewest {}).\n\n\
+         | method | {a} mean (mm) | {b} mean (mm) | difference (mm) | 90 % interval (mm) | seeds lower: {b} / {a} | verdict | RMS / {a}'s bound: {a} / {b} |\n\
          |---|---|---|---|---|---|---|---|\n",
-        p.b,
-        p.a,
         p.seeds.len(),
         p.seeds.first().copied().unwrap_or_default(),
         p.seeds.last().copied().unwrap_or_default(),
-        p.b,
-        p.a,
-        p.a,
         p.frames_kept.mean_a,
         p.frames_kept.min_a,
-        p.b,
         p.frames_kept.mean_b,
         p.frames_kept.min_b,
-        p.a,
-        p.b,
-        p.b,
-        p.a,
-        p.a,
-        p.a,
-        p.b,
     );
     for m in &p.methods {
         let bound = m
