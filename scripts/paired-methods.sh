@@ -16,6 +16,7 @@ pair hemisphere_lmeds_vs_thesis $s/study.json thesis_one_shot $s/study.json lmed
 pair off_centre_lmeds_vs_thesis $s/off_centre_planes/study.json thesis_one_shot $s/off_centre_planes/study.json lmeds
 pair more_outliers_lmeds_vs_thesis $s/more_outliers/study.json thesis_one_shot $s/more_outliers/study.json lmeds
 pair spheres_plain_vs_pose_prior $s/spheres/study.json sphere_fit_pose_prior $s/spheres/study.json sphere_fit
+pair spheres_centres_vs_pose_prior $s/spheres/study.json sphere_fit_pose_prior $s/spheres/study.json cutoff_worst_first
 pair spheres_pose_prior_vs_hemisphere_thesis $s/study.json thesis_one_shot $s/spheres/study.json sphere_fit_pose_prior
 pair spheres_pose_prior_vs_hemisphere_reported $s/study.json cutoff_worst_first $s/spheres/study.json sphere_fit_pose_prior
 pair twin_spheres_pose_prior_vs_plain_design $s/thesis_twin_spheres_choice/chosen/study.json sphere_fit $s/thesis_twin_spheres_choice/chosen/study.json sphere_fit_pose_prior
