@@ -213,19 +213,27 @@ fn near_filled(grid: &Grid, weights: &[u16], radius: usize) -> Vec<bool> {
     let d = grid.dims;
     let mut near: Vec<u32> = weights.iter().map(|w| u32::from(*w > 0)).collect();
     let strides = [1, d[0], d[0] * d[1]];
+    let mut line = Vec::new();
     for axis in 0..3 {
         let (n, stride) = (d[axis], strides[axis]);
-        let mut line = vec![0u32; n + 1];
-        for start in 0..near.len() {
-            if (start / stride) % n != 0 {
-                continue;
-            }
-            for k in 0..n {
-                line[k + 1] = line[k] + u32::from(near[start + k * stride] > 0);
-            }
-            for k in 0..n {
-                let (lo, hi) = (k.saturating_sub(radius), (k + radius + 1).min(n));
-                near[start + k * stride] = line[hi] - line[lo];
+        // The first voxel of every line along `axis`: every combination of the
+        // other two axes' indices.
+        let [u, v] = match axis {
+            0 => [1, 2],
+            1 => [0, 2],
+            _ => [0, 1],
+        };
+        line.resize(n + 1, 0u32);
+        for b in 0..d[v] {
+            for a in 0..d[u] {
+                let start = a * strides[u] + b * strides[v];
+                for k in 0..n {
+                    line[k + 1] = line[k] + u32::from(near[start + k * stride] > 0);
+                }
+                for k in 0..n {
+                    let (lo, hi) = (k.saturating_sub(radius), (k + radius + 1).min(n));
+                    near[start + k * stride] = line[hi] - line[lo];
+                }
             }
         }
     }

@@ -90,6 +90,7 @@ impl Mapper {
     }
 
     /// The continuous z index at (x, y), approximately (to skip rows far from a slab).
+    #[inline]
     fn z(&self, x: usize, y: usize) -> f64 {
         match self {
             Mapper::Fixed { a, b, c } => (a[2] * x as i64 + b[2] * y as i64 + c[2]) as f64 / FIXED_ONE,
@@ -97,10 +98,16 @@ impl Mapper {
         }
     }
 
+    #[inline]
     fn nearest(&self, x: usize, y: usize) -> [i64; 3] {
         match self {
             Mapper::Fixed { a, b, c } => {
-                [0, 1, 2].map(|k| (a[k] * x as i64 + b[k] * y as i64 + c[k] + (1 << (FIXED_BITS - 1))) >> FIXED_BITS)
+                let (x, y, half) = (x as i64, y as i64, 1i64 << (FIXED_BITS - 1));
+                [
+                    (a[0] * x + b[0] * y + c[0] + half) >> FIXED_BITS,
+                    (a[1] * x + b[1] * y + c[1] + half) >> FIXED_BITS,
+                    (a[2] * x + b[2] * y + c[2] + half) >> FIXED_BITS,
+                ]
             }
             Mapper::Float { a, b, c } => {
                 [0, 1, 2].map(|k| (a[k] * x as f64 + b[k] * y as f64 + c[k] + 0.5).floor() as i64)
@@ -189,6 +196,7 @@ fn region(settings: &PasteSettings) -> Vec<(usize, Vec<usize>)> {
 
 /// Pixel (x, y)'s weight (0–1), `None` when it is not inserted (darker than the
 /// rejection threshold, or masked out).
+#[inline]
 fn pixel_weight<T: Sample>(settings: &PasteSettings, value: T, x: usize, y: usize) -> Option<f64> {
     if settings.pixel_rejection_threshold.is_some_and(|t| value.to_f64() < t) {
         return None;
@@ -212,11 +220,13 @@ struct Slab<'a, T> {
 }
 
 impl<T: Sample> Slab<'_, T> {
+    #[inline]
     fn offset(&self, grid: &Grid, v: [i64; 3]) -> Option<usize> {
         let z = v[2] - self.z0;
         (z >= 0 && z < self.planes).then(|| (z as usize * grid.dims[1] + v[1] as usize) * grid.dims[0] + v[0] as usize)
     }
 
+    #[inline]
     fn add_weight(&mut self, i: usize, add: u32) {
         let total = u32::from(self.weights[i]) + add;
         if total > ACCUMULATION_MAX {
@@ -263,6 +273,7 @@ impl<T: Sample> Slab<'_, T> {
     }
 
     /// Inserts a pixel into its nearest voxel if that is in this slab; true then.
+    #[inline]
     fn nearest(&mut self, grid: &Grid, v: [i64; 3], value: T, mask: f64, mode: Compounding) -> bool {
         if (0..3).any(|k| v[k] < 0 || v[k] >= grid.dims[k] as i64) {
             return false;
