@@ -37,6 +37,7 @@ fn reconstruct(c: &mut Criterion) {
         config: config.clone(),
         calibration: None,
         threads: None,
+        wires: None,
     };
     let first = run(&inputs).expect("the sweep reconstructs");
     let mut group = c.benchmark_group("frames_per_second");

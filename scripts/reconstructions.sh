@@ -3,7 +3,8 @@
 # PLUS's three volume-reconstruction regression cases, each compared with PLUS's
 # own volume (agreement.json), and the fCal 2.0 N-wire validation sweep placed with
 # probecal's calibration of the fCal recording (reports/plus_fcal2_nwire, as the
-# main job writes it and the repository keeps it). Times are left out so that the files regenerate
+# main job writes it and the repository keeps it) and with PLUS's, each with its
+# wires measured. Times are left out so that the files regenerate
 # byte-identical; the volumes themselves are not kept (they are large and
 # regenerate from the shared data). Skipped, saying so, when ../shared/data is absent.
 set -euo pipefail
@@ -33,7 +34,13 @@ for case in SpinePhantom_NN_MEAN:NNMEAN SpinePhantom_LN_MAXI:LNMAXI SonixRP_TRUS
   keep "$name"
 done
 "$probecal" reconstruct "$fcal/fCal_Test_Validation_3NWires_fCal2.0.igs.mha" \
-  --config experiments/plus/fcal2_volume.xml \
+  --config experiments/plus/fcal2_volume.xml --wires "$fcal/PlusDeviceSet_fCal_Sim_SpatialCalibration_2.0.xml" \
   --calibration reports/plus_fcal2_nwire/fcal2_3nwires --no-times --out "$scratch/fcal2_validation" >/dev/null
 keep fcal2_validation
+# The same sweep placed with PLUS's own ImageToProbe: its wires beside ours.
+"$probecal" reconstruct "$fcal/fCal_Test_Validation_3NWires_fCal2.0.igs.mha" \
+  --config experiments/plus/fcal2_volume.xml --wires "$fcal/PlusDeviceSet_fCal_Sim_SpatialCalibration_2.0.xml" \
+  --calibration "$fcal/FreehandCalibration3NWires_fCal2.0.results.xml" --no-times \
+  --out "$scratch/fcal2_validation_plus_matrix" >/dev/null
+keep fcal2_validation_plus_matrix
 echo "reconstructions written to $reports/reconstruction/"

@@ -26,6 +26,7 @@ fn inputs(sequence: &Path, config: &Path, threads: usize) -> ReconstructInputs {
         config: config.to_path_buf(),
         calibration: None,
         threads: Some(threads),
+        wires: None,
     }
 }
 

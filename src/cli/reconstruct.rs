@@ -20,10 +20,15 @@ pub struct ReconstructArgs {
     /// (written whole on success; an existing folder must be a reconstruction's).
     #[arg(long)]
     pub out: PathBuf,
-    /// A probecal run folder of a PLUS recording: its ImageToProbe replaces the
-    /// device set's.
+    /// A probecal run folder of a PLUS recording, or a PLUS calibration result
+    /// (.xml): its ImageToProbe replaces the device set's.
     #[arg(long)]
     pub calibration: Option<PathBuf>,
+    /// A PLUS device set with the phantom's N-wires (<PhantomDefinition>) and
+    /// its registration (PhantomToReference): each wire's position error,
+    /// straightness and thickness in the volume, in summary.json and on the page.
+    #[arg(long)]
+    pub wires: Option<PathBuf>,
     /// Worker threads (0: one per core; the device set's NumberOfThreads is not
     /// used). The volume does not depend on it.
     #[arg(long, value_parser = clap::value_parser!(u16).range(0..=crate::core::limits::MAX_THREADS as i64))]
@@ -49,6 +54,7 @@ pub fn command(args: &ReconstructArgs) -> Result<(), Failure> {
     let mut read: Vec<&std::path::Path> = vec![&args.sequence, &args.config];
     read.extend(args.calibration.as_deref());
     read.extend(args.compare.as_deref());
+    read.extend(args.wires.as_deref());
     // A folder of an earlier reconstruction (before folders were marked) is this command's.
     let replace = args.force || crate::report::reconstruct::holds_reconstruction(&args.out);
     let folder = crate::io::output::OutputFolder::claim(&args.out, "reconstruct", &read, replace)?;
@@ -57,6 +63,7 @@ pub fn command(args: &ReconstructArgs) -> Result<(), Failure> {
         config: args.config.clone(),
         calibration: args.calibration.clone(),
         threads: args.threads.map(usize::from),
+        wires: args.wires.clone(),
     };
     let mut run = crate::pipeline::reconstruct::run(&inputs).map_err(Failure::bad_input)?;
     if args.no_times {

@@ -14,6 +14,7 @@ pub mod pose_coverage;
 pub mod pose_noise;
 pub mod resampling;
 pub mod sphere_bound;
+pub mod wire_profile;
 
 use polars::prelude::*;
 use serde::{Deserialize, Serialize};

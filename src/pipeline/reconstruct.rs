@@ -20,11 +20,16 @@ use crate::reconstruct::{reconstruct, ReconstructError, Sample, Volume};
 pub struct ReconstructInputs {
     pub sequence: PathBuf,
     pub config: PathBuf,
-    /// A probecal run folder whose `summary.json` gives `ImageToProbe`.
+    /// A probecal run folder whose `summary.json` gives `ImageToProbe`, or a
+    /// PLUS calibration result (.xml) with its `ImageToProbe`.
     pub calibration: Option<PathBuf>,
     /// Worker threads (0 or `None`: all cores); the device set's
     /// `NumberOfThreads` is not needed, the volume is the same for any number.
     pub threads: Option<usize>,
+    /// A PLUS device set with the phantom's N-wires and its registration
+    /// (`PhantomToReference`): each wire's position, straightness and thickness
+    /// in the volume are measured.
+    pub wires: Option<PathBuf>,
 }
 
 /// The volume, 8-bit or float as the input.
@@ -89,10 +94,16 @@ pub struct Reconstruction {
     pub threads: usize,
     /// (stage, seconds).
     pub timings: Vec<(String, f64)>,
+    /// The phantom's wires in the volume, with `inputs.wires`.
+    pub wires: Option<crate::evaluate::wire_profile::WireFigures>,
 }
 
-/// `ImageToProbe` of a probecal run folder (its `summary.json`'s `image_to_probe.matrix`).
+/// `ImageToProbe` of a probecal run folder (its `summary.json`'s
+/// `image_to_probe.matrix`), or of a PLUS calibration result file (.xml).
 pub fn run_image_to_probe(folder: &Path) -> Result<Matrix4<f64>, ReconstructError> {
+    if folder.is_file() && folder.extension().is_some_and(|e| e.eq_ignore_ascii_case("xml")) {
+        return Ok(crate::io::plus::result::PlusResult::read(folder)?.image_to_probe);
+    }
     let path = folder.join("summary.json");
     let fail = |message: String| ReconstructError::Input {
         path: path.clone(),
@@ -269,11 +280,20 @@ pub fn run(inputs: &ReconstructInputs) -> Result<Reconstruction, ReconstructErro
         }
     };
     timings.extend(stats.timings);
+    let wires = match &inputs.wires {
+        Some(path) => {
+            let figures = wire_figures(path, &settings.reference_frame, &volume)?;
+            lap("wires", &mut timings);
+            Some(figures)
+        }
+        None => None,
+    };
     let holes_filled: u64 = stats.holes.filled_by_element.iter().sum();
     let voxels = grid.voxels() as u64;
     Ok(Reconstruction {
         inputs: inputs.clone(),
         image_to_probe_source: match &inputs.calibration {
+            Some(file) if file.is_file() => crate::io::fs::display_path(file),
             Some(folder) => format!("{}/summary.json", crate::io::fs::display_path(folder)),
             None => format!(
                 "{} (CoordinateDefinitions)",
@@ -293,7 +313,46 @@ pub fn run(inputs: &ReconstructInputs) -> Result<Reconstruction, ReconstructErro
         holes: stats.holes,
         threads,
         timings,
+        wires,
     })
+}
+
+/// The wires of the device set at `path` (its N-wire patterns, placed in the
+/// volume's `reference_frame` by its rigid `PhantomTo<reference>`), measured in
+/// `volume`.
+fn wire_figures(
+    path: &Path,
+    reference_frame: &str,
+    volume: &AnyVolume,
+) -> Result<crate::evaluate::wire_profile::WireFigures, ReconstructError> {
+    use crate::evaluate::wire_profile::{measure, VolumeView, Wire};
+    let config = PlusConfig::read(path)?;
+    if config.nwires.is_empty() {
+        return Err(ReconstructError::Input {
+            path: path.to_path_buf(),
+            message: "no N-wire <Pattern> in its <PhantomDefinition>: no wires to measure".into(),
+        });
+    }
+    let reference_T_phantom = config.rigid_transform(&config.calibration_frames.phantom, reference_frame)?;
+    let place = |p: &nalgebra::Point3<f64>| (reference_T_phantom * p.to_homogeneous()).xyz().into();
+    let wires: Vec<Wire> = config
+        .nwires
+        .iter()
+        .flat_map(|n| n.wires.iter())
+        .map(|w| Wire {
+            name: w.name.clone(),
+            front_mm: place(&w.front_in_phantom_mm),
+            back_mm: place(&w.back_in_phantom_mm),
+        })
+        .collect();
+    let values = volume.values();
+    Ok(measure(
+        &VolumeView {
+            grid: volume.grid(),
+            values: &values,
+        },
+        &wires,
+    ))
 }
 
 /// What the stages report, apart from the voxels.

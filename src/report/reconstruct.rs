@@ -68,6 +68,12 @@ pub fn summary(r: &Reconstruction) -> serde_json::Value {
             "holes_left": r.holes.holes_after,
         },
     });
+    if let Some(wires) = &r.wires {
+        out["wires"] = serde_json::json!({
+            "device_set": r.inputs.wires.as_deref().map(display_path),
+            "figures": wires,
+        });
+    }
     if !r.timings.is_empty() {
         out["threads"] = serde_json::json!(r.threads);
         out["time_s"] = r
@@ -211,7 +217,7 @@ pub fn html(r: &Reconstruction, pictures: &[Picture]) -> String {
          <p><b>{used} of {total} frames</b> inserted into a {nx}x{ny}x{nz} volume of {sx} mm voxels \
          ({filled_after} voxels filled: {filled_before} by the frames, {by_holes} by hole filling). \
          <code>ImageToProbe</code> from {source}.</p>\n\
-         <h2>Slices and projection</h2>\n{figures}\
+         {wires}<h2>Slices and projection</h2>\n{figures}\
          <h2>Settings</h2>\n<p>{interp:?} interpolation, {comp:?} compounding, {opt:?} optimization, \
          clip rectangle origin {co:?} size {cs:?}, fan {fan}, {holes} hole-filling element(s). \
          Origin (centre of the first voxel) {origin:?} mm.</p>\n\
@@ -236,6 +242,52 @@ pub fn html(r: &Reconstruction, pictures: &[Picture]) -> String {
         fan = if r.settings.fan.is_some() { "on" } else { "off" },
         holes = r.settings.hole_filling.len(),
         origin = g.origin_mm,
+        wires = wires_html(r),
+    )
+}
+
+/// The wires' table: each wire's position error, straightness and thickness.
+fn wires_html(r: &Reconstruction) -> String {
+    use crate::evaluate::wire_profile as wp;
+    let Some(w) = &r.wires else {
+        return String::new();
+    };
+    let mm = |v: Option<f64>| v.map_or("—".to_string(), |v| format!("{v:.2}"));
+    let rows: String = w
+        .wires
+        .iter()
+        .map(|f| {
+            format!(
+                "<tr><td>{}</td><td>{} of {}</td><td>{}</td><td>{}</td><td>{}</td></tr>\n",
+                escape(&f.name),
+                f.sections_counted,
+                f.sections,
+                mm(f.position_error_mm),
+                mm(f.straightness_rms_mm),
+                mm(f.thickness_fwhm_mm)
+            )
+        })
+        .collect();
+    format!(
+        "<h2>The phantom's wires in the volume</h2>\n<p><b>{n} of {total} wires measured: position error {pos} mm \
+         (mean), straightness {straight} mm (RMS), thickness {thick} mm (median FWHM).</b> The wires of \
+         {set}, placed by its phantom registration. Every {step} mm along each wire (its ends' {end:.0} % left \
+         out) a cross-section {width} mm wide is sampled; where the wire stands out (peak over the median by \
+         {peak} MADs) its centre and FWHM are taken. Position error: the centres' mean distance from the wire's \
+         line (it holds the registration's error too); straightness: their RMS distance from their own line. \
+         A better <code>ImageToProbe</code> gives thinner, straighter wires nearer their lines.</p>\n\
+         <table><tr><th>wire</th><th>sections with the wire</th><th>position error (mm)</th>\
+         <th>straightness (mm)</th><th>thickness (mm)</th></tr>\n{rows}</table>\n",
+        n = w.wires_measured,
+        total = w.wires.len(),
+        pos = mm(w.position_error_mm),
+        straight = mm(w.straightness_rms_mm),
+        thick = mm(w.thickness_fwhm_mm),
+        set = escape(&r.inputs.wires.as_deref().map(display_path).unwrap_or_default()),
+        step = wp::STEP_MM,
+        end = wp::END_FRACTION * 100.0,
+        width = 2.0 * wp::HALF_WIDTH_MM,
+        peak = wp::PEAK_OVER_MAD,
     )
 }
 
