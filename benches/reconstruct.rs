@@ -38,6 +38,7 @@ fn reconstruct(c: &mut Criterion) {
         calibration: None,
         threads: None,
         wires: None,
+        image_to_probe: None,
     };
     let first = run(&inputs).expect("the sweep reconstructs");
     let mut group = c.benchmark_group("frames_per_second");

@@ -257,6 +257,15 @@ fn experiment_on_plus_data_chooses_on_calibration_frames_and_compares_like_for_l
     }
     let page = std::fs::read_to_string(folder.join("report.html")).unwrap();
     assert!(page.contains("id=\"resolution\""), "the page has no resolution table");
+    // The manifest's `reconstruct:` sweep, placed with this calibration: the
+    // volume in the run folder, the wires measured, both on the page.
+    let volume = &summary["reconstruction"];
+    assert_eq!(volume["frames_used"], 103, "{volume}");
+    assert!(folder.join("reconstruction/volume.mha").is_file());
+    assert_eq!(volume["wires"]["wires_measured"], 9, "{volume}");
+    let position = volume["wires"]["position_error_mm"].as_f64().unwrap();
+    assert!(position > 0.0 && position < 1.5, "{volume}");
+    assert!(page.contains("id=\"wires\"") && page.contains("reconstruction/mip_z.png"));
 }
 
 /// The first `frames` frames of the calibration sequence as a new file, with the
@@ -483,5 +492,42 @@ fn without_a_clip_rectangle_the_same_dots_are_found() {
     assert_eq!(clipped.frames.len(), whole.frames.len());
     for (a, b) in clipped.frames.iter().zip(&whole.frames) {
         assert_eq!(a.dots_px, b.dots_px, "frame {}", a.index);
+    }
+}
+
+/// `reconstruct.sweep: validation` without a validation sequence, and a
+/// device set that does not exist: each named at its key, nothing run.
+#[test]
+#[ignore = "needs ../shared/data (full tier: scripts/test.sh)"]
+fn a_reconstruct_sweep_the_manifest_cannot_give_is_refused_at_its_key() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let text = std::fs::read_to_string(root.join("experiments/plus_fcal2_nwire.yaml")).unwrap();
+    let shared = root.join("../shared").canonicalize().unwrap();
+    let text = text.replace("../../shared", &shared.to_string_lossy()).replace(
+        "plus/fcal2_volume.xml",
+        &root.join("experiments/plus/fcal2_volume.xml").to_string_lossy(),
+    );
+    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("reconstruct_key");
+    std::fs::create_dir_all(&dir).unwrap();
+    for (edit, key) in [
+        (
+            text.lines()
+                .filter(|l| !l.trim_start().starts_with("validation:"))
+                .collect::<Vec<_>>()
+                .join("\n"),
+            "reconstruct.sweep",
+        ),
+        (text.replace("fcal2_volume.xml", "missing.xml"), "reconstruct.config"),
+    ] {
+        let manifest = dir.join("m.yaml");
+        std::fs::write(&manifest, edit).unwrap();
+        let r = Command::new(env!("CARGO_BIN_EXE_probecal"))
+            .arg("validate")
+            .arg(&manifest)
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&r.stderr);
+        assert_eq!(r.status.code(), Some(2), "{stderr}");
+        assert!(stderr.contains(key), "want {key} in: {stderr}");
     }
 }

@@ -27,6 +27,7 @@ fn inputs(sequence: &Path, config: &Path, threads: usize) -> ReconstructInputs {
         calibration: None,
         threads: Some(threads),
         wires: None,
+        image_to_probe: None,
     }
 }
 

@@ -64,6 +64,7 @@ pub fn command(args: &ReconstructArgs) -> Result<(), Failure> {
         calibration: args.calibration.clone(),
         threads: args.threads.map(usize::from),
         wires: args.wires.clone(),
+        image_to_probe: None,
     };
     let mut run = crate::pipeline::reconstruct::run(&inputs).map_err(Failure::bad_input)?;
     if args.no_times {

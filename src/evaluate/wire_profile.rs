@@ -20,7 +20,7 @@
 //! (`END_FRACTION` of its length each).
 
 use nalgebra::{Point3, Vector3};
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 use crate::reconstruct::Grid;
 
@@ -50,7 +50,7 @@ pub struct Wire {
 }
 
 /// One wire's figures.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct WireFigure {
     pub name: String,
     /// Cross-sections sampled, and those counted (the wire seen there).
@@ -65,7 +65,7 @@ pub struct WireFigure {
 }
 
 /// Every wire's figures and their summary.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct WireFigures {
     pub wires: Vec<WireFigure>,
     /// Over the wires with figures: mean position error, RMS straightness and

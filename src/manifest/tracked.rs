@@ -94,6 +94,16 @@ pub struct TrackedManifest {
     pub regression: TrackedRegression,
     pub plus_result: Option<PathBuf>,
     pub live: LiveStream,
+    /// A sweep to reconstruct with the calibration (`reconstruct:`).
+    pub reconstruct: Option<TrackedReconstruct>,
+}
+
+/// The sweep a tracked run reconstructs with its own `ImageToProbe`, and the
+/// device set whose `<VolumeReconstruction>` settings build the volume.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TrackedReconstruct {
+    pub sweep: PathBuf,
+    pub config: PathBuf,
 }
 
 impl TrackedManifest {
@@ -144,6 +154,20 @@ impl TrackedManifest {
             .compare_with_plus_result
             .as_ref()
             .map(|p| c.existing("compare_with_plus_result", &base, p, false));
+        let reconstruct = raw.reconstruct.as_ref().map(|r| TrackedReconstruct {
+            sweep: match r.sweep.as_str() {
+                "calibration" => calibration_sequence.clone(),
+                "validation" => validation_sequence.clone().unwrap_or_else(|| {
+                    c.fail(
+                        "reconstruct.sweep",
+                        "is `validation`, but `tracking.plus_sequence.validation` names no sequence",
+                    );
+                    PathBuf::new()
+                }),
+                path => c.existing("reconstruct.sweep", &base, path, false),
+            },
+            config: c.existing("reconstruct.config", &base, &r.config, false),
+        });
         if !c.errors.is_empty() {
             return Err(ManifestErrors(c.errors));
         }
@@ -175,6 +199,7 @@ impl TrackedManifest {
             regression: raw.thresholds.regression,
             plus_result,
             live: raw.live,
+            reconstruct,
         })
     }
 
@@ -184,6 +209,13 @@ impl TrackedManifest {
         files.push(self.calibration_sequence.clone());
         files.extend(self.validation_sequence.clone());
         files.extend(self.plus_result.clone());
+        if let Some(r) = &self.reconstruct {
+            for file in [&r.sweep, &r.config] {
+                if !files.contains(file) {
+                    files.push(file.clone());
+                }
+            }
+        }
         if let TimeOffset::Temporal { tracker, video } = &self.time_offset {
             files.extend([tracker.clone(), video.clone()]);
         }

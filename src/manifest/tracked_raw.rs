@@ -28,6 +28,19 @@ pub(super) struct RawTrackedManifest {
     /// PLUS's own result file (`ProbeCalibrationResult` XML), for comparison only.
     #[serde(default)]
     pub(super) compare_with_plus_result: Option<String>,
+    /// A sweep reconstructed with the calibration, shown on the run's page.
+    #[serde(default)]
+    pub(super) reconstruct: Option<RawReconstruct>,
+}
+
+/// `reconstruct:`: which sweep, and the device set whose `<VolumeReconstruction>` builds it.
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct RawReconstruct {
+    /// `validation`, `calibration`, or a sequence file.
+    pub(super) sweep: String,
+    /// A PLUS device set with a `<VolumeReconstruction>` element.
+    pub(super) config: String,
 }
 
 #[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]

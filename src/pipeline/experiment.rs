@@ -8,7 +8,7 @@ use std::time::SystemTime;
 use super::error::ReporterError;
 use super::record::DatasetRun;
 use super::tracked::{self, TrackedInputs, TrackedRun};
-use super::tracked_resolution::{self, ValidationResolution};
+use super::tracked_resolution::{self, TrackedAfter};
 use crate::io::fs::{write_atomic, Lock, Staged};
 use crate::io::plus::result::PlusResult;
 use crate::manifest::tracked::TrackedManifest;
@@ -43,7 +43,7 @@ pub trait Reporter {
         &mut self,
         _manifest: &TrackedManifest,
         _run: &TrackedRun,
-        _resolution: &ValidationResolution,
+        _after: &TrackedAfter,
         _plus: Option<&PlusResult>,
         _folder: &RunFolder<'_>,
         _started: SystemTime,
@@ -382,8 +382,36 @@ pub enum TrackedExperimentError {
     },
     #[error("{0}")]
     PlusResult(#[from] crate::io::plus::config::ConfigError),
+    #[error("{manifest}: reconstruct: {message}")]
+    Volume { manifest: PathBuf, message: String },
     #[error("{0}")]
     Reporter(#[from] ReporterError),
+}
+
+/// The sweep the manifest names, reconstructed with the run's own
+/// `ImageToProbe`, its wires measured when the phantom came from a device set.
+fn tracked_volume(
+    m: &TrackedManifest,
+    run: &TrackedRun,
+) -> Result<Option<super::reconstruct::Reconstruction>, TrackedExperimentError> {
+    let Some(r) = &m.reconstruct else {
+        return Ok(None);
+    };
+    let inputs = super::reconstruct::ReconstructInputs {
+        sequence: r.sweep.clone(),
+        config: r.config.clone(),
+        calibration: None,
+        threads: None,
+        wires: m.plus_config.clone(),
+        image_to_probe: Some((run.fit.image_to_probe.matrix(), "this run's calibration".to_string())),
+    };
+    let mut volume = super::reconstruct::run(&inputs).map_err(|e| TrackedExperimentError::Volume {
+        manifest: m.path.clone(),
+        message: e.to_string(),
+    })?;
+    // Times would make the page differ run to run.
+    volume.timings.clear();
+    Ok(Some(volume))
 }
 
 /// Runs a tracked-sequence experiment into `folder`: whether its gates passed.
@@ -401,7 +429,10 @@ fn run_tracked(
         source,
     })?;
     // After the calibration is fitted, and never feeding back into it.
-    let resolution = tracked_resolution::evaluate(&run, &inputs);
+    let after = TrackedAfter {
+        resolution: tracked_resolution::evaluate(&run, &inputs),
+        volume: tracked_volume(m, &run)?,
+    };
     let plus = match &m.plus_result {
         Some(p) => Some(PlusResult::read(p)?),
         None => None,
@@ -411,7 +442,7 @@ fn run_tracked(
         write_to: &write_to,
         final_path: &final_path,
     };
-    reporter.tracked_done(m, &run, &resolution, plus.as_ref(), &run_folder, started)?;
+    reporter.tracked_done(m, &run, &after, plus.as_ref(), &run_folder, started)?;
     let gates = tracked::gates(&run, m);
     for g in gates.iter().filter(|g| !g.passed) {
         reporter.gate_failed(&failed_gate(&m.experiment, &m.dataset, g));

@@ -30,6 +30,9 @@ pub struct ReconstructInputs {
     /// (`PhantomToReference`): each wire's position, straightness and thickness
     /// in the volume are measured.
     pub wires: Option<PathBuf>,
+    /// `ImageToProbe` given directly (a run's own calibration, with where it
+    /// came from); it replaces the device set's and `calibration`.
+    pub image_to_probe: Option<(Matrix4<f64>, String)>,
 }
 
 /// The volume, 8-bit or float as the input.
@@ -230,7 +233,10 @@ pub fn run(inputs: &ReconstructInputs) -> Result<Reconstruction, ReconstructErro
     };
     let settings = VolumeSettings::read(&inputs.config)?;
     let config = PlusConfig::read(&inputs.config)?;
-    let image_to_probe = inputs.calibration.as_deref().map(run_image_to_probe).transpose()?;
+    let image_to_probe = match &inputs.image_to_probe {
+        Some((matrix, _)) => Some(*matrix),
+        None => inputs.calibration.as_deref().map(run_image_to_probe).transpose()?,
+    };
     let sequence = Sequence::read_any(&inputs.sequence)?;
     lap("read", &mut timings);
     let (poses, skipped) = frame_poses(
@@ -292,10 +298,11 @@ pub fn run(inputs: &ReconstructInputs) -> Result<Reconstruction, ReconstructErro
     let voxels = grid.voxels() as u64;
     Ok(Reconstruction {
         inputs: inputs.clone(),
-        image_to_probe_source: match &inputs.calibration {
-            Some(file) if file.is_file() => crate::io::fs::display_path(file),
-            Some(folder) => format!("{}/summary.json", crate::io::fs::display_path(folder)),
-            None => format!(
+        image_to_probe_source: match (&inputs.image_to_probe, &inputs.calibration) {
+            (Some((_, source)), _) => source.clone(),
+            (None, Some(file)) if file.is_file() => crate::io::fs::display_path(file),
+            (None, Some(folder)) => format!("{}/summary.json", crate::io::fs::display_path(folder)),
+            (None, None) => format!(
                 "{} (CoordinateDefinitions)",
                 crate::io::fs::display_path(&inputs.config)
             ),

@@ -27,6 +27,15 @@ pub const BOOTSTRAP: BlockBootstrap = BlockBootstrap {
     seed: 0x5EED_B007,
 };
 
+/// What a tracked run adds once its calibration is fitted, never feeding back
+/// into it: how far the validation score can tell calibrations apart, and the
+/// sweep the manifest asks to reconstruct with the calibration.
+#[derive(Debug, Clone, Default)]
+pub struct TrackedAfter {
+    pub resolution: ValidationResolution,
+    pub volume: Option<crate::pipeline::reconstruct::Reconstruction>,
+}
+
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
 pub struct ValidationResolution {
     /// Validation PRE3D (best-95 % mean, mm) of the chosen model refitted on

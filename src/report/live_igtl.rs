@@ -151,8 +151,11 @@ pub fn write(
     if let Ok(batch) = &run.final_run {
         let mut inputs = crate::pipeline::tracked::TrackedInputs::from_manifest(manifest);
         inputs.calibration_sequence = folder.join("received.igs.mha");
-        let resolution = crate::pipeline::tracked_resolution::evaluate(batch, &inputs);
-        super::tracked::write(batch, &resolution, manifest, None, &folder.join("calibration"))?;
+        let after = crate::pipeline::tracked_resolution::TrackedAfter {
+            resolution: crate::pipeline::tracked_resolution::evaluate(batch, &inputs),
+            volume: None,
+        };
+        super::tracked::write(batch, &after, manifest, None, &folder.join("calibration"))?;
     }
     Ok(s)
 }

@@ -35,5 +35,7 @@ pub mod temporal;
 pub mod thesis;
 pub mod tracked;
 pub mod tracked_summary;
+pub mod tracked_volume;
+mod transform_files;
 pub mod write;
 pub mod writer;

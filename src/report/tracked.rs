@@ -3,7 +3,7 @@
 
 use std::path::Path;
 
-use nalgebra::{Matrix3, Matrix4};
+use nalgebra::Matrix4;
 use polars::prelude::*;
 
 use crate::core::geometry::{euler_zyx_deg, Rigid};
@@ -13,7 +13,7 @@ use crate::io::fs::write_atomic;
 use crate::io::plus::result::PlusResult;
 use crate::manifest::tracked::TrackedManifest;
 use crate::pipeline::tracked::{Role, TrackedRun};
-use crate::pipeline::tracked_resolution::ValidationResolution;
+use crate::pipeline::tracked_resolution::{TrackedAfter, ValidationResolution};
 use crate::report::error::OutputError;
 use crate::report::summary::{
     to_text, CandidateScore, ConstraintCounts, FramesCompared, ImageToProbeSummary, ModelSelectionSummary,
@@ -227,6 +227,7 @@ pub fn summary(
                 std: p.calibration_std_mm,
             },
         }),
+        reconstruction: None,
     }
 }
 
@@ -286,44 +287,12 @@ pub fn frames_table(run: &TrackedRun, patterns: usize) -> PolarsResult<DataFrame
     DataFrame::new(f.len(), columns)
 }
 
-/// PLUS's XML form of the result (a `CoordinateDefinitions` transform).
-pub fn plus_xml(matrix: &Matrix4<f64>) -> String {
-    let mut text = String::from("<CoordinateDefinitions>\n  <Transform From=\"Image\" To=\"Probe\"\n    Matrix=\"\n");
-    for r in 0..4 {
-        let row: Vec<String> = (0..4).map(|c| format!("{:.9}", matrix[(r, c)])).collect();
-        text += &format!("      {}\n", row.join(" "));
-    }
-    text += "    \" />\n</CoordinateDefinitions>\n";
-    text
-}
-
-/// An ITK transform file that 3D Slicer loads as the `Calibration` linear transform.
-/// ITK files hold the resampling (inverse) transform in LPS; Slicer works in RAS,
-/// so the file holds `F * inverse(Calibration) * F` with `F = diag(-1, -1, 1)`.
-pub fn itk_tfm(matrix: &Matrix4<f64>) -> Option<String> {
-    let inverse = matrix.try_inverse()?;
-    let f = Matrix4::from_diagonal(&nalgebra::Vector4::new(-1.0, -1.0, 1.0, 1.0));
-    let m = f * inverse * f;
-    let a: Matrix3<f64> = m.fixed_view::<3, 3>(0, 0).into_owned();
-    let mut params: Vec<String> = Vec::new();
-    for r in 0..3 {
-        for c in 0..3 {
-            params.push(format!("{:.12}", a[(r, c)]));
-        }
-    }
-    for r in 0..3 {
-        params.push(format!("{:.12}", m[(r, 3)]));
-    }
-    Some(format!(
-        "#Insight Transform File V1.0\n#Transform 0\nTransform: AffineTransform_double_3_3\nParameters: {}\nFixedParameters: 0 0 0\n",
-        params.join(" ")
-    ))
-}
+pub use super::transform_files::{itk_tfm, plus_xml};
 
 /// Writes the run's files into `folder`.
 pub fn write(
     run: &TrackedRun,
-    resolution: &ValidationResolution,
+    after: &TrackedAfter,
     manifest: &TrackedManifest,
     plus: Option<&PlusResult>,
     folder: &Path,
@@ -333,7 +302,10 @@ pub fn write(
         message: e.to_string(),
     })?;
     super::write::write_frames_table(folder, &mut frames_table(run, manifest.nwires.len())?)?;
-    let summary = summary(run, resolution, manifest, plus);
+    let mut summary = summary(run, &after.resolution, manifest, plus);
+    if let Some(volume) = &after.volume {
+        summary.reconstruction = Some(super::tracked_volume::write(volume, folder)?);
+    }
     let text = to_text(&summary)?;
     write_atomic(&folder.join("summary.json"), text.as_bytes())?;
     let matrix = run.fit.image_to_probe.matrix();
@@ -551,6 +523,8 @@ fn render_pages(
         .map(|d| d.sentence("probecal", "PLUS's matrix"));
     ctx.insert("paired", &paired);
     ctx.insert("resolution", &resolution_rows(&summary.resolution));
+    let volume = summary.reconstruction.as_ref().map(super::tracked_volume::page_context);
+    ctx.insert("volume", &volume);
     let gates: Vec<serde_json::Value> = summary
         .gates
         .iter()

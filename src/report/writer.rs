@@ -15,7 +15,7 @@ use crate::pipeline::error::ReporterError;
 use crate::pipeline::experiment::{Reporter, RunFolder};
 use crate::pipeline::record::DatasetRun;
 use crate::pipeline::tracked::TrackedRun;
-use crate::pipeline::tracked_resolution::ValidationResolution;
+use crate::pipeline::tracked_resolution::TrackedAfter;
 
 /// Writes each run's folder and the index; prints unless quiet.
 pub struct ReportWriter {
@@ -104,13 +104,13 @@ impl Reporter for ReportWriter {
         &mut self,
         manifest: &TrackedManifest,
         run: &TrackedRun,
-        resolution: &ValidationResolution,
+        after: &TrackedAfter,
         plus: Option<&PlusResult>,
         folder: &RunFolder<'_>,
         started: SystemTime,
     ) -> Result<(), ReporterError> {
         let (shown, folder) = (folder.final_path, folder.write_to);
-        let summary = super::tracked::write(run, resolution, manifest, plus, folder)?;
+        let summary = super::tracked::write(run, after, manifest, plus, folder)?;
         Provenance::new(
             &manifest.path,
             &manifest.sha256,
