@@ -43,7 +43,7 @@ fn corner_distance_mm(a: &nalgebra::Matrix4<f64>, b: &nalgebra::Matrix4<f64>) ->
 /// The fCal experiment with absolute paths, its calibration sequence replaced
 /// where `calibration` is given, and `extra` YAML appended.
 fn manifest(dir: &Path, name: &str, calibration: Option<&Path>, extra: &str) -> PathBuf {
-    let text = std::fs::read_to_string(root().join("experiments/plus_fcal2_nwire.yaml")).unwrap();
+    let text = common::fcal_manifest_text();
     let shared = root().join("../shared").canonicalize().unwrap();
     let mut text = text.replace("../../shared", &shared.display().to_string());
     if let Some(c) = calibration {

@@ -11,7 +11,7 @@ use common::{probecal, root, scratch};
 /// The shared fCal experiment with its paths made absolute and the lag fixed at
 /// `lag_s` (a positive lag has each frame finished when the next one arrives).
 fn manifest_with_lag(dir: &Path, lag_s: &str) -> PathBuf {
-    let text = std::fs::read_to_string(root().join("experiments/plus_fcal2_nwire.yaml")).unwrap();
+    let text = common::fcal_manifest_text();
     let shared = root().join("../shared").canonicalize().unwrap();
     let text = text
         .replace("../../shared", &shared.display().to_string())

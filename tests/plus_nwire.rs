@@ -403,8 +403,7 @@ fn a_tracked_experiment_takes_its_lag_from_a_reflector_recording() {
     let dir = common::scratch("plus_nwire", "temporal_lag");
     std::fs::create_dir_all(&dir).unwrap();
     let data = |set: &str, name: &str| common::shared_data(set, name).canonicalize().unwrap();
-    let text = std::fs::read_to_string(common::root().join("experiments/plus_fcal2_nwire.yaml"))
-        .unwrap()
+    let text = common::fcal_manifest_text()
         .replace(
             "../../shared/data",
             &common::root()
@@ -501,12 +500,8 @@ fn without_a_clip_rectangle_the_same_dots_are_found() {
 #[ignore = "needs ../shared/data (full tier: scripts/test.sh)"]
 fn a_reconstruct_sweep_the_manifest_cannot_give_is_refused_at_its_key() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
-    let text = std::fs::read_to_string(root.join("experiments/plus_fcal2_nwire.yaml")).unwrap();
     let shared = root.join("../shared").canonicalize().unwrap();
-    let text = text.replace("../../shared", &shared.to_string_lossy()).replace(
-        "plus/fcal2_volume.xml",
-        &root.join("experiments/plus/fcal2_volume.xml").to_string_lossy(),
-    );
+    let text = common::fcal_manifest_text().replace("../../shared", &shared.to_string_lossy());
     let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("reconstruct_key");
     std::fs::create_dir_all(&dir).unwrap();
     for (edit, key) in [

@@ -197,7 +197,7 @@ fn a_tracked_run_on_an_unseen_recording_keeps_the_frames_plus_keeps() {
     stretched_copy(&shared_data(SET, CALIBRATION), &calibration, STRETCH);
     stretched_copy(&shared_data(SET, VALIDATION), &validation, STRETCH);
     let config = device_set_with_tolerance(&dir, 15.0);
-    let text = std::fs::read_to_string(common::root().join("experiments/plus_fcal2_nwire.yaml")).unwrap();
+    let text = common::fcal_manifest_text();
     let mut changed = text.clone();
     for (from, to) in [
         (format!("../../shared/data/{SET}/{CALIBRATION}"), calibration.clone()),

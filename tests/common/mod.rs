@@ -29,6 +29,21 @@ pub fn scratch(group: &str, name: &str) -> PathBuf {
     dir
 }
 
+/// The text of the fCal experiment (`experiments/plus_fcal2_nwire.yaml`) with
+/// the files it names inside `experiments/` given by absolute path, for a test
+/// that writes an edited copy elsewhere (the `../../shared` paths are the
+/// caller's to replace).
+#[allow(dead_code)]
+pub fn fcal_manifest_text() -> String {
+    let text = std::fs::read_to_string(root().join("experiments/plus_fcal2_nwire.yaml")).unwrap();
+    let local = "config: plus/fcal2_volume.xml";
+    assert!(text.contains(local), "the fCal experiment no longer names `{local}`");
+    text.replace(
+        local,
+        &format!("config: {}", root().join("experiments/plus/fcal2_volume.xml").display()),
+    )
+}
+
 /// A file of the real third-party data beside the checkout (`../shared/data/<set>/<name>`).
 pub fn shared_data(set: &str, name: &str) -> PathBuf {
     root().join("../shared/data").join(set).join(name)
