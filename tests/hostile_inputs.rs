@@ -163,6 +163,19 @@ fn device_sets_are_held_to_physical_values() {
         e.contains("`ApproximateSpacingMmPerPixel` must be 0.001 to 10 mm per pixel, got 1000000"),
         "{e}"
     );
+    // More dot candidates than the search can take.
+    let path = device_set(
+        &dir,
+        "candidates.xml",
+        "NumberOfMaximumFiducialPointCandidates=\"20\"",
+        "NumberOfMaximumFiducialPointCandidates=\"500\"",
+    );
+    let e = segment_refused(&dir, &sequence, &path);
+    assert!(
+        e.contains("candidates.xml:")
+            && e.contains("`NumberOfMaximumFiducialPointCandidates` must be a positive number up to 200, got 500"),
+        "{e}"
+    );
 }
 
 #[test]

@@ -426,11 +426,12 @@ fn check_segmentation(c: &mut Checker<'_>, seg: &Segmentation, nwires: usize) {
         seg.max_row_angle_difference_deg,
         0.0,
     );
-    if seg.max_candidates < 3 * nwires.max(1) || seg.max_candidates > 50 {
+    let most = crate::spec::nwire::MAX_DOT_CANDIDATES;
+    if seg.max_candidates < 3 * nwires.max(1) || seg.max_candidates > most {
         c.fail(
             &format!("{sf}.max_candidates"),
             format!(
-                "must be between {} (3 per N-wire) and 50, got {}",
+                "must be between {} (3 per N-wire) and {most}, got {}",
                 3 * nwires.max(1),
                 seg.max_candidates
             ),

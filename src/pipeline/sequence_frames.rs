@@ -240,7 +240,7 @@ pub fn segment_frame(
         pixels,
         sequence.width,
         sequence.height,
-        inputs.clip,
+        cleaned.region_px,
         inputs.segmentation,
     );
     frame.candidates_px = spots.iter().map(|s| s.centre_px).collect();

@@ -9,6 +9,11 @@
 
 use nalgebra::{Point3, Vector3};
 
+/// The most dot candidates (bright spots) a B-scan's N-wire search considers
+/// (`NumberOfMaximumFiducialPointCandidates`): rows are every three of them, so
+/// the search grows with the cube of this number.
+pub const MAX_DOT_CANDIDATES: usize = 200;
+
 /// One wire, as a segment in the phantom frame (mm).
 #[derive(Debug, Clone, PartialEq)]
 pub struct WireSegment {

@@ -187,9 +187,6 @@ impl Default for Segmentation {
     }
 }
 
-/// Most dot candidates a frame's pattern search considers.
-const MAX_CANDIDATES: usize = 50;
-
 impl Segmentation {
     /// The segmentation settings a device set gives, over PLUS's defaults, each
     /// with PLUS's meaning (the module's doc).
@@ -212,10 +209,7 @@ impl Segmentation {
             min_row_angle_deg,
             max_row_angle_deg,
             original_intensity_score: s.original_intensity_score.unwrap_or(defaults.original_intensity_score),
-            max_candidates: s
-                .max_candidates
-                .map(|n| n.clamp(defaults.max_candidates, MAX_CANDIDATES))
-                .unwrap_or(defaults.max_candidates),
+            max_candidates: s.max_candidates.unwrap_or(defaults.max_candidates),
             clip_rectangle_px: config.clip_rectangle_px.map(|(o, s)| [o[0], o[1], s[0], s[1]]),
             ..defaults
         }
@@ -257,5 +251,23 @@ impl Segmentation {
         [angle_deg, angle_deg - 180.0, angle_deg + 180.0]
             .iter()
             .any(|a| *a > lo && *a < hi)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A device set's candidate count is used as PLUS uses it, below the
+    /// default as well as above it.
+    #[test]
+    fn device_set_candidates_are_taken_as_given() {
+        for n in [10usize, 20, 150] {
+            let text = format!(
+                "<PlusConfiguration>\n<Segmentation ApproximateSpacingMmPerPixel=\"0.078\" NumberOfMaximumFiducialPointCandidates=\"{n}\" />\n</PlusConfiguration>"
+            );
+            let config = PlusConfig::parse(std::path::Path::new("c.xml"), &text).unwrap();
+            assert_eq!(Segmentation::from_device_set(&config).max_candidates, n);
+        }
     }
 }

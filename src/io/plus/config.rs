@@ -276,7 +276,10 @@ fn segmentation_settings(x: &Xml, seg: roxmltree::Node) -> Result<PlusSegmentati
         opening_radius_mm: positive("MorphologicalOpeningCircleRadiusMm", 10.0)?,
         threshold_percent: positive("ThresholdImagePercent", 100.0)?,
         collinear_tolerance_mm: positive("CollinearPointsMaxDistanceFromLineMm", 50.0)?,
-        max_candidates: count("NumberOfMaximumFiducialPointCandidates", 10_000.0)?,
+        max_candidates: count(
+            "NumberOfMaximumFiducialPointCandidates",
+            crate::spec::nwire::MAX_DOT_CANDIDATES as f64,
+        )?,
         row_gap_tolerance_percent: positive("MaxLinePairDistanceErrorPercent", 100.0)?,
         max_row_shift_mm: positive("MaxLineShiftMm", 500.0)?,
         angle_tolerance_deg: positive("AngleToleranceDegrees", 90.0)?,
