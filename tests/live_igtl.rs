@@ -113,7 +113,7 @@ fn a_pyigtl_stream_at_4x_calibrates_as_run_does_and_gets_the_matrix_back() {
         .arg(dir.join("live"))
         .output()
         .unwrap();
-    let status = server.wait().unwrap();
+    let status = finish(server, &live);
     assert!(live.status.success(), "{}", String::from_utf8_lossy(&live.stderr));
     assert!(status.success());
     let sent = json(&report);
@@ -196,8 +196,12 @@ fn serve_with(
 ) -> (Output, Vec<(Header, Body)>) {
     let listener = TcpListener::bind("127.0.0.1:0").unwrap();
     let port = listener.local_addr().unwrap().port();
+    let client_done = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let done = client_done.clone();
     let server = std::thread::spawn(move || {
-        let (mut socket, _) = listener.accept().unwrap();
+        let Some(mut socket) = accept_while(&listener, &done) else {
+            return Vec::new();
+        };
         for m in &messages {
             socket.write_all(m).unwrap();
         }
@@ -215,7 +219,51 @@ fn serve_with(
         .args(options)
         .output()
         .unwrap();
+    client_done.store(true, std::sync::atomic::Ordering::SeqCst);
     (out, server.join().unwrap())
+}
+
+/// The client's connection, or `None` once `client_done` says the client has
+/// exited without connecting (the test then fails on its output, not hangs).
+fn accept_while(listener: &TcpListener, client_done: &std::sync::atomic::AtomicBool) -> Option<TcpStream> {
+    listener.set_nonblocking(true).unwrap();
+    loop {
+        match listener.accept() {
+            Ok((socket, _)) => {
+                socket.set_nonblocking(false).unwrap();
+                return Some(socket);
+            }
+            Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => {
+                if client_done.load(std::sync::atomic::Ordering::SeqCst) {
+                    return None;
+                }
+                std::thread::sleep(std::time::Duration::from_millis(20));
+            }
+            Err(e) => panic!("accept: {e}"),
+        }
+    }
+}
+
+/// A server process's exit once probecal has ended: given 60 s to finish its
+/// stream, then killed and the test failed with probecal's stderr, so a client
+/// that never connected fails the test instead of hanging it.
+fn finish(mut server: std::process::Child, client: &Output) -> std::process::ExitStatus {
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(60);
+    loop {
+        if let Some(status) = server.try_wait().unwrap() {
+            return status;
+        }
+        if std::time::Instant::now() > deadline {
+            let _ = server.kill();
+            let _ = server.wait();
+            panic!(
+                "the server was still waiting 60 s after probecal ended ({}): {}",
+                client.status,
+                String::from_utf8_lossy(&client.stderr)
+            );
+        }
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    }
 }
 
 /// The client's messages, up to its `ImageToProbe` (or the connection's end).
@@ -451,7 +499,7 @@ fn messages_of_the_reference_implementation_are_read_as_it_sent_them() {
         .arg(dir.join("live"))
         .output()
         .unwrap();
-    assert!(server.wait().unwrap().success());
+    assert!(finish(server, &out).success());
     // Five synthetic frames are too few to calibrate: a clear failure, and the
     // session's files kept beside the output.
     assert_eq!(out.status.code(), Some(1));
