@@ -15,6 +15,11 @@
 //! PLUS counts the backward half of each stick one step longer than it is, in
 //! its length and its interpolation weights; probecal does the same, so that its
 //! volumes match PLUS's (`docs/reconstruction.md` shows the measurement).
+//!
+//! A one-stick element is tabled rather than searched from every hole: per
+//! direction, every voxel's steps to the first filled voxel either way follow
+//! from its neighbour's in one pass over the slab ([`stick_table`]), the same
+//! sticks the per-hole search finds (a unit test holds them equal).
 
 use crate::io::plus::volume_config::HoleFilling;
 
@@ -207,6 +212,136 @@ impl<T: Sample> Source<'_, T> {
     }
 }
 
+/// The most steps a stick's half may take for the table below (steps are
+/// counted in a byte); a longer `StickLengthLimit` is searched voxel by voxel.
+const TABLE_MAX_LIMIT: usize = 254;
+
+/// The most voxels a volume may have for its sticks to be tabled (about 13
+/// bytes a voxel more); a bigger one is searched voxel by voxel.
+const TABLE_MAX_VOXELS: usize = 1 << 27;
+
+/// Whether a stick element's searches can come from [`stick_table`]: one stick,
+/// a limit that fits a byte, and a volume whose table fits the bound.
+fn tabled(element: &HoleFilling, voxels: usize) -> Option<usize> {
+    match *element {
+        HoleFilling::Stick {
+            length_limit,
+            sticks_to_use,
+        } if sticks_to_use <= 1 && length_limit <= TABLE_MAX_LIMIT && voxels <= TABLE_MAX_VOXELS => Some(length_limit),
+        _ => None,
+    }
+}
+
+/// The one-stick element's value for every hole of the planes `z0..z1`, found as
+/// [`Source::stick`] finds it, but for all voxels at once: per direction, each
+/// voxel's steps to the first filled voxel ahead come from its neighbour's
+/// (`ahead[v] = 1` when `v + d` is filled, else `ahead[v + d] + 1`, none past
+/// `limit`), and likewise behind. The planes within `limit` of the slab are
+/// included, so the steps of the slab's own voxels are whole.
+fn stick_table<T: Sample>(
+    source: &Source<'_, T>,
+    z0: usize,
+    z1: usize,
+    limit: usize,
+    dirs: &[Dir],
+) -> Vec<Option<f64>> {
+    let [nx, ny, nz] = source.grid.dims;
+    let plane = nx * ny;
+    let (lo, hi) = (z0.saturating_sub(limit), (z1 + limit).min(nz));
+    let sub = [nx, ny, hi - lo];
+    let n = (z1 - z0) * plane;
+    let mut best_len = vec![f64::INFINITY; n];
+    let mut best_dir = vec![usize::MAX; n];
+    let mut best_value = vec![0.0f64; n];
+    let mut ahead = vec![0u8; sub[2] * plane];
+    let mut behind = vec![0u8; sub[2] * plane];
+    for dir in dirs {
+        steps_to_filled(source, lo, sub, dir.step, limit, &mut ahead);
+        steps_to_filled(source, lo, sub, dir.step.map(|c| -c), limit, &mut behind);
+        for k in 0..n {
+            let i = z0 * plane + k;
+            let local = i - lo * plane;
+            let (a, b) = (ahead[local], behind[local]);
+            if source.weights[i] != 0 || a == 0 || b == 0 {
+                continue;
+            }
+            let (ahead_steps, behind_steps) = (f64::from(a), f64::from(b) + 1.0);
+            let length = (ahead_steps + behind_steps) * dir.unit;
+            if length < best_len[k] || (length == best_len[k] && dir.index < best_dir[k]) {
+                let v_ahead = source.voxels[(i as i64 + i64::from(a) * dir.stride) as usize].to_f64();
+                let v_behind = source.voxels[(i as i64 - i64::from(b) * dir.stride) as usize].to_f64();
+                let t = behind_steps / (ahead_steps + behind_steps);
+                best_len[k] = length;
+                best_dir[k] = dir.index;
+                best_value[k] = v_ahead * t + v_behind * (1.0 - t);
+            }
+        }
+    }
+    (0..n)
+        .map(|k| (best_dir[k] != usize::MAX).then_some(best_value[k]))
+        .collect()
+}
+
+/// Into `steps` (planes `lo..lo + sub[2]` of the volume): each voxel's steps
+/// along `step` to the first filled voxel, 0 when none is within `limit` steps
+/// and the planes. Voxels are visited so that `v + step` comes before `v`.
+fn steps_to_filled<T: Sample>(
+    source: &Source<'_, T>,
+    lo: usize,
+    sub: [usize; 3],
+    step: [i64; 3],
+    limit: usize,
+    steps: &mut [u8],
+) {
+    let [nx, ny, nz] = sub;
+    let plane = nx * ny;
+    // The k-th index visited along an axis of n when the step there is d.
+    let visit = |k: usize, n: usize, d: i64| if d > 0 { n - 1 - k } else { k };
+    let inside = |c: usize, d: i64, n: usize| {
+        let next = c as i64 + d;
+        next >= 0 && next < n as i64
+    };
+    let limit = limit as u8;
+    let weights = &source.weights[lo * plane..];
+    for zk in 0..nz {
+        let z = visit(zk, nz, step[2]);
+        for yk in 0..ny {
+            let y = visit(yk, ny, step[1]);
+            let row = z * plane + y * nx;
+            if !(inside(z, step[2], nz) && inside(y, step[1], ny)) {
+                steps[row..row + nx].fill(0);
+                continue;
+            }
+            // The row of the voxels one step on, as if x did not move.
+            let next_row = (row as i64 + step[1] * nx as i64 + step[2] * plane as i64) as usize;
+            let (first, last) = match step[0] {
+                1 => {
+                    steps[row + nx - 1] = 0;
+                    (0, nx - 1)
+                }
+                -1 => {
+                    steps[row] = 0;
+                    (1, nx)
+                }
+                _ => (0, nx),
+            };
+            for xk in 0..last - first {
+                let x = if step[0] > 0 { last - 1 - xk } else { first + xk };
+                let next = (next_row + x) as i64 + step[0];
+                let next = next as usize;
+                let s = steps[next];
+                steps[row + x] = if weights[next] > 0 {
+                    1
+                } else if s > 0 && s < limit {
+                    s + 1
+                } else {
+                    0
+                };
+            }
+        }
+    }
+}
+
 /// Voxels with a filled voxel within `radius` steps along every axis (a cube):
 /// elsewhere no stick can reach a filled voxel, and the search is skipped.
 fn near_filled(grid: &Grid, weights: &[u16], radius: usize) -> Vec<bool> {
@@ -264,7 +399,9 @@ pub fn fill<T: Sample>(
         weights,
     };
     let dirs = stick_directions(grid.dims);
-    // Only stick elements: the search for holes no stick can reach is skipped.
+    // Only stick elements, some searched hole by hole: the search for holes no
+    // stick can reach is skipped (tabled sticks need no such help).
+    let all_tabled = elements.iter().all(|e| tabled(e, original.len()).is_some());
     let reach = elements
         .iter()
         .map(|e| match e {
@@ -272,16 +409,25 @@ pub fn fill<T: Sample>(
             _ => None,
         })
         .collect::<Option<Vec<usize>>>()
+        .filter(|_| !all_tabled)
         .map(|limits| near_filled(grid, weights, limits.into_iter().max().unwrap_or(0)));
     let plane = grid.dims[0] * grid.dims[1];
+    let nz = grid.dims[2];
+    // A slab of planes per thread; each tables its one-stick elements.
+    let per_slab = nz.div_ceil(threads.max(1)).max(1);
     let counts: Vec<Vec<u64>> = super::in_pool(threads, || {
         use rayon::prelude::*;
         voxels
-            .par_chunks_mut(plane)
+            .par_chunks_mut(plane * per_slab)
             .enumerate()
-            .map(|(z, out)| {
+            .map(|(slab, out)| {
                 let mut filled = vec![0u64; elements.len()];
-                let first = z * plane;
+                let first = slab * per_slab * plane;
+                let (z0, z1) = (slab * per_slab, (slab * per_slab + out.len() / plane).min(nz));
+                let tables: Vec<Option<Vec<Option<f64>>>> = elements
+                    .iter()
+                    .map(|e| tabled(e, original.len()).map(|limit| stick_table(&source, z0, z1, limit, &dirs)))
+                    .collect();
                 for (offset, voxel) in out.iter_mut().enumerate() {
                     let i = first + offset;
                     if weights[i] != 0 || reach.as_ref().is_some_and(|r| !r[i]) {
@@ -290,13 +436,15 @@ pub fn fill<T: Sample>(
                     let p = [
                         (i % grid.dims[0]) as i64,
                         ((i / grid.dims[0]) % grid.dims[1]) as i64,
-                        z as i64,
+                        (i / plane) as i64,
                     ];
-                    if let Some((k, v)) = elements
-                        .iter()
-                        .enumerate()
-                        .find_map(|(k, e)| source.element(i, p, e, &dirs).map(|v| (k, v)))
-                    {
+                    if let Some((k, v)) = elements.iter().enumerate().find_map(|(k, e)| {
+                        match &tables[k] {
+                            Some(table) => table[offset],
+                            None => source.element(i, p, e, &dirs),
+                        }
+                        .map(|v| (k, v))
+                    }) {
                         *voxel = T::from_floor(v);
                         filled[k] += 1;
                     }
@@ -316,6 +464,60 @@ pub fn fill<T: Sample>(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The tabled sticks equal the voxel-by-voxel search on a sparse random
+    /// volume, whatever the limit and the slab.
+    #[test]
+    fn tabled_sticks_equal_the_search_voxel_by_voxel() {
+        let grid = Grid {
+            origin_mm: [0.0; 3],
+            spacing_mm: [1.0; 3],
+            dims: [17, 13, 11],
+        };
+        let n = 17 * 13 * 11;
+        let mut state = 12345u64;
+        let mut next = || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 33) as u32
+        };
+        let mut voxels = vec![0u8; n];
+        let mut weights = vec![0u16; n];
+        for i in 0..n {
+            if next() % 10 == 0 {
+                weights[i] = 256;
+                voxels[i] = (next() % 256) as u8;
+            }
+        }
+        let source = Source {
+            grid: &grid,
+            voxels: &voxels,
+            weights: &weights,
+        };
+        let dirs = stick_directions(grid.dims);
+        let plane = 17 * 13;
+        let mut sticks = 0;
+        for limit in [1, 2, 4, 9] {
+            for (z0, z1) in [(0, 11), (0, 4), (4, 9), (9, 11)] {
+                let table = stick_table(&source, z0, z1, limit, &dirs);
+                for (k, value) in table.iter().enumerate() {
+                    let i = z0 * plane + k;
+                    if weights[i] != 0 {
+                        continue;
+                    }
+                    let p = [(i % 17) as i64, ((i / 17) % 13) as i64, (i / plane) as i64];
+                    assert_eq!(
+                        *value,
+                        source.stick(i, p, limit, 1, &dirs),
+                        "voxel {p:?}, limit {limit}"
+                    );
+                    sticks += usize::from(value.is_some());
+                }
+            }
+        }
+        assert!(sticks > 1000, "{sticks} sticks only");
+    }
 
     #[test]
     fn a_stick_fills_the_gap_between_two_filled_planes() {

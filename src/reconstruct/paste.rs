@@ -252,7 +252,19 @@ impl<T: Sample> Slab<'_, T> {
                 if z_first.max(z_last) < lo || z_first.min(z_last) > hi {
                     continue;
                 }
-                for &x in xs {
+                // z is linear along the row: the pixels near this slab are one run of it.
+                let (start, end) = if z_last >= z_first {
+                    (
+                        xs.partition_point(|&x| mapper.z(x, *y) < lo),
+                        xs.partition_point(|&x| mapper.z(x, *y) <= hi),
+                    )
+                } else {
+                    (
+                        xs.partition_point(|&x| mapper.z(x, *y) > hi),
+                        xs.partition_point(|&x| mapper.z(x, *y) >= lo),
+                    )
+                };
+                for &x in &xs[start..end.max(start)] {
                     let value = slice.pixels[y * settings.width + x];
                     let Some(mask) = pixel_weight(settings, value, x, *y) else {
                         continue;
@@ -387,8 +399,7 @@ pub fn paste_into<T: Sample>(
         .iter()
         .map(|s| Mapper::new(grid, &s.reference_T_pixel, settings.optimization))
         .collect();
-    // One slab per worker: a frame's row crosses many planes, so smaller slabs
-    // would map the same pixels again for each.
+    // One slab per worker (each maps only the run of a row that reaches it).
     let planes_per_slab = grid.dims[2].div_ceil(threads.max(1)).max(1);
     let (voxels, weights) = (&mut pasted.voxels, &mut pasted.weights);
     let (saturated, pixels_inserted): (u64, u64) = super::in_pool(threads, || {
