@@ -216,8 +216,9 @@ impl<T: Sample> Source<'_, T> {
 /// counted in a byte); a longer `StickLengthLimit` is searched voxel by voxel.
 const TABLE_MAX_LIMIT: usize = 254;
 
-/// The most voxels a volume may have for its sticks to be tabled (about 13
-/// bytes a voxel more); a bigger one is searched voxel by voxel.
+/// The most voxels a volume may have for its sticks to be tabled (19 bytes a
+/// voxel more: each hole's best stick so far, and the steps either way in the
+/// slab being tabled); a bigger one is searched voxel by voxel.
 const TABLE_MAX_VOXELS: usize = 1 << 27;
 
 /// Whether a stick element's searches can come from [`stick_table`]: one stick,
@@ -251,7 +252,8 @@ fn stick_table<T: Sample>(
     let sub = [nx, ny, hi - lo];
     let n = (z1 - z0) * plane;
     let mut best_len = vec![f64::INFINITY; n];
-    let mut best_dir = vec![usize::MAX; n];
+    // The direction's canonical index (0–12); `u8::MAX`: no stick yet.
+    let mut best_dir = vec![u8::MAX; n];
     let mut best_value = vec![0.0f64; n];
     let mut ahead = vec![0u8; sub[2] * plane];
     let mut behind = vec![0u8; sub[2] * plane];
@@ -267,18 +269,19 @@ fn stick_table<T: Sample>(
             }
             let (ahead_steps, behind_steps) = (f64::from(a), f64::from(b) + 1.0);
             let length = (ahead_steps + behind_steps) * dir.unit;
-            if length < best_len[k] || (length == best_len[k] && dir.index < best_dir[k]) {
+            let index = dir.index as u8;
+            if length < best_len[k] || (length == best_len[k] && index < best_dir[k]) {
                 let v_ahead = source.voxels[(i as i64 + i64::from(a) * dir.stride) as usize].to_f64();
                 let v_behind = source.voxels[(i as i64 - i64::from(b) * dir.stride) as usize].to_f64();
                 let t = behind_steps / (ahead_steps + behind_steps);
                 best_len[k] = length;
-                best_dir[k] = dir.index;
+                best_dir[k] = index;
                 best_value[k] = v_ahead * t + v_behind * (1.0 - t);
             }
         }
     }
     (0..n)
-        .map(|k| (best_dir[k] != usize::MAX).then_some(best_value[k]))
+        .map(|k| (best_dir[k] != u8::MAX).then_some(best_value[k]))
         .collect()
 }
 
