@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Installs what probecal needs on Debian 12: OpenCV 4.6 with contrib, clang for
-# the opencv crate's bindings, the fonts figures use, and the readers the report
+# the opencv crate's bindings, libjpeg-turbo's TurboJPEG (the JPEG codec OpenCV
+# itself uses, called directly), the fonts figures use, and the readers the report
 # tests check the reports in (pdflatex with the LaTeX report's packages, Chromium),
 # ADMesh, the independent STL reader the printable phantom is checked with, and
 # python3-opencv, OpenCV's own calibration sample the camera calibration is
@@ -12,7 +13,7 @@ set -euo pipefail
 
 packages=(libopencv-dev libopencv-contrib-dev clang libclang-dev fonts-dejavu-core pkg-config admesh
   texlive-latex-recommended texlive-latex-extra texlive-science lmodern chromium python3-opencv python3-venv
-  libopenigtlink-dev g++)
+  libopenigtlink-dev g++ libturbojpeg0-dev)
 missing=()
 for p in "${packages[@]}"; do
   dpkg -s "$p" >/dev/null 2>&1 || missing+=("$p")

@@ -146,7 +146,6 @@ fn shared(name: &str) -> Vec<u8> {
 }
 
 fn png(width: i32, height: i32, value: u8) -> Vec<u8> {
-    use opencv::prelude::*;
     let mat = opencv::core::Mat::new_rows_cols_with_default(
         height,
         width,
@@ -154,10 +153,8 @@ fn png(width: i32, height: i32, value: u8) -> Vec<u8> {
         opencv::core::Scalar::all(value as f64),
     )
     .unwrap();
-    let mut out = opencv::core::Vector::<u8>::new();
-    opencv::imgcodecs::imencode(".png", &mat, &mut out, &opencv::core::Vector::new()).unwrap();
-    let _ = mat.rows();
-    out.to_vec()
+    let grey = probecal::io::image::mat_to_gray8(&mat).unwrap();
+    probecal::io::png_codec::encode(&grey.data, grey.width, grey.height, 1).unwrap()
 }
 
 fn validate(dir: &Path) -> Vec<String> {
@@ -435,10 +432,10 @@ const CASES: &[Case] = &[
                 opencv::core::Scalar::all(0.0),
             )
             .unwrap();
-            let mut png = opencv::core::Vector::<u8>::new();
-            opencv::imgcodecs::imencode(".png", &wider, &mut png, &opencv::core::Vector::new()).unwrap();
+            let grey = probecal::io::image::mat_to_gray8(&wider).unwrap();
+            let png = probecal::io::png_codec::encode(&grey.data, grey.width, grey.height, 1).unwrap();
             assert_eq!(wider.cols(), image.cols() + 24);
-            replace_photo(d, Some(png.to_vec()), true)
+            replace_photo(d, Some(png), true)
         },
         args: run,
         code: 0,
@@ -744,12 +741,20 @@ const CASES: &[Case] = &[
         setup: |d| replace_photo(d, Some(shared("camera_002.png")[..5000].to_vec()), false),
         args: run,
         code: 0,
-        expect: "camera_002.png: not a decodable image",
+        expect: "camera_002.png: a damaged or truncated PNG (unexpected end of file)",
+        in_output: "frames",
+    },
+    Case {
+        name: "camera image a GIF",
+        setup: |d| replace_photo(d, Some(b"GIF89a not really".to_vec()), false),
+        args: run,
+        code: 0,
+        expect: "camera_002.png: a GIF file; probecal reads PNG and JPEG images",
         in_output: "frames",
     },
     Case {
         name: "camera image not an image",
-        setup: |d| replace_photo(d, Some(b"GIF89a not really".to_vec()), false),
+        setup: |d| replace_photo(d, Some(b"no image format at all".to_vec()), false),
         args: run,
         code: 0,
         expect: "camera_002.png: not a decodable image",
@@ -784,7 +789,7 @@ const CASES: &[Case] = &[
         setup: |d| replace_photo(d, Some(shared("bscan_002.png")[..3000].to_vec()), true),
         args: run,
         code: 0,
-        expect: "bscan_002.png: not a decodable image",
+        expect: "bscan_002.png: a damaged or truncated PNG (unexpected end of file)",
         in_output: "frames",
     },
     Case {

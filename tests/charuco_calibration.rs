@@ -105,7 +105,10 @@ fn charuco_camera_calibration_agrees_with_opencv_python() {
         opencv::core::Scalar::all(128.0),
     )
     .unwrap();
-    opencv::imgcodecs::imwrite_def(folder.join("zz_blank.png").to_str().unwrap(), &blank).unwrap();
+    probecal::io::image::mat_to_gray8(&blank)
+        .unwrap()
+        .write_png(&folder.join("zz_blank.png"))
+        .unwrap();
     let want = reference(&["calibrate", &folder.display().to_string(), BOARD]);
     let yml = dir.join("out/camera.yml");
     let out = probecal()

@@ -229,11 +229,14 @@ fn every_board_opencv_finds_is_used_and_every_view_says_how() {
         if path.extension().and_then(|e| e.to_str()) != Some("jpg") {
             continue;
         }
-        let image = opencv::imgcodecs::imread(path.to_str().unwrap(), opencv::imgcodecs::IMREAD_GRAYSCALE).unwrap();
+        let image = probecal::io::image::read_gray(&path).unwrap();
         let mut blurred = opencv::core::Mat::default();
         opencv::imgproc::gaussian_blur_def(&image, &mut blurred, Size::new(0, 0), 2.5).unwrap();
         let name = folder.join(path.file_name().unwrap()).with_extension("png");
-        opencv::imgcodecs::imwrite_def(name.to_str().unwrap(), &blurred).unwrap();
+        probecal::io::image::mat_to_gray8(&blurred)
+            .unwrap()
+            .write_png(&name)
+            .unwrap();
         let mut corners = Vector::<Point2f>::new();
         let pattern = Size::new(9, 6);
         let flags = opencv::calib3d::CALIB_CB_ADAPTIVE_THRESH;

@@ -227,7 +227,7 @@ fn html_report_renders_in_headless_chromium() {
         &profile,
     );
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    let image = opencv::imgcodecs::imread(shot.to_str().unwrap(), opencv::imgcodecs::IMREAD_GRAYSCALE).unwrap();
+    let image = probecal::io::image::read_gray(&shot).unwrap();
     assert_eq!((image.cols(), image.rows()), (1280, 2400));
     let (mut mean, mut sd) = (Mat::default(), Mat::default());
     mean_std_dev(&image, &mut mean, &mut sd, &opencv::core::no_array()).unwrap();

@@ -1,10 +1,12 @@
-//! 8-bit grey images on disk and their exchange with OpenCV.
+//! 8-bit grey images on disk and their exchange with OpenCV. PNG and JPEG files
+//! are read and written by [`super::png_codec`] and [`super::jpeg`], with the
+//! pixels OpenCV's `imread` gives; OpenCV's own codec module is not linked (its
+//! 140 libraries took longer to load than most commands take to run).
 
 use crate::core::limits::{MAX_IMAGE_FILE_BYTES, MAX_IMAGE_PIXELS, MAX_IMAGE_SIDE_PX};
 use std::path::{Path, PathBuf};
 
-use opencv::core::{Mat, Vector, CV_8UC1};
-use opencv::imgcodecs;
+use opencv::core::Mat;
 use opencv::prelude::*;
 
 /// Why an image could not be used.
@@ -14,8 +16,12 @@ pub enum ImageError {
     Missing { path: PathBuf },
     #[error("{path}: image file is empty (0 bytes)")]
     Empty { path: PathBuf },
-    #[error("{path}: not a decodable image (truncated, or not a PNG, JPEG, BMP or TIFF whose header gives its size)")]
+    #[error("{path}: not a decodable image (truncated, or not a PNG or JPEG whose header gives its size)")]
     Undecodable { path: PathBuf },
+    #[error("{path}: {reason}")]
+    Unreadable { path: PathBuf, reason: String },
+    #[error("{path}: a {format} file; probecal reads PNG and JPEG images (convert it, e.g. to PNG)")]
+    Unsupported { path: PathBuf, format: &'static str },
     #[error("{path}: image is {got_w}x{got_h} px, expected {want_w}x{want_h}")]
     WrongSize {
         path: PathBuf,
@@ -68,48 +74,79 @@ impl Gray8 {
 
     /// Writes a PNG atomically (temporary file, then rename).
     pub fn write_png(&self, path: &Path) -> Result<(), ImageError> {
-        self.write_encoded(path, ".png", &Vector::new())
+        let bytes = super::png_codec::encode(&self.data, self.width, self.height, 1);
+        write_encoded(path, bytes)
     }
 
     /// Writes a JPEG of the given quality (1..=100) atomically.
     pub fn write_jpeg(&self, path: &Path, quality: u8) -> Result<(), ImageError> {
-        let params = Vector::<i32>::from_slice(&[imgcodecs::IMWRITE_JPEG_QUALITY, quality.clamp(1, 100) as i32]);
-        self.write_encoded(path, ".jpg", &params)
+        write_encoded(
+            path,
+            super::jpeg::encode(&self.data, self.width, self.height, 1, quality),
+        )
     }
+}
 
-    fn write_encoded(&self, path: &Path, extension: &str, params: &Vector<i32>) -> Result<(), ImageError> {
-        let mat = self.to_mat()?;
-        let mut buffer = Vector::<u8>::new();
-        imgcodecs::imencode(extension, &mat, &mut buffer, params)?;
-        crate::io::fs::write_atomic(path, buffer.as_slice()).map_err(|e| ImageError::Write {
-            path: path.to_path_buf(),
-            message: e.message,
-        })
-    }
+fn write_encoded(path: &Path, bytes: Result<Vec<u8>, String>) -> Result<(), ImageError> {
+    let write = |message: String| ImageError::Write {
+        path: path.to_path_buf(),
+        message,
+    };
+    crate::io::fs::write_atomic(path, &bytes.map_err(write)?).map_err(|e| write(e.message))
 }
 
 /// PNG bytes of a colour image given as BGR bytes, row-major.
 pub fn encode_png_bgr(bgr: &[u8], width: usize, height: usize) -> Result<Vec<u8>, ImageError> {
-    let flat = Mat::new_rows_cols_with_data(height as i32, width as i32 * 3, bgr)?;
-    let mat = flat.reshape(3, height as i32)?;
-    let mut buffer = Vector::<u8>::new();
-    imgcodecs::imencode(".png", &mat, &mut buffer, &Vector::new())?;
-    Ok(buffer.to_vec())
+    let rgb: Vec<u8> = bgr.chunks_exact(3).flat_map(|p| [p[2], p[1], p[0]]).collect();
+    super::png_codec::encode(&rgb, width, height, 3).map_err(ImageError::OpenCv)
 }
 
-/// Width and height from a PNG's, a JPEG's, a BMP's or a TIFF's header, read
-/// before decoding; `None` for other formats or a header that cannot be read
-/// (such a file is not decoded).
+/// JPEG bytes of an 8-bit grey or BGR matrix, with the settings of OpenCV's
+/// `imencode(".jpg")` (the same bytes).
+pub fn mat_to_jpeg(mat: &Mat, quality: u8) -> Result<Vec<u8>, opencv::Error> {
+    with_continuous(mat, |m| {
+        let fail = |message: String| opencv::Error::new(opencv::core::StsError, message);
+        if m.depth() != opencv::core::CV_8U {
+            return Err(fail(format!(
+                "a JPEG is written from 8-bit pixels, not type {}",
+                m.typ()
+            )));
+        }
+        let (width, height, channels) = (m.cols() as usize, m.rows() as usize, m.channels() as usize);
+        super::jpeg::encode(m.data_bytes()?, width, height, channels, quality).map_err(fail)
+    })
+}
+
+/// `f` of the matrix, or of a continuous copy of it if it is not.
+fn with_continuous<R>(mat: &Mat, f: impl FnOnce(&Mat) -> Result<R, opencv::Error>) -> Result<R, opencv::Error> {
+    if mat.is_continuous() {
+        f(mat)
+    } else {
+        f(&mat.try_clone()?)
+    }
+}
+
+/// The format of a file probecal does not read, from its first bytes.
+fn unsupported_format(bytes: &[u8]) -> Option<&'static str> {
+    [
+        (&b"BM"[..], "BMP"),
+        (b"II*\0", "TIFF"),
+        (b"MM\0*", "TIFF"),
+        (b"GIF8", "GIF"),
+        (b"RIFF", "WebP"),
+        (b"\0\0\0\x0cjP", "JPEG 2000"),
+    ]
+    .iter()
+    .find(|(magic, _)| bytes.starts_with(magic))
+    .map(|(_, name)| *name)
+}
+
+/// Width and height from a PNG's or a JPEG's header, read before decoding;
+/// `None` for other formats or a header that cannot be read (such a file is not
+/// decoded).
 pub fn header_size(bytes: &[u8]) -> Option<(u64, u64)> {
     let be16 = |i: usize| Some(u16::from_be_bytes([*bytes.get(i)?, *bytes.get(i + 1)?]) as u64);
     let be32 = |i: usize| Some(u32::from_be_bytes(bytes.get(i..i + 4)?.try_into().ok()?) as u64);
-    if bytes.starts_with(b"BM") {
-        let le32 = |i: usize| Some(i32::from_le_bytes(bytes.get(i..i + 4)?.try_into().ok()?));
-        return Some((le32(18)?.unsigned_abs() as u64, le32(22)?.unsigned_abs() as u64));
-    }
-    if bytes.starts_with(b"II*\0") || bytes.starts_with(b"MM\0*") {
-        return tiff_size(bytes);
-    }
     if bytes.starts_with(b"\x89PNG\r\n\x1a\n") && bytes.get(12..16) == Some(b"IHDR") {
         return Some((be32(16)?, be32(20)?));
     }
@@ -132,45 +169,6 @@ pub fn header_size(bytes: &[u8]) -> Option<(u64, u64)> {
         }
     }
     None
-}
-
-/// Width and height from the first image directory of a TIFF (tags 256 and
-/// 257, 16 or 32 bits).
-fn tiff_size(bytes: &[u8]) -> Option<(u64, u64)> {
-    let little = bytes.starts_with(b"II");
-    let u16_at = |i: usize| {
-        let b: [u8; 2] = bytes.get(i..i + 2)?.try_into().ok()?;
-        Some(if little {
-            u16::from_le_bytes(b)
-        } else {
-            u16::from_be_bytes(b)
-        } as u64)
-    };
-    let u32_at = |i: usize| {
-        let b: [u8; 4] = bytes.get(i..i + 4)?.try_into().ok()?;
-        Some(if little {
-            u32::from_le_bytes(b)
-        } else {
-            u32::from_be_bytes(b)
-        } as u64)
-    };
-    let directory = usize::try_from(u32_at(4)?).ok()?;
-    let entries = u16_at(directory)? as usize;
-    let (mut width, mut height) = (None, None);
-    for k in 0..entries {
-        let entry = directory + 2 + 12 * k;
-        let value = match u16_at(entry + 2)? {
-            3 => u16_at(entry + 8)?,
-            4 => u32_at(entry + 8)?,
-            _ => continue,
-        };
-        match u16_at(entry)? {
-            256 => width = Some(value),
-            257 => height = Some(value),
-            _ => {}
-        }
-    }
-    Some((width?, height?))
 }
 
 /// Whether a PNG or JPEG file has been written to its end: PNG's `IEND` chunk,
@@ -211,8 +209,14 @@ pub fn read_gray(path: &Path) -> Result<Mat, ImageError> {
     let bytes = std::fs::read(path).map_err(|_| ImageError::Missing {
         path: path.to_path_buf(),
     })?;
+    if let Some(format) = unsupported_format(&bytes) {
+        return Err(ImageError::Unsupported {
+            path: path.to_path_buf(),
+            format,
+        });
+    }
     // Only an image whose size its header gives is decoded: the size is
-    // checked before OpenCV allocates for it (a small file can claim gigapixels).
+    // checked before the decoder allocates for it (a small file can claim gigapixels).
     let Some((width, height)) = header_size(&bytes) else {
         return Err(ImageError::Undecodable {
             path: path.to_path_buf(),
@@ -226,45 +230,29 @@ pub fn read_gray(path: &Path) -> Result<Mat, ImageError> {
             limit: MAX_IMAGE_PIXELS,
         });
     }
-    if let Some(mat) = decode_gray8_png(&bytes) {
-        return Ok(mat);
-    }
-    let buffer = Vector::<u8>::from_slice(&bytes);
-    let mat = imgcodecs::imdecode(&buffer, imgcodecs::IMREAD_GRAYSCALE).map_err(|_| ImageError::Undecodable {
+    let decoded = if bytes.starts_with(b"\x89PNG") {
+        super::png_codec::decode_gray(&bytes).map_err(|e| match e {
+            super::png_codec::PngError::Corrupt(why) => format!("a damaged or truncated PNG ({why})"),
+            super::png_codec::PngError::Unsupported(why) => why,
+        })
+    } else {
+        super::jpeg::decode_gray(&bytes)
+    };
+    let (w, h, grey) = decoded.map_err(|reason| ImageError::Unreadable {
         path: path.to_path_buf(),
+        reason,
     })?;
-    if mat.empty() || mat.typ() != CV_8UC1 {
+    if (w as u64, h as u64) != (width, height) {
         return Err(ImageError::Undecodable {
             path: path.to_path_buf(),
         });
     }
-    Ok(mat)
-}
-
-/// An 8-bit grey, non-interlaced PNG decoded straight into a `Mat` by the `png`
-/// crate (three to four times faster than OpenCV's libpng here; the same
-/// pixels). Any other PNG, a JPEG, or a file this decoder refuses gives `None`,
-/// and OpenCV decodes it (or says it cannot).
-fn decode_gray8_png(bytes: &[u8]) -> Option<Mat> {
-    if !bytes.starts_with(b"\x89PNG\r\n\x1a\n") {
-        return None;
+    Gray8 {
+        width: w,
+        height: h,
+        data: grey,
     }
-    let mut decoder = png::Decoder::new(std::io::Cursor::new(bytes));
-    decoder.set_transformations(png::Transformations::IDENTITY);
-    let mut reader = decoder.read_info().ok()?;
-    let info = reader.info();
-    let plain = info.color_type == png::ColorType::Grayscale
-        && info.bit_depth == png::BitDepth::Eight
-        && !info.interlaced
-        && info.trns.is_none();
-    let (width, height) = (i32::try_from(info.width).ok()?, i32::try_from(info.height).ok()?);
-    if !plain || reader.output_buffer_size()? != info.width as usize * info.height as usize {
-        return None;
-    }
-    let mut mat = Mat::new_rows_cols_with_default(height, width, CV_8UC1, opencv::core::Scalar::all(0.0)).ok()?;
-    let data = mat.data_bytes_mut().ok()?;
-    reader.next_frame(data).ok()?;
-    Some(mat)
+    .to_mat()
 }
 
 /// Reads a grey image and checks its size.
@@ -284,18 +272,13 @@ pub fn read_gray_sized(path: &Path, size: [u32; 2]) -> Result<Mat, ImageError> {
 
 /// The bytes of a continuous `CV_8UC1` matrix as a [`Gray8`].
 pub fn mat_to_gray8(mat: &Mat) -> Result<Gray8, ImageError> {
-    let owned;
-    let m = if mat.is_continuous() {
-        mat
-    } else {
-        owned = mat.try_clone()?;
-        &owned
-    };
-    Ok(Gray8 {
-        width: m.cols() as usize,
-        height: m.rows() as usize,
-        data: m.data_bytes()?.to_vec(),
-    })
+    Ok(with_continuous(mat, |m| {
+        Ok(Gray8 {
+            width: m.cols() as usize,
+            height: m.rows() as usize,
+            data: m.data_bytes()?.to_vec(),
+        })
+    })?)
 }
 
 /// Gaussian blur of floating-point levels (OpenCV, border replicated).
@@ -330,16 +313,41 @@ pub fn gaussian_blur_f32(
 mod header_tests {
     use super::*;
 
+    /// A 40x30 grey image encoded as `ext` (".png" or ".jpg").
+    fn encoded(ext: &str, level: u8) -> Vec<u8> {
+        let grey = vec![level; 40 * 30];
+        match ext {
+            ".png" => crate::io::png_codec::encode(&grey, 40, 30, 1).unwrap(),
+            _ => crate::io::jpeg::encode(&grey, 40, 30, 1, 90).unwrap(),
+        }
+    }
+
     #[test]
     fn image_headers_give_the_size_before_decoding() {
-        let mat = Mat::new_rows_cols_with_default(30, 40, CV_8UC1, opencv::core::Scalar::all(9.0)).unwrap();
-        for ext in [".png", ".jpg", ".bmp", ".tif"] {
-            let mut buffer = Vector::<u8>::new();
-            imgcodecs::imencode(ext, &mat, &mut buffer, &Vector::new()).unwrap();
-            assert_eq!(header_size(buffer.as_slice()), Some((40, 30)), "{ext}");
+        for ext in [".png", ".jpg"] {
+            assert_eq!(header_size(&encoded(ext, 9)), Some((40, 30)), "{ext}");
         }
         assert_eq!(header_size(b"GIF89a"), None);
         assert_eq!(header_size(&[0xFF, 0xD8, 0xFF]), None, "a cut-off header is not read");
+    }
+
+    #[test]
+    fn other_formats_are_named_and_refused() {
+        let dir = std::env::temp_dir().join(format!("probecal-formats-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        for (name, bytes, format) in [
+            ("a.bmp", &b"BM\x36\x10\0\0\0\0"[..], "BMP"),
+            ("a.tif", b"II*\0\x08\0\0\0", "TIFF"),
+            ("b.tif", b"MM\0*\0\0\0\x08", "TIFF"),
+            ("a.gif", b"GIF89a\x01\0", "GIF"),
+        ] {
+            let path = dir.join(name);
+            std::fs::write(&path, bytes).unwrap();
+            let err = read_gray(&path).unwrap_err();
+            assert_eq!(err, ImageError::Unsupported { path, format }, "{name}");
+            assert!(err.to_string().contains("reads PNG and JPEG"), "{err}");
+        }
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]
@@ -378,52 +386,21 @@ mod header_tests {
     }
 
     #[test]
-    fn grey_pngs_decode_to_opencvs_pixels_and_others_are_left_to_opencv() {
-        // A grey ramp with noise, encoded by OpenCV at two compression levels.
-        let mut rng = crate::core::rng::Rng::new(7);
-        let levels: Vec<f32> = (0..97 * 61)
-            .map(|i| ((i % 97) as f32 * 2.5 + rng.uniform(0.0, 30.0) as f32).min(255.0))
-            .collect();
-        let mat = Gray8::from_levels(97, 61, &levels).to_mat().unwrap();
-        for level in [1, 9] {
-            let mut bytes = Vector::<u8>::new();
-            let params = Vector::from_slice(&[imgcodecs::IMWRITE_PNG_COMPRESSION, level]);
-            imgcodecs::imencode(".png", &mat, &mut bytes, &params).unwrap();
-            let fast = decode_gray8_png(bytes.as_slice()).expect("a plain grey PNG takes the fast path");
-            let opencv = imgcodecs::imdecode(&bytes, imgcodecs::IMREAD_GRAYSCALE).unwrap();
-            assert_eq!(
-                mat_to_gray8(&fast).unwrap(),
-                mat_to_gray8(&opencv).unwrap(),
-                "level {level}"
-            );
-        }
-        // Colour and 16-bit PNGs, a JPEG and a cut-off PNG go to OpenCV.
-        let mut colour = Mat::default();
-        opencv::imgproc::cvt_color_def(&mat, &mut colour, opencv::imgproc::COLOR_GRAY2BGR).unwrap();
-        let mut wide = Mat::default();
-        mat.convert_to_def(&mut wide, opencv::core::CV_16U).unwrap();
-        for (ext, image) in [(".png", &colour), (".png", &wide), (".jpg", &mat)] {
-            let mut bytes = Vector::<u8>::new();
-            imgcodecs::imencode(ext, image, &mut bytes, &Vector::new()).unwrap();
-            assert!(decode_gray8_png(bytes.as_slice()).is_none(), "{ext} {}", image.typ());
-        }
-        let mut bytes = Vector::<u8>::new();
-        imgcodecs::imencode(".png", &mat, &mut bytes, &Vector::new()).unwrap();
-        assert!(decode_gray8_png(&bytes.as_slice()[..bytes.len() / 2]).is_none());
-    }
-
-    #[test]
     fn a_file_is_complete_once_its_end_marker_is_written() {
         let dir = std::env::temp_dir().join(format!("probecal-complete-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
-        let mat = Mat::new_rows_cols_with_default(20, 30, CV_8UC1, opencv::core::Scalar::all(90.0)).unwrap();
         for ext in [".png", ".jpg"] {
-            let mut bytes = Vector::<u8>::new();
-            imgcodecs::imencode(ext, &mat, &mut bytes, &Vector::new()).unwrap();
+            let bytes = encoded(ext, 90);
             let path = dir.join(format!("frame{ext}"));
-            std::fs::write(&path, &bytes.as_slice()[..bytes.len() - 20]).unwrap();
+            std::fs::write(&path, &bytes[..bytes.len() - 20]).unwrap();
             assert!(!file_complete(&path), "{ext}: cut short");
-            std::fs::write(&path, bytes.as_slice()).unwrap();
+            assert!(read_gray(&path).is_err(), "{ext}: a cut-off file is not read");
+            std::fs::write(&path, &bytes).unwrap();
+            assert_eq!(
+                mat_to_gray8(&read_gray(&path).unwrap()).unwrap().data,
+                vec![90; 1200],
+                "{ext}"
+            );
             assert!(file_complete(&path), "{ext}: whole");
         }
         std::fs::write(dir.join("empty.png"), b"").unwrap();

@@ -2,7 +2,7 @@
 //! circle and centre, the compact echoes, the features used), used frames first,
 //! then rejected ones with their reasons.
 
-use opencv::core::{Mat, Point, Scalar, Size, Vector};
+use opencv::core::{Mat, Point, Scalar, Size};
 use opencv::imgproc;
 use opencv::prelude::*;
 
@@ -22,7 +22,7 @@ pub const WIDTH_PX: i32 = 360;
 /// Used and rejected frames shown, at most.
 pub const USED_SHOWN: usize = 6;
 pub const REJECTED_SHOWN: usize = 3;
-const JPEG_QUALITY: i32 = 80;
+const JPEG_QUALITY: u8 = 80;
 
 fn point(p: [f64; 2]) -> Point {
     Point::new(p[0].round() as i32, p[1].round() as i32)
@@ -97,10 +97,7 @@ fn draw(run: &DatasetRun, record: &crate::pipeline::record::FrameRecord) -> Resu
         0.0,
         imgproc::INTER_AREA,
     )?;
-    let mut jpeg = Vector::<u8>::new();
-    let params = Vector::<i32>::from_slice(&[opencv::imgcodecs::IMWRITE_JPEG_QUALITY, JPEG_QUALITY]);
-    opencv::imgcodecs::imencode(".jpg", &small, &mut jpeg, &params)?;
-    Ok(Some(jpeg.to_vec()))
+    Ok(Some(crate::io::image::mat_to_jpeg(&small, JPEG_QUALITY)?))
 }
 
 /// The gallery of a run (deterministic: the first frames of each kind, in frame order).

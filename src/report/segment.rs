@@ -8,7 +8,7 @@
 use std::fmt::Write as _;
 use std::path::Path;
 
-use opencv::core::{Mat, Point, Rect, Scalar, Vector};
+use opencv::core::{Mat, Point, Rect, Scalar};
 use opencv::imgproc;
 use opencv::prelude::*;
 
@@ -188,10 +188,7 @@ fn picture(run: &SegmentRun, k: usize) -> Result<Vec<u8>, opencv::Error> {
             )?;
         }
     }
-    let mut jpeg = Vector::<u8>::new();
-    let params = Vector::<i32>::from_slice(&[opencv::imgcodecs::IMWRITE_JPEG_QUALITY, 80]);
-    opencv::imgcodecs::imencode(".jpg", &bgr, &mut jpeg, &params)?;
-    Ok(jpeg.to_vec())
+    crate::io::image::mat_to_jpeg(&bgr, 80)
 }
 
 /// `text` in lines of at most `width` characters, broken at spaces.
