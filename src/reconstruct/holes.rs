@@ -216,10 +216,11 @@ impl<T: Sample> Source<'_, T> {
 /// counted in a byte); a longer `StickLengthLimit` is searched voxel by voxel.
 const TABLE_MAX_LIMIT: usize = 254;
 
-/// The most voxels a volume may have for its sticks to be tabled (19 bytes a
-/// voxel more: each hole's best stick so far, and the steps either way in the
-/// slab being tabled); a bigger one is searched voxel by voxel.
-const TABLE_MAX_VOXELS: usize = 1 << 27;
+/// The most voxels a volume may have for its sticks to be tabled (at most 28
+/// bytes a voxel more, under 2 GiB: each hole's place, best stick so far and
+/// whether it is settled, and the steps either way in the slab being tabled); a
+/// bigger one is searched voxel by voxel.
+const TABLE_MAX_VOXELS: usize = 1 << 26;
 
 /// Whether a stick element's searches can come from [`stick_table`]: one stick,
 /// a limit that fits a byte, and a volume whose table fits the bound.
@@ -234,68 +235,104 @@ fn tabled(element: &HoleFilling, voxels: usize) -> Option<usize> {
 }
 
 /// The one-stick element's value for every hole of the planes `z0..z1`, found as
-/// [`Source::stick`] finds it, but for all voxels at once: per direction, each
+/// [`Source::stick`] finds it, but for all holes at once: per direction, each
 /// voxel's steps to the first filled voxel ahead come from its neighbour's
 /// (`ahead[v] = 1` when `v + d` is filled, else `ahead[v + d] + 1`, none past
 /// `limit`), and likewise behind. The planes within `limit` of the slab are
 /// included, so the steps of the slab's own voxels are whole.
-fn stick_table<T: Sample>(
-    source: &Source<'_, T>,
-    z0: usize,
-    z1: usize,
-    limit: usize,
-    dirs: &[Dir],
-) -> Vec<Option<f64>> {
+fn stick_table<T: Sample>(source: &Source<'_, T>, z0: usize, z1: usize, limit: usize, dirs: &[Dir]) -> StickValues {
     let [nx, ny, nz] = source.grid.dims;
     let plane = nx * ny;
     let (lo, hi) = (z0.saturating_sub(limit), (z1 + limit).min(nz));
     let sub = [nx, ny, hi - lo];
-    let n = (z1 - z0) * plane;
-    let mut best_len = vec![f64::INFINITY; n];
+    // The slab's holes (indices from its first voxel), the only voxels looked at below.
+    let holes: Vec<u32> = (0..(z1 - z0) * plane)
+        .filter(|&k| source.weights[z0 * plane + k] == 0)
+        .map(|k| k as u32)
+        .collect();
+    let mut best_len = vec![f64::INFINITY; holes.len()];
     // The direction's canonical index (0–12); `u8::MAX`: no stick yet.
-    let mut best_dir = vec![u8::MAX; n];
-    let mut best_value = vec![0.0f64; n];
+    let mut best_dir = vec![u8::MAX; holes.len()];
+    let mut best_value = vec![0.0f64; holes.len()];
+    // The holes a later direction may still give a better stick (by position in `holes`).
+    let mut open: Vec<u32> = (0..holes.len() as u32).collect();
     let mut ahead = vec![0u8; sub[2] * plane];
     let mut behind = vec![0u8; sub[2] * plane];
-    for dir in dirs {
-        steps_to_filled(source, lo, sub, dir.step, limit, &mut ahead);
-        steps_to_filled(source, lo, sub, dir.step.map(|c| -c), limit, &mut behind);
-        for k in 0..n {
-            let i = z0 * plane + k;
+    // 1 where the planes `lo..hi` are filled, 0 where not.
+    let filled: Vec<u8> = source.weights[lo * plane..hi * plane]
+        .iter()
+        .map(|&w| u8::from(w > 0))
+        .collect();
+    for (d, dir) in dirs.iter().enumerate() {
+        if open.is_empty() {
+            break;
+        }
+        steps_to_filled(&filled, sub, dir.step, limit, &mut ahead);
+        steps_to_filled(&filled, sub, dir.step.map(|c| -c), limit, &mut behind);
+        for &h in &open {
+            let h = h as usize;
+            let i = z0 * plane + holes[h] as usize;
             let local = i - lo * plane;
             let (a, b) = (ahead[local], behind[local]);
-            if source.weights[i] != 0 || a == 0 || b == 0 {
+            if a == 0 || b == 0 {
                 continue;
             }
             let (ahead_steps, behind_steps) = (f64::from(a), f64::from(b) + 1.0);
             let length = (ahead_steps + behind_steps) * dir.unit;
             let index = dir.index as u8;
-            if length < best_len[k] || (length == best_len[k] && index < best_dir[k]) {
+            if length < best_len[h] || (length == best_len[h] && index < best_dir[h]) {
                 let v_ahead = source.voxels[(i as i64 + i64::from(a) * dir.stride) as usize].to_f64();
                 let v_behind = source.voxels[(i as i64 - i64::from(b) * dir.stride) as usize].to_f64();
                 let t = behind_steps / (ahead_steps + behind_steps);
-                best_len[k] = length;
-                best_dir[k] = index;
-                best_value[k] = v_ahead * t + v_behind * (1.0 - t);
+                best_len[h] = length;
+                best_dir[h] = index;
+                best_value[h] = v_ahead * t + v_behind * (1.0 - t);
             }
         }
+        // The shortest stick a later direction can give is three of its steps
+        // (one ahead, two behind), and `dirs` come shortest step first: a hole
+        // whose stick is shorter than that is settled.
+        if let Some(next) = dirs.get(d + 1) {
+            let shortest = 3.0 * next.unit;
+            open.retain(|&h| best_len[h as usize] >= shortest);
+        }
     }
-    (0..n)
-        .map(|k| (best_dir[k] != u8::MAX).then_some(best_value[k]))
-        .collect()
+    StickValues {
+        holes,
+        best_dir,
+        best_value,
+        cursor: 0,
+    }
 }
 
-/// Into `steps` (planes `lo..lo + sub[2]` of the volume): each voxel's steps
-/// along `step` to the first filled voxel, 0 when none is within `limit` steps
-/// and the planes. Voxels are visited so that `v + step` comes before `v`.
-fn steps_to_filled<T: Sample>(
-    source: &Source<'_, T>,
-    lo: usize,
-    sub: [usize; 3],
-    step: [i64; 3],
-    limit: usize,
-    steps: &mut [u8],
-) {
+/// A slab's tabled sticks: its holes (offsets from the slab's first voxel,
+/// ascending) and each one's value, looked up in ascending order.
+struct StickValues {
+    holes: Vec<u32>,
+    /// `u8::MAX` where the hole has no stick.
+    best_dir: Vec<u8>,
+    best_value: Vec<f64>,
+    cursor: usize,
+}
+
+impl StickValues {
+    /// The value at `offset`; offsets must come in ascending order.
+    fn at(&mut self, offset: usize) -> Option<f64> {
+        while self.cursor < self.holes.len() && (self.holes[self.cursor] as usize) < offset {
+            self.cursor += 1;
+        }
+        let c = self.cursor;
+        (self.holes.get(c).is_some_and(|&h| h as usize == offset) && self.best_dir[c] != u8::MAX)
+            .then(|| self.best_value[c])
+    }
+}
+
+/// Into `steps` (of `filled`'s planes): each voxel's steps along `step` to the
+/// first filled voxel, 0 when none is within `limit` steps and the planes. Voxels
+/// are visited so that `v + step` comes before `v`: a row whose next voxels are
+/// in another row in one branch-free pass over a copy of that row (which the
+/// compiler vectorises), a step along x voxel by voxel.
+fn steps_to_filled(filled: &[u8], sub: [usize; 3], step: [i64; 3], limit: usize, steps: &mut [u8]) {
     let [nx, ny, nz] = sub;
     let plane = nx * ny;
     // The k-th index visited along an axis of n when the step there is d.
@@ -305,7 +342,8 @@ fn steps_to_filled<T: Sample>(
         next >= 0 && next < n as i64
     };
     let limit = limit as u8;
-    let weights = &source.weights[lo * plane..];
+    // The steps of the row the current row's steps continue.
+    let mut ahead_row = vec![0u8; nx];
     for zk in 0..nz {
         let z = visit(zk, nz, step[2]);
         for yk in 0..ny {
@@ -328,12 +366,25 @@ fn steps_to_filled<T: Sample>(
                 }
                 _ => (0, nx),
             };
-            for xk in 0..last - first {
+            let len = last - first;
+            let src = ((next_row + first) as i64 + step[0]) as usize;
+            if step[1] != 0 || step[2] != 0 {
+                ahead_row[..len].copy_from_slice(&steps[src..src + len]);
+                let out = &mut steps[row + first..row + first + len];
+                for ((o, &s), &f) in out.iter_mut().zip(&ahead_row[..len]).zip(&filled[src..src + len]) {
+                    // Masks (0 or 0xFF) rather than branches: the filled voxels
+                    // fall where they may.
+                    let grow = 0u8.wrapping_sub(u8::from(s > 0) & u8::from(s < limit));
+                    let here = 0u8.wrapping_sub(f);
+                    *o = (s.wrapping_add(1) & grow & !here) | (1 & here);
+                }
+                continue;
+            }
+            for xk in 0..len {
                 let x = if step[0] > 0 { last - 1 - xk } else { first + xk };
-                let next = (next_row + x) as i64 + step[0];
-                let next = next as usize;
+                let next = ((next_row + x) as i64 + step[0]) as usize;
                 let s = steps[next];
-                steps[row + x] = if weights[next] > 0 {
+                steps[row + x] = if filled[next] > 0 {
                     1
                 } else if s > 0 && s < limit {
                     s + 1
@@ -427,7 +478,7 @@ pub fn fill<T: Sample>(
                 let mut filled = vec![0u64; elements.len()];
                 let first = slab * per_slab * plane;
                 let (z0, z1) = (slab * per_slab, (slab * per_slab + out.len() / plane).min(nz));
-                let tables: Vec<Option<Vec<Option<f64>>>> = elements
+                let mut tables: Vec<Option<StickValues>> = elements
                     .iter()
                     .map(|e| tabled(e, original.len()).map(|limit| stick_table(&source, z0, z1, limit, &dirs)))
                     .collect();
@@ -436,15 +487,12 @@ pub fn fill<T: Sample>(
                     if weights[i] != 0 || reach.as_ref().is_some_and(|r| !r[i]) {
                         continue;
                     }
-                    let p = [
-                        (i % grid.dims[0]) as i64,
-                        ((i / grid.dims[0]) % grid.dims[1]) as i64,
-                        (i / plane) as i64,
-                    ];
+                    // The position, for the elements searched hole by hole.
+                    let p = || [i % grid.dims[0], (i / grid.dims[0]) % grid.dims[1], i / plane].map(|c| c as i64);
                     if let Some((k, v)) = elements.iter().enumerate().find_map(|(k, e)| {
-                        match &tables[k] {
-                            Some(table) => table[offset],
-                            None => source.element(i, p, e, &dirs),
+                        match &mut tables[k] {
+                            Some(table) => table.at(offset),
+                            None => source.element(i, p(), e, &dirs),
                         }
                         .map(|v| (k, v))
                     }) {
@@ -503,18 +551,16 @@ mod tests {
         let mut sticks = 0;
         for limit in [1, 2, 4, 9] {
             for (z0, z1) in [(0, 11), (0, 4), (4, 9), (9, 11)] {
-                let table = stick_table(&source, z0, z1, limit, &dirs);
-                for (k, value) in table.iter().enumerate() {
+                let mut table = stick_table(&source, z0, z1, limit, &dirs);
+                for k in 0..(z1 - z0) * plane {
                     let i = z0 * plane + k;
+                    let value = table.at(k);
                     if weights[i] != 0 {
+                        assert_eq!(value, None, "a filled voxel is not a hole");
                         continue;
                     }
                     let p = [(i % 17) as i64, ((i / 17) % 13) as i64, (i / plane) as i64];
-                    assert_eq!(
-                        *value,
-                        source.stick(i, p, limit, 1, &dirs),
-                        "voxel {p:?}, limit {limit}"
-                    );
+                    assert_eq!(value, source.stick(i, p, limit, 1, &dirs), "voxel {p:?}, limit {limit}");
                     sticks += usize::from(value.is_some());
                 }
             }

@@ -105,12 +105,17 @@ pub fn pictures(volume: &AnyVolume) -> Vec<Picture> {
     let grey = |v: f64| (v / top * 255.0).round().clamp(0.0, 255.0) as u8;
     let at = |x: usize, y: usize, z: usize| values[(z * ny + y) * nx + x];
     // Slices through the intensity-weighted centre (the middle of an empty volume).
+    // In memory order, as one pass over the voxels would add them.
     let (mut sum, mut at_sum) = (0.0, [0.0f64; 3]);
-    for (i, v) in values.iter().enumerate() {
-        sum += v;
-        at_sum[0] += v * (i % nx) as f64;
-        at_sum[1] += v * ((i / nx) % ny) as f64;
-        at_sum[2] += v * (i / (nx * ny)) as f64;
+    for (z, plane) in values.chunks_exact(nx * ny).enumerate() {
+        for (y, row) in plane.chunks_exact(nx).enumerate() {
+            for (x, v) in row.iter().enumerate() {
+                sum += v;
+                at_sum[0] += v * x as f64;
+                at_sum[1] += v * y as f64;
+                at_sum[2] += v * z as f64;
+            }
+        }
     }
     let centre = |a: usize, n: usize| {
         if sum > 0.0 {
@@ -120,10 +125,14 @@ pub fn pictures(volume: &AnyVolume) -> Vec<Picture> {
         }
     };
     let (cx, cy, cz) = (centre(0, nx), centre(1, ny), centre(2, nz));
-    let mip: Vec<u8> = (0..ny)
-        .flat_map(|y| (0..nx).map(move |x| (x, y)))
-        .map(|(x, y)| grey((0..nz).map(|z| at(x, y, z)).fold(0.0, f64::max)))
-        .collect();
+    // The maximum along z, plane after plane (in memory order).
+    let mut highest = vec![0.0f64; nx * ny];
+    for plane in values.chunks_exact(nx * ny) {
+        for (m, v) in highest.iter_mut().zip(plane) {
+            *m = m.max(*v);
+        }
+    }
+    let mip: Vec<u8> = highest.into_iter().map(grey).collect();
     vec![
         Picture {
             name: "slice_z.png",
