@@ -1,6 +1,8 @@
 //! The numeric core: frames and rigid transforms, the random generator, the
-//! Levenberg–Marquardt solver, statistics, the thread pool and progress bars.
+//! Levenberg–Marquardt solver, statistics, the thread pool and progress bars,
+//! and the command's allocator.
 pub mod geometry;
+pub mod large_pages;
 pub mod limits;
 pub mod lm;
 pub mod parallel;
