@@ -245,9 +245,16 @@ fn stick_table<T: Sample>(source: &Source<'_, T>, z0: usize, z1: usize, limit: u
     let plane = nx * ny;
     let (lo, hi) = (z0.saturating_sub(limit), (z1 + limit).min(nz));
     let sub = [nx, ny, hi - lo];
-    // The slab's holes (indices from its first voxel), the only voxels looked at below.
+    // 1 where the planes `lo..hi` are filled, 0 where not.
+    let filled: Vec<u8> = source.weights[lo * plane..hi * plane]
+        .iter()
+        .map(|&w| u8::from(w > 0))
+        .collect();
+    // The slab's holes that a stick may reach (indices from its first voxel),
+    // the only voxels looked at below.
+    let reach = super::near::within_cube(&filled, sub, limit);
     let holes: Vec<u32> = (0..(z1 - z0) * plane)
-        .filter(|&k| source.weights[z0 * plane + k] == 0)
+        .filter(|&k| reach[(z0 - lo) * plane + k] != 0 && filled[(z0 - lo) * plane + k] == 0)
         .map(|k| k as u32)
         .collect();
     let mut best_len = vec![f64::INFINITY; holes.len()];
@@ -258,11 +265,6 @@ fn stick_table<T: Sample>(source: &Source<'_, T>, z0: usize, z1: usize, limit: u
     let mut open: Vec<u32> = (0..holes.len() as u32).collect();
     let mut ahead = vec![0u8; sub[2] * plane];
     let mut behind = vec![0u8; sub[2] * plane];
-    // 1 where the planes `lo..hi` are filled, 0 where not.
-    let filled: Vec<u8> = source.weights[lo * plane..hi * plane]
-        .iter()
-        .map(|&w| u8::from(w > 0))
-        .collect();
     for (d, dir) in dirs.iter().enumerate() {
         if open.is_empty() {
             break;
@@ -399,33 +401,8 @@ fn steps_to_filled(filled: &[u8], sub: [usize; 3], step: [i64; 3], limit: usize,
 /// Voxels with a filled voxel within `radius` steps along every axis (a cube):
 /// elsewhere no stick can reach a filled voxel, and the search is skipped.
 fn near_filled(grid: &Grid, weights: &[u16], radius: usize) -> Vec<bool> {
-    let d = grid.dims;
-    let mut near: Vec<u32> = weights.iter().map(|w| u32::from(*w > 0)).collect();
-    let strides = [1, d[0], d[0] * d[1]];
-    let mut line = Vec::new();
-    for axis in 0..3 {
-        let (n, stride) = (d[axis], strides[axis]);
-        // The first voxel of every line along `axis`: every combination of the
-        // other two axes' indices.
-        let [u, v] = match axis {
-            0 => [1, 2],
-            1 => [0, 2],
-            _ => [0, 1],
-        };
-        line.resize(n + 1, 0u32);
-        for b in 0..d[v] {
-            for a in 0..d[u] {
-                let start = a * strides[u] + b * strides[v];
-                for k in 0..n {
-                    line[k + 1] = line[k] + u32::from(near[start + k * stride] > 0);
-                }
-                for k in 0..n {
-                    let (lo, hi) = (k.saturating_sub(radius), (k + radius + 1).min(n));
-                    near[start + k * stride] = line[hi] - line[lo];
-                }
-            }
-        }
-    }
+    let filled: Vec<u8> = weights.iter().map(|&w| u8::from(w > 0)).collect();
+    let near = super::near::within_cube(&filled, grid.dims, radius);
     near.into_iter().map(|c| c > 0).collect()
 }
 
@@ -533,35 +510,37 @@ mod tests {
                 .wrapping_add(1442695040888963407);
             (state >> 33) as u32
         };
-        let mut voxels = vec![0u8; n];
-        let mut weights = vec![0u16; n];
-        for i in 0..n {
-            if next() % 10 == 0 {
-                weights[i] = 256;
-                voxels[i] = (next() % 256) as u8;
-            }
-        }
-        let source = Source {
-            grid: &grid,
-            voxels: &voxels,
-            weights: &weights,
-        };
-        let dirs = stick_directions(grid.dims);
-        let plane = 17 * 13;
+        let (dirs, plane) = (stick_directions(grid.dims), 17 * 13);
         let mut sticks = 0;
-        for limit in [1, 2, 4, 9] {
-            for (z0, z1) in [(0, 11), (0, 4), (4, 9), (9, 11)] {
-                let mut table = stick_table(&source, z0, z1, limit, &dirs);
-                for k in 0..(z1 - z0) * plane {
-                    let i = z0 * plane + k;
-                    let value = table.at(k);
-                    if weights[i] != 0 {
-                        assert_eq!(value, None, "a filled voxel is not a hole");
-                        continue;
+        // One voxel in 10 filled, then one in 300 (most holes out of every stick's reach).
+        for one_in in [10, 300] {
+            let mut voxels = vec![0u8; n];
+            let mut weights = vec![0u16; n];
+            for i in 0..n {
+                if next() % one_in == 0 {
+                    weights[i] = 256;
+                    voxels[i] = (next() % 256) as u8;
+                }
+            }
+            let source = Source {
+                grid: &grid,
+                voxels: &voxels,
+                weights: &weights,
+            };
+            for limit in [1, 2, 4, 9] {
+                for (z0, z1) in [(0, 11), (0, 4), (4, 9), (9, 11)] {
+                    let mut table = stick_table(&source, z0, z1, limit, &dirs);
+                    for k in 0..(z1 - z0) * plane {
+                        let i = z0 * plane + k;
+                        let value = table.at(k);
+                        if weights[i] != 0 {
+                            assert_eq!(value, None, "a filled voxel is not a hole");
+                            continue;
+                        }
+                        let p = [(i % 17) as i64, ((i / 17) % 13) as i64, (i / plane) as i64];
+                        assert_eq!(value, source.stick(i, p, limit, 1, &dirs), "voxel {p:?}, limit {limit}");
+                        sticks += usize::from(value.is_some());
                     }
-                    let p = [(i % 17) as i64, ((i / 17) % 13) as i64, (i / plane) as i64];
-                    assert_eq!(value, source.stick(i, p, limit, 1, &dirs), "voxel {p:?}, limit {limit}");
-                    sticks += usize::from(value.is_some());
                 }
             }
         }

@@ -18,6 +18,7 @@
 
 pub mod grid;
 pub mod holes;
+pub mod near;
 pub mod paste;
 pub mod poses;
 
