@@ -438,6 +438,20 @@ fn unusable_inputs_are_refused_and_nothing_is_written() {
     let out = dir.join("out");
     refused(&cut, &config("SpinePhantom_NN_MEAN"), &out, "cut.igs.mha");
     assert!(!out.exists());
+    // A sequence damaged in its last frames, whose first frames are pasted
+    // while the rest are decoded: refused as a whole read refuses it.
+    let mut damaged = bytes.clone();
+    let n = damaged.len();
+    damaged[n - 200_000..n - 100_000].iter_mut().for_each(|b| *b ^= 0x5A);
+    let damaged_path = dir.join("damaged.igs.mha");
+    std::fs::write(&damaged_path, &damaged).unwrap();
+    refused(
+        &damaged_path,
+        &config("SpinePhantom_NN_MEAN"),
+        &out,
+        "damaged.igs.mha: compressed data is corrupt or truncated after",
+    );
+    assert!(!out.exists());
     // No <VolumeReconstruction>.
     let bare = dir.join("bare.xml");
     std::fs::write(

@@ -7,13 +7,14 @@ use std::time::Instant;
 use nalgebra::Matrix4;
 
 use crate::io::plus::config::PlusConfig;
-use crate::io::plus::sequence::{Samples, Sequence};
+use crate::io::plus::sequence::{Deferred, Samples, Sequence};
 use crate::io::plus::volume_config::VolumeSettings;
+use crate::reconstruct::arrivals::Arrivals;
 use crate::reconstruct::grid::Grid;
 use crate::reconstruct::holes::HoleStats;
 use crate::reconstruct::paste::{PasteSettings, Slice};
 use crate::reconstruct::poses::{frame_poses, FramePose, SkippedFrame};
-use crate::reconstruct::{reconstruct, ReconstructError, Sample, Volume};
+use crate::reconstruct::{reconstruct, reconstruct_frames, ReconstructError, Sample, Volume};
 
 /// What to reconstruct.
 #[derive(Debug, Clone)]
@@ -237,7 +238,8 @@ pub fn run(inputs: &ReconstructInputs) -> Result<Reconstruction, ReconstructErro
         Some((matrix, _)) => Some(*matrix),
         None => inputs.calibration.as_deref().map(run_image_to_probe).transpose()?,
     };
-    let sequence = Sequence::read_any(&inputs.sequence)?;
+    // A compressed 8-bit sequence's frames are decoded while they are pasted.
+    let (sequence, deferred) = Sequence::read_any_deferred(&inputs.sequence)?;
     lap("read", &mut timings);
     let (poses, skipped) = frame_poses(
         &sequence,
@@ -265,26 +267,7 @@ pub fn run(inputs: &ReconstructInputs) -> Result<Reconstruction, ReconstructErro
         0 => crate::core::parallel::threads(),
         n => n,
     };
-    let (volume, stats) = match sequence.samples(poses[0].index) {
-        Samples::U8(_) => {
-            let slices = slices(&sequence, &poses, |s| match s {
-                Samples::U8(p) => Some(p),
-                Samples::F32(_) => None,
-            });
-            let out = reconstruct(&grid, &slices, &paste_settings, &settings.hole_filling, threads);
-            let stats = Stats::of(&out);
-            (AnyVolume::U8(out.volume), stats)
-        }
-        Samples::F32(_) => {
-            let slices = slices(&sequence, &poses, |s| match s {
-                Samples::F32(p) => Some(p),
-                Samples::U8(_) => None,
-            });
-            let out = reconstruct(&grid, &slices, &paste_settings, &settings.hole_filling, threads);
-            let stats = Stats::of(&out);
-            (AnyVolume::F32(out.volume), stats)
-        }
-    };
+    let (volume, stats) = reconstruct_any(&sequence, deferred, &grid, &poses, &paste_settings, &settings, threads)?;
     timings.extend(stats.timings);
     let wires = match &inputs.wires {
         Some(path) => {
@@ -379,6 +362,82 @@ impl Stats {
             timings: out.timings.clone(),
         }
     }
+}
+
+/// The volume of the kept frames, in the sequence's element type; a deferred
+/// sequence's frames decoded while they are pasted.
+fn reconstruct_any(
+    sequence: &Sequence,
+    deferred: Option<Deferred>,
+    grid: &Grid,
+    poses: &[FramePose],
+    paste_settings: &PasteSettings,
+    settings: &VolumeSettings,
+    threads: usize,
+) -> Result<(AnyVolume, Stats), ReconstructError> {
+    Ok(match (deferred, sequence.samples(poses[0].index)) {
+        (Some(deferred), _) => {
+            let (out, decoding_s) = reconstruct_decoding(&deferred, grid, poses, paste_settings, settings, threads)?;
+            let mut stats = Stats::of(&out);
+            stats
+                .timings
+                .insert(0, ("decoding, alongside the distribution".into(), decoding_s));
+            (AnyVolume::U8(out.volume), stats)
+        }
+        (None, Samples::U8(_)) => {
+            let slices = slices(sequence, poses, |s| match s {
+                Samples::U8(p) => Some(p),
+                Samples::F32(_) => None,
+            });
+            let out = reconstruct(grid, &slices, paste_settings, &settings.hole_filling, threads);
+            let stats = Stats::of(&out);
+            (AnyVolume::U8(out.volume), stats)
+        }
+        (None, Samples::F32(_)) => {
+            let slices = slices(sequence, poses, |s| match s {
+                Samples::F32(p) => Some(p),
+                Samples::U8(_) => None,
+            });
+            let out = reconstruct(grid, &slices, paste_settings, &settings.hole_filling, threads);
+            let stats = Stats::of(&out);
+            (AnyVolume::F32(out.volume), stats)
+        }
+    })
+}
+
+/// Reconstructs while a thread decodes the frames, each pasted as soon as it
+/// is decoded; the decoding's error if it fails. The decoding's seconds too.
+fn reconstruct_decoding(
+    deferred: &Deferred,
+    grid: &Grid,
+    poses: &[FramePose],
+    paste_settings: &PasteSettings,
+    settings: &VolumeSettings,
+    threads: usize,
+) -> Result<(crate::reconstruct::Output<u8>, f64), ReconstructError> {
+    let mut pixels = vec![0u8; deferred.expected()];
+    let matrices: Vec<_> = poses.iter().map(|p| p.reference_T_pixel).collect();
+    let arrivals = Arrivals::new(poses.iter().map(|p| p.index).collect());
+    let (out, decoded) = std::thread::scope(|scope| {
+        let decoder = scope.spawn(|| {
+            let _close = arrivals.closer();
+            let clock = Instant::now();
+            deferred
+                .decode(&mut pixels, |frame| arrivals.arrive(frame))
+                .map(|()| clock.elapsed().as_secs_f64())
+        });
+        let out = reconstruct_frames(
+            grid,
+            &matrices,
+            &arrivals,
+            paste_settings,
+            &settings.hole_filling,
+            threads,
+        );
+        (out, decoder.join())
+    });
+    let decoding_s = decoded.unwrap_or_else(|panic| std::panic::resume_unwind(panic))?;
+    Ok((out, decoding_s))
 }
 
 /// The kept frames' pixels of one element type, with their poses.

@@ -16,6 +16,7 @@
 //! threads: work is split by output slabs, and every voxel sees its pixels in
 //! frame, row, column order.
 
+pub mod arrivals;
 pub mod grid;
 pub mod holes;
 pub mod near;
@@ -157,8 +158,23 @@ pub fn reconstruct<T: Sample>(
     hole_filling: &[crate::io::plus::volume_config::HoleFilling],
     threads: usize,
 ) -> Output<T> {
+    let matrices: Vec<_> = slices.iter().map(|s| s.reference_T_pixel).collect();
+    reconstruct_frames(grid, &matrices, &slices, settings, hole_filling, threads)
+}
+
+/// [`reconstruct`] with the frames' poses apart from their pixels, which may
+/// still be arriving ([`paste::paste_frames`]).
+pub fn reconstruct_frames<T: Sample>(
+    grid: &Grid,
+    reference_T_pixel: &[nalgebra::Matrix4<f64>],
+    frames: &dyn paste::Frames<T>,
+    settings: &paste::PasteSettings,
+    hole_filling: &[crate::io::plus::volume_config::HoleFilling],
+    threads: usize,
+) -> Output<T> {
     let clock = std::time::Instant::now();
-    let pasted = paste::paste(grid, slices, settings, threads);
+    let mut pasted = paste::Pasted::zeroed(grid);
+    paste::paste_frames(grid, &mut pasted, reference_T_pixel, frames, settings, threads);
     let paste_s = clock.elapsed().as_secs_f64();
     let clock = std::time::Instant::now();
     let mut voxels = pasted.voxels;

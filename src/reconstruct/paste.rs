@@ -239,14 +239,18 @@ impl<T: Sample> Slab<'_, T> {
     fn insert_all(
         &mut self,
         grid: &Grid,
-        slices: &[Slice<T>],
+        frames: &dyn Frames<T>,
         mappers: &[Mapper],
         region: &[(usize, Vec<usize>)],
         settings: &PasteSettings,
     ) -> u64 {
         let mut inserted = 0u64;
         let (lo, hi) = (self.z0 as f64 - 2.0, (self.z0 + self.planes) as f64 + 1.0);
-        for (slice, mapper) in slices.iter().zip(mappers) {
+        for (k, mapper) in mappers.iter().enumerate() {
+            // A frame that will never come (its decoding failed): the caller reports why.
+            let Some(pixels) = frames.pixels(k) else {
+                break;
+            };
             for (y, xs) in region {
                 let (z_first, z_last) = (mapper.z(xs[0], *y), mapper.z(xs[xs.len() - 1], *y));
                 if z_first.max(z_last) < lo || z_first.min(z_last) > hi {
@@ -268,12 +272,12 @@ impl<T: Sample> Slab<'_, T> {
                 if let (Interpolation::NearestNeighbor, Mapper::Fixed { a, b, c }, None) =
                     (settings.interpolation, mapper, &settings.importance_mask)
                 {
-                    let row = &slice.pixels[y * settings.width..(y + 1) * settings.width];
+                    let row = &pixels[y * settings.width..(y + 1) * settings.width];
                     inserted += self.nearest_run_fixed(grid, [*a, *b, *c], *y, run, row, settings);
                     continue;
                 }
                 for &x in run {
-                    let value = slice.pixels[y * settings.width + x];
+                    let value = pixels[y * settings.width + x];
                     let Some(mask) = pixel_weight(settings, value, x, *y) else {
                         continue;
                     };
@@ -452,11 +456,40 @@ pub fn paste_into<T: Sample>(
     settings: &PasteSettings,
     threads: usize,
 ) {
+    let matrices: Vec<_> = slices.iter().map(|s| s.reference_T_pixel).collect();
+    paste_frames(grid, pasted, &matrices, &slices, settings, threads);
+}
+
+/// Frames to paste, by their place in the paste order.
+pub trait Frames<T>: Sync {
+    /// Frame `k`'s pixels (`width * height`), waited for if they are still being
+    /// decoded; `None` when they will not come (their decoding failed).
+    fn pixels(&self, k: usize) -> Option<&[T]>;
+}
+
+impl<T: Sync> Frames<T> for &[Slice<'_, T>] {
+    fn pixels(&self, k: usize) -> Option<&[T]> {
+        self.get(k).map(|s| s.pixels)
+    }
+}
+
+/// [`paste_into`] with the frames' poses (`reference_T_pixel`, in paste order)
+/// apart from their pixels, which `frames` gives as they come: each slab takes
+/// the frames in order, so the volume is the one all frames at once give. A
+/// frame that does not come ends the pasting there.
+pub fn paste_frames<T: Sample>(
+    grid: &Grid,
+    pasted: &mut Pasted<T>,
+    reference_T_pixel: &[nalgebra::Matrix4<f64>],
+    frames: &dyn Frames<T>,
+    settings: &PasteSettings,
+    threads: usize,
+) {
     let plane = grid.dims[0] * grid.dims[1];
     let region = region(settings);
-    let mappers: Vec<Mapper> = slices
+    let mappers: Vec<Mapper> = reference_T_pixel
         .iter()
-        .map(|s| Mapper::new(grid, &s.reference_T_pixel, settings.optimization))
+        .map(|m| Mapper::new(grid, m, settings.optimization))
         .collect();
     // One slab per worker (each maps only the run of a row that reaches it).
     let planes_per_slab = grid.dims[2].div_ceil(threads.max(1)).max(1);
@@ -475,7 +508,7 @@ pub fn paste_into<T: Sample>(
                     weights,
                     saturated: 0,
                 };
-                let inserted = slab.insert_all(grid, slices, &mappers, &region, settings);
+                let inserted = slab.insert_all(grid, frames, &mappers, &region, settings);
                 (slab.saturated, inserted)
             })
             .reduce(|| (0, 0), |a, b| (a.0 + b.0, a.1 + b.1))

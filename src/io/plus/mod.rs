@@ -5,6 +5,7 @@ pub mod orientation;
 pub mod result;
 pub mod segmentation;
 pub mod sequence;
+mod sequence_deferred;
 mod sequence_header;
 mod sequence_writer;
 pub mod volume_config;

@@ -14,6 +14,7 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 pub use super::orientation::Orientation;
+pub use super::sequence_deferred::Deferred;
 use super::sequence_header::{
     check_element, check_ndims, compressed_flag, dimensions, orientation, pixel_bytes, read_header, samples_in_mf,
     Header,
@@ -117,6 +118,64 @@ fn read_bounded(path: &Path) -> Result<Vec<u8>, SequenceError> {
     std::fs::read(path).map_err(|e| fail(format!("cannot read: {e}")))
 }
 
+/// Bytes of samples `count` frames of `width` x `height` take, refused (naming
+/// `dims`'s line) beyond [`MAX_FRAME_PIXELS`] a frame or [`MAX_SAMPLE_BYTES`] in all.
+fn bytes_of_samples(
+    width: usize,
+    height: usize,
+    count: usize,
+    sample_bytes: usize,
+    dims: &Field,
+    fail: &dyn Fn(Option<usize>, String) -> SequenceError,
+) -> Result<usize, SequenceError> {
+    let frame_pixels = width.checked_mul(height).filter(|&p| p <= MAX_FRAME_PIXELS);
+    frame_pixels
+        .and_then(|p| p.checked_mul(count))
+        .and_then(|p| p.checked_mul(sample_bytes))
+        .filter(|&b| b <= MAX_SAMPLE_BYTES)
+        .ok_or_else(|| {
+        fail(
+            Some(dims.line),
+            format!(
+            "`DimSize = {}` is implausibly large: at most {MAX_FRAME_PIXELS} pixels a frame and {} GiB of samples in all",
+            dims.value,
+            MAX_SAMPLE_BYTES >> 30
+            ),
+        )
+        })
+}
+
+/// The header's frames (their indices, ascending) are `DimSize`'s `count`,
+/// numbered from 0 without a gap.
+fn check_frame_count(
+    indices: impl DoubleEndedIterator<Item = usize> + ExactSizeIterator,
+    count: usize,
+    dims: &Field,
+    fail: &dyn Fn(Option<usize>, String) -> SequenceError,
+) -> Result<(), SequenceError> {
+    let described = indices.len();
+    let last = indices.last().map(|l| l + 1).unwrap_or(0);
+    if described != count || last != count {
+        return Err(fail(
+            Some(dims.line),
+            format!(
+                "frame count mismatch: `DimSize` has {count} frames, the header describes {described} (indices up to {last})"
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// Whether a sequence's pixels may be decoded frame by frame: compressed 8-bit
+/// samples, some of them, no more than zlib can expand `data_len` bytes to
+/// (about 1032 times), and a `CompressedDataSize` (if any) that the file holds.
+fn deferrable(compressed_u8: bool, expected: usize, data_len: usize, size: Option<&Field>) -> bool {
+    compressed_u8
+        && expected > 0
+        && expected <= data_len.saturating_mul(1032)
+        && size.is_none_or(|s| s.value.parse::<usize>().is_ok_and(|n| n <= data_len))
+}
+
 impl Sequence {
     /// Reads and checks a sequence file.
     pub fn read(path: &Path) -> Result<Sequence, SequenceError> {
@@ -138,6 +197,38 @@ impl Sequence {
 
     /// Parses the bytes of a sequence file, float images too where `allow_float`.
     pub fn parse_with(path: &Path, bytes: &[u8], allow_float: bool) -> Result<Sequence, SequenceError> {
+        Sequence::parse_deferring(path, bytes, allow_float, false).map(|(sequence, _)| sequence)
+    }
+
+    /// Reads a sequence as [`Sequence::read_any`] does, except that the frames of
+    /// a zlib-compressed 8-bit sequence are left compressed: the sequence comes
+    /// without pixels, and [`Deferred::decode`] decodes them frame by frame, so
+    /// that each can be used as soon as it is decoded. Any other sequence is read
+    /// whole, as `read_any` reads it.
+    pub fn read_any_deferred(path: &Path) -> Result<(Sequence, Option<Deferred>), SequenceError> {
+        let bytes = read_bounded(path)?;
+        let (sequence, data) = Sequence::parse_deferring(path, &bytes, true, true)?;
+        let deferred = data.map(|(data_start, expected)| Deferred {
+            path: path.to_path_buf(),
+            bytes,
+            data_start,
+            expected,
+            width: sequence.width,
+            height: sequence.height,
+            orientation: sequence.orientation,
+        });
+        Ok((sequence, deferred))
+    }
+
+    /// [`Sequence::parse_with`]; where `defer` and the sequence's pixels are
+    /// zlib-compressed 8-bit samples of a plausible size, without them, and with
+    /// where they start and how many bytes they decode to.
+    fn parse_deferring(
+        path: &Path,
+        bytes: &[u8],
+        allow_float: bool,
+        defer: bool,
+    ) -> Result<(Sequence, Option<(usize, usize)>), SequenceError> {
         let fail = |line: Option<usize>, message: String| SequenceError {
             path: path.to_path_buf(),
             line,
@@ -163,34 +254,41 @@ impl Sequence {
             &fail,
         )?;
         let sample_bytes = if float { 4 } else { 1 };
-        let frame_pixels = width.checked_mul(height).filter(|&p| p <= MAX_FRAME_PIXELS);
-        let expected = frame_pixels
-            .and_then(|p| p.checked_mul(count))
-            .and_then(|p| p.checked_mul(sample_bytes))
-            .filter(|&b| b <= MAX_SAMPLE_BYTES)
-            .ok_or_else(|| {
-                fail(
-                    Some(dims.line),
-                    format!(
-                        "`DimSize = {}` is implausibly large: at most {MAX_FRAME_PIXELS} pixels a frame and {} GiB of samples in all",
-                        dims.value,
-                        MAX_SAMPLE_BYTES >> 30
-                    ),
-                )
-            })?;
+        let expected = bytes_of_samples(width, height, count, sample_bytes, dims, &fail)?;
         let compressed = compressed_flag(header.get("CompressedData"), &fail)?;
-        if per_frame.len() != count || per_frame.keys().next_back().is_some_and(|&last| last + 1 != count) {
-            let last = per_frame.keys().next_back().map(|l| l + 1).unwrap_or(0);
-            return Err(fail(
-                Some(dims.line),
-                format!(
-                    "frame count mismatch: `DimSize` has {count} frames, the header describes {} (indices up to {})",
-                    per_frame.len(),
-                    last
-                ),
-            ));
-        }
+        check_frame_count(per_frame.keys().copied(), count, dims, &fail)?;
         let data = &bytes[data_start..];
+        let assemble = |orientation, pixels, float_pixels| Sequence {
+            path: path.to_path_buf(),
+            width,
+            height,
+            orientation,
+            header: header.clone(),
+            frames: per_frame
+                .into_iter()
+                .map(|(index, fields)| SequenceFrame { index, fields })
+                .collect(),
+            pixels,
+            float_pixels,
+        };
+        // Deferred only where nothing below can fail before the pixels are
+        // decoded (decoding checks the rest, and a failure is reported as the
+        // whole read reports it).
+        if defer
+            && deferrable(
+                compressed && !float,
+                expected,
+                data.len(),
+                header.get("CompressedDataSize"),
+            )
+        {
+            if let Ok(orientation) = orientation(header.get("UltrasoundImageOrientation"), &fail) {
+                return Ok((
+                    assemble(orientation, Vec::new(), Vec::new()),
+                    Some((data_start, expected)),
+                ));
+            }
+        }
         let compressed_size = if compressed {
             Some(header.get("CompressedDataSize"))
         } else {
@@ -215,22 +313,10 @@ impl Sequence {
                 format!("more pixel data than `DimSize` says ({count} frames of {width}x{height})"),
             ));
         }
-        let frames = per_frame
-            .into_iter()
-            .map(|(index, fields)| SequenceFrame { index, fields })
-            .collect();
         let orientation = orientation(header.get("UltrasoundImageOrientation"), &fail)?;
         let (pixels, float_pixels) = samples_in_mf(pixels, float, orientation, width, height);
-        Ok(Sequence {
-            path: path.to_path_buf(),
-            width,
-            height,
-            orientation,
-            header,
-            frames,
-            pixels,
-            float_pixels,
-        })
+        let sequence = assemble(orientation, pixels, float_pixels);
+        Ok((sequence, None))
     }
 
     /// Frame `index`'s samples, 8-bit or float (row-major, `width * height`).
