@@ -20,6 +20,10 @@ use std::time::Duration;
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use probecal::pipeline::reconstruct::{run, ReconstructInputs};
 
+// The command's allocator, so that the in-process figure is the command's.
+#[global_allocator]
+static ALLOCATOR: probecal::core::large_pages::LargePages = probecal::core::large_pages::LargePages;
+
 fn data() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/plus-volume-reconstruction")
 }
