@@ -134,9 +134,10 @@ pub fn run_image_to_probe(folder: &Path) -> Result<Matrix4<f64>, ReconstructErro
     Ok(Matrix4::from_fn(|r, c| rows[r][c]))
 }
 
-/// The clip rectangle's first and last inserted column and row, and the far
-/// corner PLUS fits the volume to (one past the last inserted, within the frame).
-fn clip(settings: &VolumeSettings, width: usize, height: usize) -> Result<([usize; 4], [usize; 2]), ReconstructError> {
+/// The clip rectangle's first and last inserted column and row: PLUS's
+/// rectangle runs from the origin to origin + size, both included (within the
+/// frame), in the pixels it inserts as in the corners it fits the volume to.
+fn clip(settings: &VolumeSettings, width: usize, height: usize) -> Result<[usize; 4], ReconstructError> {
     let [ox, oy] = settings.clip_origin_px;
     let [sx, sy] = match settings.clip_size_px {
         [0, 0] => [width, height],
@@ -153,9 +154,7 @@ fn clip(settings: &VolumeSettings, width: usize, height: usize) -> Result<([usiz
             ),
         });
     }
-    let inserted = [ox, oy, (ox + sx - 1).min(width - 1), (oy + sy - 1).min(height - 1)];
-    let far = [(ox + sx).min(width - 1), (oy + sy).min(height - 1)];
-    Ok((inserted, far))
+    Ok([ox, oy, (ox + sx).min(width - 1), (oy + sy).min(height - 1)])
 }
 
 fn importance_mask(
@@ -189,12 +188,17 @@ fn grid_and_paste(
     poses: &[FramePose],
 ) -> Result<(Grid, PasteSettings), ReconstructError> {
     let (width, height) = (sequence.width, sequence.height);
-    let (clip_px, far_px) = clip(settings, width, height)?;
+    let clip_px = clip(settings, width, height)?;
     let grid = match (settings.origin_mm, settings.extent) {
         (Some(origin), Some(extent)) => Grid::from_extent(origin, settings.spacing_mm, extent),
         _ => {
             let matrices: Vec<_> = poses.iter().map(|p| p.reference_T_pixel).collect();
-            Grid::fit(&matrices, [clip_px[0], clip_px[1]], far_px, settings.spacing_mm)
+            Grid::fit(
+                &matrices,
+                [clip_px[0], clip_px[1]],
+                [clip_px[2], clip_px[3]],
+                settings.spacing_mm,
+            )
         }
     }
     .map_err(|e| ReconstructError::Input {
@@ -210,7 +214,7 @@ pub fn paste_settings(
     width: usize,
     height: usize,
 ) -> Result<PasteSettings, ReconstructError> {
-    let (clip_px, _) = clip(settings, width, height)?;
+    let clip_px = clip(settings, width, height)?;
     Ok(PasteSettings {
         width,
         height,
