@@ -1,0 +1,111 @@
+//! Unit tests of hole filling.
+
+use super::*;
+
+/// The tabled sticks equal the voxel-by-voxel search on a sparse random
+/// volume, whatever the limit and the slab.
+#[test]
+fn tabled_sticks_equal_the_search_voxel_by_voxel() {
+    let grid = Grid {
+        origin_mm: [0.0; 3],
+        spacing_mm: [1.0; 3],
+        dims: [17, 13, 11],
+    };
+    let n = 17 * 13 * 11;
+    let mut state = 12345u64;
+    let mut next = || {
+        state = state
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (state >> 33) as u32
+    };
+    let (dirs, plane) = (stick_directions(grid.dims), 17 * 13);
+    let mut sticks = 0;
+    // One voxel in 10 filled, then one in 300 (most holes out of every stick's reach).
+    for one_in in [10, 300] {
+        let mut voxels = vec![0u8; n];
+        let mut weights = vec![0u16; n];
+        for i in 0..n {
+            if next() % one_in == 0 {
+                weights[i] = 256;
+                voxels[i] = (next() % 256) as u8;
+            }
+        }
+        let source = Source {
+            grid: &grid,
+            voxels: &voxels,
+            weights: &weights,
+        };
+        for limit in [1, 2, 4, 9] {
+            for (z0, z1) in [(0, 11), (0, 4), (4, 9), (9, 11)] {
+                let mut table = stick_table(&source, z0, z1, limit, &dirs);
+                for k in 0..(z1 - z0) * plane {
+                    let i = z0 * plane + k;
+                    let value = table.at(k);
+                    if weights[i] != 0 {
+                        assert_eq!(value, None, "a filled voxel is not a hole");
+                        continue;
+                    }
+                    let p = [(i % 17) as i64, ((i / 17) % 13) as i64, (i / plane) as i64];
+                    assert_eq!(value, source.stick(i, p, limit, 1, &dirs), "voxel {p:?}, limit {limit}");
+                    sticks += usize::from(value.is_some());
+                }
+            }
+        }
+    }
+    assert!(sticks > 1000, "{sticks} sticks only");
+}
+
+#[test]
+fn a_stick_fills_the_gap_between_two_filled_planes() {
+    // 1 x 1 x 5 column: 10 at z=0, 50 at z=4, holes between.
+    let grid = Grid {
+        origin_mm: [0.0; 3],
+        spacing_mm: [1.0; 3],
+        dims: [1, 1, 5],
+    };
+    let mut voxels = vec![10u8, 0, 0, 0, 50];
+    let weights = vec![256u16, 0, 0, 0, 256];
+    let stick = HoleFilling::Stick {
+        length_limit: 9,
+        sticks_to_use: 1,
+    };
+    let stats = fill(&grid, &mut voxels, &weights, &[stick], 2);
+    assert_eq!(stats.holes_before, 3);
+    assert_eq!(stats.holes_after, 0);
+    // Ahead (towards z=4) k, behind counted one longer: value = 50·t + 10·(1−t),
+    // t = (behind+1)/(ahead+behind+1).
+    assert_eq!(voxels, vec![10, 26, 34, 42, 50]);
+    // Holes may hold a value (weights that rounded to nothing): those left
+    // unfilled are emptied, with the tabled sticks (one stick) and with the
+    // search hole by hole (two), on one slab or two.
+    for (sticks_to_use, threads) in [(1, 1), (1, 2), (2, 1), (2, 2)] {
+        let mut short = vec![10u8, 7, 7, 7, 50];
+        let limited = HoleFilling::Stick {
+            length_limit: 2,
+            sticks_to_use,
+        };
+        let stats = fill(&grid, &mut short, &weights, &[limited], threads);
+        assert_eq!(stats.holes_after, 2, "z=1 and z=3 are 3 steps from one end");
+        assert_eq!(
+            short,
+            vec![10, 0, 34, 0, 50],
+            "{sticks_to_use} sticks, {threads} threads"
+        );
+        // A longer column: its middle is beyond every stick's reach.
+        let long = Grid {
+            origin_mm: [0.0; 3],
+            spacing_mm: [1.0; 3],
+            dims: [1, 1, 9],
+        };
+        let mut column = vec![10u8, 7, 7, 7, 7, 7, 7, 7, 50];
+        let ends = vec![256u16, 0, 0, 0, 0, 0, 0, 0, 256];
+        let stats = fill(&long, &mut column, &ends, &[limited], threads);
+        assert_eq!(stats.holes_after, 7);
+        assert_eq!(
+            column,
+            vec![10, 0, 0, 0, 0, 0, 0, 0, 50],
+            "{sticks_to_use} sticks, {threads} threads"
+        );
+    }
+}
