@@ -152,12 +152,12 @@ fn linear_maximum_is_plus_byte_for_byte() {
 
 #[test]
 #[ignore = "needs ../shared/data (full tier: scripts/test.sh)"]
-fn linear_mean_with_fan_and_holes_is_close_to_plus() {
+fn linear_mean_with_fan_and_holes_is_within_one_grey_level_of_plus() {
     plus_case(
         "SonixRP_TRUS_D70mm_LN_MEAN",
         "vtkVolumeReconstructorTestLNMEANvolumeRef.mha",
-        0.965,
-        0.994,
+        0.99,
+        0.997,
         false,
     );
 }

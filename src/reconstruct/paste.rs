@@ -162,20 +162,26 @@ fn corner_weight(o: [usize; 3], frac: [f64; 3], fixed: Option<[i64; 3]>) -> (f64
     }
 }
 
-/// Whether pixel (x, y) lies in the fan: below its origin, within its radii
-/// (inclusive) and between its edges, compared as PLUS compares them, by the
-/// tangent (`dx/dy` against `tan(angle)` in double precision, so that a pixel
-/// exactly on a 45° edge, where `tan` falls short of 1, is outside).
+/// Whether pixel (x, y) lies in the fan, tested as PLUS tests it:
+/// - below the origin and between the edges, compared by the tangent (`dx/dy`
+///   against `tan(angle)` in double precision, so that a pixel exactly on a 45°
+///   edge, where `tan` falls short of 1, is outside);
+/// - the arcs row by row: in a row, the pixels inside a circle are those strictly
+///   between the first and the last pixel whose centre is inside it, that is,
+///   those whose neighbour one pixel further from the origin's column is inside
+///   (`(|dx| + 1)² + dy² <= radius²`). The start circle's inside is cut away, the
+///   stop circle's inside kept.
 pub fn in_fan(fan: &Fan, x: usize, y: usize) -> bool {
     let dx = x as f64 - fan.origin_px[0];
     let dy = y as f64 - fan.origin_px[1];
     if dy <= 0.0 {
         return false;
     }
-    let r = (dx * dx + dy * dy).sqrt();
+    let outer_squared = (dx.abs() + 1.0).powi(2) + dy * dy;
+    let inside = |radius: f64| outer_squared <= radius * radius;
     let slope = dx / dy;
-    r >= fan.radius_start_px
-        && r <= fan.radius_stop_px
+    !inside(fan.radius_start_px)
+        && inside(fan.radius_stop_px)
         && slope >= fan.angles_deg[0].to_radians().tan()
         && slope <= fan.angles_deg[1].to_radians().tan()
 }

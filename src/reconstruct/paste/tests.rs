@@ -88,3 +88,29 @@ fn frames_pasted_one_at_a_time_give_the_volume_of_all_at_once() {
         }
     }
 }
+
+/// The fan's arcs are cut row by row: a pixel is inside a circle when the pixel
+/// one further from the origin's column is (PLUS's rule), not when its own centre is.
+#[test]
+fn the_fan_arcs_are_cut_row_by_row() {
+    let fan = Fan {
+        angles_deg: [-80.0, 80.0],
+        origin_px: [20.0, 0.0],
+        radius_start_px: 5.0,
+        radius_stop_px: 9.0,
+    };
+    // Row 2: the start circle spans |dx| <= 4.58, the stop circle |dx| <= 8.77.
+    let kept: Vec<i64> = (0..40usize)
+        .filter(|&x| in_fan(&fan, x, 2))
+        .map(|x| x as i64 - 20)
+        .collect();
+    assert_eq!(
+        kept,
+        vec![-7, -6, -5, -4, 4, 5, 6, 7],
+        "dx = ±4 (centre 4.47 from the origin) is kept, ±8 (8.25) is not"
+    );
+    // Row 4: the start circle meets the row at |dx| = 3 exactly, which is kept.
+    assert!(in_fan(&fan, 23, 4) && !in_fan(&fan, 22, 4));
+    // Above the origin's row, or on it, nothing.
+    assert!(!in_fan(&fan, 27, 0));
+}
