@@ -11,13 +11,14 @@
 //!
 //! STICK (Vaughan et al., "Hole filling with oriented sticks in ultrasound volume
 //! reconstruction", J. Med. Imaging 2015): from the hole, along each of the 13
-//! directions of the 26-neighbourhood (both ways), the first filled voxel within
-//! `StickLengthLimit` steps; a direction with one on both sides is a stick, its
-//! value interpolated linearly between its ends. The shortest stick wins
-//! (`NumberOfSticksToUse` > 1: the shortest ones, weighted by inverse length).
-//! PLUS counts the backward half of each stick one step longer than it is, in
-//! its length and its interpolation weights; probecal does the same, so that its
-//! volumes match PLUS's (`docs/reconstruction.md` shows the measurement).
+//! directions of the 26-neighbourhood (both ways), the first filled voxel; a
+//! direction with one on both sides is a stick, its value interpolated linearly
+//! between its ends. The shortest stick wins (`NumberOfSticksToUse` > 1: the
+//! shortest ones, weighted by inverse length). PLUS counts the backward half of
+//! each stick one step longer than it is, in its length and its interpolation
+//! weights, and `StickLengthLimit` bounds the whole stick so counted: ahead +
+//! behind + 1 steps at most. probecal does the same, so that its volumes match
+//! PLUS's (`docs/results/reconstruction.md` shows the measurement).
 //!
 //! A one-stick element is tabled rather than searched from every hole: per
 //! direction, every voxel's steps to the first filled voxel either way follow
@@ -114,17 +115,17 @@ impl<T: Sample> Source<'_, T> {
         None
     }
 
-    /// (length, value) of the stick along `dir`, if it has both ends and is not
-    /// longer than `at_most`.
+    /// (length, value) of the stick along `dir`, if it has both ends, at most
+    /// `limit` steps (ahead + behind + 1) and is not longer than `at_most`.
     fn one_stick(&self, i: usize, p: [i64; 3], dir: &Dir, limit: usize, at_most: f64) -> Option<(f64, f64)> {
-        // Steps (ahead + behind + 1) that keep the stick within `at_most`.
-        let steps = ((at_most / dir.unit) + 1e-9).min((2 * limit + 1) as f64) as usize;
+        // Steps (ahead + behind + 1) that keep the stick within both bounds.
+        let steps = ((at_most / dir.unit) + 1e-9).min(limit as f64) as usize;
         if steps < 3 {
             return None;
         }
-        let (ahead, v_ahead) = self.first_filled(i, p, dir, 1, limit.min(steps - 2))?;
+        let (ahead, v_ahead) = self.first_filled(i, p, dir, 1, steps - 2)?;
         let room = steps - 1 - ahead as usize;
-        let (behind, v_behind) = self.first_filled(i, p, dir, -1, limit.min(room))?;
+        let (behind, v_behind) = self.first_filled(i, p, dir, -1, room)?;
         let behind = behind + 1.0;
         let t = behind / (ahead + behind);
         Some(((ahead + behind) * dir.unit, v_ahead * t + v_behind * (1.0 - t)))
@@ -215,9 +216,15 @@ impl<T: Sample> Source<'_, T> {
     }
 }
 
-/// The most steps a stick's half may take for the table below (steps are
-/// counted in a byte); a longer `StickLengthLimit` is searched voxel by voxel.
+/// The longest `StickLengthLimit` the table below takes (a stick's half, at most
+/// two steps shorter, is counted in a byte); a longer one is searched voxel by voxel.
 const TABLE_MAX_LIMIT: usize = 254;
+
+/// The most steps either end of a stick can be from its hole under `limit`
+/// (ahead + behind + 1 steps at most, each end at least one step away).
+fn half_reach(limit: usize) -> usize {
+    limit.saturating_sub(2)
+}
 
 /// The most voxels a volume may have for its sticks to be tabled (at most 28
 /// bytes a voxel more, under 2 GiB: each hole's place, best stick so far and
@@ -241,12 +248,14 @@ fn tabled(element: &HoleFilling, voxels: usize) -> Option<usize> {
 /// [`Source::stick`] finds it, but for all holes at once: per direction, each
 /// voxel's steps to the first filled voxel ahead come from its neighbour's
 /// (`ahead[v] = 1` when `v + d` is filled, else `ahead[v + d] + 1`, none past
-/// `limit`), and likewise behind. The planes within `limit` of the slab are
-/// included, so the steps of the slab's own voxels are whole.
+/// the [`half_reach`]), and likewise behind; a stick whose steps exceed `limit`
+/// is dropped. The planes within reach of the slab are included, so the steps of
+/// the slab's own voxels are whole.
 fn stick_table<T: Sample>(source: &Source<'_, T>, z0: usize, z1: usize, limit: usize, dirs: &[Dir]) -> StickValues {
     let [nx, ny, nz] = source.grid.dims;
     let plane = nx * ny;
-    let (lo, hi) = (z0.saturating_sub(limit), (z1 + limit).min(nz));
+    let side = half_reach(limit);
+    let (lo, hi) = (z0.saturating_sub(side), (z1 + side).min(nz));
     let sub = [nx, ny, hi - lo];
     // 1 where the planes `lo..hi` are filled, 0 where not.
     let filled: Vec<u8> = source.weights[lo * plane..hi * plane]
@@ -255,9 +264,9 @@ fn stick_table<T: Sample>(source: &Source<'_, T>, z0: usize, z1: usize, limit: u
         .collect();
     // The slab's holes that a stick may reach (indices from its first voxel),
     // the only voxels looked at below.
-    let reach = super::near::within_cube(&filled, sub, limit);
+    let reach = super::near::within_cube(&filled, sub, side);
     let holes: Vec<u32> = (0..(z1 - z0) * plane)
-        .filter(|&k| reach[(z0 - lo) * plane + k] != 0 && filled[(z0 - lo) * plane + k] == 0)
+        .filter(|&k| side > 0 && reach[(z0 - lo) * plane + k] != 0 && filled[(z0 - lo) * plane + k] == 0)
         .map(|k| k as u32)
         .collect();
     let mut best_len = vec![f64::INFINITY; holes.len()];
@@ -272,14 +281,14 @@ fn stick_table<T: Sample>(source: &Source<'_, T>, z0: usize, z1: usize, limit: u
         if open.is_empty() {
             break;
         }
-        steps_to_filled(&filled, sub, dir.step, limit, &mut ahead);
-        steps_to_filled(&filled, sub, dir.step.map(|c| -c), limit, &mut behind);
+        steps_to_filled(&filled, sub, dir.step, side, &mut ahead);
+        steps_to_filled(&filled, sub, dir.step.map(|c| -c), side, &mut behind);
         for &h in &open {
             let h = h as usize;
             let i = z0 * plane + holes[h] as usize;
             let local = i - lo * plane;
             let (a, b) = (ahead[local], behind[local]);
-            if a == 0 || b == 0 {
+            if a == 0 || b == 0 || usize::from(a) + usize::from(b) + 1 > limit {
                 continue;
             }
             let (ahead_steps, behind_steps) = (f64::from(a), f64::from(b) + 1.0);
@@ -445,7 +454,7 @@ pub fn fill<T: Sample>(
         })
         .collect::<Option<Vec<usize>>>()
         .filter(|_| !all_tabled)
-        .map(|limits| near_filled(grid, weights, limits.into_iter().max().unwrap_or(0)));
+        .map(|limits| near_filled(grid, weights, half_reach(limits.into_iter().max().unwrap_or(0))));
     let plane = grid.dims[0] * grid.dims[1];
     let nz = grid.dims[2];
     // A slab of planes per thread; each tables its one-stick elements.

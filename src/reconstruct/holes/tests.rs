@@ -76,36 +76,32 @@ fn a_stick_fills_the_gap_between_two_filled_planes() {
     // Ahead (towards z=4) k, behind counted one longer: value = 50·t + 10·(1−t),
     // t = (behind+1)/(ahead+behind+1).
     assert_eq!(voxels, vec![10, 26, 34, 42, 50]);
-    // Holes may hold a value (weights that rounded to nothing): those left
-    // unfilled are emptied, with the tabled sticks (one stick) and with the
-    // search hole by hole (two), on one slab or two.
-    for (sticks_to_use, threads) in [(1, 1), (1, 2), (2, 1), (2, 2)] {
-        let mut short = vec![10u8, 7, 7, 7, 50];
-        let limited = HoleFilling::Stick {
-            length_limit: 2,
-            sticks_to_use,
-        };
-        let stats = fill(&grid, &mut short, &weights, &[limited], threads);
-        assert_eq!(stats.holes_after, 2, "z=1 and z=3 are 3 steps from one end");
-        assert_eq!(
-            short,
-            vec![10, 0, 34, 0, 50],
-            "{sticks_to_use} sticks, {threads} threads"
-        );
-        // A longer column: its middle is beyond every stick's reach.
-        let long = Grid {
-            origin_mm: [0.0; 3],
-            spacing_mm: [1.0; 3],
-            dims: [1, 1, 9],
-        };
-        let mut column = vec![10u8, 7, 7, 7, 7, 7, 7, 7, 50];
-        let ends = vec![256u16, 0, 0, 0, 0, 0, 0, 0, 256];
-        let stats = fill(&long, &mut column, &ends, &[limited], threads);
-        assert_eq!(stats.holes_after, 7);
-        assert_eq!(
-            column,
-            vec![10, 0, 0, 0, 0, 0, 0, 0, 50],
-            "{sticks_to_use} sticks, {threads} threads"
-        );
+    // `StickLengthLimit` bounds the whole stick, ahead + behind + 1 steps: in
+    // 10, _, 30, _, _, 50 the hole at z=1 has a stick of 3 steps, those at z=3
+    // and z=4 of 4. Holes may hold a value (weights that rounded to nothing):
+    // those left unfilled are emptied, with the tabled sticks (one stick) and
+    // with the search hole by hole (two), on one slab or two.
+    let column = Grid {
+        origin_mm: [0.0; 3],
+        spacing_mm: [1.0; 3],
+        dims: [1, 1, 6],
+    };
+    let weights = vec![256u16, 0, 256, 0, 0, 256];
+    for (length_limit, expected, unfilled) in [
+        (4, vec![10u8, 23, 30, 40, 45, 50], 0),
+        (3, vec![10, 23, 30, 0, 0, 50], 2),
+        (2, vec![10, 0, 30, 0, 0, 50], 3),
+    ] {
+        for (sticks_to_use, threads) in [(1, 1), (1, 2), (2, 1), (2, 2)] {
+            let mut voxels = vec![10u8, 7, 30, 7, 7, 50];
+            let stick = HoleFilling::Stick {
+                length_limit,
+                sticks_to_use,
+            };
+            let stats = fill(&column, &mut voxels, &weights, &[stick], threads);
+            let case = format!("limit {length_limit}, {sticks_to_use} sticks, {threads} threads");
+            assert_eq!(stats.holes_after, unfilled, "{case}");
+            assert_eq!(voxels, expected, "{case}");
+        }
     }
 }
