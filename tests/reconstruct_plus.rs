@@ -132,8 +132,8 @@ fn nearest_neighbour_mean_with_stick_hole_filling_matches_plus() {
     plus_case(
         "SpinePhantom_NN_MEAN",
         "vtkVolumeReconstructorTestNNMEANvolumeRef.mha",
-        0.998,
-        0.9999,
+        1.0,
+        1.0,
         false,
     );
 }
@@ -156,8 +156,8 @@ fn linear_mean_with_fan_and_holes_is_within_one_grey_level_of_plus() {
     plus_case(
         "SonixRP_TRUS_D70mm_LN_MEAN",
         "vtkVolumeReconstructorTestLNMEANvolumeRef.mha",
-        0.995,
-        0.9999,
+        0.9995,
+        1.0,
         false,
     );
 }

@@ -13,12 +13,14 @@
 //! reconstruction", J. Med. Imaging 2015): from the hole, along each of the 13
 //! directions of the 26-neighbourhood (both ways), the first filled voxel; a
 //! direction with one on both sides is a stick, its value interpolated linearly
-//! between its ends. The shortest stick wins (`NumberOfSticksToUse` > 1: the
-//! shortest ones, weighted by inverse length). PLUS counts the backward half of
-//! each stick one step longer than it is, in its length and its interpolation
-//! weights, and `StickLengthLimit` bounds the whole stick so counted: ahead +
-//! behind + 1 steps at most. probecal does the same, so that its volumes match
-//! PLUS's (`docs/results/reconstruction.md` shows the measurement).
+//! between its ends and stored as a voxel is (8-bit: floored). The shortest
+//! stick wins, and sticks as short are averaged with it (`NumberOfSticksToUse`
+//! = n > 1: the sticks as short as the n-th shortest, weighted by inverse
+//! length). PLUS counts the backward half of each stick one step longer than it
+//! is, in its length and its interpolation weights, and `StickLengthLimit`
+//! bounds the whole stick so counted: ahead + behind + 1 steps at most.
+//! probecal does the same, so that its volumes match PLUS's
+//! (`docs/results/reconstruction.md` shows the measurement).
 //!
 //! A one-stick element is tabled rather than searched from every hole: per
 //! direction, every voxel's steps to the first filled voxel either way follow
@@ -42,7 +44,7 @@ pub struct HoleStats {
 /// A stick direction with what its searches need.
 #[derive(Debug, Clone, Copy)]
 struct Dir {
-    /// Canonical index (ties between equally long sticks go to the lower).
+    /// Canonical index (the order among directions of one step length).
     index: usize,
     step: [i64; 3],
     /// Length of one step, voxels.
@@ -52,9 +54,8 @@ struct Dir {
 }
 
 /// The 13 stick directions, one of each opposite pair of the 26-neighbourhood,
-/// with their canonical index (z, then y, then x from −1 to 1: ties between
-/// equally long sticks go to the lower index), axes first, then face and body
-/// diagonals.
+/// with their canonical index (z, then y, then x from −1 to 1), axes first,
+/// then face and body diagonals.
 fn stick_directions(dims: [usize; 3]) -> Vec<Dir> {
     let mut out = Vec::new();
     for dz in -1..=1 {
@@ -127,40 +128,34 @@ impl<T: Sample> Source<'_, T> {
         let room = steps - 1 - ahead as usize;
         let (behind, v_behind) = self.first_filled(i, p, dir, -1, room)?;
         let behind = behind + 1.0;
-        let t = behind / (ahead + behind);
-        Some(((ahead + behind) * dir.unit, v_ahead * t + v_behind * (1.0 - t)))
+        Some((
+            (ahead + behind) * dir.unit,
+            stick_value::<T>(ahead, behind, v_ahead, v_behind),
+        ))
     }
 
-    /// The shortest stick's value (`use_sticks` > 1: the shortest ones' mean
-    /// weighted by inverse length). `dirs` come shortest unit first, so the bound
-    /// tightens early; ties go to the lower canonical index.
+    /// The mean value of the shortest sticks: those as short as the shortest
+    /// (`use_sticks` > 1: as the `use_sticks`-th shortest, weighted by inverse
+    /// length). `dirs` come shortest unit first, so the bound tightens early.
     fn stick(&self, i: usize, p: [i64; 3], limit: usize, use_sticks: usize, dirs: &[Dir]) -> Option<f64> {
-        if use_sticks <= 1 {
-            let mut best: Option<(f64, usize, f64)> = None;
-            for dir in dirs {
-                let bound = best.map_or(f64::INFINITY, |b| b.0);
-                if let Some((length, value)) = self.one_stick(i, p, dir, limit, bound) {
-                    if best.is_none_or(|b| length < b.0 || (length == b.0 && dir.index < b.1)) {
-                        best = Some((length, dir.index, value));
-                    }
-                }
-            }
-            return best.map(|b| b.2);
+        let mut sticks: Vec<(f64, f64)> = Vec::with_capacity(dirs.len());
+        for dir in dirs {
+            // With one stick to use, none longer than the shortest so far counts.
+            let bound = match use_sticks {
+                0 | 1 => sticks.iter().map(|s| s.0).fold(f64::INFINITY, f64::min),
+                _ => f64::INFINITY,
+            };
+            sticks.extend(self.one_stick(i, p, dir, limit, bound));
         }
-        let mut sticks: Vec<(f64, usize, f64)> = dirs
-            .iter()
-            .filter_map(|dir| {
-                self.one_stick(i, p, dir, limit, f64::INFINITY)
-                    .map(|(length, value)| (length, dir.index, value))
-            })
-            .collect();
         if sticks.is_empty() {
             return None;
         }
-        sticks.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-        let best = &sticks[..use_sticks.min(sticks.len())];
-        let total: f64 = best.iter().map(|s| 1.0 / s.0).sum();
-        Some(best.iter().map(|s| s.2 / s.0).sum::<f64>() / total)
+        sticks.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let cutoff = sticks[use_sticks.clamp(1, sticks.len()) - 1].0;
+        // Weights relative to the cutoff: sticks of one length weigh exactly 1.
+        let used = sticks.iter().filter(|s| s.0 <= cutoff).map(|s| (cutoff / s.0, s.1));
+        let total: f64 = used.clone().map(|(w, _)| w).sum();
+        Some(used.map(|(w, v)| w * v).sum::<f64>() / total)
     }
 
     /// Weighted mean of the filled voxels of the `size`³ cube around `p`, if at
@@ -214,6 +209,13 @@ impl<T: Sample> Source<'_, T> {
             }
         }
     }
+}
+
+/// A stick's value: its ends' values interpolated at the hole (`ahead` and
+/// `behind` steps away, `behind` counted one longer), stored as a voxel is.
+fn stick_value<T: Sample>(ahead: f64, behind: f64, v_ahead: f64, v_behind: f64) -> f64 {
+    let t = behind / (ahead + behind);
+    T::from_floor(v_ahead * t + v_behind * (1.0 - t)).to_f64()
 }
 
 /// The longest `StickLengthLimit` the table below takes (a stick's half, at most
@@ -270,9 +272,10 @@ fn stick_table<T: Sample>(source: &Source<'_, T>, z0: usize, z1: usize, limit: u
         .map(|k| k as u32)
         .collect();
     let mut best_len = vec![f64::INFINITY; holes.len()];
-    // The direction's canonical index (0–12); `u8::MAX`: no stick yet.
-    let mut best_dir = vec![u8::MAX; holes.len()];
-    let mut best_value = vec![0.0f64; holes.len()];
+    // The sum of the values of the sticks as short as the shortest, and how many
+    // (0: no stick yet).
+    let mut best_sum = vec![0.0f64; holes.len()];
+    let mut best_count = vec![0u8; holes.len()];
     // The holes a later direction may still give a better stick (by position in `holes`).
     let mut open: Vec<u32> = (0..holes.len() as u32).collect();
     let mut ahead = vec![0u8; sub[2] * plane];
@@ -293,14 +296,16 @@ fn stick_table<T: Sample>(source: &Source<'_, T>, z0: usize, z1: usize, limit: u
             }
             let (ahead_steps, behind_steps) = (f64::from(a), f64::from(b) + 1.0);
             let length = (ahead_steps + behind_steps) * dir.unit;
-            let index = dir.index as u8;
-            if length < best_len[h] || (length == best_len[h] && index < best_dir[h]) {
+            if length <= best_len[h] {
                 let v_ahead = source.voxels[(i as i64 + i64::from(a) * dir.stride) as usize].to_f64();
                 let v_behind = source.voxels[(i as i64 - i64::from(b) * dir.stride) as usize].to_f64();
-                let t = behind_steps / (ahead_steps + behind_steps);
-                best_len[h] = length;
-                best_dir[h] = index;
-                best_value[h] = v_ahead * t + v_behind * (1.0 - t);
+                let value = stick_value::<T>(ahead_steps, behind_steps, v_ahead, v_behind);
+                if length < best_len[h] {
+                    (best_len[h], best_sum[h], best_count[h]) = (length, value, 1);
+                } else {
+                    best_sum[h] += value;
+                    best_count[h] += 1;
+                }
             }
         }
         // The shortest stick a later direction can give is three of its steps
@@ -311,9 +316,14 @@ fn stick_table<T: Sample>(source: &Source<'_, T>, z0: usize, z1: usize, limit: u
             open.retain(|&h| best_len[h as usize] >= shortest);
         }
     }
+    let best_value = best_sum
+        .iter()
+        .zip(&best_count)
+        .map(|(s, &n)| s / f64::from(n.max(1)))
+        .collect();
     StickValues {
         holes,
-        best_dir,
+        best_count,
         best_value,
         cursor: 0,
     }
@@ -323,8 +333,8 @@ fn stick_table<T: Sample>(source: &Source<'_, T>, z0: usize, z1: usize, limit: u
 /// ascending) and each one's value, looked up in ascending order.
 struct StickValues {
     holes: Vec<u32>,
-    /// `u8::MAX` where the hole has no stick.
-    best_dir: Vec<u8>,
+    /// The sticks averaged (0 where the hole has none).
+    best_count: Vec<u8>,
     best_value: Vec<f64>,
     cursor: usize,
 }
@@ -336,8 +346,7 @@ impl StickValues {
             self.cursor += 1;
         }
         let c = self.cursor;
-        (self.holes.get(c).is_some_and(|&h| h as usize == offset) && self.best_dir[c] != u8::MAX)
-            .then(|| self.best_value[c])
+        (self.holes.get(c).is_some_and(|&h| h as usize == offset) && self.best_count[c] > 0).then(|| self.best_value[c])
     }
 }
 

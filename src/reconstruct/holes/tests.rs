@@ -105,3 +105,33 @@ fn a_stick_fills_the_gap_between_two_filled_planes() {
         }
     }
 }
+
+/// Sticks as short as the shortest are averaged, each taken as a voxel stores it
+/// (8-bit: floored) before the mean is: 16 and 41 give 28, where the mean of
+/// the unrounded values (16.67 and 41.67) would give 29.
+#[test]
+fn tied_sticks_are_averaged_as_voxels() {
+    // A 3 x 3 plane, the hole at its centre between 10 | 20 along x and 39 | 43 along y.
+    let grid = Grid {
+        origin_mm: [0.0; 3],
+        spacing_mm: [1.0; 3],
+        dims: [3, 3, 1],
+    };
+    let (centre, left, right, below, above) = (4, 3, 5, 1, 7);
+    let mut weights = vec![0u16; 9];
+    let mut voxels = vec![0u8; 9];
+    for (i, v) in [(left, 10), (right, 20), (below, 39), (above, 43)] {
+        weights[i] = 256;
+        voxels[i] = v;
+    }
+    for sticks_to_use in [1, 2] {
+        let mut filled = voxels.clone();
+        let stick = HoleFilling::Stick {
+            length_limit: 9,
+            sticks_to_use,
+        };
+        fill(&grid, &mut filled, &weights, &[stick], 1);
+        // Along x: 20·2/3 + 10/3 = 16.67 → 16; along y: 43·2/3 + 39/3 = 41.67 → 41.
+        assert_eq!(filled[centre], 28, "{sticks_to_use} sticks");
+    }
+}
