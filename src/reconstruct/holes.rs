@@ -486,24 +486,28 @@ pub fn fill<T: Sample>(
                     if weights[i] != 0 {
                         continue;
                     }
-                    if reach.as_ref().is_some_and(|r| !r[i]) {
-                        *voxel = T::default();
-                        continue;
-                    }
                     // The position, for the elements searched hole by hole.
                     let p = || [i % grid.dims[0], (i / grid.dims[0]) % grid.dims[1], i / plane].map(|c| c as i64);
-                    if let Some((k, v)) = elements.iter().enumerate().find_map(|(k, e)| {
-                        match &mut tables[k] {
-                            Some(table) => table.at(offset),
-                            None => source.element(i, p(), e, &dirs),
+                    let beyond_reach = reach.as_ref().is_some_and(|r| !r[i]);
+                    let found = elements
+                        .iter()
+                        .enumerate()
+                        .filter(|_| !beyond_reach)
+                        .find_map(|(k, e)| {
+                            match &mut tables[k] {
+                                Some(table) => table.at(offset),
+                                None => source.element(i, p(), e, &dirs),
+                            }
+                            .map(|v| (k, v))
+                        });
+                    // A hole no element fills is left empty.
+                    *voxel = match found {
+                        Some((k, v)) => {
+                            filled[k] += 1;
+                            T::from_floor(v)
                         }
-                        .map(|v| (k, v))
-                    }) {
-                        *voxel = T::from_floor(v);
-                        filled[k] += 1;
-                    } else {
-                        *voxel = T::default();
-                    }
+                        None => T::default(),
+                    };
                 }
                 filled
             })
