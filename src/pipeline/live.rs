@@ -174,7 +174,7 @@ pub(super) fn live_offset_s(inputs: &TrackedInputs) -> Result<f64, TrackedError>
     Ok(match &inputs.time_offset {
         TimeOffset::Fixed(s) => *s,
         TimeOffset::Temporal { tracker, video } => {
-            crate::pipeline::temporal::run(video, tracker, &inputs.probe_transform, &inputs.reference_transform)?
+            crate::pipeline::time::temporal::run(video, tracker, &inputs.probe_transform, &inputs.reference_transform)?
                 .tracker_lag_s
         }
         TimeOffset::Estimate => 0.0,

@@ -39,6 +39,9 @@ pub struct TrackedFrame {
     /// `marker_T_phantom` of the frame (row-major), when the transforms were usable.
     #[serde(skip)]
     pub marker_T_phantom: Option<Matrix4<f64>>,
+    /// The same with no tracker lag (each frame's own poses), when usable.
+    #[serde(skip)]
+    pub marker_T_phantom_no_lag: Option<Matrix4<f64>>,
     /// Per pattern: PRE3D of the middle dot under the result, mm.
     pub pre3d_mm: Vec<f64>,
     /// The bright spots the patterns were searched among, strongest first (px).
@@ -118,11 +121,22 @@ impl Serialize for TrackedRejection {
 pub enum PoseFault {
     #[error("{0}")]
     Transform(#[from] FrameFault),
-    #[error("frame {frame}: no neighbouring frame to interpolate `{transform}` {offset_s} s away")]
-    NoNeighbour {
+    #[error("frame {frame}: `{transform}` is wanted at {time_s:.6} s, {side} of the recorded trajectory")]
+    OutsideTrajectory {
         frame: usize,
         transform: String,
-        offset_s: f64,
+        time_s: f64,
+        side: &'static str,
+    },
+    #[error(
+        "frame {frame}: the samples of `{transform}` around {time_s:.6} s are {gap_s:.3} s apart (limit {limit_s} s)"
+    )]
+    Gap {
+        frame: usize,
+        transform: String,
+        time_s: f64,
+        gap_s: f64,
+        limit_s: f64,
     },
     #[error("frame {frame}: a timestamp is missing, cannot interpolate `{transform}`")]
     NoTimestamp { frame: usize, transform: String },
@@ -206,6 +220,7 @@ pub fn segment_frame(
         rejected: None,
         dots_px: Vec::new(),
         marker_T_phantom: None,
+        marker_T_phantom_no_lag: None,
         pre3d_mm: Vec::new(),
         candidates_px: Vec::new(),
     };

@@ -24,6 +24,9 @@ pub use crate::pipeline::sequence_frames::{
     clip_or_overlay, constraints, segment_frames, timestamp_s, PoseFault, Role, SegmentationInputs, TrackedFrame,
     TrackedRejection,
 };
+use crate::pipeline::time::lag_joint::{self, LagEstimate};
+use crate::pipeline::time::sweep_lag::SweepLag;
+use crate::pipeline::time::trajectory::Trajectory;
 use crate::spec::nwire::NWire;
 
 /// Everything the tracked pipeline needs, resolved.
@@ -86,7 +89,7 @@ pub enum TrackedError {
     #[error("calibration: {0}")]
     Fit(#[from] FitError),
     #[error("temporal calibration: {0}")]
-    Temporal(#[from] crate::pipeline::temporal::TemporalError),
+    Temporal(#[from] crate::pipeline::time::temporal::TemporalError),
     #[error("{sequence}: only {usable} frames could be segmented, at least {needed} are needed")]
     TooFewFrames {
         sequence: PathBuf,
@@ -137,13 +140,15 @@ pub struct TrackedRun {
     pub image_size_px: [usize; 2],
     /// The tracker lag used, s.
     pub time_offset_s: f64,
-    /// When estimated: what the sweep's motion gave (unresolved: not applied).
-    pub sweep_lag: Option<crate::pipeline::sweep_lag::SweepLag>,
+    /// When estimated: the spatio-temporal estimate, with the motion estimate.
+    pub lag_estimate: Option<LagEstimate>,
     /// The model family's cross-validation on the calibration frames.
     pub selection: Selection,
     /// Pixels of the calibration sequence's screen overlay left out, when no
     /// clip rectangle was given.
     pub overlay_px: Option<usize>,
+    /// The chosen model fitted with no lag, when a lag is applied.
+    pub no_lag_fit: Option<image_to_probe::Fit>,
 }
 
 impl TrackedRun {
@@ -162,10 +167,65 @@ impl TrackedRun {
     }
 }
 
+/// The probe's and the reference's recorded trajectories of one sequence.
+#[derive(Debug, Clone)]
+pub struct TrackerPaths {
+    pub probe: Trajectory,
+    pub reference: Trajectory,
+}
+
+impl TrackerPaths {
+    pub fn of(sequence: &Sequence, inputs: &TrackedInputs) -> TrackerPaths {
+        TrackerPaths {
+            probe: Trajectory::of(sequence, &inputs.probe_transform),
+            reference: Trajectory::of(sequence, &inputs.reference_transform),
+        }
+    }
+
+    /// `marker_T_phantom` of `frame` (taken at `time_s`, `None`: no timestamp)
+    /// for a tracker lag of `offset_s`: both transforms read along their
+    /// trajectories at the image's time plus the lag, checked plausible.
+    pub fn marker_T_phantom(
+        &self,
+        frame: usize,
+        time_s: Option<f64>,
+        offset_s: f64,
+        reference_T_phantom: &Matrix4<f64>,
+    ) -> Result<Matrix4<f64>, PoseFault> {
+        // With no lag a frame's own sample is its pose, with or without a timestamp.
+        let at = |path: &Trajectory| match (time_s, offset_s == 0.0) {
+            (_, true) => path.own(frame).unwrap_or(Err(PoseFault::NoTimestamp {
+                frame,
+                transform: path.name().to_string(),
+            })),
+            (Some(t), false) => path.at(t + offset_s, frame),
+            (None, false) => Err(PoseFault::NoTimestamp {
+                frame,
+                transform: path.name().to_string(),
+            }),
+        };
+        let (probe, reference) = (at(&self.probe)?, at(&self.reference)?);
+        // The same plausibility check as the camera pipeline's, at this stage boundary.
+        if let Some(fault) = crate::pipeline::record::Implausible::of(
+            Some((probe, reference)),
+            ["tracker_T_probe", "tracker_T_reference"],
+            &[],
+        ) {
+            return Err(PoseFault::Implausible(fault));
+        }
+        Ok(probe.inverse().to_homogeneous() * reference.to_homogeneous() * reference_T_phantom)
+    }
+}
+
 /// Sets each frame's `marker_T_phantom` for a tracker lag of `offset_s` (frames whose
 /// transforms are unusable are rejected with the reason; earlier pose rejections
 /// are re-evaluated).
 pub fn attach_poses(sequence: &Sequence, frames: &mut [TrackedFrame], inputs: &TrackedInputs, offset_s: f64) {
+    attach_poses_along(&TrackerPaths::of(sequence, inputs), frames, inputs, offset_s);
+}
+
+/// [`attach_poses`] with the trajectories already read.
+pub fn attach_poses_along(paths: &TrackerPaths, frames: &mut [TrackedFrame], inputs: &TrackedInputs, offset_s: f64) {
     for frame in frames.iter_mut() {
         if matches!(frame.rejected, Some(TrackedRejection::Pose(_))) {
             frame.rejected = None;
@@ -174,79 +234,11 @@ pub fn attach_poses(sequence: &Sequence, frames: &mut [TrackedFrame], inputs: &T
         if frame.rejected.is_some() {
             continue;
         }
-        let index = frame.index;
-        let poses = pose_at(sequence, index, &inputs.probe_transform, offset_s).and_then(|tracker_T_probe| {
-            pose_at(sequence, index, &inputs.reference_transform, offset_s)
-                .map(|tracker_T_reference| (tracker_T_probe, tracker_T_reference))
-        });
-        // The same plausibility check as the camera pipeline's, at this stage boundary.
-        let poses = poses.and_then(|(probe, reference)| {
-            match crate::pipeline::record::Implausible::of(
-                Some((probe, reference)),
-                ["tracker_T_probe", "tracker_T_reference"],
-                &[],
-            ) {
-                Some(fault) => Err(PoseFault::Implausible(fault)),
-                None => Ok((probe, reference)),
-            }
-        });
-        match poses {
-            Ok((tracker_T_probe, tracker_T_reference)) => {
-                frame.marker_T_phantom = Some(
-                    tracker_T_probe.inverse().to_homogeneous()
-                        * tracker_T_reference.to_homogeneous()
-                        * inputs.reference_T_phantom,
-                );
-            }
+        match paths.marker_T_phantom(frame.index, frame.timestamp_s, offset_s, &inputs.reference_T_phantom) {
+            Ok(m) => frame.marker_T_phantom = Some(m),
             Err(e) => frame.rejected = Some(TrackedRejection::Pose(e)),
         }
     }
-}
-
-/// Largest gap between two frames a pose is interpolated across, s.
-const MAX_INTERPOLATION_GAP_S: f64 = 0.25;
-
-/// Frame `index`'s transform `name`, interpolated at its timestamp + `offset_s`
-/// between it and the neighbouring frame in that direction.
-fn pose_at(
-    sequence: &Sequence,
-    index: usize,
-    name: &str,
-    offset_s: f64,
-) -> Result<crate::core::geometry::Rigid, PoseFault> {
-    let here = sequence.transform(index, name)?;
-    if offset_s == 0.0 {
-        return Ok(here);
-    }
-    let time = |i: usize| timestamp_s(sequence, i);
-    // The neighbour in the offset's direction; at either end of the sequence, the
-    // other one (a short extrapolation).
-    let forward = if offset_s > 0.0 {
-        index + 1 < sequence.frames.len()
-    } else {
-        index == 0
-    };
-    let neighbour = if forward { index + 1 } else { index.wrapping_sub(1) };
-    let no_neighbour = || PoseFault::NoNeighbour {
-        frame: index,
-        transform: name.to_string(),
-        offset_s,
-    };
-    if neighbour >= sequence.frames.len() {
-        return Err(no_neighbour());
-    }
-    let (Some(t0), Some(t1)) = (time(index), time(neighbour)) else {
-        return Err(PoseFault::NoTimestamp {
-            frame: index,
-            transform: name.to_string(),
-        });
-    };
-    let gap = t1 - t0;
-    if gap.abs() > MAX_INTERPOLATION_GAP_S || gap.abs() < 1e-6 {
-        return Err(no_neighbour());
-    }
-    let there = sequence.transform(neighbour, name)?;
-    Ok(here.lerp_slerp(&there, offset_s / gap))
 }
 
 /// PRE3D of each pattern's middle dot in one frame, mm: the middle dot's pixel
@@ -320,25 +312,21 @@ pub fn fit_settings(inputs: &TrackedInputs) -> FitSettings {
     }
 }
 
-/// The tracker's lag from the calibration sweep's own motion: poses with no lag
-/// map the wires into the images through a calibration of the family's first
-/// constraints and its most flexible pixel model; the lag is when the two
-/// motions line up.
-fn lag_from_sweep(
-    calibration: &Sequence,
-    frames: &mut [TrackedFrame],
-    inputs: &TrackedInputs,
-) -> crate::pipeline::sweep_lag::SweepLag {
+/// The tracker's lag from the calibration sweep's own motion (the second,
+/// independent estimate): poses with no lag map the wires into the images
+/// through a calibration of the family's first constraints and its most
+/// flexible pixel model; the lag is when the two motions line up.
+fn lag_from_sweep(paths: &TrackerPaths, frames: &mut [TrackedFrame], inputs: &TrackedInputs) -> SweepLag {
     let family = Candidate::family(inputs.model, inputs.pixel_model);
     let candidate = Candidate {
         pixel_model: family[family.len() - 1].pixel_model,
         ..family[0]
     };
-    attach_poses(calibration, frames, inputs, 0.0);
+    attach_poses_along(paths, frames, inputs, 0.0);
     let usable = usable_constraints(frames, &inputs.nwires, Role::Calibration);
     match model_selection::fit(usable.iter(), candidate, fit_settings(inputs)) {
-        Ok(trained) => crate::pipeline::sweep_lag::estimate(frames, &inputs.nwires, &trained.fit),
-        Err(e) => crate::pipeline::sweep_lag::SweepLag {
+        Ok(trained) => crate::pipeline::time::sweep_lag::estimate(frames, &inputs.nwires, &trained.fit),
+        Err(e) => SweepLag {
             unresolved: Some(format!("no calibration to map the poses with: {e}")),
             ..Default::default()
         },
@@ -384,34 +372,86 @@ fn refuse_same_recording(calibration: &Path, validation: &Path) -> Result<(), Tr
     Ok(())
 }
 
+/// The model chosen by cross-validation on `frames`' calibration frames (at the
+/// poses they carry), and its selection.
+fn choose_model(frames: &[TrackedFrame], inputs: &TrackedInputs) -> Result<Selection, TrackedError> {
+    let usable = usable_constraints(frames, &inputs.nwires, Role::Calibration);
+    let family = Candidate::family(inputs.model, inputs.pixel_model);
+    let (scored, chosen) = model_selection::select(&usable, &family, inputs.folds, fit_settings(inputs));
+    let chosen = match chosen {
+        Some(k) => k,
+        // Nothing could be cross-validated: the fit on every frame says why.
+        None => {
+            model_selection::fit(usable.iter(), family[0], fit_settings(inputs))?;
+            0
+        }
+    };
+    Ok(Selection {
+        folds: inputs.folds,
+        frames: usable.len(),
+        scored,
+        chosen,
+    })
+}
+
+/// The tracker's lag estimated with the calibration from the calibration
+/// frames alone ([`crate::pipeline::time::lag`], then
+/// [`crate::pipeline::time::lag_joint`]), beside the sweep's motion estimate.
+fn estimate_lag(
+    calibration: &Sequence,
+    paths: &TrackerPaths,
+    frames: &mut [TrackedFrame],
+    inputs: &TrackedInputs,
+) -> Result<LagEstimate, TrackedError> {
+    if let Some(fault) = crate::pipeline::sequence_frames::clock_fault(calibration) {
+        let why = format!("{}: {fault}", inputs.calibration_sequence.display());
+        let motion = crate::pipeline::time::sweep_lag::SweepLag {
+            unresolved: Some(why.clone()),
+            ..Default::default()
+        };
+        return Ok(LagEstimate::refused(why, Some(motion)));
+    }
+    let motion = lag_from_sweep(paths, frames, inputs);
+    let coarse = crate::pipeline::time::lag::search(paths, frames, inputs);
+    let Some(coarse_lag) = coarse.lag_s else {
+        return Ok(lag_joint::assemble(coarse, None, None, Some(motion)));
+    };
+    attach_poses_along(paths, frames, inputs, coarse_lag);
+    let candidate = choose_model(frames, inputs)?.chosen();
+    let joint = lag_joint::refine(paths, frames, inputs, &coarse, candidate);
+    let cv = lag_joint::cross_validate(paths, frames, inputs, &coarse, candidate);
+    Ok(lag_joint::assemble(coarse, joint, cv, Some(motion)))
+}
+
 /// Runs the tracked pipeline.
 pub fn run(inputs: &TrackedInputs, min_frames: usize) -> Result<TrackedRun, TrackedError> {
     let calibration = Sequence::read(&inputs.calibration_sequence)?;
     let image_size_px = [calibration.width, calibration.height];
     let (mut frames, overlay_px) = segment_sequence(&calibration, Role::Calibration, inputs)?;
+    let paths = TrackerPaths::of(&calibration, inputs);
     // The tracker's lag, from the calibration frames alone.
-    let mut sweep_lag = None;
+    let mut lag_estimate = None;
     let time_offset_s = match &inputs.time_offset {
         TimeOffset::Fixed(s) => *s,
         TimeOffset::Temporal { tracker, video } => {
-            crate::pipeline::temporal::run(video, tracker, &inputs.probe_transform, &inputs.reference_transform)?
+            crate::pipeline::time::temporal::run(video, tracker, &inputs.probe_transform, &inputs.reference_transform)?
                 .tracker_lag_s
         }
         TimeOffset::Estimate => {
-            let found = match crate::pipeline::sequence_frames::clock_fault(&calibration) {
-                Some(fault) => crate::pipeline::sweep_lag::SweepLag {
-                    unresolved: Some(format!("{}: {fault}", inputs.calibration_sequence.display())),
-                    ..Default::default()
-                },
-                None => lag_from_sweep(&calibration, &mut frames, inputs),
-            };
-            let lag = found.lag_s.unwrap_or(0.0);
-            sweep_lag = Some(found);
+            let found = estimate_lag(&calibration, &paths, &mut frames, inputs)?;
+            let lag = found.applied_s();
+            lag_estimate = Some(found);
             lag
         }
     };
     refuse_clock(&calibration, time_offset_s)?;
-    attach_poses(&calibration, &mut frames, inputs, time_offset_s);
+    // Each frame's pose with no lag too, for the comparisons without it.
+    attach_poses_along(&paths, &mut frames, inputs, 0.0);
+    let at_zero: Vec<Option<Matrix4<f64>>> = frames.iter().map(|f| f.marker_T_phantom).collect();
+    attach_poses_along(&paths, &mut frames, inputs, time_offset_s);
+    for (f, zero) in frames.iter_mut().zip(at_zero) {
+        f.marker_T_phantom_no_lag = zero;
+    }
     drop(calibration);
     if let Some(path) = &inputs.validation_sequence {
         refuse_same_recording(&inputs.calibration_sequence, path)?;
@@ -427,7 +467,13 @@ pub fn run(inputs: &TrackedInputs, min_frames: usize) -> Result<TrackedRun, Trac
             });
         }
         let (mut more, _) = segment_sequence(&validation, Role::Validation, inputs)?;
-        attach_poses(&validation, &mut more, inputs, time_offset_s);
+        let paths = TrackerPaths::of(&validation, inputs);
+        attach_poses_along(&paths, &mut more, inputs, 0.0);
+        let at_zero: Vec<Option<Matrix4<f64>>> = more.iter().map(|f| f.marker_T_phantom).collect();
+        attach_poses_along(&paths, &mut more, inputs, time_offset_s);
+        for (f, zero) in more.iter_mut().zip(at_zero) {
+            f.marker_T_phantom_no_lag = zero;
+        }
         frames.extend(more);
     }
     let usable = frames
@@ -441,24 +487,9 @@ pub fn run(inputs: &TrackedInputs, min_frames: usize) -> Result<TrackedRun, Trac
             needed: min_frames,
         });
     }
-    // The model, chosen on the calibration frames alone.
+    // The model, chosen on the calibration frames alone, at the lag applied.
+    let selection = choose_model(&frames, inputs)?;
     let usable = usable_constraints(&frames, &inputs.nwires, Role::Calibration);
-    let family = Candidate::family(inputs.model, inputs.pixel_model);
-    let (scored, chosen) = model_selection::select(&usable, &family, inputs.folds, fit_settings(inputs));
-    let chosen = match chosen {
-        Some(k) => k,
-        // Nothing could be cross-validated: the fit on every frame says why.
-        None => {
-            model_selection::fit(usable.iter(), family[0], fit_settings(inputs))?;
-            0
-        }
-    };
-    let selection = Selection {
-        folds: inputs.folds,
-        frames: usable.len(),
-        scored,
-        chosen,
-    };
     let trained = model_selection::fit(usable.iter(), selection.chosen(), fit_settings(inputs))?;
     let (closed_form, fit, constraints) = (trained.closed_form, trained.fit, trained.constraints);
     for f in frames.iter_mut().filter(|f| f.rejected.is_none()) {
@@ -469,6 +500,9 @@ pub fn run(inputs: &TrackedInputs, min_frames: usize) -> Result<TrackedRun, Trac
             &fit.phantom_correction,
         );
     }
+    let no_lag_fit = (time_offset_s != 0.0)
+        .then(|| no_lag_fit(&frames, inputs, selection.chosen()))
+        .flatten();
     Ok(TrackedRun {
         frames,
         fit,
@@ -476,8 +510,26 @@ pub fn run(inputs: &TrackedInputs, min_frames: usize) -> Result<TrackedRun, Trac
         constraints,
         image_size_px,
         time_offset_s,
-        sweep_lag,
+        lag_estimate,
         selection,
         overlay_px,
+        no_lag_fit,
     })
+}
+
+/// The chosen model fitted to the calibration frames with no lag (each frame's
+/// own poses), to score what the lag buys.
+fn no_lag_fit(frames: &[TrackedFrame], inputs: &TrackedInputs, candidate: Candidate) -> Option<image_to_probe::Fit> {
+    let at_zero: Vec<TrackedFrame> = frames
+        .iter()
+        .filter(|f| f.role == Role::Calibration && f.rejected.is_none())
+        .map(|f| TrackedFrame {
+            marker_T_phantom: f.marker_T_phantom_no_lag,
+            ..f.clone()
+        })
+        .collect();
+    let usable = usable_constraints(&at_zero, &inputs.nwires, Role::Calibration);
+    model_selection::fit(usable.iter(), candidate, fit_settings(inputs))
+        .ok()
+        .map(|t| t.fit)
 }

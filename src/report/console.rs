@@ -89,8 +89,14 @@ pub fn tracked_run(run: &TrackedRun, summary: &TrackedSummary, folder: &std::pat
         frames.validation.total,
         run.time_offset_s * 1000.0
     );
-    if let Some(why) = run.sweep_lag.as_ref().and_then(|l| l.unresolved.as_ref()) {
-        eprintln!("warning: the tracker's lag could not be estimated, none is applied: {why}");
+    if let Some(e) = &run.lag_estimate {
+        match &e.unresolved {
+            Some(why) => eprintln!("warning: the tracker's lag could not be estimated, none is applied: {why}"),
+            None => println!("{}", crate::report::tracked::lag_line(e)),
+        }
+        if let Some(d) = &e.disagreement {
+            eprintln!("warning: {d}");
+        }
     }
     for (role, what) in [(Role::Calibration, "calibration"), (Role::Validation, "validation")] {
         if let Some(w) = crate::pipeline::sequence_frames::rejection_warning(&run.frames, role, what) {

@@ -6,7 +6,7 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 use crate::io::fs::{display_path, write_all_atomic};
-use crate::pipeline::temporal::TemporalRun;
+use crate::pipeline::time::temporal::TemporalRun;
 use crate::report::error::OutputError;
 
 /// `lines.csv`: frame, found, origin and direction in pixels, or the reason.
@@ -44,8 +44,8 @@ pub fn summary(run: &TemporalRun) -> serde_json::Value {
         "frames": run.frames.len(),
         "frames_with_line": run.frames.iter().filter(|f| f.line.is_ok()).count(),
         "tracker_samples": run.tracker_samples,
-        "lag_step_s": crate::pipeline::temporal::STEP_S,
-        "lag_range_s": crate::pipeline::temporal::MAX_LAG_S,
+        "lag_step_s": crate::pipeline::time::temporal::STEP_S,
+        "lag_range_s": crate::pipeline::time::temporal::MAX_LAG_S,
     })
 }
 
@@ -91,8 +91,8 @@ pub fn html(run: &TemporalRun) -> String {
         run.tracker_lag_s * 1000.0,
         run.tracker_lag_s,
         run.peak_correlation,
-        crate::pipeline::temporal::MAX_LAG_S,
-        crate::pipeline::temporal::MAX_LAG_S,
+        crate::pipeline::time::temporal::MAX_LAG_S,
+        crate::pipeline::time::temporal::MAX_LAG_S,
         curve_svg(run),
     )
 }

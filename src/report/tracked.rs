@@ -16,7 +16,7 @@ use crate::pipeline::tracked::{Role, TrackedRun};
 use crate::pipeline::tracked_resolution::{TrackedAfter, ValidationResolution};
 use crate::report::error::OutputError;
 use crate::report::summary::{
-    to_text, CandidateScore, ConstraintCounts, FramesCompared, ImageToProbeSummary, ModelSelectionSummary,
+    to_text, CandidateScore, ConstraintCounts, FramesCompared, ImageToProbeSummary, ModelSelectionSummary, NoLagPre3d,
     PairedDifference, ParameterSd, PlusResultSummary, Pre3d, PublishedPre3d, Segmented, TrackedFrameCounts,
     TrackedSummary, TrackedTolerances, TRACKED_KIND,
 };
@@ -46,25 +46,86 @@ pub fn pre3d_of_matrix(
 
 /// How the tracker's lag was had, in words.
 pub fn time_offset_note(run: &TrackedRun) -> String {
-    match &run.sweep_lag {
+    match &run.lag_estimate {
         None => "as the manifest gives it".into(),
-        Some(lag) => match (&lag.unresolved, lag.peak_correlation) {
-            (Some(why), _) => format!("estimate unresolved, none applied: {why}"),
-            (None, r) => format!(
-                "from the calibration sweep's motion: {} frames, dots moving {:.1} px (SD), correlation {:.3} at the peak{}",
-                lag.frames,
-                lag.motion_sd_px,
-                r.unwrap_or(f64::NAN),
-                lag.bootstrap_lag_s
-                    .map(|b| format!(
-                        ", {:.0} to {:.0} ms over resamples of the sweep (90 %)",
-                        b.p5 * 1000.0,
-                        b.p95 * 1000.0
-                    ))
-                    .unwrap_or_default()
-            ),
-        },
+        Some(e) => e.decision.clone(),
     }
+}
+
+/// The lag in one console line: the estimate, its intervals, what was
+/// applied, and the motion's estimate.
+pub fn lag_line(e: &crate::pipeline::time::lag_joint::LagEstimate) -> String {
+    let ms = |s: f64| format!("{:+.0} ms", s * 1000.0);
+    let interval = |i: Option<[f64; 2]>, what: &str| i.map(|[a, b]| format!("; {what} {} to {}", ms(a), ms(b)));
+    let boot = e.coarse.bootstrap_lag_s.map(|b| [b.p5, b.p95]);
+    let motion = match e.motion.as_ref() {
+        Some(m) => match m.lag_s {
+            Some(l) => format!("; the sweep's motion gives {}", ms(l)),
+            None => "; the sweep's motion gives none".into(),
+        },
+        None => String::new(),
+    };
+    format!(
+        "tracker lag {} (90 %{}{}){motion}: {}",
+        e.lag_s.map(ms).unwrap_or_else(|| "unresolved".into()),
+        interval(e.interval_90_s, "curvature").unwrap_or_default(),
+        interval(boot, "resamples").unwrap_or_default(),
+        e.decision
+    )
+    .replacen("(90 %; ", "(90 %: ", 1)
+    .replace(" (90 %)", "")
+}
+
+/// `f` with its poses at no lag.
+fn at_no_lag(f: &crate::pipeline::tracked::TrackedFrame) -> crate::pipeline::tracked::TrackedFrame {
+    crate::pipeline::tracked::TrackedFrame {
+        marker_T_phantom: f.marker_T_phantom_no_lag,
+        ..f.clone()
+    }
+}
+
+/// PRE3D with no lag of our model refitted without it, and of PLUS's matrix on
+/// the frames `keep` admits.
+fn no_lag_pre3d(
+    run: &TrackedRun,
+    manifest: &TrackedManifest,
+    plus: Option<&PlusResult>,
+    role: Role,
+    keep: impl Fn(usize) -> bool,
+) -> Option<NoLagPre3d> {
+    let fit = run.no_lag_fit.as_ref()?;
+    let frames: Vec<_> = run
+        .frames
+        .iter()
+        .filter(|f| f.role == role && f.rejected.is_none())
+        .map(at_no_lag)
+        .collect();
+    let ours: Vec<f64> = frames
+        .iter()
+        .flat_map(|f| {
+            crate::pipeline::tracked::pre3d(
+                f,
+                &manifest.nwires,
+                |pixel| fit.image_to_probe.apply(pixel),
+                &fit.phantom_correction,
+            )
+        })
+        .collect();
+    let theirs = plus.map(|plus| {
+        let map = |pixel: [f64; 2]| {
+            plus.image_to_probe
+                .transform_point(&nalgebra::Point3::new(pixel[0], pixel[1], 0.0))
+        };
+        frames
+            .iter()
+            .filter(|f| keep(f.index))
+            .flat_map(|f| crate::pipeline::tracked::pre3d(f, &manifest.nwires, map, &Rigid::identity()))
+            .collect::<Vec<f64>>()
+    });
+    Some(NoLagPre3d {
+        pre3d_mm: best_95(&ours),
+        plus_matrix_pre3d_mm: theirs.and_then(|t| best_95(&t)),
+    })
 }
 
 pub fn rows(m: &Matrix4<f64>) -> Vec<Vec<f64>> {
@@ -81,6 +142,13 @@ fn pre3d(run: &TrackedRun, manifest: &TrackedManifest, plus: Option<&PlusResult>
         pre3d_all_mm: mean_sd_of(&ours),
         ..Pre3d::default()
     };
+    out.no_lag = no_lag_pre3d(run, manifest, plus, role, |index| {
+        let listed = plus.and_then(|p| match role {
+            Role::Calibration => p.calibration_frames_segmented.as_ref(),
+            Role::Validation => p.validation_frames_segmented.as_ref(),
+        });
+        listed.is_none_or(|t| t.contains(&index))
+    });
     let Some(plus) = plus else { return out };
     let theirs = match role {
         Role::Calibration => plus.calibration_frames_segmented.as_ref(),
@@ -192,7 +260,7 @@ pub fn summary(
             kept: run.fit.inlier.iter().filter(|k| **k).count(),
         },
         time_offset_s: run.time_offset_s,
-        time_offset_estimate: run.sweep_lag.clone(),
+        time_offset_estimate: run.lag_estimate.clone(),
         image_to_probe: ImageToProbeSummary {
             matrix: rows(&matrix),
             pixel_model: run.fit.pixel_model,

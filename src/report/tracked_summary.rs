@@ -19,10 +19,11 @@ pub struct TrackedSummary {
     pub constraints: ConstraintCounts,
     /// The tracker's lag behind the images applied, s.
     pub time_offset_s: f64,
-    /// When the manifest asks for the lag to be estimated: what the sweep's own
-    /// motion gave (an unresolved lag is not applied).
+    /// When the manifest asks for the lag to be estimated: the spatio-temporal
+    /// estimate (`lag_s` null where the calibration frames cannot tell it), the
+    /// motion estimate beside it, and which is applied and why.
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub time_offset_estimate: Option<crate::pipeline::sweep_lag::SweepLag>,
+    pub time_offset_estimate: Option<crate::pipeline::time::lag_joint::LagEstimate>,
     pub image_to_probe: ImageToProbeSummary,
     /// How the model was chosen: cross-validation on the calibration frames.
     pub model_selection: ModelSelectionSummary,
@@ -138,6 +139,21 @@ pub struct Pre3d {
     /// Ours less PLUS's matrix, paired frame by frame on the same frames.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub ours_minus_plus_matrix_mm: Option<PairedDifference>,
+    /// Where a lag is applied: the same frames and dots with no lag (each
+    /// frame's own poses).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub no_lag: Option<NoLagPre3d>,
+}
+
+/// PRE3D with no tracker lag, on the frames and dots of the lagged figures.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+pub struct NoLagPre3d {
+    /// Our model fitted to the calibration frames with no lag.
+    pub pre3d_mm: Option<MeanSd>,
+    /// PLUS's matrix with no lag (as PLUS scores it), on the frames of
+    /// `plus_matrix_pre3d_mm`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub plus_matrix_pre3d_mm: Option<MeanSd>,
 }
 
 /// Two calibrations on the same frames: each frame's mean PRE3D over all its
