@@ -43,6 +43,7 @@ fn reconstruct(c: &mut Criterion) {
         threads: None,
         wires: None,
         image_to_probe: None,
+        tracker_lag_s: None,
     };
     let first = run(&inputs).expect("the sweep reconstructs");
     let mut group = c.benchmark_group("frames_per_second");

@@ -28,6 +28,7 @@ fn inputs(sequence: &Path, config: &Path, threads: usize) -> ReconstructInputs {
         threads: Some(threads),
         wires: None,
         image_to_probe: None,
+        tracker_lag_s: None,
     }
 }
 

@@ -24,6 +24,12 @@ pub struct ReconstructArgs {
     /// (.xml): its ImageToProbe replaces the device set's.
     #[arg(long)]
     pub calibration: Option<PathBuf>,
+    /// The tracker's lag behind the images, s (-1 to 1): every tracked transform
+    /// is read along its recorded trajectory at the image's time plus the lag
+    /// (PLUS's LocalTimeOffsetSec of the tracker). Default: the --calibration
+    /// run folder's time_offset_s, else none.
+    #[arg(long, allow_hyphen_values = true, value_parser = tracker_lag)]
+    pub tracker_lag: Option<f64>,
     /// A PLUS device set with the phantom's N-wires (<PhantomDefinition>) and
     /// its registration (PhantomToReference): each wire's position error,
     /// straightness and thickness in the volume, in summary.json and on the page.
@@ -65,6 +71,7 @@ pub fn command(args: &ReconstructArgs) -> Result<(), Failure> {
         threads: args.threads.map(usize::from),
         wires: args.wires.clone(),
         image_to_probe: None,
+        tracker_lag_s: args.tracker_lag.map(|s| (s, "--tracker-lag".to_string())),
     };
     let mut run = crate::pipeline::reconstruct::run(&inputs).map_err(Failure::bad_input)?;
     if args.no_times {
@@ -104,4 +111,14 @@ pub fn command(args: &ReconstructArgs) -> Result<(), Failure> {
         args.out.display()
     );
     Ok(())
+}
+
+/// A lag in seconds within ±1 s.
+fn tracker_lag(text: &str) -> Result<f64, String> {
+    let s: f64 = text.parse().map_err(|e| format!("not a number of seconds: {e}"))?;
+    if s.is_finite() && s.abs() <= 1.0 {
+        Ok(s)
+    } else {
+        Err(format!("{s} s: a tracker lag is between -1 and 1 s"))
+    }
 }

@@ -10,3 +10,4 @@ pub mod progress;
 pub mod rng;
 pub mod stats;
 pub mod timing;
+pub mod trajectory;

@@ -404,6 +404,7 @@ fn tracked_volume(
         threads: None,
         wires: m.plus_config.clone(),
         image_to_probe: Some((run.fit.image_to_probe.matrix(), "this run's calibration".to_string())),
+        tracker_lag_s: Some((run.time_offset_s, "this run's tracker lag".to_string())),
     };
     let mut volume = super::reconstruct::run(&inputs).map_err(|e| TrackedExperimentError::Volume {
         manifest: m.path.clone(),

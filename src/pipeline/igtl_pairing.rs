@@ -12,7 +12,7 @@
 use std::collections::{BTreeMap, VecDeque};
 use std::time::Instant;
 
-use nalgebra::{Matrix3, Matrix4, Rotation3, UnitQuaternion, Vector3};
+use nalgebra::{Matrix3, Matrix4};
 
 /// Samples nearer than this are at the same time, s (timestamps travel at 2^-32 s).
 const SAME_TIME_S: f64 = 1e-6;
@@ -177,21 +177,17 @@ fn pose_at(list: &[(f64, Matrix4<f64>)], t: f64, max_gap_s: f64) -> Result<Matri
             t1 - t0
         ));
     }
-    let w = (t - t0) / (t1 - t0);
-    let rotation = |m: &Matrix4<f64>| {
-        UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix(&m.fixed_view::<3, 3>(0, 0).into_owned()))
-    };
-    let q = rotation(&a).slerp(&rotation(&b), w);
-    let ta: Vector3<f64> = a.fixed_view::<3, 1>(0, 3).into_owned();
-    let tb: Vector3<f64> = b.fixed_view::<3, 1>(0, 3).into_owned();
-    let mut out = q.to_homogeneous();
-    out.fixed_view_mut::<3, 1>(0, 3).copy_from(&(ta + (tb - ta) * w));
-    Ok(out)
+    Ok(crate::core::trajectory::interpolate_matrix(
+        &a,
+        &b,
+        (t - t0) / (t1 - t0),
+    ))
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use nalgebra::{Rotation3, Vector3};
 
     fn image(t: f64) -> PendingImage {
         PendingImage {

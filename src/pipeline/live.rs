@@ -150,6 +150,40 @@ pub(super) struct Arrived {
     pub(super) segmentation_ms: f64,
 }
 
+/// Frames waiting for the tracker's samples at their time plus the lag: with a
+/// positive lag a frame's pose lies in samples that arrive with later frames
+/// (several frames later when the lag is longer than a frame period).
+#[derive(Default)]
+pub(super) struct LagQueue {
+    pending: std::collections::VecDeque<Arrived>,
+}
+
+impl LagQueue {
+    /// Queues `arrived`, then hands back every frame whose time plus `offset_s`
+    /// the samples so far reach (the newest frame's time, `latest_s`).
+    pub(super) fn push(&mut self, arrived: Arrived, offset_s: f64, latest_s: Option<f64>) -> Vec<Arrived> {
+        self.pending.push_back(arrived);
+        let mut ready = Vec::new();
+        while let Some(front) = self.pending.front() {
+            let reached = match (front.frame.timestamp_s, latest_s) {
+                (Some(t), Some(latest)) => t + offset_s <= latest,
+                // No time to wait for: its pose is refused with the reason.
+                _ => true,
+            };
+            if !(reached || offset_s <= 0.0) {
+                break;
+            }
+            ready.extend(self.pending.pop_front());
+        }
+        ready
+    }
+
+    /// Every frame still waiting (the stream or the replay has ended).
+    pub(super) fn drain(&mut self) -> Vec<Arrived> {
+        self.pending.drain(..).collect()
+    }
+}
+
 /// Attaches `arrived`'s pose, predicts its error, refits, and shows the outcome.
 pub(super) fn finish(
     state: &mut State<'_>,
@@ -236,7 +270,7 @@ pub fn run(
     };
     let start = Instant::now();
     let mut frames = Vec::with_capacity(n);
-    let mut pending: Option<Arrived> = None;
+    let mut pending = LagQueue::default();
     for (index, time) in times.iter().enumerate() {
         if replay.speed > 0.0 {
             if let Some(t) = time {
@@ -253,18 +287,13 @@ pub fn run(
             arrived,
             segmentation_ms: arrived.elapsed().as_secs_f64() * 1e3,
         };
-        // A positive lag interpolates towards the next frame: the previous frame
-        // is finished now that this one is here.
-        let ready = if offset_s > 0.0 {
-            pending.replace(this)
-        } else {
-            Some(this)
-        };
-        if let Some(ready) = ready {
+        // A positive lag reads poses from later frames: a frame is finished once
+        // the recording has reached its time plus the lag.
+        for ready in pending.push(this, offset_s, *time) {
             frames.push(finish(&mut state, &sequence, ready, offset_s, start, show));
         }
     }
-    if let Some(last) = pending {
+    for last in pending.drain() {
         frames.push(finish(&mut state, &sequence, last, offset_s, start, show));
     }
     drop(sequence);

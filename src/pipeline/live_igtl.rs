@@ -22,7 +22,7 @@ use std::time::{Duration, Instant};
 use nalgebra::Matrix4;
 
 use super::igtl_pairing::{Pairing, PendingImage};
-use super::live::{finish, live_offset_s, Arrived, LiveFrame, State};
+use super::live::{finish, live_offset_s, Arrived, LagQueue, LiveFrame, State};
 use super::live_volume::{volume_message, LiveVolume, VolumeRequest};
 use super::sequence_frames::{pattern_geometry, segment_frame};
 use super::tracked::{self, segmentation_inputs, Role, TrackedInputs, TrackedRun};
@@ -148,7 +148,7 @@ struct Session<'a> {
     sequence: Option<Sequence>,
     state: State<'a>,
     offset_s: f64,
-    pending: Option<Arrived>,
+    pending: LagQueue,
     frames: Vec<LiveFrame>,
     start: Instant,
     received_path: PathBuf,
@@ -193,12 +193,8 @@ impl Session<'_> {
             arrived: received,
             segmentation_ms: work.elapsed().as_secs_f64() * 1e3,
         };
-        let ready = if self.offset_s > 0.0 {
-            self.pending.replace(this)
-        } else {
-            Some(this)
-        };
-        if let Some(ready) = ready {
+        let latest_s = this.frame.timestamp_s;
+        for ready in self.pending.push(this, self.offset_s, latest_s) {
             self.frames.push(finish(
                 &mut self.state,
                 sequence,
@@ -231,7 +227,7 @@ pub fn run(
         sequence: None,
         state: State::new(inputs),
         offset_s,
-        pending: None,
+        pending: LagQueue::default(),
         frames: Vec::new(),
         start: Instant::now(),
         received_path: staging.join("received.igs.mha"),
@@ -269,9 +265,11 @@ pub fn run(
         last_message = Instant::now();
     };
     session.drain(true, show);
-    if let (Some(last), Some(sequence)) = (session.pending.take(), session.sequence.as_ref()) {
-        let live = finish(&mut session.state, sequence, last, offset_s, session.start, show);
-        session.frames.push(live);
+    if let Some(sequence) = session.sequence.as_ref() {
+        for last in session.pending.drain() {
+            let live = finish(&mut session.state, sequence, last, offset_s, session.start, show);
+            session.frames.push(live);
+        }
     }
     if ending.connected() {
         session.volume_step(&mut connection, true);

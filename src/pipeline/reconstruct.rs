@@ -34,6 +34,9 @@ pub struct ReconstructInputs {
     /// `ImageToProbe` given directly (a run's own calibration, with where it
     /// came from); it replaces the device set's and `calibration`.
     pub image_to_probe: Option<(Matrix4<f64>, String)>,
+    /// The tracker's lag behind the images, s, given directly (with where it
+    /// came from); otherwise a run folder's `time_offset_s`, else none.
+    pub tracker_lag_s: Option<(f64, String)>,
 }
 
 /// The volume, 8-bit or float as the input.
@@ -86,6 +89,9 @@ pub struct Reconstruction {
     /// Where `ImageToProbe` came from: the device set or the run folder.
     pub image_to_probe_source: String,
     pub image_to_probe: Option<Matrix4<f64>>,
+    /// The tracker's lag applied, s, and where it came from.
+    pub tracker_lag_s: f64,
+    pub tracker_lag_source: String,
     pub frames_total: usize,
     pub frames_used: Vec<usize>,
     pub skipped: Vec<SkippedFrame>,
@@ -102,6 +108,41 @@ pub struct Reconstruction {
     pub wires: Option<crate::evaluate::wire_profile::WireFigures>,
 }
 
+/// The tracker's lag to apply and where it came from: given, a run folder's
+/// `time_offset_s` (the lag its calibration was fitted with), or none.
+fn tracker_lag(inputs: &ReconstructInputs) -> Result<(f64, String), ReconstructError> {
+    if let Some((lag, source)) = &inputs.tracker_lag_s {
+        return Ok((*lag, source.clone()));
+    }
+    match inputs.calibration.as_deref() {
+        Some(folder) if !folder.is_file() => {
+            let path = folder.join("summary.json");
+            let lag = summary_json(&path, folder)?
+                .get("time_offset_s")
+                .and_then(|v| v.as_f64())
+                .filter(|v| v.is_finite() && v.abs() <= 1.0)
+                .unwrap_or(0.0);
+            Ok((lag, format!("{} (time_offset_s)", crate::io::fs::display_path(&path))))
+        }
+        _ => Ok((0.0, "none given".into())),
+    }
+}
+
+/// A run folder's `summary.json`, parsed.
+fn summary_json(path: &Path, folder: &Path) -> Result<serde_json::Value, ReconstructError> {
+    let fail = |message: String| ReconstructError::Input {
+        path: path.to_path_buf(),
+        message,
+    };
+    let text = std::fs::read_to_string(path).map_err(|e| {
+        fail(format!(
+            "cannot read (is {} a probecal run folder?): {e}",
+            folder.display()
+        ))
+    })?;
+    crate::io::unique_keys::json_value(&text).map_err(|e| fail(format!("not JSON: {e}")))
+}
+
 /// `ImageToProbe` of a probecal run folder (its `summary.json`'s
 /// `image_to_probe.matrix`), or of a PLUS calibration result file (.xml).
 pub fn run_image_to_probe(folder: &Path) -> Result<Matrix4<f64>, ReconstructError> {
@@ -113,13 +154,7 @@ pub fn run_image_to_probe(folder: &Path) -> Result<Matrix4<f64>, ReconstructErro
         path: path.clone(),
         message,
     };
-    let text = std::fs::read_to_string(&path).map_err(|e| {
-        fail(format!(
-            "cannot read (is {} a probecal run folder?): {e}",
-            folder.display()
-        ))
-    })?;
-    let json = crate::io::unique_keys::json_value(&text).map_err(|e| fail(format!("not JSON: {e}")))?;
+    let json = summary_json(&path, folder)?;
     let rows = json
         .pointer("/image_to_probe/matrix")
         .and_then(|m| serde_json::from_value::<Vec<Vec<f64>>>(m.clone()).ok())
@@ -242,6 +277,7 @@ pub fn run(inputs: &ReconstructInputs) -> Result<Reconstruction, ReconstructErro
         Some((matrix, _)) => Some(*matrix),
         None => inputs.calibration.as_deref().map(run_image_to_probe).transpose()?,
     };
+    let (tracker_lag_s, tracker_lag_source) = tracker_lag(inputs)?;
     // A compressed 8-bit sequence's frames are decoded while they are pasted.
     let (sequence, deferred) = Sequence::read_any_deferred(&inputs.sequence)?;
     lap("read", &mut timings);
@@ -252,6 +288,7 @@ pub fn run(inputs: &ReconstructInputs) -> Result<Reconstruction, ReconstructErro
         &settings.reference_frame,
         settings.skip_interval,
         image_to_probe,
+        tracker_lag_s,
     );
     if poses.is_empty() {
         let why = skipped
@@ -295,6 +332,8 @@ pub fn run(inputs: &ReconstructInputs) -> Result<Reconstruction, ReconstructErro
             ),
         },
         image_to_probe,
+        tracker_lag_s,
+        tracker_lag_source,
         settings,
         volume,
         frames_total: sequence.frames.len(),

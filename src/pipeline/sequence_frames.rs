@@ -293,10 +293,7 @@ pub fn clock_fault(sequence: &Sequence) -> Option<String> {
 /// A frame's timestamp, s; `None` when it is missing or not a finite number
 /// (a `nan` parses as a number but times nothing).
 pub fn timestamp_s(sequence: &Sequence, index: usize) -> Option<f64> {
-    sequence
-        .frame_field(index, "Timestamp")
-        .and_then(|t| t.parse::<f64>().ok())
-        .filter(|t| t.is_finite())
+    sequence.timestamp_s(index)
 }
 
 /// The constraints one frame gives: each N's middle dot on its point, each dot

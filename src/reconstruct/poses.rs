@@ -10,6 +10,7 @@ use std::collections::{BTreeMap, VecDeque};
 
 use nalgebra::Matrix4;
 
+use crate::core::trajectory::{Miss, Trajectory};
 use crate::io::plus::config::PlusConfig;
 use crate::io::plus::sequence::Sequence;
 
@@ -47,7 +48,9 @@ pub fn split_name(name: &str) -> Option<(&str, &str)> {
 
 /// The frames' poses: every `SkipInterval`-th frame, those whose image status and
 /// needed transforms are OK. `image_to_probe` replaces the device set's
-/// `ImageToProbe` (a calibration of one's own).
+/// `ImageToProbe` (a calibration of one's own). With a tracker lag of `lag_s`
+/// (PLUS's `LocalTimeOffsetSec` of the tracker), every tracked transform is read
+/// along its recorded trajectory at the image's time plus the lag.
 pub fn frame_poses(
     sequence: &Sequence,
     config: &PlusConfig,
@@ -55,6 +58,7 @@ pub fn frame_poses(
     reference_frame: &str,
     skip_interval: usize,
     image_to_probe: Option<Matrix4<f64>>,
+    lag_s: f64,
 ) -> (Vec<FramePose>, Vec<SkippedFrame>) {
     let mut fixed: Vec<Edge> = config
         .transforms
@@ -78,10 +82,11 @@ pub fn frame_poses(
             matrix: m,
         });
     }
+    let lagged = (lag_s != 0.0).then(|| Lagged::of(sequence, lag_s));
     let mut kept = Vec::new();
     let mut skipped = Vec::new();
     for index in (0..sequence.frames.len()).step_by(skip_interval.max(1)) {
-        match frame_pose(sequence, index, &fixed, image_frame, reference_frame) {
+        match frame_pose(sequence, index, &fixed, image_frame, reference_frame, lagged.as_ref()) {
             Ok(reference_T_pixel) => kept.push(FramePose {
                 index,
                 reference_T_pixel,
@@ -98,6 +103,7 @@ fn frame_pose(
     fixed: &[Edge],
     image_frame: &str,
     reference_frame: &str,
+    lagged: Option<&Lagged>,
 ) -> Result<Matrix4<f64>, String> {
     if let Some(status) = sequence.frame_field(index, "ImageStatus") {
         if status != "OK" {
@@ -113,13 +119,17 @@ fn frame_pose(
         let Some((from, to)) = split_name(transform) else {
             continue;
         };
-        match sequence.matrix(index, transform) {
+        let matrix = match lagged {
+            None => sequence.matrix(index, transform).map_err(|e| e.to_string()),
+            Some(lagged) => lagged.at(sequence, index, transform),
+        };
+        match matrix {
             Ok(matrix) => edges.push(Edge {
                 from: from.to_string(),
                 to: to.to_string(),
                 matrix,
             }),
-            Err(fault) => unusable.push(fault.to_string()),
+            Err(fault) => unusable.push(fault),
         }
     }
     path(&edges, image_frame, reference_frame).ok_or_else(|| {
@@ -129,6 +139,59 @@ fn frame_pose(
         }
         reason
     })
+}
+
+/// Every tracked transform of a sequence as a trajectory, read at the image's
+/// time plus a lag.
+struct Lagged {
+    lag_s: f64,
+    paths: BTreeMap<String, Trajectory<String>>,
+}
+
+impl Lagged {
+    fn of(sequence: &Sequence, lag_s: f64) -> Lagged {
+        let names: std::collections::BTreeSet<&str> = sequence
+            .frames
+            .iter()
+            .flat_map(|f| f.fields.keys())
+            .filter_map(|k| k.strip_suffix("Transform"))
+            .collect();
+        let paths = names
+            .into_iter()
+            .map(|name| {
+                let samples = (0..sequence.frames.len()).map(|i| {
+                    (
+                        i,
+                        sequence.timestamp_s(i),
+                        sequence.transform(i, name).map_err(|e| e.to_string()),
+                    )
+                });
+                (name.to_string(), Trajectory::from_samples(samples))
+            })
+            .collect();
+        Lagged { lag_s, paths }
+    }
+
+    /// Frame `index`'s `name` at its time plus the lag.
+    fn at(&self, sequence: &Sequence, index: usize, name: &str) -> Result<Matrix4<f64>, String> {
+        let time = sequence
+            .timestamp_s(index)
+            .ok_or_else(|| format!("frame {index}: no timestamp to apply the tracker's lag at"))?;
+        let path = self
+            .paths
+            .get(name)
+            .ok_or_else(|| format!("no trajectory of `{name}`"))?;
+        let at = time + self.lag_s;
+        path.at(at).map(|p| p.to_homogeneous()).map_err(|miss| match miss {
+            Miss::Outside(side) => {
+                format!("frame {index}: `{name}` is wanted at {at:.6} s, {side} of the recorded trajectory")
+            }
+            Miss::Gap { gap_s, limit_s } => format!(
+                "frame {index}: the samples of `{name}` around {at:.6} s are {gap_s:.3} s apart (limit {limit_s} s)"
+            ),
+            Miss::Sample(fault) => fault,
+        })
+    }
 }
 
 /// `to_T_from` through the edges (each usable both ways), breadth first.

@@ -43,6 +43,8 @@ pub fn summary(r: &Reconstruction) -> serde_json::Value {
         "sequence": display_path(&r.inputs.sequence),
         "config": display_path(&r.inputs.config),
         "image_to_probe_source": r.image_to_probe_source,
+        "tracker_lag_s": r.tracker_lag_s,
+        "tracker_lag_source": r.tracker_lag_source,
         "image_to_probe": r.image_to_probe.map(|m| (0..4).map(|i| (0..4).map(|j| m[(i, j)]).collect::<Vec<f64>>()).collect::<Vec<_>>()),
         "settings": r.settings,
         "volume": {
@@ -225,7 +227,7 @@ pub fn html(r: &Reconstruction, pictures: &[Picture]) -> String {
          <h1>Volume of {seq}</h1>\n\
          <p><b>{used} of {total} frames</b> inserted into a {nx}x{ny}x{nz} volume of {sx} mm voxels \
          ({filled_after} voxels filled: {filled_before} by the frames, {by_holes} by hole filling). \
-         <code>ImageToProbe</code> from {source}.</p>\n\
+         <code>ImageToProbe</code> from {source}; tracker lag {lag_ms:+.0} ms ({lag_source}).</p>\n\
          {wires}<h2>Slices and projection</h2>\n{figures}\
          <h2>Settings</h2>\n<p>{interp:?} interpolation, {comp:?} compounding, {opt:?} optimization, \
          clip rectangle origin {co:?} size {cs:?}, fan {fan}, {holes} hole-filling element(s). \
@@ -243,6 +245,8 @@ pub fn html(r: &Reconstruction, pictures: &[Picture]) -> String {
         filled_before = r.voxels_filled_before_holes,
         by_holes = r.voxels_filled_after_holes - r.voxels_filled_before_holes,
         source = escape(&r.image_to_probe_source),
+        lag_ms = r.tracker_lag_s * 1000.0,
+        lag_source = escape(&r.tracker_lag_source),
         interp = r.settings.interpolation,
         comp = r.settings.compounding,
         opt = r.settings.optimization,

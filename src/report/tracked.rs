@@ -16,7 +16,7 @@ use crate::pipeline::tracked::{Role, TrackedRun};
 use crate::pipeline::tracked_resolution::{TrackedAfter, ValidationResolution};
 use crate::report::error::OutputError;
 use crate::report::summary::{
-    to_text, CandidateScore, ConstraintCounts, FramesCompared, ImageToProbeSummary, ModelSelectionSummary, NoLagPre3d,
+    to_text, CandidateScore, ConstraintCounts, FramesCompared, ImageToProbeSummary, ModelSelectionSummary,
     PairedDifference, ParameterSd, PlusResultSummary, Pre3d, PublishedPre3d, Segmented, TrackedFrameCounts,
     TrackedSummary, TrackedTolerances, TRACKED_KIND,
 };
@@ -52,82 +52,6 @@ pub fn time_offset_note(run: &TrackedRun) -> String {
     }
 }
 
-/// The lag in one console line: the estimate, its intervals, what was
-/// applied, and the motion's estimate.
-pub fn lag_line(e: &crate::pipeline::time::lag_joint::LagEstimate) -> String {
-    let ms = |s: f64| format!("{:+.0} ms", s * 1000.0);
-    let interval = |i: Option<[f64; 2]>, what: &str| i.map(|[a, b]| format!("; {what} {} to {}", ms(a), ms(b)));
-    let boot = e.coarse.bootstrap_lag_s.map(|b| [b.p5, b.p95]);
-    let motion = match e.motion.as_ref() {
-        Some(m) => match m.lag_s {
-            Some(l) => format!("; the sweep's motion gives {}", ms(l)),
-            None => "; the sweep's motion gives none".into(),
-        },
-        None => String::new(),
-    };
-    format!(
-        "tracker lag {} (90 %{}{}){motion}: {}",
-        e.lag_s.map(ms).unwrap_or_else(|| "unresolved".into()),
-        interval(e.interval_90_s, "curvature").unwrap_or_default(),
-        interval(boot, "resamples").unwrap_or_default(),
-        e.decision
-    )
-    .replacen("(90 %; ", "(90 %: ", 1)
-    .replace(" (90 %)", "")
-}
-
-/// `f` with its poses at no lag.
-fn at_no_lag(f: &crate::pipeline::tracked::TrackedFrame) -> crate::pipeline::tracked::TrackedFrame {
-    crate::pipeline::tracked::TrackedFrame {
-        marker_T_phantom: f.marker_T_phantom_no_lag,
-        ..f.clone()
-    }
-}
-
-/// PRE3D with no lag of our model refitted without it, and of PLUS's matrix on
-/// the frames `keep` admits.
-fn no_lag_pre3d(
-    run: &TrackedRun,
-    manifest: &TrackedManifest,
-    plus: Option<&PlusResult>,
-    role: Role,
-    keep: impl Fn(usize) -> bool,
-) -> Option<NoLagPre3d> {
-    let fit = run.no_lag_fit.as_ref()?;
-    let frames: Vec<_> = run
-        .frames
-        .iter()
-        .filter(|f| f.role == role && f.rejected.is_none())
-        .map(at_no_lag)
-        .collect();
-    let ours: Vec<f64> = frames
-        .iter()
-        .flat_map(|f| {
-            crate::pipeline::tracked::pre3d(
-                f,
-                &manifest.nwires,
-                |pixel| fit.image_to_probe.apply(pixel),
-                &fit.phantom_correction,
-            )
-        })
-        .collect();
-    let theirs = plus.map(|plus| {
-        let map = |pixel: [f64; 2]| {
-            plus.image_to_probe
-                .transform_point(&nalgebra::Point3::new(pixel[0], pixel[1], 0.0))
-        };
-        frames
-            .iter()
-            .filter(|f| keep(f.index))
-            .flat_map(|f| crate::pipeline::tracked::pre3d(f, &manifest.nwires, map, &Rigid::identity()))
-            .collect::<Vec<f64>>()
-    });
-    Some(NoLagPre3d {
-        pre3d_mm: best_95(&ours),
-        plus_matrix_pre3d_mm: theirs.and_then(|t| best_95(&t)),
-    })
-}
-
 pub fn rows(m: &Matrix4<f64>) -> Vec<Vec<f64>> {
     (0..4).map(|r| (0..4).map(|c| m[(r, c)]).collect()).collect()
 }
@@ -142,7 +66,7 @@ fn pre3d(run: &TrackedRun, manifest: &TrackedManifest, plus: Option<&PlusResult>
         pre3d_all_mm: mean_sd_of(&ours),
         ..Pre3d::default()
     };
-    out.no_lag = no_lag_pre3d(run, manifest, plus, role, |index| {
+    out.no_lag = super::tracked_lag::no_lag_pre3d(run, manifest, plus, role, |index| {
         let listed = plus.and_then(|p| match role {
             Role::Calibration => p.calibration_frames_segmented.as_ref(),
             Role::Validation => p.validation_frames_segmented.as_ref(),
@@ -380,6 +304,11 @@ pub fn write(
     write_atomic(&folder.join("ImageToProbe.xml"), plus_xml(&matrix).as_bytes())?;
     let tfm = itk_tfm(&matrix).ok_or_else(|| OutputError::Report("ImageToProbe is singular".into()))?;
     write_atomic(&folder.join("ImageToProbe.tfm"), tfm.as_bytes())?;
+    let lag = super::transform_files::tracker_lag_xml(run.time_offset_s, &time_offset_note(run));
+    write_atomic(&folder.join("TrackerLag.xml"), lag.as_bytes())?;
+    if let Some(chart) = run.lag_estimate.as_ref().and_then(super::tracked_lag::lag_chart) {
+        write_atomic(&folder.join("lag_objective.png"), &super::figures::png(&chart)?)?;
+    }
     let (html, tex) = render_pages(run, manifest, &summary)?;
     write_atomic(&folder.join("report.html"), html.as_bytes())?;
     write_atomic(&folder.join("report.tex"), tex.as_bytes())?;
@@ -465,6 +394,22 @@ fn pre3d_rows(summary: &TrackedSummary) -> Vec<serde_json::Value> {
             "mean": f3(plus.published_validation_pre3d_mm.mean), "std": f3(plus.published_validation_pre3d_mm.std),
             "n": "—", "mean_all": "—", "std_all": "—", "n_all": "—",
         }));
+    }
+    if let Some(no_lag) = summary.validation.no_lag {
+        pre3d.push(row(
+            "probecal refitted with no lag",
+            "validation, no lag",
+            no_lag.pre3d_mm,
+            None,
+        ));
+        if no_lag.plus_matrix_pre3d_mm.is_some() {
+            pre3d.push(row(
+                "PLUS's ImageToProbe with no lag",
+                "validation, no lag, the same frames",
+                no_lag.plus_matrix_pre3d_mm,
+                None,
+            ));
+        }
     }
     pre3d
 }
@@ -585,6 +530,9 @@ fn render_pages(
     ctx.insert("translation", &format!("[{:.2}, {:.2}, {:.2}]", t.x, t.y, t.z));
     let pre3d = pre3d_rows(summary);
     ctx.insert("pre3d", &pre3d);
+    let lag_chart = run.lag_estimate.as_ref().and_then(super::tracked_lag::lag_chart);
+    ctx.insert("lag_figure", &lag_chart.as_ref().map(super::figures::svg).transpose()?);
+    ctx.insert("lag_caption", &lag_chart.as_ref().map(|c| c.caption.clone()));
     let paired = summary
         .validation
         .ours_minus_plus_matrix_mm

@@ -1,5 +1,6 @@
 //! The calibration as files other tools load: PLUS's `CoordinateDefinitions`
-//! transform and an ITK transform file for 3D Slicer.
+//! transform, an ITK transform file for 3D Slicer, and the tracker's lag as
+//! PLUS's device setting with a note for tools that have none.
 
 use nalgebra::{Matrix3, Matrix4};
 
@@ -35,4 +36,27 @@ pub fn itk_tfm(matrix: &Matrix4<f64>) -> Option<String> {
         "#Insight Transform File V1.0\n#Transform 0\nTransform: AffineTransform_double_3_3\nParameters: {}\nFixedParameters: 0 0 0\n",
         params.join(" ")
     ))
+}
+
+/// The tracker's lag as PLUS's device setting, with the note beside the
+/// `.tfm` (`TrackerLag.xml`): PLUS puts a device's sample stamped `local` at
+/// `global = local + LocalTimeOffsetSec`; a tracker that lags the images by
+/// `lag` stamps the probe's pose at time `t` as `t + lag`, so its
+/// `LocalTimeOffsetSec` is `-lag` (or, equally, the video device's is `+lag`).
+pub fn tracker_lag_xml(lag_s: f64, how: &str) -> String {
+    format!(
+        "<!-- The tracker lags the images by {lag:+.6} s ({ms:+.1} ms): {how}.\n\
+         \x20    ImageToProbe.xml was fitted with each image's poses read at its time plus this lag,\n\
+         \x20    so apply both together. PLUS puts a device's sample stamped `local` at\n\
+         \x20    global = local + LocalTimeOffsetSec: give the tracker's <Device> element\n\
+         \x20    LocalTimeOffsetSec=\"{tracker:.6}\" (or the video device's {video:.6}) in the\n\
+         \x20    device set PlusServer runs with. 3D Slicer's ImageToProbe.tfm holds no time:\n\
+         \x20    a recording replayed there needs its tracker shifted by the lag the same way. -->\n\
+         <Device LocalTimeOffsetSec=\"{tracker:.6}\" />\n",
+        lag = lag_s,
+        ms = lag_s * 1000.0,
+        how = how.replace("--", "- -"),
+        tracker = -lag_s + 0.0,
+        video = lag_s,
+    )
 }

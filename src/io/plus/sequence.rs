@@ -424,6 +424,13 @@ impl Sequence {
         Ok((rows, field, value.line))
     }
 
+    /// Frame `index`'s `Timestamp`, s, when it is a finite number.
+    pub fn timestamp_s(&self, index: usize) -> Option<f64> {
+        self.frame_field(index, "Timestamp")
+            .and_then(|t| t.parse::<f64>().ok())
+            .filter(|t| t.is_finite())
+    }
+
     /// A per-frame field as text (e.g. `Timestamp`).
     pub fn frame_field(&self, index: usize, name: &str) -> Option<&str> {
         self.frames[index].fields.get(name).map(|f| f.value.as_str())

@@ -53,6 +53,8 @@ pub const MAX_FRAME_LAGS: usize = 400_000;
 /// The chi-square 90 % point of one parameter: two lags whose residual sums of
 /// squares differ by less than this many residual variances are not told apart.
 pub const CHI2_90_ONE: f64 = 2.706;
+/// Spacing of the objective as reported (summary and page), s.
+pub const REPORT_STEP_S: f64 = 0.005;
 /// Largest share of resamples whose minimum may fall in another valley.
 pub const MAX_OTHER_VALLEY_SHARE: f64 = 0.1;
 
@@ -448,7 +450,7 @@ pub fn search(paths: &TrackerPaths, frames: &[TrackedFrame], inputs: &TrackedInp
         frames: n,
         points,
         outliers: kept.iter().flatten().filter(|k| !**k).count(),
-        objective: s.lags.iter().zip(&full).map(|(l, c)| [*l, rms(*c)]).collect(),
+        objective: objective(&s.lags, &full, rms),
         rms_at_zero_mm: zero.map(|k| rms(full[k])),
         searched: s.points.iter().map(|f| f.index).collect(),
         kept,
@@ -461,8 +463,21 @@ pub fn search(paths: &TrackerPaths, frames: &[TrackedFrame], inputs: &TrackedInp
         .collect();
     out.fold_lags_s = fold_lags_s;
     let resampled: Vec<Option<(usize, f64)>> = (1..=BOOTSTRAP.resamples).map(|r| minimum(&s.lags, &curve(r))).collect();
-    decide(&mut out, &full, &resampled, points);
+    decide(&mut out, &s.lags, &full, &resampled, points);
     out
+}
+
+/// The objective to report, every [`REPORT_STEP_S`] (or grid step), as
+/// `(lag, RMS)`: the decisions use the whole grid.
+fn objective(lags: &[f64], full: &[f64], rms: impl Fn(f64) -> f64) -> Vec<[f64; 2]> {
+    let stride = ((REPORT_STEP_S / (lags[1] - lags[0])).round() as usize).max(1);
+    let centre = lags.len() / 2;
+    lags.iter()
+        .zip(full)
+        .enumerate()
+        .filter(|(i, _)| i.abs_diff(centre) % stride == 0)
+        .map(|(_, (l, c))| [*l, rms(*c)])
+        .collect()
 }
 
 /// Whether grid index `k` of `len` is more than a frame period from either edge.
@@ -472,9 +487,8 @@ fn away_from_edge(k: usize, len: usize, c: &Coarse) -> bool {
 }
 
 /// The minimum, its bootstrap spread, and the refusals (see the module's text).
-fn decide(out: &mut Coarse, full: &[f64], resampled: &[Option<(usize, f64)>], points: usize) {
-    let lags: Vec<f64> = out.objective.iter().map(|o| o[0]).collect();
-    let Some((k, lag)) = minimum(&lags, full) else {
+fn decide(out: &mut Coarse, lags: &[f64], full: &[f64], resampled: &[Option<(usize, f64)>], points: usize) {
+    let Some((k, lag)) = minimum(lags, full) else {
         out.unresolved = Some("the affine fit failed at every lag".into());
         return;
     };

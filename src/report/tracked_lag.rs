@@ -1,0 +1,146 @@
+//! The tracker's lag on a tracked run's page and console: the estimate in one
+//! line, the objective against the lag with both estimates, and PRE3D with no
+//! lag beside the lagged figures.
+
+use crate::core::geometry::Rigid;
+use crate::core::stats::best_95;
+use crate::io::plus::result::PlusResult;
+use crate::manifest::tracked::TrackedManifest;
+use crate::pipeline::time::lag_joint::LagEstimate;
+use crate::pipeline::tracked::{Role, TrackedFrame, TrackedRun};
+use crate::report::figures::{Chart, Series, Style};
+use crate::report::summary::NoLagPre3d;
+
+/// The lag in one console line: the estimate, its intervals, what was
+/// applied, and the motion's estimate.
+pub fn lag_line(e: &LagEstimate) -> String {
+    let ms = |s: f64| format!("{:+.0} ms", s * 1000.0);
+    let interval = |i: Option<[f64; 2]>, what: &str| i.map(|[a, b]| format!("; {what} {} to {}", ms(a), ms(b)));
+    let boot = e.coarse.bootstrap_lag_s.map(|b| [b.p5, b.p95]);
+    let motion = match e.motion.as_ref() {
+        Some(m) => match m.lag_s {
+            Some(l) => format!("; the sweep's motion gives {}", ms(l)),
+            None => "; the sweep's motion gives none".into(),
+        },
+        None => String::new(),
+    };
+    format!(
+        "tracker lag {} (90 %{}{}){motion}: {}",
+        e.lag_s.map(ms).unwrap_or_else(|| "unresolved".into()),
+        interval(e.interval_90_s, "curvature").unwrap_or_default(),
+        interval(boot, "resamples").unwrap_or_default(),
+        e.decision
+    )
+    .replacen("(90 %; ", "(90 %: ", 1)
+    .replace(" (90 %)", "")
+}
+
+/// `f` with its poses at no lag.
+fn at_no_lag(f: &TrackedFrame) -> TrackedFrame {
+    TrackedFrame {
+        marker_T_phantom: f.marker_T_phantom_no_lag,
+        ..f.clone()
+    }
+}
+
+/// PRE3D with no lag of our model refitted without it, and of PLUS's matrix on
+/// the frames `keep` admits.
+pub fn no_lag_pre3d(
+    run: &TrackedRun,
+    manifest: &TrackedManifest,
+    plus: Option<&PlusResult>,
+    role: Role,
+    keep: impl Fn(usize) -> bool,
+) -> Option<NoLagPre3d> {
+    let fit = run.no_lag_fit.as_ref()?;
+    let frames: Vec<_> = run
+        .frames
+        .iter()
+        .filter(|f| f.role == role && f.rejected.is_none())
+        .map(at_no_lag)
+        .collect();
+    let ours: Vec<f64> = frames
+        .iter()
+        .flat_map(|f| {
+            crate::pipeline::tracked::pre3d(
+                f,
+                &manifest.nwires,
+                |pixel| fit.image_to_probe.apply(pixel),
+                &fit.phantom_correction,
+            )
+        })
+        .collect();
+    let theirs = plus.map(|plus| {
+        let map = |pixel: [f64; 2]| {
+            plus.image_to_probe
+                .transform_point(&nalgebra::Point3::new(pixel[0], pixel[1], 0.0))
+        };
+        frames
+            .iter()
+            .filter(|f| keep(f.index))
+            .flat_map(|f| crate::pipeline::tracked::pre3d(f, &manifest.nwires, map, &Rigid::identity()))
+            .collect::<Vec<f64>>()
+    });
+    Some(NoLagPre3d {
+        pre3d_mm: best_95(&ours),
+        plus_matrix_pre3d_mm: theirs.and_then(|t| best_95(&t)),
+    })
+}
+
+/// The coarse search's objective against the lag, with the estimate applied
+/// (or found) and the motion's, each with its 90 % interval drawn at the
+/// objective's floor.
+pub fn lag_chart(e: &LagEstimate) -> Option<Chart> {
+    let curve: Vec<(f64, f64)> = e.coarse.objective.iter().map(|o| (o[0] * 1000.0, o[1])).collect();
+    if curve.len() < 3 {
+        return None;
+    }
+    let lo = curve.iter().map(|p| p.1).fold(f64::INFINITY, f64::min);
+    let hi = curve.iter().map(|p| p.1).fold(f64::NEG_INFINITY, f64::max);
+    let mark = |lag_s: f64, interval: Option<[f64; 2]>, level: f64| {
+        let mut points = vec![(lag_s * 1000.0, lo), (lag_s * 1000.0, hi)];
+        if let Some([a, b]) = interval {
+            let y = lo + (hi - lo) * level;
+            points.extend([
+                (lag_s * 1000.0, y),
+                (a * 1000.0, y),
+                (b * 1000.0, y),
+                (lag_s * 1000.0, y),
+            ]);
+        }
+        points
+    };
+    let mut series = vec![Series {
+        name: "calibration frames' RMS error of the affine fit (mm)".into(),
+        colour: plotters::style::RGBColor(40, 70, 200),
+        points: curve,
+    }];
+    if let Some(lag) = e.lag_s {
+        series.push(Series {
+            name: format!("spatio-temporal estimate {:+.0} ms", lag * 1000.0),
+            colour: plotters::style::RGBColor(200, 40, 40),
+            points: mark(lag, e.interval_s(), 0.1),
+        });
+    }
+    if let Some(m) = e.motion.as_ref() {
+        if let Some(lag) = m.lag_s {
+            series.push(Series {
+                name: format!("motion estimate {:+.0} ms", lag * 1000.0),
+                colour: plotters::style::RGBColor(40, 140, 40),
+                points: mark(lag, m.bootstrap_lag_s.map(|b| [b.p5, b.p95]), 0.2),
+            });
+        }
+    }
+    Some(Chart {
+        id: "lag_objective",
+        caption: format!(
+            "The tracker's lag: at each lag the calibration frames' dots are placed with the poses read at the image's time plus the lag and PLUS's affine ImageToProbe is fitted; the curve is its RMS error. Look for one clear valley: its floor is the lag, and the horizontal bars are the 90 % intervals (resamples of the sweep, the curvature). {}",
+            e.decision
+        ),
+        x_desc: "tracker lag (ms)".into(),
+        y_desc: "RMS error (mm)".into(),
+        style: Style::Lines,
+        series,
+        equal_axes: false,
+    })
+}
