@@ -28,6 +28,9 @@ use crate::core::geometry::Rigid;
 /// may have turned a degree or more between them.
 pub const MAX_GAP_S: f64 = 0.25;
 
+/// Half-width of the smoothing kernel's window, in SDs.
+const KERNEL_SDS: f64 = 4.0;
+
 /// Two timestamps closer than this are the same instant, s.
 pub const SAME_TIME_S: f64 = 1e-6;
 
@@ -105,6 +108,70 @@ impl<F: Clone> Trajectory<F> {
     }
 }
 
+impl<F: Clone> Trajectory<F> {
+    /// The pose at `time_s` by Gaussian kernel regression over the samples
+    /// within four `sigma_s` of it (the kernel lowered by its value there, so
+    /// that a sample enters or leaves the window with no weight and the pose
+    /// moves continuously with the time): translations averaged with the kernel's
+    /// weights, rotations as the normalised weighted sum of sign-aligned
+    /// quaternions. With `sigma_s` at least the sampling interval, the noise
+    /// of the result is the same wherever `time_s` falls between samples (an
+    /// interpolated pose averages its two samples' noise least at a sample and
+    /// most halfway); the kernel is symmetric, so it shifts no motion in time.
+    /// Refused outside the samples' span, with no usable sample on either side
+    /// within [`MAX_GAP_S`], or at an unusable sample inside the window.
+    pub fn smoothed_at(&self, time_s: f64, sigma_s: f64) -> Result<Rigid, Miss<F>> {
+        if !time_s.is_finite() {
+            return Err(Miss::Outside("at no time"));
+        }
+        let (first, last) = self.span_s().ok_or(Miss::Outside("before the first sample"))?;
+        if time_s < first - SAME_TIME_S {
+            return Err(Miss::Outside("before the first sample"));
+        }
+        if time_s > last + SAME_TIME_S {
+            return Err(Miss::Outside("after the last sample"));
+        }
+        let lo = self.samples.partition_point(|s| s.0 < time_s - KERNEL_SDS * sigma_s);
+        let hi = self.samples.partition_point(|s| s.0 <= time_s + KERNEL_SDS * sigma_s);
+        let floor = (-0.5 * KERNEL_SDS * KERNEL_SDS).exp();
+        let window = &self.samples[lo..hi];
+        let before = window.iter().rev().find(|s| s.0 <= time_s).map(|s| time_s - s.0);
+        let after = window.iter().find(|s| s.0 >= time_s).map(|s| s.0 - time_s);
+        let gap_s = before.unwrap_or(f64::INFINITY) + after.unwrap_or(f64::INFINITY);
+        if gap_s > MAX_GAP_S {
+            return Err(Miss::Gap {
+                gap_s,
+                limit_s: MAX_GAP_S,
+            });
+        }
+        let mut weight_sum = 0.0;
+        let mut translation = Vector3::zeros();
+        let mut quaternion = nalgebra::Vector4::zeros();
+        let mut reference: Option<nalgebra::Vector4<f64>> = None;
+        for (t, pose) in window {
+            let w = ((-0.5 * ((t - time_s) / sigma_s).powi(2)).exp() - floor).max(0.0);
+            if w == 0.0 {
+                continue;
+            }
+            let pose = pose.clone().map_err(Miss::Sample)?;
+            let q = pose.rotation.coords;
+            let q = match reference {
+                Some(r) if r.dot(&q) < 0.0 => -q,
+                Some(_) => q,
+                None => {
+                    reference = Some(q);
+                    q
+                }
+            };
+            weight_sum += w;
+            translation += pose.translation.vector * w;
+            quaternion += q * w;
+        }
+        let rotation = UnitQuaternion::from_quaternion(nalgebra::Quaternion::from(quaternion));
+        Ok(Rigid::from_parts((translation / weight_sum).into(), rotation))
+    }
+}
+
 /// `a` moved the fraction `w` of the way to `b`: slerp of the rotation, linear
 /// translation.
 pub fn interpolate(a: &Rigid, b: &Rigid, w: f64) -> Rigid {
@@ -176,6 +243,33 @@ mod tests {
         assert!(t.at(0.0).is_ok());
         // A frame with no time is its own pose only.
         assert!(t.own(3).unwrap().is_ok() && t.span_s() == Some((0.0, 0.2)));
+    }
+
+    #[test]
+    fn a_smoothed_pose_has_the_same_noise_wherever_it_falls_between_samples() {
+        // Samples of a still pose with noise; the smoothed pose's scatter over
+        // many trajectories is the same at a sample and halfway between two.
+        let mut rng = crate::core::rng::Rng::new(5);
+        let (mut at_sample, mut halfway) = (0.0, 0.0);
+        let (mut interpolated_sample, mut interpolated_halfway) = (0.0, 0.0);
+        for _ in 0..400 {
+            let t: Trajectory<String> = Trajectory::from_samples(
+                (0..40).map(|k| (k, Some(0.1 * k as f64), Ok(pose(0.0, rng.normal(0.0, 1.0))))),
+            );
+            at_sample += t.smoothed_at(2.0, 0.1).unwrap().translation.vector.x.powi(2);
+            halfway += t.smoothed_at(2.05, 0.1).unwrap().translation.vector.x.powi(2);
+            interpolated_sample += t.at(2.0).unwrap().translation.vector.x.powi(2);
+            interpolated_halfway += t.at(2.05).unwrap().translation.vector.x.powi(2);
+        }
+        let ratio = halfway / at_sample;
+        assert!((ratio - 1.0).abs() < 0.1, "{ratio}");
+        // Interpolation halves the variance halfway.
+        let ratio = interpolated_halfway / interpolated_sample;
+        assert!(ratio < 0.65, "{ratio}");
+        // Motion is not shifted: a steady turn and slide read where they are.
+        let p = steady(10).smoothed_at(10.45, 0.1).unwrap();
+        assert!((p.translation.vector.x - 4.5).abs() < 1e-9, "{p:?}");
+        assert!((p.rotation.angle() - 0.45).abs() < 1e-3);
     }
 
     #[test]

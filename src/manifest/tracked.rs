@@ -48,10 +48,10 @@ use crate::spec::nwire::{NWire, WireSegment};
 #[derive(Debug, Clone, PartialEq)]
 pub enum TimeOffset {
     Fixed(f64),
-    /// Found from the calibration sweep's own motion
-    /// (the pipeline's `sweep_lag` stage): the wire dots' measured motion in the
-    /// images against the motion the tracker's poses predict, cross-correlated
-    /// as PLUS's temporal calibration does; not applied when unresolved.
+    /// Estimated with the calibration from the calibration frames alone
+    /// (`pipeline::time::lag`, `pipeline::time::lag_joint`), applied when
+    /// cross-validation prefers it to no lag; the sweep's motion gives a second
+    /// estimate beside it.
     Estimate,
     /// The lag `probecal temporal` finds in a recording of the probe over a flat
     /// reflector (PLUS's `TrackerLagSec`: a frame's pose is the tracker's at its

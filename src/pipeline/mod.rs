@@ -25,5 +25,6 @@ pub mod sphere_pose;
 pub mod study;
 pub mod time;
 pub mod tracked;
+pub mod tracked_inputs;
 pub mod tracked_resolution;
 pub mod truth;

@@ -12,10 +12,9 @@ use nalgebra::{Matrix4, Point3};
 
 use crate::core::geometry::Calibration;
 use crate::core::stats::best_95;
-use crate::detect::nwire::Segmentation;
 use crate::detect::overlay::Overlay;
-use crate::estimate::image_to_probe::{self, ConstraintModel, FitError, PixelModel};
-use crate::estimate::model_selection::{self, Candidate, FitSettings, FrameConstraints, Selection};
+use crate::estimate::image_to_probe::{self, FitError};
+use crate::estimate::model_selection::{self, Candidate, Selection};
 use crate::io::plus::config::ConfigError;
 use crate::io::plus::sequence::{Sequence, SequenceError};
 use crate::manifest::tracked::{TimeOffset, TrackedManifest};
@@ -26,59 +25,10 @@ pub use crate::pipeline::sequence_frames::{
 };
 use crate::pipeline::time::lag_joint::{self, LagEstimate};
 use crate::pipeline::time::sweep_lag::SweepLag;
-use crate::pipeline::time::trajectory::Trajectory;
+pub use crate::pipeline::tracked_inputs::{
+    attach_poses, attach_poses_along, fit_settings, usable_constraints, TrackedInputs, TrackerPaths,
+};
 use crate::spec::nwire::NWire;
-
-/// Everything the tracked pipeline needs, resolved.
-#[derive(Debug, Clone)]
-pub struct TrackedInputs {
-    pub calibration_sequence: PathBuf,
-    pub validation_sequence: Option<PathBuf>,
-    /// `ProbeToTracker`-style names (without the `Transform` suffix).
-    pub probe_transform: String,
-    pub reference_transform: String,
-    /// `reference_T_phantom` (PLUS `PhantomToReference`).
-    pub reference_T_phantom: Matrix4<f64>,
-    pub nwires: Vec<NWire>,
-    pub spacing_guess_mm_per_px: f64,
-    pub clip_rectangle_px: Option<[usize; 4]>,
-    pub segmentation: Segmentation,
-    /// Fixed, or `None`: chosen by cross-validation on the calibration frames.
-    pub model: Option<ConstraintModel>,
-    pub pixel_model: Option<PixelModel>,
-    pub folds: usize,
-    /// Drop constraints above mean + k SD and refit (PLUS: 3).
-    pub reject_sd: Option<f64>,
-    /// The tracker's lag behind the images: a frame's pose is interpolated at its
-    /// timestamp plus this offset.
-    pub time_offset: TimeOffset,
-    /// Also correct the phantom's registration (`PhantomToReference`) from the
-    /// calibration frames.
-    pub refine_phantom: bool,
-}
-
-impl TrackedInputs {
-    /// The tracked pipeline's inputs from a manifest.
-    pub fn from_manifest(m: &TrackedManifest) -> TrackedInputs {
-        TrackedInputs {
-            calibration_sequence: m.calibration_sequence.clone(),
-            validation_sequence: m.validation_sequence.clone(),
-            probe_transform: m.probe_transform.clone(),
-            reference_transform: m.reference_transform.clone(),
-            reference_T_phantom: m.reference_T_phantom,
-            nwires: m.nwires.clone(),
-            spacing_guess_mm_per_px: m.spacing_guess_mm_per_px,
-            clip_rectangle_px: m.clip_rectangle_px,
-            segmentation: m.segmentation.clone(),
-            model: m.model,
-            pixel_model: m.pixel_model,
-            folds: m.folds,
-            reject_sd: m.reject_sd,
-            time_offset: m.time_offset.clone(),
-            refine_phantom: m.refine_phantom,
-        }
-    }
-}
 
 #[derive(Debug, thiserror::Error)]
 pub enum TrackedError {
@@ -167,80 +117,6 @@ impl TrackedRun {
     }
 }
 
-/// The probe's and the reference's recorded trajectories of one sequence.
-#[derive(Debug, Clone)]
-pub struct TrackerPaths {
-    pub probe: Trajectory,
-    pub reference: Trajectory,
-}
-
-impl TrackerPaths {
-    pub fn of(sequence: &Sequence, inputs: &TrackedInputs) -> TrackerPaths {
-        TrackerPaths {
-            probe: Trajectory::of(sequence, &inputs.probe_transform),
-            reference: Trajectory::of(sequence, &inputs.reference_transform),
-        }
-    }
-
-    /// `marker_T_phantom` of `frame` (taken at `time_s`, `None`: no timestamp)
-    /// for a tracker lag of `offset_s`: both transforms read along their
-    /// trajectories at the image's time plus the lag, checked plausible.
-    pub fn marker_T_phantom(
-        &self,
-        frame: usize,
-        time_s: Option<f64>,
-        offset_s: f64,
-        reference_T_phantom: &Matrix4<f64>,
-    ) -> Result<Matrix4<f64>, PoseFault> {
-        // With no lag a frame's own sample is its pose, with or without a timestamp.
-        let at = |path: &Trajectory| match (time_s, offset_s == 0.0) {
-            (_, true) => path.own(frame).unwrap_or(Err(PoseFault::NoTimestamp {
-                frame,
-                transform: path.name().to_string(),
-            })),
-            (Some(t), false) => path.at(t + offset_s, frame),
-            (None, false) => Err(PoseFault::NoTimestamp {
-                frame,
-                transform: path.name().to_string(),
-            }),
-        };
-        let (probe, reference) = (at(&self.probe)?, at(&self.reference)?);
-        // The same plausibility check as the camera pipeline's, at this stage boundary.
-        if let Some(fault) = crate::pipeline::record::Implausible::of(
-            Some((probe, reference)),
-            ["tracker_T_probe", "tracker_T_reference"],
-            &[],
-        ) {
-            return Err(PoseFault::Implausible(fault));
-        }
-        Ok(probe.inverse().to_homogeneous() * reference.to_homogeneous() * reference_T_phantom)
-    }
-}
-
-/// Sets each frame's `marker_T_phantom` for a tracker lag of `offset_s` (frames whose
-/// transforms are unusable are rejected with the reason; earlier pose rejections
-/// are re-evaluated).
-pub fn attach_poses(sequence: &Sequence, frames: &mut [TrackedFrame], inputs: &TrackedInputs, offset_s: f64) {
-    attach_poses_along(&TrackerPaths::of(sequence, inputs), frames, inputs, offset_s);
-}
-
-/// [`attach_poses`] with the trajectories already read.
-pub fn attach_poses_along(paths: &TrackerPaths, frames: &mut [TrackedFrame], inputs: &TrackedInputs, offset_s: f64) {
-    for frame in frames.iter_mut() {
-        if matches!(frame.rejected, Some(TrackedRejection::Pose(_))) {
-            frame.rejected = None;
-        }
-        frame.marker_T_phantom = None;
-        if frame.rejected.is_some() {
-            continue;
-        }
-        match paths.marker_T_phantom(frame.index, frame.timestamp_s, offset_s, &inputs.reference_T_phantom) {
-            Ok(m) => frame.marker_T_phantom = Some(m),
-            Err(e) => frame.rejected = Some(TrackedRejection::Pose(e)),
-        }
-    }
-}
-
 /// PRE3D of each pattern's middle dot in one frame, mm: the middle dot's pixel
 /// mapped into the probe frame by `image_to_probe` against its position from the
 /// phantom geometry (registration corrected by `phantom_correction`).
@@ -262,15 +138,6 @@ pub fn pre3d(
             let expected: Point3<f64> = marker_T_phantom.transform_point(&nwire.middle_in_phantom_mm(dots));
             (image_to_probe(dots[1]) - expected).norm()
         })
-        .collect()
-}
-
-/// The usable frames' constraints of one sequence, in frame order.
-pub fn usable_constraints(frames: &[TrackedFrame], nwires: &[NWire], role: Role) -> Vec<FrameConstraints> {
-    frames
-        .iter()
-        .filter(|f| f.role == role && f.rejected.is_none())
-        .map(|f| constraints(f, nwires))
         .collect()
 }
 
@@ -303,13 +170,6 @@ fn segment_sequence(
     )?;
     let frames = segment_frames(sequence, role, &segmentation_inputs(inputs, clip, overlay.as_ref()));
     Ok((frames, overlay.map(|o| o.pixels())))
-}
-
-pub fn fit_settings(inputs: &TrackedInputs) -> FitSettings {
-    FitSettings {
-        reject_sd: inputs.reject_sd,
-        refine_phantom: inputs.refine_phantom,
-    }
 }
 
 /// The tracker's lag from the calibration sweep's own motion (the second,
@@ -412,6 +272,10 @@ fn estimate_lag(
         return Ok(LagEstimate::refused(why, Some(motion)));
     }
     let motion = lag_from_sweep(paths, frames, inputs);
+    // Every lag scored with poses of the same noise: the trajectory smoothed
+    // by a kernel of one frame period.
+    let sigma_s = SMOOTHING_PERIODS * median_period_s(frames).unwrap_or(0.0).max(1e-3);
+    let paths = &paths.smoothed(sigma_s);
     let coarse = crate::pipeline::time::lag::search(paths, frames, inputs);
     let Some(coarse_lag) = coarse.lag_s else {
         return Ok(lag_joint::assemble(coarse, None, None, Some(motion)));
@@ -421,6 +285,26 @@ fn estimate_lag(
     let joint = lag_joint::refine(paths, frames, inputs, &coarse, candidate);
     let cv = lag_joint::cross_validate(paths, frames, inputs, &coarse, candidate);
     Ok(lag_joint::assemble(coarse, joint, cv, Some(motion)))
+}
+
+/// The SD of the kernel the lag is estimated with, in frame periods: a smoothed
+/// pose's noise variance (the sum of the kernel's squared normalised weights)
+/// varies between samples by about `2 exp(-pi^2 k^2)` of itself: 17 % at
+/// k = 1/2, 0.8 % at 3/4, 0.01 % at 1. One frame period makes every lag's
+/// poses equally noisy.
+pub const SMOOTHING_PERIODS: f64 = 1.0;
+
+/// The median time between consecutive calibration frames, s.
+fn median_period_s(frames: &[TrackedFrame]) -> Option<f64> {
+    let mut times: Vec<f64> = frames
+        .iter()
+        .filter(|f| f.role == Role::Calibration)
+        .filter_map(|f| f.timestamp_s)
+        .collect();
+    times.sort_by(f64::total_cmp);
+    let mut gaps: Vec<f64> = times.windows(2).map(|w| w[1] - w[0]).filter(|g| *g > 0.0).collect();
+    gaps.sort_by(f64::total_cmp);
+    gaps.get(gaps.len() / 2).copied()
 }
 
 /// Runs the tracked pipeline.

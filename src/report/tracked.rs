@@ -530,9 +530,7 @@ fn render_pages(
     ctx.insert("translation", &format!("[{:.2}, {:.2}, {:.2}]", t.x, t.y, t.z));
     let pre3d = pre3d_rows(summary);
     ctx.insert("pre3d", &pre3d);
-    let lag_chart = run.lag_estimate.as_ref().and_then(super::tracked_lag::lag_chart);
-    ctx.insert("lag_figure", &lag_chart.as_ref().map(super::figures::svg).transpose()?);
-    ctx.insert("lag_caption", &lag_chart.as_ref().map(|c| c.caption.clone()));
+    super::tracked_lag::insert_figure(&mut ctx, run)?;
     let paired = summary
         .validation
         .ours_minus_plus_matrix_mm

@@ -144,3 +144,14 @@ pub fn lag_chart(e: &LagEstimate) -> Option<Chart> {
         equal_axes: false,
     })
 }
+
+/// The lag's figure (SVG) and caption in a page's context; none without an estimate.
+pub fn insert_figure(ctx: &mut tera::Context, run: &TrackedRun) -> Result<(), crate::report::error::OutputError> {
+    let chart = run.lag_estimate.as_ref().and_then(lag_chart);
+    ctx.insert(
+        "lag_figure",
+        &chart.as_ref().map(crate::report::figures::svg).transpose()?,
+    );
+    ctx.insert("lag_caption", &chart.as_ref().map(|c| c.caption.clone()));
+    Ok(())
+}

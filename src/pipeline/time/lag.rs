@@ -5,7 +5,7 @@
 //! The coarse search, here: at each lag of a grid over ±1 s (or a quarter of
 //! the sweep when it is shorter than 4 s), every calibration frame's poses are
 //! read along the recorded trajectories at the image's time plus the lag
-//! ([`crate::pipeline::time::trajectory`]), each N's middle dot is placed in the
+//! ([`crate::core::trajectory`]), each N's middle dot is placed in the
 //! probe's frame, and PLUS's least-squares `ImageToProbe` (the general affine
 //! map of pixel `(u, v, 1)` to probe millimetres, 12 unknowns) is fitted in
 //! closed form. Its residual sum of squares against the lag is the objective.
@@ -27,9 +27,8 @@
 //! minima fall in another valley of the objective), and a minimum at or next to
 //! the edge of the grid (within one frame period).
 //!
-//! The refinement with the calibration's own model, the curvature-based
-//! uncertainty and the cross-validation of "lag" against "no lag" are in
-//! [`crate::pipeline::time::lag_joint`].
+//! The refinement with the model, the curvature and the cross-validation of
+//! "lag" against "no lag": `pipeline::time::lag_joint`.
 
 use nalgebra::{Matrix3, Point3, Vector3};
 use rayon::prelude::*;
@@ -38,7 +37,7 @@ use serde::{Deserialize, Serialize};
 use crate::core::stats::percentile;
 use crate::evaluate::block_bootstrap::{self, BlockBootstrap, ScoreSpread};
 use crate::pipeline::sequence_frames::{Role, TrackedFrame, TrackedRejection};
-use crate::pipeline::tracked::{TrackedInputs, TrackerPaths};
+use crate::pipeline::tracked_inputs::{TrackedInputs, TrackerPaths};
 use crate::spec::nwire::NWire;
 
 /// Fewest frames the search needs.
@@ -53,13 +52,16 @@ pub const MAX_FRAME_LAGS: usize = 400_000;
 /// The chi-square 90 % point of one parameter: two lags whose residual sums of
 /// squares differ by less than this many residual variances are not told apart.
 pub const CHI2_90_ONE: f64 = 2.706;
+/// Least motion of the dots' targets over the sweep (RMS about their means),
+/// in multiples of the affine fit's RMS error: below it the poses move about as
+/// much as their noise.
+pub const MIN_MOTION_OVER_NOISE: f64 = 3.0;
 /// Spacing of the objective as reported (summary and page), s.
 pub const REPORT_STEP_S: f64 = 0.005;
 /// Largest share of resamples whose minimum may fall in another valley.
 pub const MAX_OTHER_VALLEY_SHARE: f64 = 0.1;
 
-/// The bootstrap: blocks of 10 frames (under a second of a sweep at 10–30
-/// frames/s), 200 resamples, a fixed seed.
+/// The bootstrap: blocks of 10 frames, 200 resamples, a fixed seed.
 pub const BOOTSTRAP: BlockBootstrap = BlockBootstrap {
     block_frames: 10,
     resamples: 200,
@@ -133,6 +135,9 @@ pub struct Coarse {
     pub bootstrap_lag_s: Option<ScoreSpread>,
     /// Share of resamples whose minimum lies in another valley.
     pub other_valley_share: f64,
+    /// How far the dots' targets (probe frame, no lag) move over the sweep:
+    /// RMS about each N's mean, mm.
+    pub motion_rms_mm: f64,
     /// The RMS residual at lag 0 and at the minimum, mm.
     pub rms_at_zero_mm: Option<f64>,
     pub rms_at_minimum_mm: Option<f64>,
@@ -277,8 +282,8 @@ fn weighted_ssr(shares: &[Share], weights: &[Vec<f64>]) -> Vec<f64> {
         .collect()
 }
 
-/// The minimum of a curve on the grid: its index, and the parabola's vertex
-/// through it and its neighbours (s); `None` for an empty or non-finite curve.
+/// The minimum of a curve on the grid: its index, and the vertex of the
+/// parabola through it and its neighbours (s); `None` for no finite point.
 fn minimum(lags: &[f64], curve: &[f64]) -> Option<(usize, f64)> {
     let k = (0..curve.len())
         .filter(|&i| curve[i].is_finite())
@@ -296,22 +301,20 @@ fn minimum(lags: &[f64], curve: &[f64]) -> Option<(usize, f64)> {
     Some((k, lags[k] + shift * (lags[1] - lags[0])))
 }
 
-/// The valley of the curve around index `k`: the run of grid points over
-/// which it rises, or stays level, away from `k` on both sides.
-fn valley(curve: &[f64], k: usize) -> (usize, usize) {
-    let mut lo = k;
-    while lo > 0 && curve[lo - 1] >= curve[lo] {
-        lo -= 1;
-    }
-    let mut hi = k;
-    while hi + 1 < curve.len() && curve[hi + 1] >= curve[hi] {
-        hi += 1;
-    }
-    (lo, hi)
+/// Whether grid points `k` and `r` lie in different valleys of the curve: a
+/// ridge between them rises above the higher of the two by more than `barrier`.
+fn separated(curve: &[f64], k: usize, r: usize, barrier: f64) -> bool {
+    let (a, b) = (k.min(r), k.max(r));
+    let ridge = curve[a..=b]
+        .iter()
+        .copied()
+        .filter(|c| c.is_finite())
+        .fold(f64::MIN, f64::max);
+    ridge - curve[k].max(curve[r]) > barrier
 }
 
 /// Drops dots above mean + `k` SD of the affine fit's residuals at `lag_s`
-/// (repeated until none is dropped, at most 10 rounds).
+/// (until none is dropped, at most 10 rounds).
 fn outliers(
     s: &Setup,
     paths: &TrackerPaths,
@@ -375,6 +378,30 @@ fn outliers(
         kept = next;
     }
     kept
+}
+
+/// RMS distance of each N's middle-dot target (probe frame, no lag) from its
+/// mean over the searched frames, mm.
+fn motion_rms_mm(s: &Setup, paths: &TrackerPaths, inputs: &TrackedInputs) -> f64 {
+    let mut by_pattern: Vec<Vec<Vector3<f64>>> = Vec::new();
+    for f in &s.points {
+        let Ok(m) = paths.marker_T_phantom(f.index, Some(f.time_s), 0.0, &inputs.reference_T_phantom) else {
+            continue;
+        };
+        for (j, q) in f.in_phantom.iter().enumerate() {
+            if by_pattern.len() <= j {
+                by_pattern.resize(j + 1, Vec::new());
+            }
+            by_pattern[j].push(m.transform_point(q).coords);
+        }
+    }
+    let (mut sum, mut n) = (0.0, 0usize);
+    for targets in &by_pattern {
+        let mean = targets.iter().sum::<Vector3<f64>>() / targets.len().max(1) as f64;
+        sum += targets.iter().map(|p| (p - mean).norm_squared()).sum::<f64>();
+        n += targets.len();
+    }
+    (sum / n.max(1) as f64).sqrt()
 }
 
 /// Frame weights: the full set, each bootstrap resample, then each fold's
@@ -453,6 +480,7 @@ pub fn search(paths: &TrackerPaths, frames: &[TrackedFrame], inputs: &TrackedInp
         objective: objective(&s.lags, &full, rms),
         rms_at_zero_mm: zero.map(|k| rms(full[k])),
         searched: s.points.iter().map(|f| f.index).collect(),
+        motion_rms_mm: motion_rms_mm(&s, paths, inputs),
         kept,
         ..Default::default()
     };
@@ -505,11 +533,15 @@ fn decide(out: &mut Coarse, lags: &[f64], full: &[f64], resampled: &[Option<(usi
             block_frames: BOOTSTRAP.block_frames,
         });
     }
-    let (lo, hi) = valley(full, k);
-    let elsewhere = resampled.iter().flatten().filter(|(r, _)| *r < lo || *r > hi).count();
-    out.other_valley_share = elsewhere as f64 / resampled.len().max(1) as f64;
     // Residual variance of the affine fit: 3 coordinates a dot, 12 unknowns.
     let variance = (ssr_min / (3 * points).saturating_sub(13).max(1) as f64).max(1e-12);
+    let other: Vec<f64> = resampled
+        .iter()
+        .flatten()
+        .filter(|(r, _)| separated(full, k, *r, CHI2_90_ONE * variance))
+        .map(|(_, lag)| *lag)
+        .collect();
+    out.other_valley_share = other.len() as f64 / resampled.len().max(1) as f64;
     let worst = full.iter().copied().filter(|c| c.is_finite()).fold(f64::MIN, f64::max);
     let curvature = if k > 0 && k + 1 < full.len() {
         (full[k - 1] - 2.0 * ssr_min + full[k + 1]) / out.step_s.powi(2)
@@ -518,7 +550,13 @@ fn decide(out: &mut Coarse, lags: &[f64], full: &[f64], resampled: &[Option<(usi
     };
     let sd_s = (curvature > 0.0).then(|| (2.0 * variance / curvature).sqrt());
     let half_width = (out.search_s[1] - out.search_s[0]) / 2.0;
-    out.unresolved = if (worst - ssr_min) / variance < CHI2_90_ONE {
+    let noise_mm = (ssr_min / points.max(1) as f64).sqrt();
+    out.unresolved = if out.motion_rms_mm < MIN_MOTION_OVER_NOISE * noise_mm {
+        Some(format!(
+            "too little motion to tell the lag: the dots' targets move {:.2} mm (RMS about their means) over the sweep, less than {MIN_MOTION_OVER_NOISE} times the fit's RMS error {noise_mm:.2} mm",
+            out.motion_rms_mm
+        ))
+    } else if (worst - ssr_min) / variance < CHI2_90_ONE {
         Some(format!(
             "the objective is flat: every lag within ±{half_width:.3} s fits within {CHI2_90_ONE} residual variances of the best (too little motion to tell the lag)"
         ))
@@ -533,11 +571,10 @@ fn decide(out: &mut Coarse, lags: &[f64], full: &[f64], resampled: &[Option<(usi
             out.search_s[0], out.search_s[1]
         ))
     } else if out.other_valley_share > MAX_OTHER_VALLEY_SHARE {
+        let median = crate::core::stats::percentile(&other, 0.5);
         Some(format!(
-            "the objective has more than one minimum: over resamples of the sweep {:.0} % of the minima fall outside the valley of {lag:+.3} s ({:+.3} to {:+.3} s)",
-            100.0 * out.other_valley_share,
-            lags[lo],
-            lags[hi]
+            "the objective has more than one minimum: over resamples of the sweep {:.0} % of the minima lie beyond a ridge from {lag:+.3} s (their median {median:+.3} s)",
+            100.0 * out.other_valley_share
         ))
     } else {
         None
@@ -548,57 +585,4 @@ fn decide(out: &mut Coarse, lags: &[f64], full: &[f64], resampled: &[Option<(usi
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn the_minimum_is_the_parabolas_vertex_between_grid_points() {
-        let lags: Vec<f64> = (0..11).map(|i| i as f64 * 0.01).collect();
-        let curve: Vec<f64> = lags.iter().map(|l| (l - 0.0437).powi(2)).collect();
-        let (k, lag) = minimum(&lags, &curve).unwrap();
-        assert_eq!(k, 4);
-        assert!((lag - 0.0437).abs() < 1e-9, "{lag}");
-    }
-
-    #[test]
-    fn a_valley_runs_while_the_curve_rises_away_from_its_floor() {
-        let curve = [5.0, 3.0, 1.0, 2.0, 4.0, 3.5, 6.0];
-        assert_eq!(valley(&curve, 2), (0, 4));
-        assert_eq!(valley(&curve, 5), (4, 6));
-    }
-
-    #[test]
-    fn a_share_sum_fits_the_affine_map_and_its_residual() {
-        // Targets exactly affine in the pixels but for one dot 1 mm off.
-        let map = Matrix3::new(0.08, 0.001, 0.002, -0.0005, 0.075, 0.001, 11.0, 48.0, -0.4);
-        let mut total = Share::ZERO;
-        for (i, (u, v)) in [
-            (10.0, 20.0),
-            (400.0, 30.0),
-            (50.0, 500.0),
-            (700.0, 600.0),
-            (300.0, 300.0),
-        ]
-        .into_iter()
-        .enumerate()
-        {
-            let x = Vector3::new(u, v, 1.0);
-            let mut p = map.transpose() * x;
-            if i == 4 {
-                p.x += 1.0;
-            }
-            total.add(
-                &Share {
-                    g: x * x.transpose(),
-                    b: x * p.transpose(),
-                    c: p.norm_squared(),
-                    n: 1.0,
-                },
-                1.0,
-            );
-        }
-        let (_, ssr) = total.solve().unwrap();
-        // Five dots, three unknowns per coordinate: the 1 mm error is shared.
-        assert!(ssr > 0.05 && ssr < 1.0, "{ssr}");
-    }
-}
+mod tests;

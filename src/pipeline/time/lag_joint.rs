@@ -37,7 +37,9 @@ use crate::estimate::model_selection::{self, Candidate, FrameConstraints};
 use crate::pipeline::sequence_frames::{Role, TrackedFrame};
 use crate::pipeline::time::lag::Coarse;
 use crate::pipeline::time::sweep_lag::SweepLag;
-use crate::pipeline::tracked::{attach_poses_along, fit_settings, usable_constraints, TrackedInputs, TrackerPaths};
+use crate::pipeline::tracked_inputs::{
+    attach_poses_along, fit_settings, usable_constraints, TrackedInputs, TrackerPaths,
+};
 
 /// Golden-section tolerance of the joint refinement, s.
 const TOLERANCE_S: f64 = 1e-4;

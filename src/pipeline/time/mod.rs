@@ -7,4 +7,3 @@ pub mod lag;
 pub mod lag_joint;
 pub mod sweep_lag;
 pub mod temporal;
-pub mod trajectory;
