@@ -139,7 +139,17 @@ fn a_tracker_shifted_by_whole_frames_moves_the_lag_by_as_much() {
             validation_pre3d(&run),
             e.decision
         );
-        assert!(e.applied, "shift {k}: {}", e.decision);
+        // Two frames or more is far outside the noise: the lag must be applied
+        // (one frame, 16 ms from the recording's own lag, may be kept out by
+        // cross-validation).
+        if k.abs() >= 2 {
+            assert!(e.applied, "shift {k}: {}", e.decision);
+            assert!(
+                (run.time_offset_s - expected).abs() <= 0.030,
+                "shift {k}: applied {}",
+                run.time_offset_s
+            );
+        }
         assert!(
             (lag - expected).abs() <= period / 3.0,
             "shift {k}: {lag} against {expected} (a third of a frame period is {})",
