@@ -5,6 +5,10 @@ A tagged number is written `0.521<!-- plus_fcal2_nwire/fcal2_3nwires/summary.jso
 (the key syntax: fields, `[3]` indices, `[field=value]` selectors, a trailing
 `*1000` scale). The number keeps its decimals. `tests/readme_claims.rs` fails when
 a tagged number differs from reports/; run this after regenerating reports/.
+
+`--check` writes nothing: it exits 1 at the first tagged number that differs
+from reports/, naming the page, line, number and key (exit 0 when none does).
+`--root DIR` reads DIR's README.md, docs/ and reports/ instead of the checkout's.
 """
 import json
 import pathlib
@@ -12,6 +16,9 @@ import re
 import sys
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
+if "--root" in sys.argv:
+    ROOT = pathlib.Path(sys.argv[sys.argv.index("--root") + 1]).resolve()
+CHECK = "--check" in sys.argv
 TAG = re.compile(r"(-?[0-9]+(?:\.[0-9]+)?)<!-- ([^#> ]+\.json)#(.+?) -->")
 
 
@@ -62,9 +69,17 @@ def main():
 
         new, count = TAG.subn(fill, text)
         total += count
+        if CHECK:
+            for line_no, (old_line, new_line) in enumerate(zip(text.split("\n"), new.split("\n")), 1):
+                if old_line != new_line:
+                    for a, b in zip(TAG.finditer(old_line), TAG.finditer(new_line)):
+                        if a.group(1) != b.group(1):
+                            sys.exit(f"{name}:{line_no}: {a.group(1)} drifted: reports/{a.group(2)}#{a.group(3)} is {b.group(1)}")
+            continue
         if new != text:
             page.write_text(new)
-    print(f"{total - len(failed)} of {total} tagged numbers rewritten from reports/", file=sys.stderr)
+    verb = "match" if CHECK else "rewritten from"
+    print(f"{total - len(failed)} of {total} tagged numbers {verb} reports/", file=sys.stderr)
     if failed:
         sys.exit("\n".join(failed))
 

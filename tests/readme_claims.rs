@@ -319,3 +319,65 @@ fn a_drifted_number_or_a_wrong_key_is_caught() {
     assert!(lookup(&json, "methods[method=lmeds].rms_mm").is_err());
     assert!(lookup(&json, "validation.pre3d").is_err());
 }
+
+/// `scripts/readme-numbers.py --check` on a copy of the pages: exit 0 while
+/// every tagged number matches reports/, exit 1 naming the page, line and key
+/// at a planted drift, and the page left as it was.
+#[test]
+fn the_numbers_script_checks_without_writing_and_names_the_drift() {
+    let root = common::root();
+    let copy = common::scratch("readme_claims", "check");
+    std::fs::create_dir_all(copy.join("docs")).unwrap();
+    let copy_tree = |from: &std::path::Path, to: &std::path::Path| {
+        for entry in walk(from) {
+            let target = to.join(entry.strip_prefix(from).unwrap());
+            std::fs::create_dir_all(target.parent().unwrap()).unwrap();
+            std::fs::copy(&entry, &target).unwrap();
+        }
+    };
+    copy_tree(&root.join("docs"), &copy.join("docs"));
+    std::fs::copy(root.join("README.md"), copy.join("README.md")).unwrap();
+    std::os::unix::fs::symlink(root.join("reports"), copy.join("reports")).unwrap();
+    let check = || {
+        std::process::Command::new("/usr/bin/python3")
+            .arg(root.join("scripts/readme-numbers.py"))
+            .args(["--check", "--root"])
+            .arg(&copy)
+            .output()
+            .unwrap()
+    };
+    let r = check();
+    assert_eq!(r.status.code(), Some(0), "{}", String::from_utf8_lossy(&r.stderr));
+    // Plant a drift in the first tagged number of the README.
+    let readme = std::fs::read_to_string(copy.join("README.md")).unwrap();
+    let (line, number, file, key) = claims(&readme).into_iter().next().expect("a tagged number");
+    let planted = readme.replacen(
+        &format!("{number}<!-- {file}#{key} -->"),
+        &format!("{number}9<!-- {file}#{key} -->"),
+        1,
+    );
+    assert_ne!(planted, readme);
+    std::fs::write(copy.join("README.md"), &planted).unwrap();
+    let r = check();
+    let stderr = String::from_utf8_lossy(&r.stderr);
+    assert_eq!(r.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains(&format!("README.md:{line}:")) && stderr.contains(&key),
+        "{stderr}"
+    );
+    assert_eq!(std::fs::read_to_string(copy.join("README.md")).unwrap(), planted);
+}
+
+/// Every file below `dir`.
+fn walk(dir: &std::path::Path) -> Vec<std::path::PathBuf> {
+    let mut out = Vec::new();
+    for entry in std::fs::read_dir(dir).unwrap() {
+        let path = entry.unwrap().path();
+        if path.is_dir() {
+            out.extend(walk(&path));
+        } else {
+            out.push(path);
+        }
+    }
+    out
+}
