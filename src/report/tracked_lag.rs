@@ -134,8 +134,12 @@ pub fn lag_chart(e: &LagEstimate) -> Option<Chart> {
     Some(Chart {
         id: "lag_objective",
         caption: format!(
-            "The tracker's lag: at each lag the calibration frames' dots are placed with the poses read at the image's time plus the lag and PLUS's affine ImageToProbe is fitted; the curve is its RMS error. Look for one clear valley: its floor is the lag, and the horizontal bars are the 90 % intervals (resamples of the sweep, the curvature). {}",
-            e.decision
+            "The tracker's lag: at each lag the calibration frames' dots are placed with the poses read at the image's time plus the lag and PLUS's affine ImageToProbe is fitted; the curve is its RMS error. Look for one clear valley: its floor is the lag, and the horizontal bars are the 90 % intervals (resamples of the sweep, the curvature). {}{}",
+            e.decision,
+            e.disagreement
+                .as_ref()
+                .map(|d| format!(" Warning: {d}."))
+                .unwrap_or_default()
         ),
         x_desc: "tracker lag (ms)".into(),
         y_desc: "RMS error (mm)".into(),
@@ -154,4 +158,34 @@ pub fn insert_figure(ctx: &mut tera::Context, run: &TrackedRun) -> Result<(), cr
     );
     ctx.insert("lag_caption", &chart.as_ref().map(|c| c.caption.clone()));
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::pipeline::time::lag::Coarse;
+
+    #[test]
+    fn the_figure_says_when_the_two_estimates_disagree() {
+        let mut e = LagEstimate {
+            lag_s: Some(0.4),
+            decision: "+400 ms applied".into(),
+            coarse: Coarse {
+                objective: (0..5)
+                    .map(|k| [k as f64 * 0.1, 1.0 + (k as f64 - 4.0).powi(2)])
+                    .collect(),
+                ..Default::default()
+            },
+            ..Default::default()
+        };
+        let quiet = lag_chart(&e).unwrap().caption;
+        assert!(
+            quiet.ends_with("+400 ms applied") && !quiet.contains("Warning"),
+            "{quiet}"
+        );
+        e.disagreement = Some("the two estimates disagree".into());
+        let loud = lag_chart(&e).unwrap().caption;
+        assert!(loud.ends_with("Warning: the two estimates disagree."), "{loud}");
+        assert_eq!(lag_chart(&e).unwrap().series.len(), 2);
+    }
 }
