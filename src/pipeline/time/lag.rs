@@ -192,20 +192,30 @@ fn frame_points(frames: &[TrackedFrame], nwires: &[NWire]) -> Vec<FramePoints> {
     out
 }
 
-fn setup(paths: &TrackerPaths, frames: &[TrackedFrame], inputs: &TrackedInputs) -> Result<Setup, String> {
+/// Why the search cannot start; said as the estimate's reason.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+enum NoSearch {
+    #[error("{found} calibration frames with dots and a timestamp, {MIN_FRAMES} needed")]
+    TooFewFrames { found: usize },
+    #[error("the frames' timestamps do not advance")]
+    StoppedClock,
+    #[error("the sweep lasts {duration_s:.3} s: too short to search a lag")]
+    TooShort { duration_s: f64 },
+    #[error("{found} calibration frames have poses at every lag within ±{half_s:.3} s, {MIN_FRAMES} needed")]
+    TooFewPosed { found: usize, half_s: f64 },
+}
+
+fn setup(paths: &TrackerPaths, frames: &[TrackedFrame], inputs: &TrackedInputs) -> Result<Setup, NoSearch> {
     let all = frame_points(frames, &inputs.nwires);
     if all.len() < MIN_FRAMES {
-        return Err(format!(
-            "{} calibration frames with dots and a timestamp, {MIN_FRAMES} needed",
-            all.len()
-        ));
+        return Err(NoSearch::TooFewFrames { found: all.len() });
     }
     let mut gaps: Vec<f64> = all.windows(2).map(|w| w[1].time_s - w[0].time_s).collect();
     gaps.sort_by(f64::total_cmp);
     let period_s = gaps[gaps.len() / 2];
     let duration_s = all[all.len() - 1].time_s - all[0].time_s;
     if period_s.is_nan() || period_s <= 0.0 {
-        return Err("the frames' timestamps do not advance".into());
+        return Err(NoSearch::StoppedClock);
     }
     let half = SEARCH_HALF_WIDTH_S.min(duration_s / 4.0);
     // The grid: whole milliseconds, as fine as the budget of frame-lags allows.
@@ -213,7 +223,7 @@ fn setup(paths: &TrackerPaths, frames: &[TrackedFrame], inputs: &TrackedInputs) 
     let step_s = ((2.0 * half / (most_lags - 1) as f64 / STEP_S).ceil() * STEP_S).max(STEP_S);
     let k = (half / step_s).floor() as i64;
     if k < 2 {
-        return Err(format!("the sweep lasts {duration_s:.3} s: too short to search a lag"));
+        return Err(NoSearch::TooShort { duration_s });
     }
     let lags: Vec<f64> = (-k..=k).map(|i| i as f64 * step_s).collect();
     // Only frames with poses at every lag: each is scored on the same dots.
@@ -228,10 +238,10 @@ fn setup(paths: &TrackerPaths, frames: &[TrackedFrame], inputs: &TrackedInputs) 
         })
         .collect();
     if points.len() < MIN_FRAMES {
-        return Err(format!(
-            "{} calibration frames have poses at every lag within ±{half:.3} s, {MIN_FRAMES} needed",
-            points.len()
-        ));
+        return Err(NoSearch::TooFewPosed {
+            found: points.len(),
+            half_s: half,
+        });
     }
     Ok(Setup { points, lags, period_s })
 }
@@ -425,7 +435,7 @@ fn weightings(frames: usize, folds: usize) -> Vec<Vec<f64>> {
 pub fn search(paths: &TrackerPaths, frames: &[TrackedFrame], inputs: &TrackedInputs) -> Coarse {
     let s = match setup(paths, frames, inputs) {
         Ok(s) => s,
-        Err(reason) => return refused(reason),
+        Err(reason) => return refused(reason.to_string()),
     };
     let n = s.points.len();
     let centre = {
