@@ -168,10 +168,8 @@ fn experiment_on_plus_data_chooses_on_calibration_frames_and_compares_like_for_l
     let pre3d = summary["validation"]["pre3d_mm"]["mean"].as_f64().unwrap();
     let all = summary["validation"]["pre3d_all_mm"]["mean"].as_f64().unwrap();
     println!("validation PRE3D {pre3d:.4} mm (best 95 %), {all:.4} mm (all)");
-    assert!(
-        pre3d < 0.5399,
-        "validation PRE3D {pre3d} mm is not below PLUS's 0.5399 mm"
-    );
+    // PLUS's published 0.5399 mm is on PLUS's own dots without the lag: no
+    // like-for-like figure, so nothing is asserted against it (the guide says so).
     assert!(all >= pre3d);
     // PLUS's matrix on the same dots, poses and convention, beside ours.
     let plus = summary["validation"]["plus_matrix_pre3d_mm"]["mean"].as_f64().unwrap();
@@ -255,7 +253,9 @@ fn experiment_on_plus_data_chooses_on_calibration_frames_and_compares_like_for_l
     assert_eq!(b["resamples"].as_u64().unwrap() + b["failed"].as_u64().unwrap(), 200);
     // Refits on resampled frames scatter about the fit on all of them.
     assert!(p5 < pre3d && pre3d < p95, "ours {pre3d} outside {p5}..{p95}");
-    // docs/guide/plus-recording.md: PLUS's matrix scores inside that spread (the recording cannot tell them apart).
+    // docs/guide/plus-recording.md: PLUS's matrix scores inside that spread: on
+    // these validation frames it is ahead (the paired interval below), but
+    // another calibration sweep of the same hand could put either ahead.
     assert!(p5 < plus && plus < p95, "PLUS's {plus} outside {p5}..{p95}");
     let floor = r["own_fit_pre3d_mm"]["mean"].as_f64().unwrap();
     assert!(

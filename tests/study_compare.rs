@@ -204,3 +204,77 @@ fn committed_paired_comparisons_regenerate() {
     }
     assert!(checked >= 3, "{checked} paired comparisons in reports/study");
 }
+
+/// Every committed comparison names how its intervals were made, and none uses
+/// the percentile bootstrap on fewer than 30 seeds (too narrow at that size).
+#[test]
+fn committed_comparisons_name_their_interval_method_fit_for_their_size() {
+    let mut checked = 0;
+    for path in committed_comparisons() {
+        let c: Value = serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+        let seeds = c["seeds"].as_array().unwrap().len();
+        for m in c["methods"].as_array().unwrap() {
+            let method = m["interval_method"].as_str();
+            let fit = match method {
+                Some("student_t") => seeds < 30,
+                Some("percentile_bootstrap") => seeds >= 30,
+                _ => false,
+            };
+            assert!(
+                fit,
+                "{}: {} on {seeds} seeds ({})",
+                path.display(),
+                m["method"],
+                m["interval_method"]
+            );
+            checked += 1;
+        }
+    }
+    assert!(checked >= 40, "{checked}");
+}
+
+/// A study whose seeds are not a sample is refused with the file, the seed and
+/// why: a seed listed twice (it would count twice), an error that is negative
+/// or not finite.
+#[test]
+fn a_study_with_a_repeated_seed_or_an_impossible_error_is_refused() {
+    let dir = scratch("study_compare", "refused");
+    std::fs::create_dir_all(&dir).unwrap();
+    let good: Vec<(u64, f64, f64, usize)> = (1000..1010).map(|s| (s, 0.5, 0.4, 40)).collect();
+    std::fs::write(dir.join("good.json"), study("good", &good).to_string()).unwrap();
+    let mut repeated = good.clone();
+    repeated.extend(std::iter::repeat_n((1003, 0.1, 0.9, 40), 8));
+    let mut negative = good.clone();
+    negative[4].2 = -0.3;
+    let mut text = study("nan", &good).to_string();
+    text = text.replacen("0.4]", "1e999]", 1);
+    for (name, body, message) in [
+        (
+            "repeated",
+            study("repeated", &repeated).to_string(),
+            "seed 1003 is listed twice",
+        ),
+        (
+            "negative",
+            study("negative", &negative).to_string(),
+            "seed 1004, method `ransac`: rms error -0.3",
+        ),
+        // JSON has no infinity: a number past f64's range is refused where it stands.
+        ("infinite", text, "number out of range at line 1"),
+    ] {
+        let file = dir.join(format!("{name}.json"));
+        std::fs::write(&file, body).unwrap();
+        let r = probecal()
+            .args(["study", "compare"])
+            .arg(dir.join("good.json"))
+            .arg(&file)
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&r.stderr);
+        assert_eq!(r.status.code(), Some(2), "{name}: {stderr}");
+        assert!(
+            stderr.contains(&file.display().to_string()) && stderr.contains(message),
+            "{name}: {stderr}"
+        );
+    }
+}

@@ -119,7 +119,9 @@ enum Command {
         /// A tracked manifest (its calibration sequence is replayed), or a camera
         /// manifest with --watch.
         manifest: PathBuf,
-        /// Output folder: summary.json, live.csv and the batch calibration's files.
+        /// Output folder: summary.json (with the batch calibration of the whole
+        /// recording) and live.csv; with --igtl also received.igs.mha and the batch
+        /// run's folder, calibration/.
         #[arg(long)]
         out: PathBuf,
         /// Times the recorded rate (0: every frame at once).

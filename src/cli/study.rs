@@ -61,9 +61,9 @@ pub enum StudyMerge {
         force: bool,
     },
     /// Pair two studies on the seeds they share: per method the mean difference
-    /// of the seeds' errors (B minus A), its bootstrap 90 % interval and the seeds
-    /// each was the lower on; the frames each kept. Printed, and written as JSON
-    /// with --out
+    /// of the seeds' errors (B minus A), its 90 % interval (Student's t below 30
+    /// seeds, a percentile bootstrap from 30) and the seeds each was the lower
+    /// on; the frames each kept. Printed, and written as JSON with --out
     Compare {
         /// The first study: its study.json or its folder.
         a: PathBuf,

@@ -1,6 +1,7 @@
 //! Summary statistics, written once: mean and sample SD, mean and maximum,
-//! median, percentiles (interpolated, or nearest rank on sorted values), and
-//! the bootstrap interval of a ratio of RMS values.
+//! median, percentiles (interpolated, or nearest rank on sorted values), the
+//! bootstrap interval of a ratio of RMS values, and the interval of a mean
+//! (Student's t on few values, the bootstrap on many).
 
 use serde::{Deserialize, Serialize};
 
@@ -227,6 +228,150 @@ pub fn mean_difference_interval(differences: &[f64], level: f64) -> Option<[f64;
     Some([percentile(&means, tail), percentile(&means, 1.0 - tail)])
 }
 
+/// Below this many values a mean's interval is Student's t, not the percentile
+/// bootstrap, which is too narrow on few values (it takes the sample's spread
+/// for the population's and has no n − 1).
+pub const BOOTSTRAP_FROM: usize = 30;
+
+/// How an interval of a mean was made.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum IntervalMethod {
+    /// `mean ± t(n − 1) · sd / √n`.
+    StudentT,
+    /// Percentile bootstrap of the mean, [`BOOTSTRAP_RESAMPLES`] resamples.
+    PercentileBootstrap,
+}
+
+impl IntervalMethod {
+    /// In words, for a page.
+    pub fn words(self) -> &'static str {
+        match self {
+            IntervalMethod::StudentT => "Student's t on the per-seed values (n − 1 degrees of freedom)",
+            IntervalMethod::PercentileBootstrap => "a percentile bootstrap over the seeds",
+        }
+    }
+}
+
+/// The central `level` interval of the mean of independent `values` (one per
+/// seed) and how it was made: Student's t below [`BOOTSTRAP_FROM`] values, the
+/// percentile bootstrap from there. `None` below two values, with a non-finite
+/// one, or a level outside (0, 1).
+pub fn mean_interval(values: &[f64], level: f64) -> Option<(IntervalMethod, [f64; 2])> {
+    if values.len() >= BOOTSTRAP_FROM {
+        return mean_difference_interval(values, level).map(|i| (IntervalMethod::PercentileBootstrap, i));
+    }
+    student_t_interval(values, level).map(|i| (IntervalMethod::StudentT, i))
+}
+
+/// `mean ± t · sd / √n` at `level` (two-sided), `t` the Student quantile with
+/// n − 1 degrees of freedom; `None` as [`mean_interval`].
+pub fn student_t_interval(values: &[f64], level: f64) -> Option<[f64; 2]> {
+    let n = values.len();
+    if n < 2 || !values.iter().all(|v| v.is_finite()) || !(level > 0.0 && level < 1.0) {
+        return None;
+    }
+    let s = mean_sd(values);
+    let t = student_t_quantile(0.5 + level / 2.0, (n - 1) as f64)?;
+    let half = t * s.std / (n as f64).sqrt();
+    Some([s.mean - half, s.mean + half])
+}
+
+/// The `p` quantile of Student's t with `dof` degrees of freedom (bisection on
+/// its distribution function); `None` for `p` outside (0, 1) or `dof` ≤ 0.
+pub fn student_t_quantile(p: f64, dof: f64) -> Option<f64> {
+    if !(p > 0.0 && p < 1.0 && dof > 0.0 && dof.is_finite()) {
+        return None;
+    }
+    let (mut lo, mut hi) = (-1e4, 1e4);
+    for _ in 0..200 {
+        let mid = 0.5 * (lo + hi);
+        if student_t_cdf(mid, dof) < p {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    Some(0.5 * (lo + hi))
+}
+
+/// Student's t distribution function: `1 − I_x(dof/2, 1/2) / 2` for t ≥ 0,
+/// `x = dof / (dof + t²)`.
+fn student_t_cdf(t: f64, dof: f64) -> f64 {
+    let tail = 0.5 * regularized_beta(dof / (dof + t * t), dof / 2.0, 0.5);
+    if t >= 0.0 {
+        1.0 - tail
+    } else {
+        tail
+    }
+}
+
+/// The regularised incomplete beta function `I_x(a, b)` (continued fraction,
+/// modified Lentz; Numerical Recipes §6.4).
+fn regularized_beta(x: f64, a: f64, b: f64) -> f64 {
+    if x <= 0.0 {
+        return 0.0;
+    }
+    if x >= 1.0 {
+        return 1.0;
+    }
+    let front = (ln_gamma(a + b) - ln_gamma(a) - ln_gamma(b) + a * x.ln() + b * (1.0 - x).ln()).exp();
+    if x < (a + 1.0) / (a + b + 2.0) {
+        front * beta_fraction(x, a, b) / a
+    } else {
+        1.0 - front * beta_fraction(1.0 - x, b, a) / b
+    }
+}
+
+fn beta_fraction(x: f64, a: f64, b: f64) -> f64 {
+    const TINY: f64 = 1e-300;
+    let (qab, qap, qam) = (a + b, a + 1.0, a - 1.0);
+    let mut c = 1.0;
+    let mut d = 1.0 - qab * x / qap;
+    d = 1.0 / if d.abs() < TINY { TINY } else { d };
+    let mut h = d;
+    for m in 1..300 {
+        let m = m as f64;
+        let m2 = 2.0 * m;
+        for aa in [
+            m * (b - m) * x / ((qam + m2) * (a + m2)),
+            -(a + m) * (qab + m) * x / ((a + m2) * (qap + m2)),
+        ] {
+            d = 1.0 + aa * d;
+            d = 1.0 / if d.abs() < TINY { TINY } else { d };
+            c = 1.0 + aa / c;
+            c = if c.abs() < TINY { TINY } else { c };
+            h *= d * c;
+        }
+        if (d * c - 1.0).abs() < 1e-15 {
+            break;
+        }
+    }
+    h
+}
+
+/// `ln Γ(x)` for x > 0 (Lanczos, g = 7, nine terms).
+fn ln_gamma(x: f64) -> f64 {
+    const G: [f64; 9] = [
+        0.999_999_999_999_809_9,
+        676.520_368_121_885_1,
+        -1_259.139_216_722_402_8,
+        771.323_428_777_653_1,
+        -176.615_029_162_140_6,
+        12.507_343_278_686_905,
+        -0.138_571_095_265_720_12,
+        9.984_369_578_019_572e-6,
+        1.505_632_735_149_311_6e-7,
+    ];
+    let x = x - 1.0;
+    let mut sum = G[0];
+    for (k, g) in G.iter().enumerate().skip(1) {
+        sum += g / (x + k as f64);
+    }
+    let t = x + 7.5;
+    0.5 * (2.0 * std::f64::consts::PI).ln() + (x + 0.5) * t.ln() - t + sum.ln()
+}
+
 /// A moving-block bootstrap interval at `level` of the mean of a series whose
 /// neighbours are correlated (e.g. one difference per frame of a sweep): blocks
 /// of `block` consecutive values are drawn with replacement and joined to the
@@ -273,6 +418,42 @@ mod tests {
         assert!(lo < 0.0 && hi > 0.0, "{lo} {hi}");
         assert!(mean_difference_interval(&[1.0], 0.9).is_none());
         assert!(mean_difference_interval(&[1.0, f64::NAN], 0.9).is_none());
+    }
+
+    #[test]
+    fn student_t_quantiles_match_the_tables() {
+        // Two-sided 90 % points (one-sided 0.95) from any t table.
+        for (dof, t) in [
+            (1.0, 6.313_752),
+            (4.0, 2.131_847),
+            (9.0, 1.833_113),
+            (29.0, 1.699_127),
+            (1e6, 1.644_855),
+        ] {
+            let q = student_t_quantile(0.95, dof).unwrap();
+            assert!((q - t).abs() < 2e-6, "dof {dof}: {q} against {t}");
+            assert!((student_t_quantile(0.05, dof).unwrap() + t).abs() < 2e-6);
+        }
+        assert!((student_t_quantile(0.975, 9.0).unwrap() - 2.262_157).abs() < 2e-6);
+        assert!(student_t_quantile(1.0, 9.0).is_none() && student_t_quantile(0.9, 0.0).is_none());
+    }
+
+    #[test]
+    fn few_values_get_the_t_interval_many_the_bootstrap_and_t_is_the_wider() {
+        let ten: Vec<f64> = (0..10).map(|k| 0.05 + 0.02 * ((k as f64) * 1.3).sin()).collect();
+        let (method, [lo, hi]) = mean_interval(&ten, 0.9).unwrap();
+        assert_eq!(method, IntervalMethod::StudentT);
+        let s = mean_sd(&ten);
+        let half = 1.833_113 * s.std / 10f64.sqrt();
+        assert!((lo - (s.mean - half)).abs() < 1e-6 && (hi - (s.mean + half)).abs() < 1e-6);
+        let [b0, b1] = mean_difference_interval(&ten, 0.9).unwrap();
+        assert!(hi - lo > b1 - b0, "t {lo}..{hi} against bootstrap {b0}..{b1}");
+        let forty: Vec<f64> = (0..40).map(|k| ((k as f64) * 0.7).sin()).collect();
+        assert_eq!(
+            mean_interval(&forty, 0.9).unwrap().0,
+            IntervalMethod::PercentileBootstrap
+        );
+        assert!(mean_interval(&[1.0], 0.9).is_none() && mean_interval(&[1.0, f64::INFINITY], 0.9).is_none());
     }
 
     #[test]

@@ -19,8 +19,31 @@ impl StudyFile {
     pub fn read(path: &Path) -> Result<StudyFile, crate::report::error::ReadError> {
         let fail = |e: &dyn std::fmt::Display| crate::report::error::ReadError::new(path, e);
         let text = std::fs::read_to_string(path).map_err(|e| fail(&e))?;
-        crate::io::unique_keys::json(&text).map_err(|e| fail(&e))
+        let file: StudyFile = crate::io::unique_keys::json(&text).map_err(|e| fail(&e))?;
+        if let Some(why) = file.monte_carlo.as_ref().and_then(seeds_refusal) {
+            return Err(fail(&why));
+        }
+        Ok(file)
     }
+}
+
+/// Why a study's seeds cannot be read as a sample: a seed listed twice (it
+/// would count twice in every mean and pairing), or an error that is not a
+/// finite distance (negative, infinite or not a number).
+fn seeds_refusal(mc: &MonteCarlo) -> Option<String> {
+    let mut seen = std::collections::BTreeSet::new();
+    for s in &mc.seeds {
+        if !seen.insert(s.seed) {
+            return Some(format!("monte_carlo.seeds: seed {} is listed twice", s.seed));
+        }
+        if let Some((method, e)) = s.rms_error_mm.iter().find(|(_, e)| !(e.is_finite() && *e >= 0.0)) {
+            return Some(format!(
+                "monte_carlo.seeds: seed {}, method `{method}`: rms error {e} mm is not a finite distance (≥ 0)",
+                s.seed
+            ));
+        }
+    }
+    None
 }
 
 /// The study's tables as Markdown (also the body of the HTML page).

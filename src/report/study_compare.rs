@@ -1,6 +1,8 @@
 //! Two Monte Carlo studies compared on the seeds they share: per method, the
-//! mean difference of the seeds' errors (second minus first), its bootstrap
-//! 90 % interval over the seeds, and on how many seeds each was the lower;
+//! mean difference of the seeds' errors (second minus first), its 90 %
+//! interval over the seeds (Student's t below 30 seeds, the percentile
+//! bootstrap from 30, [`crate::core::stats::mean_interval`]), and on how many
+//! seeds each was the lower;
 //! and the frames each kept. A difference whose interval holds zero is no
 //! difference these seeds can show. Two methods of one study (or of two) are
 //! paired the same way: each seed's error of the one against the other's.
@@ -10,7 +12,7 @@ use std::path::{Path, PathBuf};
 use serde::{Deserialize, Serialize};
 
 use super::study::StudyFile;
-use crate::core::stats::mean_difference_interval;
+use crate::core::stats::{mean_interval, IntervalMethod};
 use crate::pipeline::study::{MonteCarlo, SeedResult, INTERVAL_LEVEL};
 
 /// One method's paired comparison.
@@ -22,8 +24,13 @@ pub struct PairedMethod {
     pub mean_b_mm: f64,
     /// Mean of (b − a) over the common seeds, mm: negative when b is the lower.
     pub mean_difference_mm: f64,
-    /// Its 90 % interval (percentile bootstrap over the seeds), mm.
+    /// Its 90 % interval over the seeds, mm, made by `interval_method`.
     pub interval_90_mm: [f64; 2],
+    /// Student's t below 30 seeds, the percentile bootstrap from 30.
+    pub interval_method: IntervalMethod,
+    /// Each mean's own 90 % interval over the same seeds (same method), mm.
+    pub mean_a_interval_90_mm: [f64; 2],
+    pub mean_b_interval_90_mm: [f64; 2],
     /// Seeds on which b's error is below a's, and above it.
     pub b_lower_seeds: usize,
     pub a_lower_seeds: usize,
@@ -199,7 +206,12 @@ fn pair_method(pairs: &[SeedPair], name: String, name_b: &str, same_rig: bool) -
         None
     };
     let diffs: Vec<f64> = both.iter().map(|(x, y)| y - x).collect();
-    let interval = mean_difference_interval(&diffs, INTERVAL_LEVEL)?;
+    let (interval_method, interval) = mean_interval(&diffs, INTERVAL_LEVEL)?;
+    let side = |pick: fn(&(f64, f64)) -> f64| {
+        let v: Vec<f64> = both.iter().map(pick).collect();
+        mean_interval(&v, INTERVAL_LEVEL).map(|(_, i)| i)
+    };
+    let (mean_a_interval_90_mm, mean_b_interval_90_mm) = (side(|p| p.0)?, side(|p| p.1)?);
     let n = both.len() as f64;
     let verdict = if interval[1] < 0.0 {
         "lower"
@@ -214,11 +226,24 @@ fn pair_method(pairs: &[SeedPair], name: String, name_b: &str, same_rig: bool) -
         mean_b_mm: both.iter().map(|p| p.1).sum::<f64>() / n,
         mean_difference_mm: diffs.iter().sum::<f64>() / n,
         interval_90_mm: interval,
+        interval_method,
+        mean_a_interval_90_mm,
+        mean_b_interval_90_mm,
         b_lower_seeds: diffs.iter().filter(|d| **d < 0.0).count(),
         a_lower_seeds: diffs.iter().filter(|d| **d > 0.0).count(),
         verdict: verdict.into(),
         rms_over_a_bound,
     })
+}
+
+/// How the comparison's intervals were made, in words (one method, or each).
+fn interval_words(p: &PairedStudies) -> String {
+    let mut methods: Vec<IntervalMethod> = p.methods.iter().map(|m| m.interval_method).collect();
+    methods.dedup();
+    match methods.as_slice() {
+        [one] => one.words().to_string(),
+        _ => "Student's t below 30 seeds, a percentile bootstrap from 30".to_string(),
+    }
 }
 
 /// The comparison as Markdown.
@@ -231,13 +256,15 @@ pub fn markdown(p: &PairedStudies) -> String {
     let mut md = format!(
         "# `{b}` against `{a}`, paired on {} common seeds ({}–{})\n\n\
          Error: the RMS distance of the image's four corners and centre from the truth, per seed. \
-         Difference: `{b}` minus `{a}`; its 90 % interval is a percentile bootstrap over the seeds.\n\n\
+         Difference: `{b}` minus `{a}`; its 90 % interval is {}. A verdict needs an interval clear of zero; \
+         each interval is at 90 % on its own, with no correction for the other comparisons made with it.\n\n\
          Frames kept per seed: `{a}` {:.1} (fewest {}), `{b}` {:.1} (fewest {}).\n\n\
          | method | {a} mean (mm) | {b} mean (mm) | difference (mm) | 90 % interval (mm) | seeds lower: {b} / {a} | verdict | RMS / {a}'s bound: {a} / {b} |\n\
          |---|---|---|---|---|---|---|---|\n",
         p.seeds.len(),
         p.seeds.first().copied().unwrap_or_default(),
         p.seeds.last().copied().unwrap_or_default(),
+        interval_words(p),
         p.frames_kept.mean_a,
         p.frames_kept.min_a,
         p.frames_kept.mean_b,
