@@ -213,3 +213,18 @@ fn multi_sphere_estimates_do_not_read_the_truth() {
 fn aruco_estimates_do_not_read_the_truth() {
     assert_blind("aruco_small.yaml");
 }
+
+#[test]
+#[ignore = "renders and runs experiments (full tier: scripts/test.sh)"]
+fn charuco_estimates_do_not_read_the_truth() {
+    assert_blind("charuco_small.yaml");
+}
+
+/// The twin's systematic draws (speed of sound, the phantom's measured centre,
+/// the boards' print scale and bow, the lens) are in `ground_truth.json` only:
+/// the run must estimate without them.
+#[test]
+#[ignore = "renders and runs experiments (full tier: scripts/test.sh)"]
+fn twin_estimates_do_not_read_the_truth() {
+    assert_blind("twin_small.yaml");
+}
