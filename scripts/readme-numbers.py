@@ -3,7 +3,8 @@
 
 A tagged number is written `0.521<!-- plus_fcal2_nwire/fcal2_3nwires/summary.json#validation.pre3d_mm.mean -->`
 (the key syntax: fields, `[3]` indices, `[field=value]` selectors, a trailing
-`*1000` scale). The number keeps its decimals. `tests/readme_claims.rs` fails when
+`*1000` scale). The number keeps its decimals; a count (an integer in the
+JSON) is written without any. `tests/readme_claims.rs` fails when
 a tagged number differs from reports/; run this after regenerating reports/.
 
 `--check` writes nothing: it exits 1 at the first tagged number that differs
@@ -39,6 +40,8 @@ def lookup(data, key):
                 value = next(e for e in value if e.get(field) == want)
             else:
                 value = value[int(selector)]
+    if isinstance(value, int) and not isinstance(value, bool) and scale == 1.0:
+        return value
     return float(value) * scale
 
 
@@ -59,12 +62,15 @@ def main():
             written, file, key = m.group(1), m.group(2), m.group(3)
             if file not in cache:
                 cache[file] = json.loads((ROOT / "reports" / file).read_text())
+            # A count (an integer in the JSON) is written as one.
             decimals = len(written.split(".")[1]) if "." in written else 0
             try:
                 value = lookup(cache[file], key)
             except (KeyError, IndexError, StopIteration, TypeError, ValueError) as e:
                 failed.append(f"{name}: reports/{file}#{key}: {type(e).__name__} {e}")
                 return m.group(0)
+            if isinstance(value, int):
+                decimals = 0
             return f"{value:.{decimals}f}<!-- {file}#{key} -->"
 
         new, count = TAG.subn(fill, text)
