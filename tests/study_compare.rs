@@ -129,6 +129,14 @@ fn pairs_two_methods_of_one_study() {
     assert!((methods[0]["mean_difference_mm"].as_f64().unwrap() + 0.05).abs() < 1e-9);
     assert_eq!(methods[0]["verdict"], "lower");
     assert_eq!(methods[0]["b_lower_seeds"], 8);
+    // b over a seed by seed: the geometric mean of the ratios, its interval about it.
+    let logs: Vec<f64> = seeds.iter().map(|(_, a, b, _)| (b / a).ln()).collect();
+    let geometric = (logs.iter().sum::<f64>() / logs.len() as f64).exp();
+    let ratio = &methods[0]["ratio_b_over_a"];
+    assert!((ratio["geometric_mean"].as_f64().unwrap() - geometric).abs() < 1e-12, "{ratio}");
+    let [lo, hi] = [0, 1].map(|i| ratio["interval_90"][i].as_f64().unwrap());
+    assert!(lo < geometric && geometric < hi && hi < 1.0, "{ratio}");
+    assert_eq!(methods[0]["interval_method"], "student_t");
     let md = std::fs::read_to_string(out.with_extension("md")).unwrap();
     assert!(md.contains("`one ransac` against `one cutoff_worst_first`"), "{md}");
 

@@ -31,6 +31,11 @@ pub struct PairedMethod {
     /// Each mean's own 90 % interval over the same seeds (same method), mm.
     pub mean_a_interval_90_mm: [f64; 2],
     pub mean_b_interval_90_mm: [f64; 2],
+    /// b's error over a's: the geometric mean of the per-seed ratios and its
+    /// 90 % interval (`interval_method` on the logarithms); absent when an
+    /// error is zero.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ratio_b_over_a: Option<Ratio>,
     /// Seeds on which b's error is below a's, and above it.
     pub b_lower_seeds: usize,
     pub a_lower_seeds: usize,
@@ -41,6 +46,25 @@ pub struct PairedMethod {
     /// misstates it (b's own ratio is over b's bound, which assumes b's model).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub rms_over_a_bound: Option<[f64; 2]>,
+}
+
+/// A ratio of errors over the seeds: geometric mean and interval.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Ratio {
+    pub geometric_mean: f64,
+    pub interval_90: [f64; 2],
+}
+
+/// The geometric mean of `b / a` over the pairs and its interval (the mean of
+/// the logarithms' interval, exponentiated); `None` when an error is zero.
+fn ratio(both: &[(f64, f64)]) -> Option<Ratio> {
+    let logs: Vec<f64> = both.iter().map(|(a, b)| (b / a).ln()).collect();
+    let (_, [lo, hi]) = mean_interval(&logs, INTERVAL_LEVEL)?;
+    let mean = logs.iter().sum::<f64>() / logs.len() as f64;
+    Some(Ratio {
+        geometric_mean: mean.exp(),
+        interval_90: [lo.exp(), hi.exp()],
+    })
 }
 
 /// The frames each study kept per seed.
@@ -227,6 +251,7 @@ fn pair_method(pairs: &[SeedPair], name: String, name_b: &str, same_rig: bool) -
         mean_difference_mm: diffs.iter().sum::<f64>() / n,
         interval_90_mm: interval,
         interval_method,
+        ratio_b_over_a: ratio(&both),
         mean_a_interval_90_mm,
         mean_b_interval_90_mm,
         b_lower_seeds: diffs.iter().filter(|d| **d < 0.0).count(),
@@ -259,8 +284,8 @@ pub fn markdown(p: &PairedStudies) -> String {
          Difference: `{b}` minus `{a}`; its 90 % interval is {}. A verdict needs an interval clear of zero; \
          each interval is at 90 % on its own, with no correction for the other comparisons made with it.\n\n\
          Frames kept per seed: `{a}` {:.1} (fewest {}), `{b}` {:.1} (fewest {}).\n\n\
-         | method | {a} mean (mm) | {b} mean (mm) | difference (mm) | 90 % interval (mm) | seeds lower: {b} / {a} | verdict | RMS / {a}'s bound: {a} / {b} |\n\
-         |---|---|---|---|---|---|---|---|\n",
+         | method | {a} mean (mm) | {b} mean (mm) | difference (mm) | 90 % interval (mm) | {b} / {a}: geometric mean of the seeds' ratios (90 % interval) | seeds lower: {b} / {a} | verdict | RMS / {a}'s bound: {a} / {b} |\n\
+         |---|---|---|---|---|---|---|---|---|\n",
         p.seeds.len(),
         p.seeds.first().copied().unwrap_or_default(),
         p.seeds.last().copied().unwrap_or_default(),
@@ -275,13 +300,17 @@ pub fn markdown(p: &PairedStudies) -> String {
             .rms_over_a_bound
             .map_or("—".to_string(), |[a, b]| format!("{a:.2} / {b:.2}"));
         md.push_str(&format!(
-            "| {} | {:.3} | {:.3} | {:+.3} | {:+.3} … {:+.3} | {} / {} | {} | {} |\n",
+            "| {} | {:.3} | {:.3} | {:+.3} | {:+.3} … {:+.3} | {} | {} / {} | {} | {} |\n",
             m.method,
             m.mean_a_mm,
             m.mean_b_mm,
             m.mean_difference_mm,
             m.interval_90_mm[0],
             m.interval_90_mm[1],
+            m.ratio_b_over_a.map_or("—".to_string(), |r| format!(
+                "{:.2} ({:.2} … {:.2})",
+                r.geometric_mean, r.interval_90[0], r.interval_90[1]
+            )),
             m.b_lower_seeds,
             m.a_lower_seeds,
             m.verdict,
