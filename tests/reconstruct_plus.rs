@@ -81,6 +81,8 @@ fn plus_case(config_name: &str, reference: &str, least_within_one: f64, least_di
         .arg(shared_data(SET, SWEEP))
         .arg("--config")
         .arg(config(config_name))
+        .arg("--compare")
+        .arg(shared_data(SET, reference))
         .arg("--out")
         .arg(&out)
         .output()
@@ -118,6 +120,22 @@ fn plus_case(config_name: &str, reference: &str, least_within_one: f64, least_di
     ] {
         assert!(out.join(file).is_file(), "{file}");
     }
+    // --compare: agreement.json holds the test's own figures, and the page says them.
+    let agreed: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("agreement.json")).unwrap()).unwrap();
+    assert_eq!(agreed["voxels_equal"].as_u64().unwrap() as usize, m.equal_voxels);
+    assert!((agreed["within_one_grey_level"].as_f64().unwrap() - m.within_one).abs() < 1e-12);
+    let page = std::fs::read_to_string(out.join("report.html")).unwrap();
+    let said = format!(
+        "{:.2} % of the voxels nonzero in either volume are within one grey level",
+        m.within_one * 100.0
+    );
+    assert!(
+        page.contains("id=\"agreement\"") && page.contains(&said),
+        "{config_name}: the page does not say {said}"
+    );
+    assert!(page.contains(&format!("{} of {} voxels are equal", m.equal_voxels, our_voxels.len())));
+    assert_eq!(page.contains("<b>byte-identical files</b>"), identical, "{config_name}");
     let summary: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
     assert_eq!(summary["frames"]["used"], 21);

@@ -188,120 +188,134 @@ pub fn png_bytes(p: &Picture) -> Result<Vec<u8>, OutputError> {
     Ok(out)
 }
 
-fn escape(s: &str) -> String {
-    s.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;")
-}
+const TEMPLATE: &str = include_str!("../../templates/reconstruct.html.tera");
 
-pub fn html(r: &Reconstruction, pictures: &[Picture]) -> String {
+/// The page: `agreement` is `agreement.json`'s value when a reference was given.
+pub fn html(
+    r: &Reconstruction,
+    pictures: &[Picture],
+    agreement: Option<&serde_json::Value>,
+) -> Result<String, OutputError> {
     let g = r.volume.grid();
-    let figures: String = pictures
+    let mut ctx = tera::Context::new();
+    ctx.insert("sequence", &display_path(&r.inputs.sequence));
+    ctx.insert("used", &r.frames_used.len());
+    ctx.insert("total", &r.frames_total);
+    ctx.insert("dims", &format!("{}x{}x{}", g.dims[0], g.dims[1], g.dims[2]));
+    let spacing: Vec<String> = g
+        .spacing_mm
+        .iter()
+        .map(|v| crate::io::volume_file::format_g6(*v))
+        .collect();
+    ctx.insert("spacing", &spacing.join(" x "));
+    ctx.insert("filled_after", &r.voxels_filled_after_holes);
+    ctx.insert("filled_before", &r.voxels_filled_before_holes);
+    ctx.insert(
+        "by_holes",
+        &(r.voxels_filled_after_holes - r.voxels_filled_before_holes),
+    );
+    ctx.insert("source", &r.image_to_probe_source);
+    ctx.insert("lag_ms", &format!("{:+.0}", r.tracker_lag_s * 1000.0));
+    ctx.insert("lag_source", &r.tracker_lag_source);
+    ctx.insert("saturated", &r.accumulator_saturated);
+    ctx.insert("agreement", &agreement.map(agreement_context));
+    ctx.insert("wires", &wires_context(r));
+    let pictures: Vec<serde_json::Value> = pictures
         .iter()
         .map(|p| {
             let scale = (480 / p.width.max(p.height)).max(1);
-            format!(
-                "<figure><img src=\"{}\" width=\"{}\" height=\"{}\" alt=\"{}\"><figcaption>{}</figcaption></figure>\n",
-                p.name,
-                p.width * scale,
-                p.height * scale,
-                escape(&p.title),
-                escape(&p.title)
-            )
+            serde_json::json!({"name": p.name, "title": p.title, "width": p.width * scale, "height": p.height * scale})
         })
         .collect();
-    let skipped: String = r
+    ctx.insert("pictures", &pictures);
+    let s = &r.settings;
+    ctx.insert(
+        "settings",
+        &format!(
+            "{:?} interpolation, {:?} compounding, {:?} optimization, clip rectangle origin {:?} size {:?}, fan {}, \
+             {} hole-filling element(s).",
+            s.interpolation,
+            s.compounding,
+            s.optimization,
+            s.clip_origin_px,
+            s.clip_size_px,
+            if s.fan.is_some() { "on" } else { "off" },
+            s.hole_filling.len()
+        ),
+    );
+    let origin: Vec<String> = g.origin_mm.iter().map(|v| format!("{v:.3}")).collect();
+    ctx.insert("origin", &format!("[{}]", origin.join(", ")));
+    let skipped: Vec<serde_json::Value> = r
         .skipped
         .iter()
-        .map(|s| format!("<tr><td>{}</td><td>{}</td></tr>\n", s.index, escape(&s.reason)))
+        .map(|s| serde_json::json!({"index": s.index, "reason": s.reason}))
         .collect();
-    let times: String = match r.timings.is_empty() {
-        true => String::new(),
-        false => {
-            let stages: String = r.timings.iter().map(|(k, v)| format!("{k} {v:.3} s; ")).collect();
-            format!("Time: {stages}{} thread(s).", r.threads)
-        }
+    ctx.insert("skipped", &skipped);
+    let times = if r.timings.is_empty() {
+        String::new()
+    } else {
+        let stages: String = r.timings.iter().map(|(k, v)| format!("{k} {v:.3} s; ")).collect();
+        format!("Time: {stages}{} thread(s).", r.threads)
     };
-    format!(
-        "<!DOCTYPE html>\n<html lang=\"en\">\n<head><meta charset=\"utf-8\"><title>reconstruction</title>\n\
-         <style>body{{font-family:sans-serif;max-width:70em;margin:1em auto}} figure{{display:inline-block;margin:0.5em}} \
-         img{{image-rendering:pixelated;background:#000}} td,th{{padding:0 0.6em;text-align:left}}</style></head>\n<body>\n\
-         <h1>Volume of {seq}</h1>\n\
-         <p><b>{used} of {total} frames</b> inserted into a {nx}x{ny}x{nz} volume of {sx} mm voxels \
-         ({filled_after} voxels filled: {filled_before} by the frames, {by_holes} by hole filling). \
-         <code>ImageToProbe</code> from {source}; tracker lag {lag_ms:+.0} ms ({lag_source}).</p>\n\
-         {wires}<h2>Slices and projection</h2>\n{figures}\
-         <h2>Settings</h2>\n<p>{interp:?} interpolation, {comp:?} compounding, {opt:?} optimization, \
-         clip rectangle origin {co:?} size {cs:?}, fan {fan}, {holes} hole-filling element(s). \
-         Origin (centre of the first voxel) {origin:?} mm.</p>\n\
-         <h2>Frames left out</h2>\n<table><tr><th>frame</th><th>reason</th></tr>\n{skipped}</table>\n\
-         <p>{times}</p>\n</body></html>\n",
-        seq = escape(&display_path(&r.inputs.sequence)),
-        used = r.frames_used.len(),
-        total = r.frames_total,
-        nx = g.dims[0],
-        ny = g.dims[1],
-        nz = g.dims[2],
-        sx = g.spacing_mm.map(crate::io::volume_file::format_g6).join(" x "),
-        filled_after = r.voxels_filled_after_holes,
-        filled_before = r.voxels_filled_before_holes,
-        by_holes = r.voxels_filled_after_holes - r.voxels_filled_before_holes,
-        source = escape(&r.image_to_probe_source),
-        lag_ms = r.tracker_lag_s * 1000.0,
-        lag_source = escape(&r.tracker_lag_source),
-        interp = r.settings.interpolation,
-        comp = r.settings.compounding,
-        opt = r.settings.optimization,
-        co = r.settings.clip_origin_px,
-        cs = r.settings.clip_size_px,
-        fan = if r.settings.fan.is_some() { "on" } else { "off" },
-        holes = r.settings.hole_filling.len(),
-        origin = g.origin_mm,
-        wires = wires_html(r),
-    )
+    ctx.insert("times", &times);
+    Ok(tera::Tera::one_off(TEMPLATE, &ctx, true)?)
+}
+
+/// `agreement.json`'s figures in words for the page.
+fn agreement_context(a: &serde_json::Value) -> serde_json::Value {
+    let pair = |key: &str| format!("{} (ours) and {} (the reference)", a[key]["ours"], a[key]["reference"]);
+    let mut out = serde_json::json!({
+        "reference": a["reference"],
+        "identical_file": a["identical_file"],
+        "dims": pair("dims"),
+        "element_type": pair("element_type").replace('"', ""),
+        "spacing_equal": a["spacing_equal"],
+        "offset_mm": format!("{:.4}", a["offset_max_difference_mm"].as_f64().unwrap_or(f64::NAN)),
+    });
+    if let Some(voxels) = a.get("voxels") {
+        out["voxels"] = voxels.clone();
+        out["equal"] = a["voxels_equal"].clone();
+        out["nonzero"] = a["nonzero_in_either"].clone();
+        let f = |k: &str, d: usize| format!("{:.*}", d, a[k].as_f64().unwrap_or(f64::NAN));
+        let within = a["within_one_grey_level"].as_f64().unwrap_or(f64::NAN);
+        out["within"] = format!("{:.2} %", within * 100.0).into();
+        out["dice"] = f("dice_nonzero", 5).into();
+    }
+    out
 }
 
 /// The wires' table: each wire's position error, straightness and thickness.
-fn wires_html(r: &Reconstruction) -> String {
+fn wires_context(r: &Reconstruction) -> Option<serde_json::Value> {
     use crate::evaluate::wire_profile as wp;
-    let Some(w) = &r.wires else {
-        return String::new();
-    };
+    let w = r.wires.as_ref()?;
     let mm = |v: Option<f64>| v.map_or("—".to_string(), |v| format!("{v:.2}"));
-    let rows: String = w
+    let rows: Vec<serde_json::Value> = w
         .wires
         .iter()
         .map(|f| {
-            format!(
-                "<tr><td>{}</td><td>{} of {}</td><td>{}</td><td>{}</td><td>{}</td></tr>\n",
-                escape(&f.name),
-                f.sections_counted,
-                f.sections,
-                mm(f.position_error_mm),
-                mm(f.straightness_rms_mm),
-                mm(f.thickness_fwhm_mm)
-            )
+            serde_json::json!({
+                "name": f.name,
+                "counted": f.sections_counted,
+                "sections": f.sections,
+                "position": mm(f.position_error_mm),
+                "straightness": mm(f.straightness_rms_mm),
+                "thickness": mm(f.thickness_fwhm_mm),
+            })
         })
         .collect();
-    format!(
-        "<h2>The phantom's wires in the volume</h2>\n<p><b>{n} of {total} wires measured: position error {pos} mm \
-         (mean), straightness {straight} mm (RMS), thickness {thick} mm (median FWHM).</b> The wires of \
-         {set}, placed by its phantom registration. Every {step} mm along each wire (its ends' {end:.0} % left \
-         out) a cross-section {width} mm wide is sampled; where the wire stands out (peak over the median by \
-         {peak} MADs) its centre and FWHM are taken. Position error: the centres' mean distance from the wire's \
-         line (it holds the registration's error too); straightness: their RMS distance from their own line. \
-         A better <code>ImageToProbe</code> gives thinner, straighter wires nearer their lines.</p>\n\
-         <table><tr><th>wire</th><th>sections with the wire</th><th>position error (mm)</th>\
-         <th>straightness (mm)</th><th>thickness (mm)</th></tr>\n{rows}</table>\n",
-        n = w.wires_measured,
-        total = w.wires.len(),
-        pos = mm(w.position_error_mm),
-        straight = mm(w.straightness_rms_mm),
-        thick = mm(w.thickness_fwhm_mm),
-        set = escape(&r.inputs.wires.as_deref().map(display_path).unwrap_or_default()),
-        step = wp::STEP_MM,
-        end = wp::END_FRACTION * 100.0,
-        width = 2.0 * wp::HALF_WIDTH_MM,
-        peak = wp::PEAK_OVER_MAD,
-    )
+    Some(serde_json::json!({
+        "measured": w.wires_measured,
+        "total": w.wires.len(),
+        "position": mm(w.position_error_mm),
+        "straightness": mm(w.straightness_rms_mm),
+        "thickness": mm(w.thickness_fwhm_mm),
+        "set": r.inputs.wires.as_deref().map(display_path).unwrap_or_default(),
+        "step": wp::STEP_MM,
+        "end": format!("{:.0}", wp::END_FRACTION * 100.0),
+        "width": 2.0 * wp::HALF_WIDTH_MM,
+        "peak": wp::PEAK_OVER_MAD,
+        "rows": rows,
+    }))
 }
 
 /// Refuses an `--out` that exists and holds something other than a reconstruction.
@@ -395,11 +409,11 @@ pub fn write(r: &Reconstruction, dir: &Path, options: &WriteOptions) -> Result<(
     let write = |name: &str, bytes: &[u8]| crate::io::fs::write_atomic(&dir.join(name), bytes);
     let volume = metaimage_bytes(&header, &data);
     write("volume.mha", &volume)?;
-    if let Some((path, reference)) = options.compare {
-        write(
-            "agreement.json",
-            serde_json::to_string_pretty(&agreement(r, &volume, path, reference))?.as_bytes(),
-        )?;
+    let agreement = options
+        .compare
+        .map(|(path, reference)| agreement(r, &volume, path, reference));
+    if let Some(a) = &agreement {
+        write("agreement.json", serde_json::to_string_pretty(a)?.as_bytes())?;
     }
     if options.nrrd {
         write("volume.nrrd", &nrrd_bytes(&header, &data))?;
@@ -409,6 +423,6 @@ pub fn write(r: &Reconstruction, dir: &Path, options: &WriteOptions) -> Result<(
     }
     let json = serde_json::to_string_pretty(&summary(r))?;
     write("summary.json", json.as_bytes())?;
-    write("report.html", html(r, &pictures).as_bytes())?;
+    write("report.html", html(r, &pictures, agreement.as_ref())?.as_bytes())?;
     Ok(())
 }
