@@ -291,6 +291,26 @@ fn experiment_on_plus_data_chooses_on_calibration_frames_and_compares_like_for_l
     let position = volume["wires"]["position_error_mm"].as_f64().unwrap();
     assert!(position > 0.0 && position < 1.5, "{volume}");
     assert!(page.contains("id=\"wires\"") && page.contains("reconstruction/mip_z.png"));
+    // What the recording measured, in pictures: the lag's objective, PRE3D per
+    // validation frame (both matrices), the residuals in the phantom's frame,
+    // the sweeps' tilts and the reconstruction; each figure's PNG beside the
+    // LaTeX page that includes it.
+    let tex = std::fs::read_to_string(folder.join("report.tex")).unwrap();
+    for id in ["lag", "pre3d_per_frame", "residuals_in_phantom", "tilts"] {
+        assert!(page.contains(&format!("<figure id=\"{id}\"><svg")), "no figure {id}");
+    }
+    for png in ["pre3d_per_frame", "residuals_in_phantom", "tilts", "lag_objective"] {
+        assert!(
+            tex.contains(&format!("{{{png}.png}}")) && folder.join(format!("{png}.png")).is_file(),
+            "{png}"
+        );
+    }
+    assert!(
+        page.matches("<figure").count() >= 5,
+        "{} figures",
+        page.matches("<figure").count()
+    );
+    assert!(page.contains("PLUS&#x27;s matrix") || page.contains("PLUS's matrix"));
 }
 
 /// The first `frames` frames of the calibration sequence as a new file, with the

@@ -133,7 +133,10 @@ fn pairs_two_methods_of_one_study() {
     let logs: Vec<f64> = seeds.iter().map(|(_, a, b, _)| (b / a).ln()).collect();
     let geometric = (logs.iter().sum::<f64>() / logs.len() as f64).exp();
     let ratio = &methods[0]["ratio_b_over_a"];
-    assert!((ratio["geometric_mean"].as_f64().unwrap() - geometric).abs() < 1e-12, "{ratio}");
+    assert!(
+        (ratio["geometric_mean"].as_f64().unwrap() - geometric).abs() < 1e-12,
+        "{ratio}"
+    );
     let [lo, hi] = [0, 1].map(|i| ratio["interval_90"][i].as_f64().unwrap());
     assert!(lo < geometric && geometric < hi && hi < 1.0, "{ratio}");
     assert_eq!(methods[0]["interval_method"], "student_t");

@@ -17,6 +17,7 @@ use crate::estimate::model_selection;
 use crate::evaluate::block_bootstrap::{self, BlockBootstrap, ScoreSpread};
 use crate::evaluate::pose_coverage::{self, PoseCoverage};
 use crate::pipeline::tracked::{self, fit_settings, Role, TrackedFrame, TrackedInputs, TrackedRun};
+use crate::spec::nwire::NWire;
 
 /// The bootstrap: blocks of 10 frames (under a second of a sweep at PLUS's
 /// usual 10–30 frames/s, longer than the few frames a hand's motion keeps
@@ -69,8 +70,8 @@ fn used(frames: &[TrackedFrame], role: Role) -> impl Iterator<Item = &TrackedFra
 }
 
 /// The phantom's wire direction in the image frame of each used frame of `role`.
-fn wires_in_image(run: &TrackedRun, inputs: &TrackedInputs, role: Role) -> Vec<Vector3<f64>> {
-    let Some(wire) = inputs.nwires.first().map(|n| n.wires[0].direction()) else {
+pub fn wires_in_image(run: &TrackedRun, nwires: &[NWire], role: Role) -> Vec<Vector3<f64>> {
+    let Some(wire) = nwires.first().map(|n| n.wires[0].direction()) else {
         return Vec::new();
     };
     let image_R_marker = run.fit.image_to_probe.marker_T_image.rotation.inverse();
@@ -102,8 +103,8 @@ pub fn evaluate(run: &TrackedRun, inputs: &TrackedInputs) -> ValidationResolutio
         bootstrap_pre3d_mm,
         own_fit_pre3d_mm,
         pose_coverage: pose_coverage::coverage(
-            &wires_in_image(run, inputs, Role::Calibration),
-            &wires_in_image(run, inputs, Role::Validation),
+            &wires_in_image(run, &inputs.nwires, Role::Calibration),
+            &wires_in_image(run, &inputs.nwires, Role::Validation),
         ),
     }
 }

@@ -34,6 +34,7 @@ pub mod templating;
 pub mod temporal;
 pub mod thesis;
 pub mod tracked;
+pub mod tracked_figures;
 pub mod tracked_lag;
 pub mod tracked_summary;
 pub mod tracked_volume;

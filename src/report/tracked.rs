@@ -309,7 +309,11 @@ pub fn write(
     if let Some(chart) = run.lag_estimate.as_ref().and_then(super::tracked_lag::lag_chart) {
         write_atomic(&folder.join("lag_objective.png"), &super::figures::png(&chart)?)?;
     }
-    let (html, tex) = render_pages(run, manifest, &summary)?;
+    let charts = super::tracked_figures::charts(run, manifest, plus);
+    let (html, tex, figures) = render_pages(run, manifest, &summary, &charts)?;
+    for (name, bytes) in figures {
+        write_atomic(&folder.join(name), &bytes)?;
+    }
     write_atomic(&folder.join("report.html"), html.as_bytes())?;
     write_atomic(&folder.join("report.tex"), tex.as_bytes())?;
     Ok(summary)
@@ -458,7 +462,8 @@ fn render_pages(
     run: &TrackedRun,
     manifest: &TrackedManifest,
     summary: &TrackedSummary,
-) -> Result<(String, String), OutputError> {
+    charts: &[super::figures::Chart],
+) -> Result<(String, String, super::tracked_figures::FigureFiles), OutputError> {
     let f3 = |v: Option<f64>| v.map(|x| format!("{x:.3}")).unwrap_or_else(|| "—".into());
     let mut ctx = tera::Context::new();
     ctx.insert("experiment", &manifest.experiment);
@@ -531,6 +536,7 @@ fn render_pages(
     let pre3d = pre3d_rows(summary);
     ctx.insert("pre3d", &pre3d);
     super::tracked_lag::insert_figure(&mut ctx, run)?;
+    let figures = super::tracked_figures::insert(&mut ctx, charts)?;
     let paired = summary
         .validation
         .ours_minus_plus_matrix_mm
@@ -551,7 +557,7 @@ fn render_pages(
         ("tracked.html", TRACKED_TEMPLATE),
         ("tracked.tex", TRACKED_TEX_TEMPLATE),
     ])
-    .and_then(|_| Ok((t.render("tracked.html", &ctx)?, t.render("tracked.tex", &ctx)?)))
+    .and_then(|_| Ok((t.render("tracked.html", &ctx)?, t.render("tracked.tex", &ctx)?, figures)))
     .map_err(OutputError::from)
 }
 
