@@ -179,8 +179,10 @@ fn a_recording_without_a_reference_pose_is_refused_with_the_names_it_has() {
     assert!(!manifest.exists(), "nothing is written on an error");
 }
 
-/// Renders `experiment`'s dataset into `datasets`, then `init --folder` on it,
-/// `validate` and `run`; the run's summary.
+/// Renders `experiment`'s dataset into `datasets`, moves it to `my_session/`,
+/// then runs the README's three commands as written, from the folder that
+/// holds it, relative paths and all (`init --folder my_session --out mine.yaml`,
+/// `validate mine.yaml`, `run mine.yaml --out runs/mine`); the run's summary.
 fn init_and_run_folder(name: &str, experiment: &str, dataset: &str, prepare: fn(&Path)) -> serde_json::Value {
     let dir = scratch("init", name);
     let datasets = dir.join("datasets");
@@ -192,36 +194,19 @@ fn init_and_run_folder(name: &str, experiment: &str, dataset: &str, prepare: fn(
         .output()
         .unwrap();
     assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
-    let folder = datasets.join(format!("{experiment}__{dataset}"));
+    let folder = dir.join("my_session");
+    std::fs::rename(datasets.join(format!("{experiment}__{dataset}")), &folder).unwrap();
     prepare(&folder);
-    let manifest = dir.join("mine.yaml");
-    let r = probecal()
-        .args(["init", "--folder"])
-        .arg(&folder)
-        .arg("--out")
-        .arg(&manifest)
-        .output()
-        .unwrap();
-    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
-    let text = std::fs::read_to_string(&manifest).unwrap();
+    let command = |args: &[&str]| {
+        let r = probecal().current_dir(&dir).args(args).output().unwrap();
+        assert!(r.status.success(), "{args:?}: {}", String::from_utf8_lossy(&r.stderr));
+    };
+    command(&["init", "--folder", "my_session", "--out", "mine.yaml"]);
+    let text = std::fs::read_to_string(dir.join("mine.yaml")).unwrap();
     assert!(text.contains("GUESS"), "the guesses are marked:\n{text}");
-    let r = probecal().arg("validate").arg(&manifest).output().unwrap();
-    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
-    let out = dir.join("runs");
-    let r = probecal()
-        .arg("run")
-        .arg(&manifest)
-        .arg("--out")
-        .arg(&out)
-        .arg("--quiet")
-        .output()
-        .unwrap();
-    assert!(r.status.success(), "{}\n{text}", String::from_utf8_lossy(&r.stderr));
-    json(
-        &out.join("mine")
-            .join(format!("{experiment}__{dataset}"))
-            .join("summary.json"),
-    )
+    command(&["validate", "mine.yaml"]);
+    command(&["run", "mine.yaml", "--out", "runs/mine", "--quiet"]);
+    json(&dir.join("runs/mine/mine/my_session/summary.json"))
 }
 
 #[test]

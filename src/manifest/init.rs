@@ -360,7 +360,8 @@ fn tracker_names(path: &Path) -> Result<(String, String), InitError> {
 pub fn folder_manifest(folder: &Path, out: &Path, experiment: &str) -> Result<String, InitError> {
     let frames = load_frame_list(folder).map_err(read)?;
     let tracker = folder.join("tracker_poses.csv");
-    let first_bscan = folder.join(&frames[0].bscan_image);
+    // The list's paths are the folder's already (relative to it, joined to it).
+    let first_bscan = frames[0].bscan_image.clone();
     let bscan = crate::io::image::read_gray(&first_bscan).map_err(|e| input(&first_bscan, e.to_string()))?;
     let size = opencv::core::MatTraitConst::size(&bscan).map_err(|e| input(&first_bscan, e.to_string()))?;
     let mut t = String::new();
