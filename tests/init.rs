@@ -67,20 +67,41 @@ fn a_plus_recording_with_other_names_runs_from_its_init_manifest_unedited() {
         &config,
         &config_names,
     );
+    let plus_result = dir.join("PlusResult.xml");
+    std::fs::copy(
+        shared_data(SET, "FreehandCalibration3NWires_fCal2.0.results.xml"),
+        &plus_result,
+    )
+    .unwrap();
     let manifest = dir.join("mine.yaml");
-    let r = probecal()
-        .args(["init", "--plus-config"])
-        .arg(&config)
-        .arg("--calibration")
-        .arg(&calibration)
-        .arg("--validation")
-        .arg(&validation)
-        .arg("--out")
-        .arg(&manifest)
-        .output()
-        .unwrap();
+    let init = |result: &Path| {
+        probecal()
+            .args(["init", "--plus-config"])
+            .arg(&config)
+            .arg("--calibration")
+            .arg(&calibration)
+            .arg("--validation")
+            .arg(&validation)
+            .arg("--plus-result")
+            .arg(result)
+            .arg("--out")
+            .arg(&manifest)
+            .output()
+            .unwrap()
+    };
+    // A PLUS result that is not one is refused, naming it, and nothing is written.
+    let r = init(&config);
+    assert_eq!(r.status.code(), Some(2));
+    assert!(
+        String::from_utf8_lossy(&r.stderr).contains("DeviceSet.xml"),
+        "{}",
+        String::from_utf8_lossy(&r.stderr)
+    );
+    assert!(!manifest.exists());
+    let r = init(&plus_result);
     assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
     let text = std::fs::read_to_string(&manifest).unwrap();
+    assert!(text.contains("\ncompare_with_plus_result: PlusResult.xml"), "{text}");
     assert!(
         text.contains("probe_transform: TransducerHolderToOpticalCamera"),
         "{text}"
@@ -120,6 +141,11 @@ fn a_plus_recording_with_other_names_runs_from_its_init_manifest_unedited() {
         assert_eq!(
             ours["validation"]["pre3d_mm"][key], committed["validation"]["pre3d_mm"][key],
             "validation PRE3D {key}"
+        );
+        // --plus-result: PLUS's matrix compared on the same dots, as the committed run does.
+        assert_eq!(
+            ours["validation"]["plus_matrix_pre3d_mm"][key], committed["validation"]["plus_matrix_pre3d_mm"][key],
+            "PLUS's matrix's validation PRE3D {key}"
         );
     }
     assert!(out.join("mine/session_cal/ImageToProbe.tfm").is_file());

@@ -26,6 +26,10 @@ pub struct InitArgs {
     /// The phantom's reference marker's transform (e.g. ReferenceToTracker).
     #[arg(long, requires = "probe_transform")]
     pub reference_transform: Option<String>,
+    /// PLUS's own calibration result of this recording (fCal's
+    /// ProbeCalibrationResult .xml): the report compares it like for like.
+    #[arg(long, requires = "plus_config")]
+    pub plus_result: Option<PathBuf>,
     /// A recorded folder: frames.csv, the photos and B-scans, and
     /// camera_calibration/ or tracker_poses.csv.
     #[arg(long)]
@@ -61,11 +65,17 @@ pub fn command(args: &InitArgs) -> u8 {
 
 fn write(args: &InitArgs) -> Result<(), InitError> {
     // Even with --force, the manifest never replaces the recording it describes.
-    let read: Vec<&std::path::Path> = [&args.plus_config, &args.calibration, &args.validation, &args.folder]
-        .into_iter()
-        .flatten()
-        .map(|p| p.as_path())
-        .collect();
+    let read: Vec<&std::path::Path> = [
+        &args.plus_config,
+        &args.calibration,
+        &args.validation,
+        &args.plus_result,
+        &args.folder,
+    ]
+    .into_iter()
+    .flatten()
+    .map(|p| p.as_path())
+    .collect();
     if let Some(why) = crate::io::output::file_refusal(&args.out, "init", &read) {
         return Err(InitError::Input {
             path: args.out.clone(),
@@ -90,6 +100,7 @@ fn write(args: &InitArgs) -> Result<(), InitError> {
                 validation: args.validation.as_deref(),
                 probe_transform: args.probe_transform.as_deref(),
                 reference_transform: args.reference_transform.as_deref(),
+                plus_result: args.plus_result.as_deref(),
             },
             &args.out,
             &experiment,

@@ -56,6 +56,8 @@ pub struct PlusRecording<'a> {
     /// Transform names, when the sequence's cannot be told apart by the device set's frames.
     pub probe_transform: Option<&'a str>,
     pub reference_transform: Option<&'a str>,
+    /// PLUS's own calibration result of this recording, compared like for like.
+    pub plus_result: Option<&'a Path>,
 }
 
 /// `path` as written in a manifest at `manifest`: relative to its folder where
@@ -269,10 +271,22 @@ pub fn plus_manifest(recording: &PlusRecording, out: &Path, experiment: &str) ->
         "solve:\n  reject_sd: 3.0   # PLUS's outlier rule; the model is chosen on the calibration frames"
     );
     let _ = writeln!(t, "thresholds:\n  min_frames: 10");
-    let _ = writeln!(
-        t,
-        "# compare_with_plus_result: path/to/ProbeCalibrationResult.xml   # PLUS's own result, compared like for like"
-    );
+    match recording.plus_result {
+        Some(result) => {
+            crate::io::plus::result::PlusResult::read(result).map_err(|e| input(result, e.to_string()))?;
+            let _ = writeln!(
+                t,
+                "compare_with_plus_result: {}   # PLUS's own result, compared like for like",
+                yaml_string(&relative_to_manifest(out, result)?)
+            );
+        }
+        None => {
+            let _ = writeln!(
+                t,
+                "# compare_with_plus_result: path/to/ProbeCalibrationResult.xml   # PLUS's own result (init --plus-result), compared like for like"
+            );
+        }
+    }
     TrackedManifest::from_text(out, &t).map_err(|e| invalid(out, e))?;
     Ok(t)
 }
