@@ -168,6 +168,26 @@ fn a_plus_recording_with_other_names_runs_from_its_init_manifest_unedited() {
     for link in ["mine/session_cal/report.html", "second/session_cal/report.html"] {
         assert!(index.contains(link), "index.html does not link {link}:\n{index}");
     }
+    // The index fits the kind of run: PRE3D named as such, both sequences'
+    // counts, "no gate" where none was set, and no thesis chapter (none of its
+    // experiments ran here).
+    let pre3d = format!(
+        "validation PRE3D {:.3}",
+        ours["validation"]["pre3d_mm"]["mean"].as_f64().unwrap()
+    );
+    for words in [
+        "tracked recording",
+        pre3d.as_str(),
+        "calibration 183 / 190, validation 102 / 103",
+        ">no gate<",
+    ] {
+        assert!(index.contains(words), "index.html does not say {words}:\n{index}");
+    }
+    assert!(!index.contains("BRE 0") && !index.contains(">pass<"), "{index}");
+    assert!(
+        !index.contains("thesis.html") && !out.join("thesis.html").exists(),
+        "{index}"
+    );
 }
 
 #[test]

@@ -15,10 +15,16 @@ pub struct IndexEntry {
     pub experiment: String,
     pub dataset: String,
     pub link: String,
+    /// What was calibrated: a camera rig, tracker poses with B-scans, or a
+    /// tracked recording (PLUS's).
+    pub kind: &'static str,
     pub frames: String,
-    pub bre_mean: String,
+    /// The run's own accuracy, named: the largest per-axis mean BRE of a camera
+    /// rig or tracker poses, the validation PRE3D of a tracked recording.
+    pub accuracy: String,
     pub truth_corner: String,
-    pub passed: bool,
+    /// "pass", "FAIL" or "no gate" (none set).
+    pub gates: &'static str,
 }
 
 fn f3(v: Option<f64>) -> String {
@@ -29,16 +35,26 @@ fn f3(v: Option<f64>) -> String {
 pub fn index_entry(summary: &RunSummary) -> IndexEntry {
     let (experiment, dataset) = (summary.experiment(), summary.dataset());
     let link = format!("{experiment}/{dataset}/report.html");
-    let passed = summary.gates().iter().all(|g| g.passed);
+    let gates = match summary.gates() {
+        [] => "no gate",
+        g if g.iter().all(|g| g.passed) => "pass",
+        _ => "FAIL",
+    };
     match summary {
         RunSummary::Camera(s) => IndexEntry {
             experiment: experiment.into(),
             dataset: dataset.into(),
             link,
+            // A camera's intrinsics, or poses from a tracker's CSV and no camera.
+            kind: if s.camera.fx_px.is_some() {
+                "camera rig"
+            } else {
+                "tracker poses"
+            },
             frames: format!("{} / {}", s.frames.used, s.frames.total),
-            bre_mean: s
+            accuracy: s
                 .bre_mm
-                .map(|b| format!("{:.3}", b.max_mean()))
+                .map(|b| format!("max mean BRE {:.3}", b.max_mean()))
                 .unwrap_or_else(|| "—".into()),
             truth_corner: {
                 let reported = f3(s.truth.as_ref().map(|t| t.corner_error_mm.mean));
@@ -47,16 +63,32 @@ pub fn index_entry(summary: &RunSummary) -> IndexEntry {
                     None => reported,
                 }
             },
-            passed,
+            gates,
         },
         RunSummary::Tracked(s) => IndexEntry {
             experiment: experiment.into(),
             dataset: dataset.into(),
             link,
-            frames: format!("{} / {}", s.frames.calibration.segmented, s.frames.calibration.total),
-            bre_mean: format!("PRE3D {}", f3(s.validation.pre3d_mm.map(|p| p.mean))),
+            kind: "tracked recording",
+            frames: match s.frames.validation.total {
+                0 => format!(
+                    "calibration {} / {}",
+                    s.frames.calibration.segmented, s.frames.calibration.total
+                ),
+                _ => format!(
+                    "calibration {} / {}, validation {} / {}",
+                    s.frames.calibration.segmented,
+                    s.frames.calibration.total,
+                    s.frames.validation.segmented,
+                    s.frames.validation.total
+                ),
+            },
+            accuracy: match s.validation.pre3d_mm {
+                Some(p) => format!("validation PRE3D {:.3}", p.mean),
+                None => "—".into(),
+            },
             truth_corner: "—".into(),
-            passed,
+            gates,
         },
     }
 }
