@@ -154,44 +154,56 @@ fn paths_below(src: &str, prefix: &str) -> BTreeSet<String> {
     out
 }
 
-/// The graph of the files of each top-level folder, as `folder/file`.
+/// The graph of the files of every folder below the layers' folders, at any
+/// depth, as `folder/file` (`io/plus/sequence`): each file of a folder, and
+/// each of its sub-folders as one member.
 fn file_graph(src: &Path) -> Graph {
     let mut g = Graph::new();
     for (folder, _) in LAYERS {
-        let dir = src.join(folder);
-        if !dir.is_dir() {
-            continue;
+        folder_graph(src, &src.join(folder), &mut g);
+    }
+    g
+}
+
+/// Adds the edges among the members of `dir` (and of every folder below it).
+fn folder_graph(src: &Path, dir: &Path, g: &mut Graph) {
+    if !dir.is_dir() {
+        return;
+    }
+    let folder = dir.strip_prefix(src).unwrap().to_string_lossy().replace('\\', "/");
+    let module = folder.replace('/', "::");
+    // Each file of the folder, and each sub-folder as one member: its name,
+    // its sources and whether they are the folder's own files (whose `super::`
+    // is this folder).
+    let mut members: BTreeMap<String, (Vec<std::path::PathBuf>, bool)> = BTreeMap::new();
+    for entry in std::fs::read_dir(dir).unwrap().flatten() {
+        let path = entry.path();
+        let stem = path.file_stem().unwrap().to_string_lossy().to_string();
+        if path.is_dir() {
+            let mut files = Vec::new();
+            rust_files(&path, &mut files);
+            members.insert(stem, (files, false));
+            folder_graph(src, &path, g);
+        } else if path.extension().is_some_and(|e| e == "rs") && stem != "mod" {
+            members.insert(stem, (vec![path], true));
         }
-        // Each file of the folder, and each sub-folder as one file: its name and sources.
-        let mut members: BTreeMap<String, Vec<std::path::PathBuf>> = BTreeMap::new();
-        for entry in std::fs::read_dir(&dir).unwrap().flatten() {
-            let path = entry.path();
-            let stem = path.file_stem().unwrap().to_string_lossy().to_string();
-            if path.is_dir() {
-                let mut files = Vec::new();
-                rust_files(&path, &mut files);
-                members.insert(stem, files);
-            } else if path.extension().is_some_and(|e| e == "rs") && stem != "mod" {
-                members.insert(stem, vec![path]);
+    }
+    for (name, (files, own)) in &members {
+        let key = format!("{folder}/{name}");
+        let edges = g.entry(key).or_default();
+        for f in files {
+            let text = without_tests(&std::fs::read_to_string(f).unwrap());
+            let mut reached = paths_below(&text, &format!("crate::{module}::"));
+            if *own {
+                reached.extend(paths_below(&text, "super::"));
             }
-        }
-        for (name, files) in &members {
-            let key = format!("{folder}/{name}");
-            let edges = g.entry(key).or_default();
-            for f in files {
-                let text = without_tests(&std::fs::read_to_string(f).unwrap());
-                let reached = paths_below(&text, "super::")
-                    .into_iter()
-                    .chain(paths_below(&text, &format!("crate::{folder}::")));
-                for other in reached {
-                    if &other != name && members.contains_key(&other) {
-                        edges.insert(format!("{folder}/{other}"));
-                    }
+            for other in reached {
+                if &other != name && members.contains_key(&other) {
+                    edges.insert(format!("{folder}/{other}"));
                 }
             }
         }
     }
-    g
 }
 
 #[test]
@@ -200,6 +212,11 @@ fn no_file_imports_from_a_file_that_imports_it_back() {
     assert!(
         g.get("pipeline/run").is_some_and(|e| e.contains("pipeline/frames")),
         "the reader finds edges between files: {g:?}"
+    );
+    assert!(
+        g.get("io/plus/sequence")
+            .is_some_and(|e| e.contains("io/plus/sequence_header")),
+        "the reader looks into folders at every depth: {g:?}"
     );
     assert_eq!(cycle(&g), None, "files of one folder that import each other");
 }

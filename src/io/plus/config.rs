@@ -8,23 +8,7 @@ use nalgebra::{Matrix4, Point3};
 
 use crate::spec::nwire::{NWire, WireSegment};
 
-/// Why a configuration file could not be used.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-#[error("{}{}: {message}", path.display(), line.map(|l| format!(":{l}")).unwrap_or_default())]
-pub struct ConfigError {
-    pub path: PathBuf,
-    pub line: Option<usize>,
-    pub message: String,
-}
-
-/// A `CoordinateDefinitions/Transform`: `to_T_from`, a general 4x4 matrix.
-#[derive(Debug, Clone, PartialEq)]
-pub struct FixedTransform {
-    pub from: String,
-    pub to: String,
-    pub matrix: Matrix4<f64>,
-    pub line: usize,
-}
+pub use super::config_types::{ConfigError, FixedTransform};
 
 /// What probecal uses of a PLUS configuration.
 #[derive(Debug, Clone, PartialEq)]

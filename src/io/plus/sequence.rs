@@ -19,17 +19,9 @@ use super::sequence_header::{
     check_element, check_ndims, compressed_flag, dimensions, orientation, pixel_bytes, read_header, samples_in_mf,
     Header,
 };
+use super::sequence_types::clip;
+pub use super::sequence_types::{Field, SequenceError};
 use crate::core::geometry::{rigid_from_rows, Rigid};
-
-/// Why a sequence file could not be read.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-#[error("{}{}: {message}", path.display(), line.map(|l| format!(":{l}")).unwrap_or_default())]
-pub struct SequenceError {
-    pub path: PathBuf,
-    /// 1-based header line, where the problem has one.
-    pub line: Option<usize>,
-    pub message: String,
-}
 
 /// Why one frame's transform cannot be used (the frame is rejected with it).
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -49,13 +41,6 @@ pub enum FrameFault {
         line: usize,
         reason: String,
     },
-}
-
-/// One header value and the line it was on.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Field {
-    pub value: String,
-    pub line: usize,
 }
 
 /// One frame: its pixels and its own header fields (without the `Seq_FrameNNNN_` prefix).
@@ -437,12 +422,19 @@ impl Sequence {
     }
 }
 
-pub(super) fn clip(text: &str) -> String {
-    let mut s: String = text.chars().take(60).collect();
-    if s.len() < text.len() {
-        s.push('…');
+impl Deferred {
+    /// The error reading the whole file gives: the decoding stops at the first
+    /// fault, and the whole read names it as it always does.
+    pub(super) fn refusal(&self) -> SequenceError {
+        match Sequence::parse_with(&self.path, &self.bytes, true) {
+            Err(e) => e,
+            Ok(_) => SequenceError {
+                path: self.path.clone(),
+                line: None,
+                message: "the compressed pixels could not be decoded frame by frame".into(),
+            },
+        }
     }
-    s
 }
 
 #[cfg(test)]

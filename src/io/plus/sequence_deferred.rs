@@ -1,5 +1,5 @@
 //! A sequence's compressed 8-bit frames, decoded one frame at a time
-//! ([`super::sequence::Sequence::read_any_deferred`]): a reconstruction pastes
+//! (`Sequence::read_any_deferred` in `sequence.rs`): a reconstruction pastes
 //! each frame while the next ones are still being inflated.
 
 use std::path::PathBuf;
@@ -7,7 +7,7 @@ use std::path::PathBuf;
 use flate2::{Decompress, FlushDecompress, Status};
 
 use super::orientation::Orientation;
-use super::sequence::{Sequence, SequenceError};
+use super::sequence_types::SequenceError;
 
 /// The compressed pixels of a sequence read without them.
 #[derive(Debug)]
@@ -31,7 +31,7 @@ impl Deferred {
     }
 
     /// Decodes the frames into `out` (all frames' pixels, frame after frame),
-    /// flipped to MF as [`Sequence::read_any`] holds them, and hands each frame
+    /// flipped to MF as `Sequence::read_any` holds them, and hands each frame
     /// to `arrived` as soon as it is whole. A damaged, short or long stream is
     /// refused with the error the whole read gives it.
     pub fn decode<'a>(&self, out: &'a mut [u8], mut arrived: impl FnMut(&'a [u8])) -> Result<(), SequenceError> {
@@ -69,19 +69,6 @@ impl Deferred {
         }
         Ok(())
     }
-
-    /// The error reading the whole file gives: the decoding above stops at the
-    /// first fault, and the whole read names it as it always does.
-    fn refusal(&self) -> SequenceError {
-        match Sequence::parse_with(&self.path, &self.bytes, true) {
-            Err(e) => e,
-            Ok(_) => SequenceError {
-                path: self.path.clone(),
-                line: None,
-                message: "the compressed pixels could not be decoded frame by frame".into(),
-            },
-        }
-    }
 }
 
 #[cfg(test)]
@@ -89,7 +76,7 @@ mod tests {
     use std::io::Write;
     use std::path::Path;
 
-    use super::*;
+    use crate::io::plus::sequence::Sequence;
 
     /// A compressed MN sequence of `frames` 5x4 frames whose data holds
     /// `pixel_frames` frames' pixels, then `cut` bytes cut off its end.

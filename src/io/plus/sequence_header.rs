@@ -1,11 +1,11 @@
-//! The header and pixel-data parts of a PLUS sequence file (see [`super::sequence`]):
+//! The header and pixel-data parts of a PLUS sequence file (see `sequence.rs`):
 //! `Key = value` lines, `DimSize`, the element type, compression, orientation.
 
 use std::collections::BTreeMap;
 use std::io::Read;
 
 use super::orientation::Orientation;
-use super::sequence::{clip, Field, SequenceError};
+use super::sequence_types::{clip, Field, SequenceError};
 
 /// The header's fields (per-frame ones apart) and where the pixel data starts.
 pub(super) struct Header {

@@ -7,7 +7,7 @@ use std::path::Path;
 
 use nalgebra::Matrix4;
 
-use super::config::{ConfigError, FixedTransform};
+use super::config_types::{ConfigError, FixedTransform};
 
 /// Largest PLUS XML file read (a device set is kilobytes; a calibration result
 /// listing every frame's dots a megabyte).
