@@ -310,6 +310,19 @@ fn experiment_on_plus_data_chooses_on_calibration_frames_and_compares_like_for_l
         "{} figures",
         page.matches("<figure").count()
     );
+    // The frames as segmented: used ones of both sweeps, and rejected ones
+    // with the reason frames.csv gives them; each picture beside report.tex too.
+    let gallery = &page[page.find("id=\"gallery\"").expect("a gallery")..];
+    for words in [
+        "calibration frame",
+        "validation frame",
+        ": used, PRE3D",
+        ": rejected: segmentation: spot count",
+    ] {
+        assert!(gallery.contains(words), "the gallery does not say {words}");
+    }
+    assert!(gallery.matches("<img src=\"data:image/jpeg;base64,").count() >= 7);
+    assert!(tex.contains("{gallery/frame_00.jpg}") && folder.join("gallery/frame_00.jpg").is_file());
     assert!(page.contains("PLUS&#x27;s matrix") || page.contains("PLUS's matrix"));
 }
 

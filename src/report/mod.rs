@@ -35,6 +35,7 @@ pub mod temporal;
 pub mod thesis;
 pub mod tracked;
 pub mod tracked_figures;
+pub mod tracked_gallery;
 pub mod tracked_lag;
 pub mod tracked_summary;
 pub mod tracked_volume;

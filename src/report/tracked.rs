@@ -310,7 +310,17 @@ pub fn write(
         write_atomic(&folder.join("lag_objective.png"), &super::figures::png(&chart)?)?;
     }
     let charts = super::tracked_figures::charts(run, manifest, plus);
-    let (html, tex, figures) = render_pages(run, manifest, &summary, &charts)?;
+    let gallery = super::tracked_gallery::gallery(run, manifest);
+    let (html, tex, mut figures) = render_pages(run, manifest, &summary, &charts, &gallery)?;
+    if !gallery.is_empty() {
+        std::fs::create_dir_all(folder.join("gallery")).map_err(|e| OutputError::io(folder.join("gallery"), e))?;
+    }
+    figures.extend(
+        gallery
+            .into_iter()
+            .enumerate()
+            .map(|(k, g)| (super::tracked_gallery::file_name(k), g.jpeg)),
+    );
     for (name, bytes) in figures {
         write_atomic(&folder.join(name), &bytes)?;
     }
@@ -463,6 +473,7 @@ fn render_pages(
     manifest: &TrackedManifest,
     summary: &TrackedSummary,
     charts: &[super::figures::Chart],
+    gallery: &[super::gallery::GalleryImage],
 ) -> Result<(String, String, super::tracked_figures::FigureFiles), OutputError> {
     let f3 = |v: Option<f64>| v.map(|x| format!("{x:.3}")).unwrap_or_else(|| "—".into());
     let mut ctx = tera::Context::new();
@@ -537,6 +548,7 @@ fn render_pages(
     ctx.insert("pre3d", &pre3d);
     super::tracked_lag::insert_figure(&mut ctx, run)?;
     let figures = super::tracked_figures::insert(&mut ctx, charts)?;
+    super::tracked_gallery::insert(&mut ctx, gallery);
     let paired = summary
         .validation
         .ours_minus_plus_matrix_mm
