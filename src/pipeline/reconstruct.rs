@@ -166,7 +166,11 @@ pub fn run_image_to_probe(folder: &Path) -> Result<Matrix4<f64>, ReconstructErro
             "`image_to_probe.matrix` must be 4 rows of 4 finite numbers".into(),
         ));
     }
-    Ok(Matrix4::from_fn(|r, c| rows[r][c]))
+    let matrix = Matrix4::from_fn(|r, c| rows[r][c]);
+    match crate::io::plus::xml_limits::affine_fault(&matrix) {
+        Some(why) => Err(fail(format!("`image_to_probe.matrix`: {why}"))),
+        None => Ok(matrix),
+    }
 }
 
 /// The clip rectangle's first and last inserted column and row: PLUS's

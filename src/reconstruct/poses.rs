@@ -86,7 +86,16 @@ pub fn frame_poses(
     let mut kept = Vec::new();
     let mut skipped = Vec::new();
     for index in (0..sequence.frames.len()).step_by(skip_interval.max(1)) {
-        match frame_pose(sequence, index, &fixed, image_frame, reference_frame, lagged.as_ref()) {
+        let replaced_image = image_to_probe.is_some();
+        match frame_pose(
+            sequence,
+            index,
+            &fixed,
+            image_frame,
+            reference_frame,
+            lagged.as_ref(),
+            replaced_image,
+        ) {
             Ok(reference_T_pixel) => kept.push(FramePose {
                 index,
                 reference_T_pixel,
@@ -104,6 +113,7 @@ fn frame_pose(
     image_frame: &str,
     reference_frame: &str,
     lagged: Option<&Lagged>,
+    replaced_image: bool,
 ) -> Result<Matrix4<f64>, String> {
     if let Some(status) = sequence.frame_field(index, "ImageStatus") {
         if status != "OK" {
@@ -119,7 +129,20 @@ fn frame_pose(
         let Some((from, to)) = split_name(transform) else {
             continue;
         };
+        let of_image = from == image_frame || to == image_frame;
+        // A calibration given in place of the device set's places the image:
+        // the frames' own transforms of the image frame would go around it.
+        if of_image && replaced_image {
+            continue;
+        }
         let matrix = match lagged {
+            // A tracker's pose must be rigid (the tracked run's check); only a
+            // transform of the image frame carries the pixels' scale. The
+            // recorded matrix is pasted with, as PLUS does.
+            None if !of_image => sequence
+                .transform(index, transform)
+                .and_then(|_| sequence.matrix(index, transform))
+                .map_err(|e| e.to_string()),
             None => sequence.matrix(index, transform).map_err(|e| e.to_string()),
             Some(lagged) => lagged.at(sequence, index, transform),
         };

@@ -43,6 +43,10 @@ impl PlusResult {
             ));
         }
         let numbers = x.numbers(transform, "Matrix", 16)?;
+        let image_to_probe = Matrix4::from_fn(|r, c| numbers[r * 4 + c]);
+        if let Some(why) = super::xml_limits::affine_fault(&image_to_probe) {
+            return Err(x.fail(transform, format!("ImageToProbe's Matrix: {why}")));
+        }
         let stats = doc
             .descendants()
             .find(|n| n.has_tag_name("ReprojectionError3DStatistics"));
@@ -60,7 +64,7 @@ impl PlusResult {
         Ok(PlusResult {
             calibration_frames_segmented: found("calibration"),
             validation_frames_segmented: found("validation"),
-            image_to_probe: Matrix4::from_fn(|r, c| numbers[r * 4 + c]),
+            image_to_probe,
             validation_mean_mm: stat("ValidationMeanMm"),
             validation_std_mm: stat("ValidationStdDevMm"),
             calibration_mean_mm: stat("CalibrationMeanMm"),

@@ -124,19 +124,8 @@ pub fn check_transforms(path: &Path, transforms: &[FixedTransform]) -> Result<()
                 ),
             ));
         }
-        let last = [t.matrix[(3, 0)], t.matrix[(3, 1)], t.matrix[(3, 2)], t.matrix[(3, 3)]];
-        if last != [0.0, 0.0, 0.0, 1.0] {
-            return Err(fail(
-                t.line,
-                format!("transform {}To{}: the last row is {last:?}, not 0 0 0 1", t.from, t.to),
-            ));
-        }
-        let det = t.matrix.fixed_view::<3, 3>(0, 0).determinant();
-        if !(det.is_finite() && det.abs() > 1e-12) {
-            return Err(fail(
-                t.line,
-                format!("transform {}To{} is singular (determinant {det:e})", t.from, t.to),
-            ));
+        if let Some(why) = affine_fault(&t.matrix) {
+            return Err(fail(t.line, format!("transform {}To{}: {why}", t.from, t.to)));
         }
     }
     Ok(())
@@ -144,6 +133,25 @@ pub fn check_transforms(path: &Path, transforms: &[FixedTransform]) -> Result<()
 
 /// Why `matrix` is not rigid (a rotation and a translation), if it is not:
 /// its axes' lengths and the largest departure from square, against the limit.
+/// Why `matrix` is not a usable affine transform (the one check of every
+/// reader of an `ImageToProbe` and of a device set's transforms): a value not
+/// finite, a last row other than 0 0 0 1 (projective), or a singular 3x3 part
+/// (all zero, or flattening space onto a plane).
+pub fn affine_fault(matrix: &Matrix4<f64>) -> Option<String> {
+    if matrix.iter().any(|v| !v.is_finite()) {
+        return Some("a value is not a finite number".into());
+    }
+    let last = [matrix[(3, 0)], matrix[(3, 1)], matrix[(3, 2)], matrix[(3, 3)]];
+    if last != [0.0, 0.0, 0.0, 1.0] {
+        return Some(format!("the last row is {last:?}, not 0 0 0 1"));
+    }
+    let det = matrix.fixed_view::<3, 3>(0, 0).determinant();
+    if !(det.is_finite() && det.abs() > 1e-12) {
+        return Some(format!("it is singular (determinant {det:e})"));
+    }
+    None
+}
+
 pub fn rigid_fault(matrix: &Matrix4<f64>) -> Option<String> {
     let r = matrix.fixed_view::<3, 3>(0, 0);
     let departure = (r.transpose() * r - nalgebra::Matrix3::identity()).abs().max();
