@@ -190,3 +190,39 @@ fn charuco_options_that_cannot_be_a_board_are_refused() {
     }
     assert!(!dir.join("camera.yml").exists());
 }
+
+/// Six copies of one photo are one view, as for a chessboard: the copies are
+/// listed as the same view as the first, and one view is too few.
+#[test]
+#[ignore = "needs python3-opencv (full tier: scripts/test.sh)"]
+fn copies_of_one_photo_are_one_view() {
+    let dir = scratch("charuco_calibration", "copies");
+    let rendered = views(&dir);
+    let mut first: Vec<PathBuf> = std::fs::read_dir(&rendered)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
+    first.sort();
+    let folder = dir.join("copies");
+    let _ = std::fs::remove_dir_all(&folder);
+    std::fs::create_dir_all(&folder).unwrap();
+    let extension = first[0].extension().unwrap().to_string_lossy().to_string();
+    for k in 0..6 {
+        std::fs::copy(&first[0], folder.join(format!("copy_{k}.{extension}"))).unwrap();
+    }
+    let yml = dir.join("camera.yml");
+    let out = probecal()
+        .arg("calibrate-camera")
+        .arg(&folder)
+        .args(["--charuco", "5x7", "--square-mm", "40", "--marker-mm", "20"])
+        .args(["--dictionary", "DICT_6X6_250", "--out"])
+        .arg(&yml)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    // As the chessboard path: the calibration failed (exit 1), every copy named.
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("was found in 1 of 6 views"), "{stderr}");
+    assert_eq!(stderr.matches("the same view as").count(), 5, "{stderr}");
+    assert!(!yml.exists());
+}

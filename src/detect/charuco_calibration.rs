@@ -14,7 +14,9 @@ use opencv::core::{Mat, Point2f, Ptr, Size, Vector};
 use opencv::prelude::*;
 
 use super::aruco::{dictionary_file, predefined, ArucoError};
-use super::camera_calibration::{CalibrationError, CalibrationView, CameraCalibration, MIN_VIEWS};
+use super::camera_calibration::{
+    max_shift_px, CalibrationError, CalibrationView, CameraCalibration, DUPLICATE_VIEW_PX, MIN_VIEWS,
+};
 use crate::io::camera_model::CameraIntrinsics;
 use crate::io::image::read_gray;
 
@@ -132,6 +134,15 @@ pub fn detect_view(
     Ok(view)
 }
 
+/// The earlier used view `view` repeats (the same corners, each within
+/// [`DUPLICATE_VIEW_PX`]), and the largest shift, px.
+fn same_view(view: &CharucoView, seen: &[(usize, Vec<i32>, Vec<[f64; 2]>)]) -> Option<(usize, f64)> {
+    seen.iter().find_map(|(index, ids, px)| {
+        let shift = max_shift_px(&view.corners_px, px);
+        (*ids == view.corner_ids && shift < DUPLICATE_VIEW_PX).then_some((*index, shift))
+    })
+}
+
 /// Calibrates from the given image files.
 pub fn calibrate(images: &[PathBuf], spec: &CharucoSpec) -> Result<CameraCalibration, CalibrationError> {
     let (dictionary, board) = spec.board().map_err(CalibrationError::Board)?;
@@ -139,6 +150,8 @@ pub fn calibrate(images: &[PathBuf], spec: &CharucoSpec) -> Result<CameraCalibra
     let mut corners = Vector::<Vector<Point2f>>::new();
     let mut ids = Vector::<Vector<i32>>::new();
     let mut used = Vec::new();
+    // Each used view: its index in `views`, its corners' ids and pixels.
+    let mut seen: Vec<(usize, Vec<i32>, Vec<[f64; 2]>)> = Vec::new();
     let mut size: Option<(PathBuf, Size)> = None;
     for path in images {
         let image = match read_gray(path) {
@@ -179,6 +192,14 @@ pub fn calibrate(images: &[PathBuf], spec: &CharucoSpec) -> Result<CameraCalibra
             ));
             continue;
         }
+        // The same view twice (a copied photo) adds nothing, as for a chessboard.
+        if let Some((earlier, shift_px)) = same_view(&view, &seen) {
+            let earlier = views[earlier].image.display().to_string();
+            let reason = format!("the same view as {earlier} (every corner within {shift_px:.2} px): it adds nothing");
+            views.push(CalibrationView::unused(path, reason, None));
+            continue;
+        }
+        seen.push((views.len(), view.corner_ids.clone(), view.corners_px.clone()));
         corners.push(
             view.corners_px
                 .iter()
