@@ -11,10 +11,10 @@ source scripts/env.sh
 probecal="$CARGO_TARGET_DIR/debug/probecal"
 s=reports/study
 pair() { # name, study A, method of A, study B, method of B
-  "$probecal" study compare "$2" "$4" --method "$3" --method-b "$5" --out "$s/paired/$1.json" >/dev/null
+  "$probecal" study compare "$2" "$4" --method "$3" --method-b "$5" --out "$s/paired/$1.json" --force >/dev/null
 }
 studies() { # name under reports/study, study A, study B
-  "$probecal" study compare "$2" "$3" --out "$s/$1.json" >/dev/null
+  "$probecal" study compare "$2" "$3" --out "$s/$1.json" --force >/dev/null
 }
 mkdir -p "$s/paired"
 pair hemisphere_lmeds_vs_reported $s/study.json cutoff_worst_first $s/study.json lmeds

@@ -289,3 +289,38 @@ fn a_study_with_a_repeated_seed_or_an_impossible_error_is_refused() {
         );
     }
 }
+
+/// `--out` is a single file: an existing one (or its .md) is replaced only with
+/// `--force`, and a name that is not .json is refused before anything is written.
+#[test]
+fn an_existing_comparison_is_replaced_only_with_force() {
+    let dir = scratch("study_compare", "force");
+    std::fs::create_dir_all(&dir).unwrap();
+    let seeds: Vec<(u64, f64, f64, usize)> = (1000..1005)
+        .map(|s| (s, 0.5, 0.4 + 0.01 * (s % 2) as f64, 40))
+        .collect();
+    let file = dir.join("study.json");
+    std::fs::write(&file, study("one", &seeds).to_string()).unwrap();
+    let notes = dir.join("notes.md");
+    std::fs::write(&notes, "my notes\n").unwrap();
+    let compare = |out: &std::path::Path, force: bool| {
+        let mut c = probecal();
+        c.args(["study", "compare"]).arg(&file).arg(&file).arg("--out").arg(out);
+        if force {
+            c.arg("--force");
+        }
+        c.output().unwrap()
+    };
+    // notes.json would put its Markdown over notes.md.
+    let r = compare(&dir.join("notes.json"), false);
+    assert_eq!(r.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&r.stderr).contains("notes.md: exists; pass --force"));
+    assert_eq!(std::fs::read_to_string(&notes).unwrap(), "my notes\n");
+    let r = compare(&dir.join("paired.txt"), false);
+    assert_eq!(r.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&r.stderr).contains("name it .json"));
+    let out = dir.join("paired.json");
+    assert!(compare(&out, false).status.success());
+    assert_eq!(compare(&out, false).status.code(), Some(2));
+    assert!(compare(&out, true).status.success());
+}

@@ -80,6 +80,9 @@ pub enum StudyMerge {
         /// Write the comparison here as JSON (and beside it the Markdown, .md).
         #[arg(long)]
         out: Option<PathBuf>,
+        /// Replace --out (and its .md) when they exist already.
+        #[arg(long, requires = "out")]
+        force: bool,
     },
 }
 
@@ -93,7 +96,8 @@ pub fn dispatch(args: StudyArgs) -> Result<(), Failure> {
             method,
             method_b,
             out,
-        }) => compare(a, b, [method.as_deref(), method_b.as_deref()], out.as_deref()),
+            force,
+        }) => compare(a, b, [method.as_deref(), method_b.as_deref()], out.as_deref(), *force),
         None => command(&args),
     }
 }
@@ -190,12 +194,24 @@ fn claim(out: &Path, names: &[&str], inputs: &[&Path], force: bool, exclusive: b
 
 /// `probecal study compare`: the paired comparison, printed and written to `out`.
 /// `methods`: only this method, and the method of `b` it is paired with.
-pub fn compare(a: &Path, b: &Path, methods: [Option<&str>; 2], out: Option<&Path>) -> Result<(), Failure> {
+pub fn compare(a: &Path, b: &Path, methods: [Option<&str>; 2], out: Option<&Path>, force: bool) -> Result<(), Failure> {
     use crate::report::study_compare;
     if let Some(out) = out {
+        if out.extension().is_none_or(|e| e != "json") {
+            return Err(Failure::bad_input(format!(
+                "{}: --out is the comparison's JSON file (name it .json; the Markdown goes beside it as .md)",
+                out.display()
+            )));
+        }
         for written in [out.to_path_buf(), out.with_extension("md")] {
             if let Some(why) = crate::io::output::file_refusal(&written, "study compare", &[a, b]) {
                 return Err(Failure::bad_input(format!("{}: {why}", written.display())));
+            }
+            if written.exists() && !force {
+                return Err(Failure::bad_input(format!(
+                    "{}: exists; pass --force to replace it",
+                    written.display()
+                )));
             }
         }
     }
