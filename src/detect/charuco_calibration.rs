@@ -134,9 +134,12 @@ pub fn detect_view(
     Ok(view)
 }
 
+/// A used view: its index among the views, its corners' ids and pixels.
+type SeenView = (usize, Vec<i32>, Vec<[f64; 2]>);
+
 /// The earlier used view `view` repeats (the same corners, each within
 /// [`DUPLICATE_VIEW_PX`]), and the largest shift, px.
-fn same_view(view: &CharucoView, seen: &[(usize, Vec<i32>, Vec<[f64; 2]>)]) -> Option<(usize, f64)> {
+fn same_view(view: &CharucoView, seen: &[SeenView]) -> Option<(usize, f64)> {
     seen.iter().find_map(|(index, ids, px)| {
         let shift = max_shift_px(&view.corners_px, px);
         (*ids == view.corner_ids && shift < DUPLICATE_VIEW_PX).then_some((*index, shift))
@@ -150,8 +153,7 @@ pub fn calibrate(images: &[PathBuf], spec: &CharucoSpec) -> Result<CameraCalibra
     let mut corners = Vector::<Vector<Point2f>>::new();
     let mut ids = Vector::<Vector<i32>>::new();
     let mut used = Vec::new();
-    // Each used view: its index in `views`, its corners' ids and pixels.
-    let mut seen: Vec<(usize, Vec<i32>, Vec<[f64; 2]>)> = Vec::new();
+    let mut seen: Vec<SeenView> = Vec::new();
     let mut size: Option<(PathBuf, Size)> = None;
     for path in images {
         let image = match read_gray(path) {
