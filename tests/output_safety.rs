@@ -300,3 +300,34 @@ fn a_second_process_is_kept_out_of_a_busy_output_folder_and_waits_for_a_busy_dat
     let again = run(&[&good], &out_dir, true);
     assert!(again.status.success(), "{}", stderr(&again));
 }
+
+/// A folder command's `--out` is replaced whole by a sibling swapped in: the
+/// working directory (`.`), a folder holding it (`..`) and `sub/..` are
+/// refused before any work, and nothing is left beside them (a `..partial`
+/// staging folder was left in the parent before).
+#[test]
+fn the_working_directory_is_no_output_folder() {
+    let dir = common::scratch("output_safety", "working_directory");
+    let _ = std::fs::remove_dir_all(&dir);
+    let here = dir.join("here");
+    std::fs::create_dir_all(here.join("sub")).unwrap();
+    let sequence = dir.join("missing.igs.mha");
+    for out in [".", "..", "sub/.."] {
+        let o = common::probecal()
+            .current_dir(&here)
+            .arg("reconstruct")
+            .arg(&sequence)
+            .args(["--config", "none.xml", "--out", out])
+            .output()
+            .unwrap();
+        assert_eq!(o.status.code(), Some(2), "{out}: {}", stderr(&o));
+        assert!(stderr(&o).contains("is the working directory"), "{out}: {}", stderr(&o));
+    }
+    let mut left: Vec<String> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    left.sort();
+    assert_eq!(left, ["here"], "left beside the working directory");
+    assert_eq!(std::fs::read_dir(&here).unwrap().count(), 1, "left in it");
+}

@@ -39,6 +39,21 @@ pub fn resolved(path: &Path) -> PathBuf {
 /// `inputs`, if it may not.
 pub fn refusal(out: &Path, command: &str, inputs: &[&Path], force: bool) -> Option<String> {
     let target = resolved(out);
+    // The folder is replaced whole, by a sibling swapped in: the working
+    // directory (`.`) or a folder holding it cannot be, and a path without a
+    // name of its own (`..`, `/`) has no sibling to stage in.
+    if let Ok(cwd) = std::env::current_dir().map(|d| resolved(&d)) {
+        if cwd.starts_with(&target) {
+            return Some(format!(
+                "is the working directory{}: the output folder is replaced whole; give a new folder (e.g. {}/out)",
+                if cwd == target { "" } else { " or holds it" },
+                out.display()
+            ));
+        }
+    }
+    if target.file_name().is_none() || out.file_name().is_none() {
+        return Some("has no name of its own (it ends in `.` or `..`); name the folder itself".into());
+    }
     for input in inputs {
         let input_path = resolved(input);
         if input_path == target || input_path.starts_with(&target) {
