@@ -267,6 +267,41 @@ fn the_board_seat_holds_the_mount_where_the_phantom_frame_puts_the_pattern() {
     }
 }
 
+/// The sheet goes beside the STL as <name>.json: a file of that name that is
+/// already there (another model's sheet, one's notes) is replaced only with
+/// --force, and nothing is written without it.
+#[test]
+fn an_existing_file_beside_the_stl_is_replaced_only_with_force() {
+    let dir = scratch("phantom_stl", "force");
+    std::fs::create_dir_all(&dir).unwrap();
+    let stl = dir.join("k.stl");
+    std::fs::write(dir.join("k.json"), "{\"mine\": true}\n").unwrap();
+    let manifest = root().join("experiments/spheres_checkerboard.yaml");
+    let phantom = |force: bool| {
+        let mut c = probecal();
+        c.args(["phantom", manifest.to_str().unwrap(), "--stl", stl.to_str().unwrap()]);
+        if force {
+            c.arg("--force");
+        }
+        c.output().unwrap()
+    };
+    let out = phantom(false);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("k.json: exists; pass --force"));
+    assert_eq!(
+        std::fs::read_to_string(dir.join("k.json")).unwrap(),
+        "{\"mine\": true}\n"
+    );
+    assert!(!stl.exists());
+    assert!(phantom(true).status.success());
+    assert!(
+        stl.is_file()
+            && std::fs::read_to_string(dir.join("k.json"))
+                .unwrap()
+                .contains("triangles")
+    );
+}
+
 #[test]
 fn a_phantom_without_domes_is_refused_naming_the_field() {
     let dir = scratch("phantom_stl", "refused");

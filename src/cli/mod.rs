@@ -200,6 +200,9 @@ enum Command {
         /// The STL file to write (binary, mm); its sheet goes beside it as <name>.json.
         #[arg(long)]
         stl: PathBuf,
+        /// Replace the STL or its sheet when they exist already.
+        #[arg(long)]
+        force: bool,
     },
     /// Reconstruct a 3D volume from a tracked PLUS sequence as PLUS's
     /// VolumeReconstructor does (the device set's <VolumeReconstruction>):
@@ -334,7 +337,7 @@ pub fn main() -> ExitCode {
         Command::Resolve { run } => failure::exit_code(resolve::command(&run)),
         Command::Ablate(args) => failure::exit_code(ablate::command(&args)),
         Command::Design { manifest, out, force } => failure::exit_code(design::command(&manifest, &out, force)),
-        Command::Phantom { manifest, stl } => failure::exit_code(phantom::command(&manifest, &stl)),
+        Command::Phantom { manifest, stl, force } => failure::exit_code(phantom::command(&manifest, &stl, force)),
         Command::Reconstruct(args) => failure::exit_code(reconstruct::command(&args)),
         Command::CalibrateCamera {
             images,

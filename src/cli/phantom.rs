@@ -10,7 +10,7 @@ use crate::synth::printable;
 
 /// Writes the STL and its sheet (`<name>.json` beside it); prints the model's
 /// size. Exit code: 0 written, 2 bad input, 1 failed write.
-pub fn command(manifest: &Path, stl: &Path) -> Result<(), Failure> {
+pub fn command(manifest: &Path, stl: &Path, force: bool) -> Result<(), Failure> {
     let sheet_path = stl.with_extension("json");
     if sheet_path == stl {
         return Err(Failure::bad_input(format!(
@@ -21,6 +21,14 @@ pub fn command(manifest: &Path, stl: &Path) -> Result<(), Failure> {
     for written in [stl, sheet_path.as_path()] {
         if let Some(why) = crate::io::output::file_refusal(written, "phantom", &[manifest]) {
             return Err(Failure::bad_input(format!("{}: {why}", written.display())));
+        }
+        // A file of the same name may be anything (another model's sheet, your
+        // notes): replaced only when asked.
+        if written.exists() && !force {
+            return Err(Failure::bad_input(format!(
+                "{}: exists; pass --force to replace it",
+                written.display()
+            )));
         }
     }
     let (manifest, render) = rendered_lab(manifest).map_err(Failure::bad_input)?;
