@@ -112,6 +112,47 @@ pub struct VolumeReadError {
     pub message: String,
 }
 
+/// Most bytes of a volume file's header read before its data.
+pub const MAX_HEADER_BYTES: u64 = 1 << 20;
+
+/// The voxels' bytes: what follows the header in `head`, then the file's
+/// next bytes, no more than `expected` (compressed: what zlib may take for
+/// them), inflated when `compressed`.
+fn voxel_bytes(
+    mut file: std::fs::File,
+    mut data: Vec<u8>,
+    expected: usize,
+    compressed: bool,
+) -> Result<Vec<u8>, String> {
+    use std::io::Read;
+    // zlib never grows data by more than a few bytes per 16 KiB block.
+    let most = if compressed {
+        expected + expected / 1000 + 1024
+    } else {
+        expected
+    };
+    (&mut file)
+        .take((most + 1).saturating_sub(data.len()) as u64)
+        .read_to_end(&mut data)
+        .map_err(|e| format!("cannot read: {e}"))?;
+    if data.len() > most {
+        return Err(format!(
+            "more data than the header declares ({expected} bytes of voxels{})",
+            if compressed { ", compressed" } else { "" }
+        ));
+    }
+    if !compressed {
+        return Ok(data);
+    }
+    // Grown as the stream inflates, not reserved from the header's claim.
+    let mut out = Vec::with_capacity(expected.min(data.len().saturating_mul(4)).min(1 << 26));
+    flate2::read::ZlibDecoder::new(&data[..])
+        .take(expected as u64 + 1)
+        .read_to_end(&mut out)
+        .map_err(|e| format!("compressed data is corrupt: {e}"))?;
+    Ok(out)
+}
+
 /// Reads an uncompressed or zlib-compressed 3D MetaImage of 8-bit or float voxels:
 /// its header and its voxels' bytes.
 pub fn read_metaimage(path: &Path) -> Result<(VolumeHeader, Vec<u8>), VolumeReadError> {
@@ -119,12 +160,23 @@ pub fn read_metaimage(path: &Path) -> Result<(VolumeHeader, Vec<u8>), VolumeRead
         path: path.to_path_buf(),
         message,
     };
-    let bytes = std::fs::read(path).map_err(|e| fail(format!("cannot read: {e}")))?;
+    // The header first, from at most its first MiB (a device such as
+    // /dev/zero says nothing of its size and never ends); the voxels then, no
+    // more than the header declares.
+    use std::io::Read;
+    let mut file = std::fs::File::open(path).map_err(|e| fail(format!("cannot read: {e}")))?;
+    let mut bytes = Vec::new();
+    (&mut file)
+        .take(MAX_HEADER_BYTES)
+        .read_to_end(&mut bytes)
+        .map_err(|e| fail(format!("cannot read: {e}")))?;
     let marker = b"ElementDataFile = LOCAL";
-    let end = bytes
-        .windows(marker.len())
-        .position(|w| w == marker)
-        .ok_or_else(|| fail("no `ElementDataFile = LOCAL` line".into()))?;
+    let end = bytes.windows(marker.len()).position(|w| w == marker).ok_or_else(|| {
+        fail(format!(
+            "no `ElementDataFile = LOCAL` line in its first {} KiB",
+            MAX_HEADER_BYTES >> 10
+        ))
+    })?;
     let data_start = bytes[end..]
         .iter()
         .position(|&b| b == b'\n')
@@ -170,16 +222,8 @@ pub fn read_metaimage(path: &Path) -> Result<(VolumeHeader, Vec<u8>), VolumeRead
     let expected = count
         .filter(|&n| n <= 1usize << 33)
         .ok_or_else(|| fail("`DimSize` is implausibly large".into()))?;
-    let mut data = bytes[data_start..].to_vec();
-    if field("CompressedData").is_some_and(|v| v.eq_ignore_ascii_case("true")) {
-        use std::io::Read;
-        let mut out = Vec::with_capacity(expected);
-        flate2::read::ZlibDecoder::new(&data[..])
-            .take(expected as u64 + 1)
-            .read_to_end(&mut out)
-            .map_err(|e| fail(format!("compressed data is corrupt: {e}")))?;
-        data = out;
-    }
+    let compressed = field("CompressedData").is_some_and(|v| v.eq_ignore_ascii_case("true"));
+    let data = voxel_bytes(file, bytes[data_start..].to_vec(), expected, compressed).map_err(fail)?;
     if data.len() != expected {
         return Err(fail(format!("{} bytes of voxels, {expected} expected", data.len())));
     }
