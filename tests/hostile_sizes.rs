@@ -66,3 +66,41 @@ fn a_volume_header_is_believed_only_as_far_as_its_bytes_go() {
         assert!(!dir.join("out").exists());
     }
 }
+
+/// An `OutputSpacing` of 1e-300 mm made the grid's voxel count overflow (a
+/// panic): refused at its line, with the accepted range.
+#[test]
+#[ignore = "needs ../shared/data (full tier: scripts/test.sh)"]
+fn a_spacing_that_would_overflow_the_grid_is_refused_at_its_line() {
+    let config = shared_data(SET, "PlusDeviceSet_VolumeReconstructionOnly_SpinePhantom_NN_MEAN.xml");
+    if !config.exists() {
+        eprintln!("skipped: the shared data is absent");
+        return;
+    }
+    let dir = scratch("hostile_sizes", "spacing");
+    std::fs::create_dir_all(&dir).unwrap();
+    let text = std::fs::read_to_string(&config).unwrap();
+    let at = text.find("OutputSpacing=\"").unwrap() + "OutputSpacing=\"".len();
+    let end = at + text[at..].find('"').unwrap();
+    let edited = format!("{}1e-300 1e-300 1e-300{}", &text[..at], &text[end..]);
+    let line = text[..at].lines().count();
+    let path = dir.join("DeviceSet.xml");
+    std::fs::write(&path, edited).unwrap();
+    let o = common::probecal()
+        .arg("reconstruct")
+        .arg(shared_data(SET, "SpinePhantomFreehand.igs.mha"))
+        .arg("--config")
+        .arg(&path)
+        .arg("--out")
+        .arg(dir.join("out"))
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{stderr}");
+    assert!(
+        stderr.contains(&format!(
+            "DeviceSet.xml:{line}: `OutputSpacing` must be 3 numbers in [0.001, 100] mm"
+        )),
+        "{stderr}"
+    );
+}

@@ -73,7 +73,8 @@ impl Grid {
         if lo.iter().chain(&hi).any(|v| !v.is_finite()) {
             return Err(GridError::NotFinite);
         }
-        let dims = [0, 1, 2].map(|a| ((hi[a] - lo[a]) / spacing_mm[a]).round() as u64 + 1);
+        // `as` saturates a huge quotient; the sum must not overflow past it.
+        let dims = [0, 1, 2].map(|a| (((hi[a] - lo[a]) / spacing_mm[a]).round() as u64).saturating_add(1));
         Grid::checked(lo, spacing_mm, dims)
     }
 
@@ -106,6 +107,11 @@ mod tests {
         let tiny = [1e-4, 1e-4, 1e-4];
         assert!(matches!(
             Grid::fit(&[m], [0, 0], [99, 49], tiny),
+            Err(GridError::TooLarge { .. })
+        ));
+        // A spacing that makes the count leave u64: refused, not overflowed.
+        assert!(matches!(
+            Grid::fit(&[m], [0, 0], [99, 49], [1e-300; 3]),
             Err(GridError::TooLarge { .. })
         ));
         let g = Grid::from_extent([1.0, 2.0, 3.0], [0.5, 0.5, 0.5], [2, 11, 0, 9, -1, 1]).unwrap();

@@ -110,6 +110,10 @@ pub struct VolumeSettings {
 
 /// The largest output spacing, clip size and stick length accepted (a typo, not a volume).
 const MAX_SPACING_MM: f64 = 100.0;
+/// The smallest output spacing accepted: a micrometre, far below any
+/// ultrasound's resolution (a smaller one is a typo, and at 1e-300 mm the grid's
+/// arithmetic leaves the numbers).
+const MIN_SPACING_MM: f64 = 0.001;
 const MAX_KERNEL: usize = 99;
 
 impl VolumeSettings {
@@ -228,9 +232,9 @@ impl Reader<'_, '_, '_> {
         let Some(v) = self.optional(name, 3)? else {
             return Ok(None);
         };
-        if v.iter().any(|s| !(*s > 0.0 && *s <= MAX_SPACING_MM)) {
+        if v.iter().any(|s| !(*s >= MIN_SPACING_MM && *s <= MAX_SPACING_MM)) {
             return Err(self.fail(format!(
-                "`{name}` must be 3 numbers in (0, {MAX_SPACING_MM}] mm, got {v:?}"
+                "`{name}` must be 3 numbers in [{MIN_SPACING_MM}, {MAX_SPACING_MM}] mm, got {v:?}"
             )));
         }
         Ok(Some([v[0], v[1], v[2]]))
