@@ -238,3 +238,74 @@ fn a_given_calibration_places_the_image_even_where_the_frames_carry_one() {
         "{plain} {calibrated}"
     );
 }
+
+/// The sweep as 32-bit float samples, in the byte order `big_endian` says,
+/// with `poison` written over one sample of one frame (frame, sample index).
+fn float_sweep(dir: &Path, name: &str, big_endian: bool, poison: Option<(usize, usize, f32)>) -> PathBuf {
+    let bytes = std::fs::read(shared_data(SET, SWEEP)).unwrap();
+    let sequence = probecal::io::plus::sequence::Sequence::parse(Path::new(SWEEP), &bytes).unwrap();
+    let marker = b"ElementDataFile = LOCAL\n";
+    let end = bytes.windows(marker.len()).position(|w| w == marker).unwrap();
+    let msb = if big_endian { "True" } else { "False" };
+    let header = String::from_utf8_lossy(&bytes[..end])
+        .replace("ElementType = MET_UCHAR", "ElementType = MET_FLOAT")
+        .replace("CompressedData = True", "CompressedData = False")
+        .replace(
+            "BinaryDataByteOrderMSB = False",
+            &format!("BinaryDataByteOrderMSB = {msb}"),
+        )
+        // The samples are written as read (flipped to MF): say so.
+        .replace("UltrasoundImageOrientation = MFA", "UltrasoundImageOrientation = MF")
+        .lines()
+        .filter(|l| !l.starts_with("CompressedDataSize"))
+        .collect::<Vec<_>>()
+        .join("\n");
+    let mut out = format!("{header}\nElementDataFile = LOCAL\n").into_bytes();
+    for i in 0..sequence.frames.len() {
+        for (k, p) in sequence.pixels(i).iter().enumerate() {
+            let v = match poison {
+                Some((frame, at, v)) if frame == i && at == k => v,
+                _ => f32::from(*p),
+            };
+            out.extend_from_slice(&if big_endian { v.to_be_bytes() } else { v.to_le_bytes() });
+        }
+    }
+    let path = dir.join(name);
+    std::fs::write(&path, out).unwrap();
+    path
+}
+
+/// Float samples: a big-endian file (`BinaryDataByteOrderMSB = True`) gives the
+/// volume its little-endian twin gives (the order was ignored: garbage voxels,
+/// exit 0), and a sample that is not a finite number is refused with its frame
+/// and pixel (it gave non-finite voxels, exit 0).
+#[test]
+#[ignore = "needs ../shared/data (full tier: scripts/test.sh)"]
+fn float_samples_are_read_in_their_byte_order_and_must_be_finite() {
+    if !available() {
+        return;
+    }
+    let dir = scratch("hostile_values", "float");
+    std::fs::create_dir_all(&dir).unwrap();
+    let little = float_sweep(&dir, "little.igs.mha", false, None);
+    let big = float_sweep(&dir, "big.igs.mha", true, None);
+    for (sequence, out) in [(&little, "little"), (&big, "big")] {
+        let (code, stderr, _) = reconstruct(&dir, sequence, out, &[]);
+        assert_eq!(code, Some(0), "{out}: {stderr}");
+    }
+    let volume = |out: &str| std::fs::read(dir.join(out).join("volume.mha")).unwrap();
+    assert!(
+        volume("little") == volume("big"),
+        "the big-endian file gives another volume"
+    );
+    for v in [f32::NAN, f32::INFINITY] {
+        let poisoned = float_sweep(&dir, "poisoned.igs.mha", false, Some((5, 820 * 3 + 7, v)));
+        let (code, stderr, _) = reconstruct(&dir, &poisoned, "poisoned", &[]);
+        assert_eq!(code, Some(2), "{v}: {stderr}");
+        assert!(
+            stderr.contains("frame 5: the sample at column 7, row 3") && stderr.contains("not a finite number"),
+            "{v}: {stderr}"
+        );
+        assert!(!dir.join("poisoned").exists());
+    }
+}

@@ -16,8 +16,8 @@ use std::path::{Path, PathBuf};
 pub use super::orientation::Orientation;
 pub use super::sequence_deferred::Deferred;
 use super::sequence_header::{
-    check_element, check_ndims, compressed_flag, dimensions, orientation, pixel_bytes, read_header, samples_in_mf,
-    Header,
+    big_endian, check_element, check_ndims, compressed_flag, dimensions, orientation, pixel_bytes, read_header,
+    samples_in_mf, Header, StoredSamples,
 };
 use super::sequence_types::clip;
 pub use super::sequence_types::{Field, SequenceError};
@@ -299,7 +299,14 @@ impl Sequence {
             ));
         }
         let orientation = orientation(header.get("UltrasoundImageOrientation"), &fail)?;
-        let (pixels, float_pixels) = samples_in_mf(pixels, float, orientation, width, height);
+        let samples = match float {
+            true => StoredSamples::F32 {
+                big_endian: big_endian(&header),
+            },
+            false => StoredSamples::U8,
+        };
+        let (pixels, float_pixels) =
+            samples_in_mf(pixels, samples, orientation, width, height).map_err(|e| fail(None, e))?;
         let sequence = assemble(orientation, pixels, float_pixels);
         Ok((sequence, None))
     }

@@ -186,24 +186,61 @@ pub(super) fn orientation(
     }
 }
 
-/// The pixel bytes as 8-bit or float samples (the other vector empty), flipped to MF.
+/// How a float sequence's samples are stored.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(super) enum StoredSamples {
+    U8,
+    /// 32-bit floats, most significant byte first when `big_endian`.
+    F32 {
+        big_endian: bool,
+    },
+}
+
+/// The pixel bytes as 8-bit or float samples (the other vector empty), flipped
+/// to MF; a float sample that is not a finite number is refused with its frame
+/// and pixel (it would give non-finite voxels, silently).
 pub(super) fn samples_in_mf(
     mut pixels: Vec<u8>,
-    float: bool,
+    samples: StoredSamples,
     orientation: Orientation,
     width: usize,
     height: usize,
-) -> (Vec<u8>, Vec<f32>) {
-    if !float {
+) -> Result<(Vec<u8>, Vec<f32>), String> {
+    let StoredSamples::F32 { big_endian } = samples else {
         orientation.flip_to_mf(&mut pixels, width, height);
-        return (pixels, Vec::new());
-    }
+        return Ok((pixels, Vec::new()));
+    };
     let mut floats: Vec<f32> = pixels
         .chunks_exact(4)
-        .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+        .map(|b| {
+            let b = [b[0], b[1], b[2], b[3]];
+            if big_endian {
+                f32::from_be_bytes(b)
+            } else {
+                f32::from_le_bytes(b)
+            }
+        })
         .collect();
+    if let Some(at) = floats.iter().position(|v| !v.is_finite()) {
+        let frame_px = (width * height).max(1);
+        let (frame, within) = (at / frame_px, at % frame_px);
+        return Err(format!(
+            "frame {frame}: the sample at column {}, row {} of the file's image is {}, not a finite number",
+            within % width.max(1),
+            within / width.max(1),
+            floats[at]
+        ));
+    }
     orientation.flip_to_mf(&mut floats, width, height);
-    (Vec::new(), floats)
+    Ok((Vec::new(), floats))
+}
+
+/// The byte order of a sequence's samples: `BinaryDataByteOrderMSB` (or
+/// `ElementByteOrderMSB`) `True` is big-endian; it matters for floats only.
+pub(super) fn big_endian(header: &std::collections::BTreeMap<String, Field>) -> bool {
+    ["BinaryDataByteOrderMSB", "ElementByteOrderMSB"]
+        .iter()
+        .any(|k| header.get(*k).is_some_and(|f| f.value.eq_ignore_ascii_case("true")))
 }
 
 /// 8-bit grey pixels, and 32-bit float ones where `allow_float`; true for float.
