@@ -309,3 +309,41 @@ fn float_samples_are_read_in_their_byte_order_and_must_be_finite() {
         assert!(!dir.join("poisoned").exists());
     }
 }
+
+/// A volume no pixel reached (a given extent far from the sweep) is no
+/// reconstruction: refused, nothing written (an empty volume was written with
+/// exit 0 and no word).
+#[test]
+#[ignore = "needs ../shared/data (full tier: scripts/test.sh)"]
+fn a_volume_no_pixel_reached_is_refused() {
+    if !available() {
+        return;
+    }
+    let dir = scratch("hostile_values", "empty");
+    std::fs::create_dir_all(&dir).unwrap();
+    let text = std::fs::read_to_string(shared_data(SET, CONFIG)).unwrap();
+    let far = text.replacen(
+        "OutputSpacing=",
+        "OutputOrigin=\"5000 5000 5000\" OutputExtent=\"0 10 0 10 0 10\" OutputSpacing=",
+        1,
+    );
+    assert_ne!(far, text);
+    let config = dir.join("far.xml");
+    std::fs::write(&config, far).unwrap();
+    let o = probecal()
+        .arg("reconstruct")
+        .arg(shared_data(SET, SWEEP))
+        .arg("--config")
+        .arg(&config)
+        .arg("--out")
+        .arg(dir.join("out"))
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{stderr}");
+    assert!(
+        stderr.contains("21 frames placed, but no pixel was inserted"),
+        "{stderr}"
+    );
+    assert!(!dir.join("out").exists());
+}

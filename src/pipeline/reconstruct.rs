@@ -324,6 +324,18 @@ pub fn run(inputs: &ReconstructInputs) -> Result<Reconstruction, ReconstructErro
     };
     let holes_filled: u64 = stats.holes.filled_by_element.iter().sum();
     let voxels = grid.voxels() as u64;
+    // A volume no pixel reached is no reconstruction (every pixel clipped,
+    // rejected by the threshold, or placed outside a given extent).
+    if stats.pixels_inserted == 0 || voxels == stats.holes.holes_before {
+        return Err(ReconstructError::NoFrames(format!(
+            "{} frames placed, but no pixel was inserted into the {}x{}x{} volume \
+             (clip rectangle, fan, PixelRejectionThreshold or OutputExtent leave none)",
+            poses.len(),
+            grid.dims[0],
+            grid.dims[1],
+            grid.dims[2]
+        )));
+    }
     Ok(Reconstruction {
         inputs: inputs.clone(),
         image_to_probe_source: match (&inputs.image_to_probe, &inputs.calibration) {
