@@ -498,27 +498,7 @@ fn render_pages(
     };
     ctx.insert("plus_config", &definition);
     ctx.insert("nwires", &manifest.nwires.len());
-    let chosen = run.selection.chosen();
-    ctx.insert(
-        "model",
-        &format!("{:?}, {} pixels", chosen.constraints, chosen.pixel_model.name()),
-    );
-    let selection: Vec<serde_json::Value> = run
-        .selection
-        .scored
-        .iter()
-        .enumerate()
-        .map(|(k, c)| {
-            serde_json::json!({
-                "constraints": format!("{:?}", c.candidate.constraints),
-                "pixel_model": c.candidate.pixel_model.name(),
-                "cv": f3(c.cv_pre3d_mm.map(|s| s.mean)),
-                "note": c.failure.clone().unwrap_or_default(),
-                "chosen": k == run.selection.chosen,
-            })
-        })
-        .collect();
-    ctx.insert("selection", &selection);
+    super::tracked_summary::insert_selection(&mut ctx, run);
     ctx.insert("folds", &run.selection.folds);
     ctx.insert("selection_frames", &run.selection.frames);
     ctx.insert("constraints", &run.constraints);

@@ -299,12 +299,7 @@ impl Sequence {
             ));
         }
         let orientation = orientation(header.get("UltrasoundImageOrientation"), &fail)?;
-        let samples = match float {
-            true => StoredSamples::F32 {
-                big_endian: big_endian(&header),
-            },
-            false => StoredSamples::U8,
-        };
+        let samples = StoredSamples::of(float, big_endian(&header));
         let (pixels, float_pixels) =
             samples_in_mf(pixels, samples, orientation, width, height).map_err(|e| fail(None, e))?;
         let sequence = assemble(orientation, pixels, float_pixels);

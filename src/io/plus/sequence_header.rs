@@ -196,6 +196,15 @@ pub(super) enum StoredSamples {
     },
 }
 
+impl StoredSamples {
+    pub(super) fn of(float: bool, big_endian: bool) -> StoredSamples {
+        match float {
+            true => StoredSamples::F32 { big_endian },
+            false => StoredSamples::U8,
+        }
+    }
+}
+
 /// The pixel bytes as 8-bit or float samples (the other vector empty), flipped
 /// to MF; a float sample that is not a finite number is refused with its frame
 /// and pixel (it would give non-finite voxels, silently).
