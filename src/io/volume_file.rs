@@ -123,7 +123,8 @@ fn voxel_bytes(
     mut data: Vec<u8>,
     expected: usize,
     compressed: bool,
-) -> Result<Vec<u8>, String> {
+    fail: impl Fn(String) -> VolumeReadError,
+) -> Result<Vec<u8>, VolumeReadError> {
     use std::io::Read;
     // zlib never grows data by more than a few bytes per 16 KiB block.
     let most = if compressed {
@@ -134,12 +135,12 @@ fn voxel_bytes(
     (&mut file)
         .take((most + 1).saturating_sub(data.len()) as u64)
         .read_to_end(&mut data)
-        .map_err(|e| format!("cannot read: {e}"))?;
+        .map_err(|e| fail(format!("cannot read: {e}")))?;
     if data.len() > most {
-        return Err(format!(
+        return Err(fail(format!(
             "more data than the header declares ({expected} bytes of voxels{})",
             if compressed { ", compressed" } else { "" }
-        ));
+        )));
     }
     if !compressed {
         return Ok(data);
@@ -149,7 +150,7 @@ fn voxel_bytes(
     flate2::read::ZlibDecoder::new(&data[..])
         .take(expected as u64 + 1)
         .read_to_end(&mut out)
-        .map_err(|e| format!("compressed data is corrupt: {e}"))?;
+        .map_err(|e| fail(format!("compressed data is corrupt: {e}")))?;
     Ok(out)
 }
 
@@ -223,7 +224,7 @@ pub fn read_metaimage(path: &Path) -> Result<(VolumeHeader, Vec<u8>), VolumeRead
         .filter(|&n| n <= 1usize << 33)
         .ok_or_else(|| fail("`DimSize` is implausibly large".into()))?;
     let compressed = field("CompressedData").is_some_and(|v| v.eq_ignore_ascii_case("true"));
-    let data = voxel_bytes(file, bytes[data_start..].to_vec(), expected, compressed).map_err(fail)?;
+    let data = voxel_bytes(file, bytes[data_start..].to_vec(), expected, compressed, fail)?;
     if data.len() != expected {
         return Err(fail(format!("{} bytes of voxels, {expected} expected", data.len())));
     }

@@ -300,8 +300,7 @@ impl Sequence {
         }
         let orientation = orientation(header.get("UltrasoundImageOrientation"), &fail)?;
         let samples = StoredSamples::of(float, big_endian(&header));
-        let (pixels, float_pixels) =
-            samples_in_mf(pixels, samples, orientation, width, height).map_err(|e| fail(None, e))?;
+        let (pixels, float_pixels) = samples_in_mf(pixels, samples, orientation, width, height, &fail)?;
         let sequence = assemble(orientation, pixels, float_pixels);
         Ok((sequence, None))
     }

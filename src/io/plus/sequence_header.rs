@@ -214,7 +214,8 @@ pub(super) fn samples_in_mf(
     orientation: Orientation,
     width: usize,
     height: usize,
-) -> Result<(Vec<u8>, Vec<f32>), String> {
+    fail: &dyn Fn(Option<usize>, String) -> SequenceError,
+) -> Result<(Vec<u8>, Vec<f32>), SequenceError> {
     let StoredSamples::F32 { big_endian } = samples else {
         orientation.flip_to_mf(&mut pixels, width, height);
         return Ok((pixels, Vec::new()));
@@ -233,11 +234,14 @@ pub(super) fn samples_in_mf(
     if let Some(at) = floats.iter().position(|v| !v.is_finite()) {
         let frame_px = (width * height).max(1);
         let (frame, within) = (at / frame_px, at % frame_px);
-        return Err(format!(
-            "frame {frame}: the sample at column {}, row {} of the file's image is {}, not a finite number",
-            within % width.max(1),
-            within / width.max(1),
-            floats[at]
+        return Err(fail(
+            None,
+            format!(
+                "frame {frame}: the sample at column {}, row {} of the file's image is {}, not a finite number",
+                within % width.max(1),
+                within / width.max(1),
+                floats[at]
+            ),
         ));
     }
     orientation.flip_to_mf(&mut floats, width, height);
