@@ -2,27 +2,25 @@
 //! OpenIGTLink by pyigtl (an implementation independent of probecal's) at 4x
 //! real time; the calibration sent back equals `probecal run`'s on the same
 //! file, every frame sent is accounted for, and the received sequence re-runs
-//! offline to the same matrix. Hostile streams (bad CRC, bodies that contradict
-//! their sizes, unknown types, a body above the limit, a cut, a silence) end
-//! with a clear error or a counted skip.
+//! offline to the same matrix. Malformed messages (bad CRC, bodies that contradict
+//! their sizes, unknown types) are counted skips; a cut or a silence ends the
+//! acquisition and says so. Streams that fail under a session are in
+//! `hostile_streams.rs`.
 
 mod common;
 
-use std::io::{BufRead, BufReader, Read, Write};
-use std::net::{TcpListener, TcpStream};
+use std::io::{BufRead, BufReader};
+use std::net::TcpListener;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
 
+#[path = "igtl/serve.rs"]
+mod serve;
+
 use common::{probecal, root, scratch, shared_data};
-use probecal::io::igtl::message::{self, Body, Header, HEADER_BYTES};
+use probecal::io::igtl::message::{self, Body, HEADER_BYTES};
 use probecal::io::plus::sequence::Sequence;
-
-const SET: &str = "plus-fcal2.0-3nwires";
-const CALIBRATION: &str = "fCal_Test_Calibration_3NWires_fCal2.0.igs.mha";
-
-fn json(path: &Path) -> serde_json::Value {
-    serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
-}
+use serve::{json, manifest, serve, serve_with, stream, CALIBRATION, SET};
 
 fn matrix(v: &serde_json::Value) -> nalgebra::Matrix4<f64> {
     nalgebra::Matrix4::from_fn(|r, c| v[r][c].as_f64().unwrap())
@@ -38,24 +36,6 @@ fn corner_distance_mm(a: &nalgebra::Matrix4<f64>, b: &nalgebra::Matrix4<f64>) ->
             (a * p - b * p).norm()
         })
         .fold(0.0, f64::max)
-}
-
-/// The fCal experiment with absolute paths, its calibration sequence replaced
-/// where `calibration` is given, and `extra` YAML appended.
-fn manifest(dir: &Path, name: &str, calibration: Option<&Path>, extra: &str) -> PathBuf {
-    let text = common::fcal_manifest_text();
-    let shared = root().join("../shared").canonicalize().unwrap();
-    let mut text = text.replace("../../shared", &shared.display().to_string());
-    if let Some(c) = calibration {
-        let original = format!("{}/data/{SET}/{CALIBRATION}", shared.display());
-        assert!(text.contains(&original));
-        text = text.replace(&original, &c.display().to_string());
-    }
-    text.push_str(extra);
-    std::fs::create_dir_all(dir).unwrap();
-    let path = dir.join(format!("{name}.yaml"));
-    std::fs::write(&path, text).unwrap();
-    path
 }
 
 fn pyigtl_python() -> PathBuf {
@@ -152,98 +132,6 @@ fn a_pyigtl_stream_at_4x_calibrates_as_run_does_and_gets_the_matrix_back() {
     assert_eq!(rows.lines().count(), 191);
 }
 
-/// The fCal sweep's first `n` frames as PlusServer's messages, with hostile
-/// messages put in after frame 5 (each a whole message).
-fn stream(n: usize, hostile: &[Vec<u8>]) -> Vec<Vec<u8>> {
-    let s = Sequence::read(&shared_data(SET, CALIBRATION)).unwrap();
-    let mut out = Vec::new();
-    for i in 0..n {
-        let t: f64 = s.frame_field(i, "Timestamp").unwrap().parse().unwrap();
-        let body = message::image_body([s.width, s.height, 1], [0.08, 0.08, 1.0], [0.0; 3], s.pixels(i));
-        out.push(message::encode("IMAGE", "Image", t, &body));
-        for name in ["ProbeToTracker", "ReferenceToTracker"] {
-            let m = s.matrix(i, name).unwrap();
-            out.push(message::encode("TRANSFORM", name, t, &message::transform_body(&m)));
-        }
-        if i == 5 {
-            out.extend(hostile.iter().cloned());
-        }
-    }
-    out
-}
-
-/// Serves `messages` (then `tail` bytes and a close, or, with `wait_reply`,
-/// reads the client's messages up to its `ImageToProbe`) to one client;
-/// probecal's output and those messages.
-fn serve(
-    dir: &Path,
-    manifest_path: &Path,
-    messages: Vec<Vec<u8>>,
-    tail: Vec<u8>,
-    wait_reply: bool,
-) -> (Output, Vec<(Header, Body)>) {
-    serve_with(dir, manifest_path, messages, tail, wait_reply, &[])
-}
-
-/// [`serve`] with more options for `probecal live`.
-fn serve_with(
-    dir: &Path,
-    manifest_path: &Path,
-    messages: Vec<Vec<u8>>,
-    tail: Vec<u8>,
-    wait_reply: bool,
-    options: &[&str],
-) -> (Output, Vec<(Header, Body)>) {
-    let listener = TcpListener::bind("127.0.0.1:0").unwrap();
-    let port = listener.local_addr().unwrap().port();
-    let client_done = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
-    let done = client_done.clone();
-    let server = std::thread::spawn(move || {
-        let Some(mut socket) = accept_while(&listener, &done) else {
-            return Vec::new();
-        };
-        for m in &messages {
-            socket.write_all(m).unwrap();
-        }
-        socket.write_all(&tail).unwrap();
-        if !wait_reply {
-            return Vec::new();
-        }
-        replies(&mut socket)
-    });
-    let out = probecal()
-        .arg("live")
-        .arg(manifest_path)
-        .args(["--igtl", &format!("127.0.0.1:{port}"), "--out"])
-        .arg(dir.join("live"))
-        .args(options)
-        .output()
-        .unwrap();
-    client_done.store(true, std::sync::atomic::Ordering::SeqCst);
-    (out, server.join().unwrap())
-}
-
-/// The client's connection, or `None` once `client_done` says the client has
-/// exited without connecting (the test then fails on its output, not hangs).
-fn accept_while(listener: &TcpListener, client_done: &std::sync::atomic::AtomicBool) -> Option<TcpStream> {
-    listener.set_nonblocking(true).unwrap();
-    loop {
-        match listener.accept() {
-            Ok((socket, _)) => {
-                socket.set_nonblocking(false).unwrap();
-                return Some(socket);
-            }
-            Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => {
-                if client_done.load(std::sync::atomic::Ordering::SeqCst) {
-                    return None;
-                }
-                std::thread::sleep(std::time::Duration::from_millis(20));
-            }
-            Err(e) => panic!("accept: {e}"),
-        }
-    }
-}
-
 /// A server process's exit once probecal has ended: given 60 s to finish its
 /// stream, then killed and the test failed with probecal's stderr, so a client
 /// that never connected fails the test instead of hanging it.
@@ -263,30 +151,6 @@ fn finish(mut server: std::process::Child, client: &Output) -> std::process::Exi
             );
         }
         std::thread::sleep(std::time::Duration::from_millis(50));
-    }
-}
-
-/// The client's messages, up to its `ImageToProbe` (or the connection's end).
-fn replies(socket: &mut TcpStream) -> Vec<(Header, Body)> {
-    socket
-        .set_read_timeout(Some(std::time::Duration::from_secs(120)))
-        .unwrap();
-    let mut out = Vec::new();
-    loop {
-        let mut header = [0u8; HEADER_BYTES];
-        if socket.read_exact(&mut header).is_err() {
-            return out;
-        }
-        let header = Header::parse(&header).unwrap();
-        let mut body = vec![0u8; header.body_bytes as usize];
-        socket.read_exact(&mut body).unwrap();
-        assert_eq!(message::crc64(&body), header.crc);
-        let decoded = message::decode(&header, &body).unwrap();
-        let last = header.device == "ImageToProbe";
-        out.push((header, decoded));
-        if last {
-            return out;
-        }
     }
 }
 
@@ -348,28 +212,6 @@ fn malformed_messages_are_skipped_with_their_reasons_and_counted() {
         panic!("not a transform")
     };
     assert!(corner_distance_mm(&sent, &matrix(&s["image_to_probe_matrix"])) < 1e-3);
-}
-
-#[test]
-#[ignore = "needs ../shared/data (full tier: scripts/test.sh)"]
-fn a_stream_that_cannot_be_framed_ends_the_session_with_a_clear_error() {
-    let dir = scratch("live_igtl", "unframed");
-    let path = manifest(&dir, "unframed", None, "");
-    let mut huge = message::encode("IMAGE", "Image", 1.0, &[]);
-    huge[42..50].copy_from_slice(&(1u64 << 40).to_be_bytes());
-    let (out, _) = serve(&dir, &path, stream(3, &[]), huge, false);
-    assert_eq!(out.status.code(), Some(1));
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(
-        stderr.contains("announces a body of 1099511627776 bytes, above the limit"),
-        "{stderr}"
-    );
-    assert!(!dir.join("live").exists());
-    let mut version = message::encode("STRING", "x", 1.0, &message::string_body("x"));
-    version[0..2].copy_from_slice(&9u16.to_be_bytes());
-    let (out, _) = serve(&dir, &path, stream(3, &[]), version, false);
-    assert_eq!(out.status.code(), Some(1));
-    assert!(String::from_utf8_lossy(&out.stderr).contains("header version 9"));
 }
 
 #[test]

@@ -91,6 +91,13 @@ fn session(
             return Err(Failure::failed(format!("{address}: {e}")));
         }
     };
+    if run.ending.abnormal() {
+        eprintln!(
+            "warning: the acquisition ended on {}; the {} frame(s) received before it are kept and calibrated",
+            run.ending.describe(&settings.stream),
+            run.counts.frames
+        );
+    }
     let s = crate::report::live_igtl::write(&run, &settings, manifest, staged.path())
         .map_err(|e| Failure::failed(format!("{}: {e}", out.display())))?;
     if s.messages.skipped > 0 {

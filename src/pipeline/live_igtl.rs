@@ -29,7 +29,7 @@ use super::tracked::{self, segmentation_inputs, Role, TrackedInputs, TrackedRun}
 use crate::io::igtl::connection::{Connection, Event};
 use crate::io::igtl::message::{self, Body, Header};
 use crate::io::igtl::reader::Reader;
-use crate::io::plus::sequence::Sequence;
+use crate::io::plus::sequence::{Sequence, MAX_FRAME_PIXELS};
 use crate::manifest::tracked::LiveStream;
 
 /// Skip reasons listed one by one (the rest are counted).
@@ -59,6 +59,9 @@ pub enum Ending {
     Closed,
     /// The server closed the connection inside a message.
     Cut(String),
+    /// The stream could not be read on (a header that cannot be framed, a body
+    /// above the limit, a socket error): the frames before it are kept.
+    Broken(String),
     /// The received frames reached [`MAX_RECEIVED_PIXELS`].
     FrameLimit,
 }
@@ -71,12 +74,18 @@ impl Ending {
             Ending::Interrupted => "an interrupt (Ctrl-C)".into(),
             Ending::Closed => "the server closing the connection".into(),
             Ending::Cut(reason) => format!("a cut stream: {reason}"),
+            Ending::Broken(reason) => format!("a stream that could not be read on: {reason}"),
             Ending::FrameLimit => format!("the received frames reaching {MAX_RECEIVED_PIXELS} pixels"),
         }
     }
 
     fn connected(&self) -> bool {
-        !matches!(self, Ending::Closed | Ending::Cut(_))
+        !matches!(self, Ending::Closed | Ending::Cut(_) | Ending::Broken(_))
+    }
+
+    /// An ending the session did not choose (the stream failed under it).
+    pub fn abnormal(&self) -> bool {
+        matches!(self, Ending::Cut(_) | Ending::Broken(_))
     }
 }
 
@@ -146,6 +155,8 @@ pub struct VolumeOutcome {
 struct Session<'a> {
     inputs: &'a TrackedInputs,
     sequence: Option<Sequence>,
+    /// The first image and its size, until the next confirms it.
+    first: Option<(PendingImage, (usize, usize))>,
     state: State<'a>,
     offset_s: f64,
     pending: LagQueue,
@@ -225,6 +236,7 @@ pub fn run(
     let mut session = Session {
         inputs,
         sequence: None,
+        first: None,
         state: State::new(inputs),
         offset_s,
         pending: LagQueue::default(),
@@ -248,7 +260,10 @@ pub fn run(
         if last_message.elapsed().as_secs_f64() >= stream.silence_s {
             break Ending::Silence;
         }
-        let (event, read) = connection.next(Duration::from_millis(50))?;
+        let (event, read) = match connection.next(Duration::from_millis(50)) {
+            Ok(next) => next,
+            Err(reason) => break Ending::Broken(reason),
+        };
         match event {
             Event::Quiet => continue,
             Event::Closed => break Ending::Closed,
@@ -264,6 +279,7 @@ pub fn run(
         }
         last_message = Instant::now();
     };
+    session.admit_last();
     session.drain(true, show);
     if let Some(sequence) = session.sequence.as_ref() {
         for last in session.pending.drain() {
@@ -312,21 +328,23 @@ impl Session<'_> {
         match body {
             Body::Image(image) if header.device == stream.image_device => {
                 self.counts.images_received += 1;
-                if let Err(reason) = accept_image(self, &image) {
-                    self.counts.skip("IMAGE", &header.device, &reason);
-                    return None;
-                }
+                let admitted = match self.admit(header, image, read) {
+                    Ok(admitted) => admitted,
+                    Err(reason) => {
+                        self.counts.skip("IMAGE", &header.device, &reason);
+                        return None;
+                    }
+                };
                 if self.sequence.as_ref().is_some_and(|s| {
-                    (s.frames.len() + self.pairing.waiting() + 1) * s.width * s.height > MAX_RECEIVED_PIXELS
+                    (s.frames.len() + self.pairing.waiting() + admitted.len()) * s.width * s.height
+                        > MAX_RECEIVED_PIXELS
                 }) {
                     return Some(Ending::FrameLimit);
                 }
-                self.times.push(header.timestamp_s);
-                self.pairing.add_image(PendingImage {
-                    timestamp_s: header.timestamp_s,
-                    pixels: image.pixels,
-                    received: read,
-                });
+                for image in admitted {
+                    self.times.push(image.timestamp_s);
+                    self.pairing.add_image(image);
+                }
             }
             Body::Transform(m) if self.pairing.wants(&header.device) => {
                 if let Err(refused) = self.pairing.add_transform(&header.device, header.timestamp_s, m) {
@@ -387,25 +405,65 @@ impl Session<'_> {
     }
 }
 
-/// Checks an image against the stream's first and starts the sequence with it.
-fn accept_image(session: &mut Session<'_>, image: &message::Image) -> Result<(), String> {
-    if image.scalar_type != 3 || image.components != 1 || image.size[2] != 1 {
-        return Err(format!(
-            "a {}x{}x{} image of scalar type {} with {} component(s): B-scans are 2D 8-bit grey (scalar type 3, 1 component)",
-            image.size[0], image.size[1], image.size[2], image.scalar_type, image.components
-        ));
+impl Session<'_> {
+    /// The images an IMAGE message lets into the stream, oldest first. The
+    /// stream's frame size is set by two images in a row of one size: a lone
+    /// first image of another size (a stray, an oversized one) is skipped with
+    /// its reason instead of fixing the size every later frame is held to.
+    fn admit(&mut self, header: &Header, image: message::Image, read: Instant) -> Result<Vec<PendingImage>, String> {
+        let (w, h) = (image.size[0], image.size[1]);
+        if image.scalar_type != 3 || image.components != 1 || image.size[2] != 1 {
+            return Err(format!(
+                "a {w}x{h}x{} image of scalar type {} with {} component(s): B-scans are 2D 8-bit grey (scalar type 3, 1 component)",
+                image.size[2], image.scalar_type, image.components
+            ));
+        }
+        if w == 0 || h == 0 || w.saturating_mul(h) > MAX_FRAME_PIXELS {
+            return Err(format!(
+                "a {w}x{h} image: a frame holds 1 to {MAX_FRAME_PIXELS} pixels (as in a sequence file)"
+            ));
+        }
+        let this = PendingImage {
+            timestamp_s: header.timestamp_s,
+            pixels: image.pixels,
+            received: read,
+        };
+        if let Some(s) = &self.sequence {
+            if (s.width, s.height) != (w, h) {
+                return Err(format!(
+                    "a {w}x{h} image in a stream of {}x{} images",
+                    s.width, s.height
+                ));
+            }
+            return Ok(vec![this]);
+        }
+        match self.first.take() {
+            Some((first, size)) if size == (w, h) => {
+                self.sequence = Some(Sequence::empty(&self.received_path, w, h));
+                Ok(vec![first, this])
+            }
+            Some((_, (fw, fh))) => {
+                self.counts.skip(
+                    "IMAGE",
+                    &header.device,
+                    &format!("a {fw}x{fh} first image, not followed by another of its size (the next is {w}x{h})"),
+                );
+                self.first = Some((this, (w, h)));
+                Ok(Vec::new())
+            }
+            None => {
+                self.first = Some((this, (w, h)));
+                Ok(Vec::new())
+            }
+        }
     }
-    let (w, h) = (image.size[0], image.size[1]);
-    match &session.sequence {
-        Some(s) if (s.width, s.height) != (w, h) => Err(format!(
-            "a {w}x{h} image in a stream of {}x{} images",
-            s.width, s.height
-        )),
-        Some(_) => Ok(()),
-        None if w == 0 || h == 0 => Err(format!("an empty {w}x{h} image")),
-        None => {
-            session.sequence = Some(Sequence::empty(&session.received_path, w, h));
-            Ok(())
+
+    /// A stream of one image: it starts the sequence at the end.
+    fn admit_last(&mut self) {
+        if let (None, Some((first, (w, h)))) = (&self.sequence, self.first.take()) {
+            self.sequence = Some(Sequence::empty(&self.received_path, w, h));
+            self.times.push(first.timestamp_s);
+            self.pairing.add_image(first);
         }
     }
 }

@@ -6,7 +6,7 @@
 
 use std::io::{Read, Write};
 use std::net::{TcpStream, ToSocketAddrs};
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use super::message::{decode, Body, Header, HEADER_BYTES};
 
@@ -68,13 +68,20 @@ impl Connection {
     /// The next message, a skip, or what ended the wait. An error ends the
     /// session (a header that cannot be framed, a body above the limit, a socket
     /// error).
+    /// The wait is bounded as a whole: a server that trickles a message a byte
+    /// at a time gives [`Event::Quiet`] after `wait`, not a read that never ends.
     pub fn next(&mut self, wait: Duration) -> Result<Event, String> {
+        let deadline = Instant::now() + wait;
         loop {
             if let Some(event) = self.take()? {
                 return Ok(event);
             }
+            let left = deadline.saturating_duration_since(Instant::now());
+            if left.is_zero() {
+                return Ok(Event::Quiet);
+            }
             self.stream
-                .set_read_timeout(Some(wait.max(Duration::from_millis(1))))
+                .set_read_timeout(Some(left.max(Duration::from_millis(1))))
                 .map_err(|e| e.to_string())?;
             let mut chunk = [0u8; 1 << 16];
             match self.stream.read(&mut chunk) {
@@ -197,6 +204,11 @@ pub struct Sender {
 }
 
 impl Sender {
+    /// Closes the connection both ways: a read blocked on it returns at once.
+    pub fn shutdown(&self) {
+        let _ = self.stream.shutdown(std::net::Shutdown::Both);
+    }
+
     /// Sends a whole encoded message.
     pub fn send(&mut self, bytes: &[u8]) -> Result<(), String> {
         self.stream

@@ -96,11 +96,24 @@ impl Reader {
     }
 }
 
+/// How long dropping a [`Reader`] waits for its thread once the socket is shut.
+const JOIN_DEADLINE: Duration = Duration::from_secs(2);
+
 impl Drop for Reader {
+    /// Stops the thread: the flag, then the socket shut both ways (a read
+    /// blocked on it returns); a thread still running after [`JOIN_DEADLINE`]
+    /// is left to end on its own rather than waited on without a bound.
     fn drop(&mut self) {
         self.stop.store(true, Ordering::Relaxed);
+        self.sender.shutdown();
         if let Some(t) = self.thread.take() {
-            let _ = t.join();
+            let deadline = Instant::now() + JOIN_DEADLINE;
+            while !t.is_finished() && Instant::now() < deadline {
+                std::thread::sleep(Duration::from_millis(5));
+            }
+            if t.is_finished() {
+                let _ = t.join();
+            }
         }
     }
 }
