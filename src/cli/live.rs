@@ -66,8 +66,9 @@ pub fn command(manifest: &Path, out: &Path, source: &LiveSource) -> Result<(), F
         }
     };
     let inputs = TrackedInputs::from_manifest(&m);
-    let mut read: Vec<&Path> = vec![manifest, &inputs.calibration_sequence];
-    read.extend(inputs.validation_sequence.as_deref());
+    let files = m.input_files();
+    let mut read: Vec<&Path> = vec![manifest];
+    read.extend(files.iter().map(PathBuf::as_path));
     let folder = crate::io::output::OutputFolder::claim(out, "live", &read, source.force)?;
     if let Some(note) = estimated_lag_note(&m.time_offset) {
         eprintln!("{note}");

@@ -6,7 +6,7 @@
 //! received frames are kept in `.<out>.failed/`).
 
 use std::io::IsTerminal;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
 
@@ -25,23 +25,29 @@ pub fn command(
     out: &Path,
     force: bool,
 ) -> Result<(), Failure> {
+    let mut all = crate::pipeline::experiment::load_all(&[manifest.to_path_buf()]).map_err(Failure::bad_input)?;
+    let Some(Experiment::Tracked(m)) = all.pop() else {
+        return Err(Failure::bad_input(format!(
+            "{}: --igtl takes a tracked manifest (tracking: plus_sequence): its phantom, transforms' names and `live:` settings",
+            manifest.display()
+        )));
+    };
+    // Every file the session reads, those named inside the manifest and the device sets too.
+    let mut files = m.input_files();
+    if let Some(v) = &volume {
+        files.push(v.config.clone());
+        files.extend(crate::io::plus::volume_config::VolumeSettings::named_files(&v.config));
+    }
     let mut read = vec![manifest];
-    read.extend(volume.as_ref().map(|v| v.config.as_path()));
+    read.extend(files.iter().map(PathBuf::as_path));
     if let Some(reason) = crate::io::output::refusal(out, "live", &read, force) {
         return Err(Failure::bad_input(format!("--out {}: {reason}", out.display())));
     }
     let _lock = crate::io::output::lock(out).map_err(Failure::failed)?;
-    let mut all = crate::pipeline::experiment::load_all(&[manifest.to_path_buf()]).map_err(Failure::bad_input)?;
     if let Some(request) = &volume {
         crate::pipeline::live_volume::LiveVolume::open(request).map_err(Failure::bad_input)?;
     }
-    match all.pop() {
-        Some(Experiment::Tracked(m)) => session(&m, address, volume, out),
-        _ => Err(Failure::bad_input(format!(
-            "{}: --igtl takes a tracked manifest (tracking: plus_sequence): its phantom, transforms' names and `live:` settings",
-            manifest.display()
-        ))),
-    }
+    session(&m, address, volume, out)
 }
 
 fn session(

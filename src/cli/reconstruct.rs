@@ -61,6 +61,8 @@ pub fn command(args: &ReconstructArgs) -> Result<(), Failure> {
     read.extend(args.calibration.as_deref());
     read.extend(args.compare.as_deref());
     read.extend(args.wires.as_deref());
+    let named = crate::io::plus::volume_config::VolumeSettings::named_files(&args.config);
+    read.extend(named.iter().map(PathBuf::as_path));
     // A folder of an earlier reconstruction (before folders were marked) is this command's.
     let replace = args.force || crate::report::reconstruct::holds_reconstruction(&args.out);
     let folder = crate::io::output::OutputFolder::claim(&args.out, "reconstruct", &read, replace)?;

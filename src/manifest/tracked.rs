@@ -203,16 +203,19 @@ impl TrackedManifest {
         })
     }
 
-    /// Every input file, for hashing.
+    /// Every input file (those named inside the reconstruction's device set
+    /// too), for hashing and for the output guard.
     pub fn input_files(&self) -> Vec<PathBuf> {
         let mut files: Vec<PathBuf> = self.plus_config.iter().cloned().collect();
         files.push(self.calibration_sequence.clone());
         files.extend(self.validation_sequence.clone());
         files.extend(self.plus_result.clone());
         if let Some(r) = &self.reconstruct {
-            for file in [&r.sweep, &r.config] {
-                if !files.contains(file) {
-                    files.push(file.clone());
+            let mut named = vec![r.sweep.clone(), r.config.clone()];
+            named.extend(crate::io::plus::volume_config::VolumeSettings::named_files(&r.config));
+            for file in named {
+                if !files.contains(&file) {
+                    files.push(file);
                 }
             }
         }

@@ -122,6 +122,17 @@ impl VolumeSettings {
         VolumeSettings::parse(path, &read_text(path)?)
     }
 
+    /// The files a device set at `path` names for the reconstruction (its
+    /// importance mask), for the output guard: none where it cannot be read
+    /// (reading it later says why).
+    pub fn named_files(path: &Path) -> Vec<PathBuf> {
+        VolumeSettings::read(path)
+            .ok()
+            .and_then(|s| s.importance_mask)
+            .into_iter()
+            .collect()
+    }
+
     pub fn parse(path: &Path, text: &str) -> Result<VolumeSettings, ConfigError> {
         let doc = parse_xml(path, text)?;
         let x = Xml { path, doc: &doc };
