@@ -336,7 +336,9 @@ fn tracked_runs_check_their_clock_and_their_validation_recording() {
     let (code, e) = run_into(&m, &dir.join("out_same"));
     assert_ne!(code, Some(0), "{e}");
     assert!(
-        e.contains("copy.igs.mha is the same recording as the calibration sequence"),
+        e.contains(
+            "`tracking.plus_sequence.validation`: is the calibration sequence (the same file or the same bytes)"
+        ),
         "{e}"
     );
     // A clock that runs backwards at frame 60.

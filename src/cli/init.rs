@@ -63,6 +63,20 @@ pub fn command(args: &InitArgs) -> u8 {
     }
 }
 
+/// A tracked manifest's text, once its recordings pass the checks `run` makes
+/// before it uses a frame (what `init` writes, `validate` and `run` accept).
+fn preflighted(text: String, out: &std::path::Path) -> Result<String, InitError> {
+    let refused = |message: String| InitError::Input {
+        path: out.to_path_buf(),
+        message,
+    };
+    let manifest =
+        crate::manifest::tracked::TrackedManifest::from_text(out, &text).map_err(|e| refused(e.to_string()))?;
+    let inputs = crate::pipeline::tracked::TrackedInputs::from_manifest(&manifest);
+    crate::pipeline::tracked::preflight(&inputs).map_err(|e| refused(format!("not written: {e}")))?;
+    Ok(text)
+}
+
 fn write(args: &InitArgs) -> Result<(), InitError> {
     // Even with --force, the manifest never replaces the recording it describes.
     let read: Vec<&std::path::Path> = [
@@ -93,17 +107,20 @@ fn write(args: &InitArgs) -> Result<(), InitError> {
         .clone()
         .unwrap_or_else(|| folder_name(&args.out, "experiment"));
     let text = match (&args.plus_config, &args.calibration, &args.folder) {
-        (Some(config), Some(calibration), None) => plus_manifest(
-            &PlusRecording {
-                config,
-                calibration,
-                validation: args.validation.as_deref(),
-                probe_transform: args.probe_transform.as_deref(),
-                reference_transform: args.reference_transform.as_deref(),
-                plus_result: args.plus_result.as_deref(),
-            },
+        (Some(config), Some(calibration), None) => preflighted(
+            plus_manifest(
+                &PlusRecording {
+                    config,
+                    calibration,
+                    validation: args.validation.as_deref(),
+                    probe_transform: args.probe_transform.as_deref(),
+                    reference_transform: args.reference_transform.as_deref(),
+                    plus_result: args.plus_result.as_deref(),
+                },
+                &args.out,
+                &experiment,
+            )?,
             &args.out,
-            &experiment,
         )?,
         (None, None, Some(folder)) => folder_manifest(folder, &args.out, &experiment)?,
         _ => {

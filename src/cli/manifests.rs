@@ -10,17 +10,28 @@ use crate::manifest::Experiment;
 /// Every manifest checked; all their errors together.
 pub fn validate(manifests: &[PathBuf]) -> Result<(), Failure> {
     let experiments = crate::pipeline::experiment::load_all(manifests).map_err(Failure::bad_input)?;
+    let mut refused = Vec::new();
     for m in experiments {
         match m {
             Experiment::Camera(m) => println!("{}: ok ({} dataset(s))", m.path.display(), m.datasets.len()),
-            Experiment::Tracked(m) => println!(
-                "{}: ok (tracked sequence, {} N-wires)",
-                m.path.display(),
-                m.nwires.len()
-            ),
+            Experiment::Tracked(m) => {
+                // The recordings are checked as `run` checks them before it uses a frame.
+                let inputs = crate::pipeline::tracked::TrackedInputs::from_manifest(&m);
+                match crate::pipeline::tracked::preflight(&inputs) {
+                    Ok(()) => println!(
+                        "{}: ok (tracked sequence, {} N-wires)",
+                        m.path.display(),
+                        m.nwires.len()
+                    ),
+                    Err(e) => refused.push(format!("{}: {e}", m.path.display())),
+                }
+            }
         }
     }
-    Ok(())
+    if refused.is_empty() {
+        return Ok(());
+    }
+    Err(Failure::bad_input(refused.join("\n")))
 }
 
 /// The camera experiments' datasets rendered into `datasets`.

@@ -94,7 +94,7 @@ enum Command {
         #[arg(long)]
         allow_drop: bool,
     },
-    /// Check manifests without running anything.
+    /// Check manifests, and a tracked manifest's recordings as run checks them, without running anything.
     Validate {
         /// Experiment manifests (YAML); every one is checked and every error printed.
         #[arg(required = true)]

@@ -389,6 +389,15 @@ impl Staged {
     }
 }
 
+/// Whether two paths are one recording: the same file, or files of the same bytes.
+pub fn same_recording(a: &Path, b: &Path) -> bool {
+    let same_file = matches!((a.canonicalize(), b.canonicalize()), (Ok(x), Ok(y)) if x == y);
+    let size = |p: &Path| std::fs::metadata(p).map(|m| m.len()).ok();
+    same_file
+        || (size(a).is_some_and(|s| Some(s) == size(b))
+            && matches!((file_sha256(a), file_sha256(b)), (Ok(x), Ok(y)) if x == y))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

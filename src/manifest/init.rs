@@ -120,14 +120,10 @@ pub fn folder_name(path: &Path, fallback: &str) -> String {
 /// `<from>To<to>` names of the transforms every frame of `sequence` carries
 /// (`Seq_FrameNNNN_<from>To<to>Transform`), read from its first frame.
 fn sequence_transforms(sequence: &Sequence) -> BTreeSet<(String, String)> {
-    let Some(first) = sequence.frames.first() else {
-        return BTreeSet::new();
-    };
-    first
-        .fields
-        .keys()
-        .filter_map(|k| k.strip_suffix("Transform"))
-        .filter_map(split_transform_name)
+    sequence
+        .transform_names()
+        .iter()
+        .filter_map(|n| split_transform_name(n))
         .collect()
 }
 

@@ -125,6 +125,7 @@ impl TrackedManifest {
             .as_ref()
             .map(|v| c.existing(&format!("{f}.validation"), &base, v, false));
         let time_offset = time_offset(&mut c, &base, seq);
+        check_pairing(&mut c, seq, &calibration_sequence, validation_sequence.as_deref());
         let PhantomParts {
             nwires,
             reference_T_phantom,
@@ -223,6 +224,30 @@ impl TrackedManifest {
             files.extend([tracker.clone(), video.clone()]);
         }
         files
+    }
+}
+
+/// The two poses and the two recordings a run pairs must be two: a probe
+/// transform that is the reference's, or a validation sequence that is the
+/// calibration's, is refused at its key.
+fn check_pairing(c: &mut Checker<'_>, seq: &PlusSequence, calibration: &Path, validation: Option<&Path>) {
+    let f = "tracking.plus_sequence";
+    if seq.probe_transform == seq.reference_transform {
+        c.fail(
+            &format!("{f}.reference_transform"),
+            format!(
+                "is `{}`, the probe's transform too: the phantom's pose relative to the probe would be the identity in every frame; name the reference marker's transform",
+                seq.reference_transform
+            ),
+        );
+    }
+    if let (Some(v), false) = (validation, calibration.as_os_str().is_empty()) {
+        if crate::io::fs::same_recording(calibration, v) {
+            c.fail(
+                &format!("{f}.validation"),
+                "is the calibration sequence (the same file or the same bytes): its PRE3D would score the calibration on its own frames; give a held-out recording, or none",
+            );
+        }
     }
 }
 

@@ -335,6 +335,26 @@ pub struct ClipOutside {
     pub height: usize,
 }
 
+/// A clip rectangle refused when it is empty or reaches beyond `sequence`'s images.
+pub fn clip_inside(sequence: &Sequence, [u, v, w, h]: [usize; 4]) -> Result<(), ClipOutside> {
+    let inside = u.checked_add(w).is_some_and(|r| r <= sequence.width)
+        && v.checked_add(h).is_some_and(|b| b <= sequence.height)
+        && w > 0
+        && h > 0;
+    if inside {
+        return Ok(());
+    }
+    Err(ClipOutside {
+        sequence: sequence.path.clone(),
+        u,
+        v,
+        w,
+        h,
+        width: sequence.width,
+        height: sequence.height,
+    })
+}
+
 /// The clip rectangle given (refused when it reaches beyond the images), or the
 /// whole image with the overlay of `sequence` found (when it has enough frames
 /// to tell the drawn from the imaged).
@@ -345,23 +365,9 @@ pub fn clip_or_overlay(
     spacing_guess_mm_per_px: f64,
 ) -> Result<([usize; 4], Option<Overlay>), ClipOutside> {
     Ok(match clip {
-        Some([u, v, w, h]) => {
-            let inside = u.checked_add(w).is_some_and(|r| r <= sequence.width)
-                && v.checked_add(h).is_some_and(|b| b <= sequence.height)
-                && w > 0
-                && h > 0;
-            if !inside {
-                return Err(ClipOutside {
-                    sequence: sequence.path.clone(),
-                    u,
-                    v,
-                    w,
-                    h,
-                    width: sequence.width,
-                    height: sequence.height,
-                });
-            }
-            ([u, v, w, h], None)
+        Some(rectangle) => {
+            clip_inside(sequence, rectangle)?;
+            (rectangle, None)
         }
         None => (
             [0, 0, sequence.width, sequence.height],

@@ -64,6 +64,75 @@ pub enum TrackedError {
     SameRecording { calibration: PathBuf, validation: PathBuf },
     #[error("{0}")]
     ClipOutside(#[from] crate::pipeline::sequence_frames::ClipOutside),
+    #[error("{sequence}: its {frames} frames hold no image (0x0 px: a tracker-only recording?); calibration needs the B-scans")]
+    NoImages { sequence: PathBuf, frames: usize },
+    #[error("{sequence}: {reason}")]
+    NoPoses { sequence: PathBuf, reason: String },
+}
+
+/// What a run refuses of a recording before any frame is used: no images, a
+/// size unlike the calibration sequence's (`calibration_px`), a clip rectangle
+/// beyond the images, no frame with both poses, a clock a fixed lag cannot be
+/// applied on. `run` calls it on each sequence it reads; `validate` and `init`
+/// through [`preflight`].
+pub fn check_recording(
+    sequence: &Sequence,
+    inputs: &TrackedInputs,
+    calibration_px: Option<[usize; 2]>,
+) -> Result<(), TrackedError> {
+    if sequence.width == 0 || sequence.height == 0 {
+        return Err(TrackedError::NoImages {
+            sequence: sequence.path.clone(),
+            frames: sequence.frames.len(),
+        });
+    }
+    if let Some([want_width, want_height]) = calibration_px.filter(|&c| c != [sequence.width, sequence.height]) {
+        return Err(TrackedError::SizeMismatch {
+            sequence: sequence.path.clone(),
+            width: sequence.width,
+            height: sequence.height,
+            want_width,
+            want_height,
+        });
+    }
+    if let Some(clip) = inputs.clip_rectangle_px {
+        crate::pipeline::sequence_frames::clip_inside(sequence, clip)?;
+    }
+    let names = [inputs.probe_transform.as_str(), inputs.reference_transform.as_str()];
+    let posed = |i: usize| names.iter().try_for_each(|n| sequence.transform(i, n).map(|_| ()));
+    if let Some(Err(fault)) = (0..sequence.frames.len())
+        .map(posed)
+        .find(Result::is_ok)
+        .or_else(|| (!sequence.frames.is_empty()).then(|| posed(0)))
+    {
+        return Err(TrackedError::NoPoses {
+            sequence: sequence.path.clone(),
+            reason: format!(
+                "no frame has both `{}` and `{}` ({fault}); the transforms the frames hold: {}",
+                names[0],
+                names[1],
+                sequence.transform_names().join(", ")
+            ),
+        });
+    }
+    if let TimeOffset::Fixed(s) = inputs.time_offset {
+        refuse_clock(sequence, s)?;
+    }
+    Ok(())
+}
+
+/// Every check a run makes of its recordings before it uses a frame, without
+/// running it: what `validate` and `init` refuse is what `run` would.
+pub fn preflight(inputs: &TrackedInputs) -> Result<(), TrackedError> {
+    let calibration = Sequence::read(&inputs.calibration_sequence)?;
+    check_recording(&calibration, inputs, None)?;
+    let size = [calibration.width, calibration.height];
+    drop(calibration);
+    if let Some(path) = &inputs.validation_sequence {
+        refuse_same_recording(&inputs.calibration_sequence, path)?;
+        check_recording(&Sequence::read(path)?, inputs, Some(size))?;
+    }
+    Ok(())
 }
 
 /// The tracked run's accuracy gates.
@@ -211,19 +280,7 @@ fn refuse_clock(sequence: &Sequence, time_offset_s: f64) -> Result<(), TrackedEr
 /// A validation sequence that is the calibration sequence (the same file, or
 /// the same bytes) would score the calibration on its own frames.
 fn refuse_same_recording(calibration: &Path, validation: &Path) -> Result<(), TrackedError> {
-    let same_file = matches!(
-        (calibration.canonicalize(), validation.canonicalize()),
-        (Ok(a), Ok(b)) if a == b
-    );
-    let same_bytes = || {
-        let size = |p: &Path| std::fs::metadata(p).map(|m| m.len()).ok();
-        size(calibration).is_some_and(|s| Some(s) == size(validation))
-            && matches!(
-                (crate::io::fs::file_sha256(calibration), crate::io::fs::file_sha256(validation)),
-                (Ok(a), Ok(b)) if a == b
-            )
-    };
-    if same_file || same_bytes() {
+    if crate::io::fs::same_recording(calibration, validation) {
         return Err(TrackedError::SameRecording {
             calibration: calibration.to_path_buf(),
             validation: validation.to_path_buf(),
@@ -310,6 +367,7 @@ fn median_period_s(frames: &[TrackedFrame]) -> Option<f64> {
 /// Runs the tracked pipeline.
 pub fn run(inputs: &TrackedInputs, min_frames: usize) -> Result<TrackedRun, TrackedError> {
     let calibration = Sequence::read(&inputs.calibration_sequence)?;
+    check_recording(&calibration, inputs, None)?;
     let image_size_px = [calibration.width, calibration.height];
     let (mut frames, overlay_px) = segment_sequence(&calibration, Role::Calibration, inputs)?;
     let paths = TrackerPaths::of(&calibration, inputs);
@@ -340,16 +398,8 @@ pub fn run(inputs: &TrackedInputs, min_frames: usize) -> Result<TrackedRun, Trac
     if let Some(path) = &inputs.validation_sequence {
         refuse_same_recording(&inputs.calibration_sequence, path)?;
         let validation = Sequence::read(path)?;
+        check_recording(&validation, inputs, Some(image_size_px))?;
         refuse_clock(&validation, time_offset_s)?;
-        if [validation.width, validation.height] != image_size_px {
-            return Err(TrackedError::SizeMismatch {
-                sequence: path.clone(),
-                width: validation.width,
-                height: validation.height,
-                want_width: image_size_px[0],
-                want_height: image_size_px[1],
-            });
-        }
         let (mut more, _) = segment_sequence(&validation, Role::Validation, inputs)?;
         let paths = TrackerPaths::of(&validation, inputs);
         attach_poses_along(&paths, &mut more, inputs, 0.0);

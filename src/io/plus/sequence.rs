@@ -421,6 +421,21 @@ impl Sequence {
     pub fn frame_field(&self, index: usize, name: &str) -> Option<&str> {
         self.frames[index].fields.get(name).map(|f| f.value.as_str())
     }
+
+    /// The names of the transforms the first frame carries
+    /// (`Seq_FrameNNNN_<name>Transform` → `<name>`), sorted.
+    pub fn transform_names(&self) -> Vec<String> {
+        let Some(first) = self.frames.first() else {
+            return Vec::new();
+        };
+        first
+            .fields
+            .keys()
+            .filter_map(|k| k.strip_suffix("Transform"))
+            .filter(|n| !n.is_empty())
+            .map(str::to_string)
+            .collect()
+    }
 }
 
 impl Deferred {
