@@ -334,3 +334,42 @@ fn files_stay_small_and_main_only_dispatches() {
         "src/main.rs has {main} lines; it only calls probecal::cli::main"
     );
 }
+
+/// The whole-file reads of `src` outside `io/fs.rs` (tests aside): each reader
+/// goes through `io::fs::read_capped`, which reads no more than its limit
+/// whatever the file's metadata says (`/dev/zero` claims 0 bytes and never ends).
+fn unbounded_reads(files: &[std::path::PathBuf]) -> Vec<String> {
+    let banned = [
+        "std::fs::read(",
+        "std::fs::read_to_string(",
+        "fs::read(",
+        "fs::read_to_string(",
+    ];
+    let mut found = Vec::new();
+    for f in files.iter().filter(|f| !f.ends_with("io/fs.rs")) {
+        let text = without_tests(&std::fs::read_to_string(f).unwrap());
+        for line in text.lines() {
+            if banned.iter().any(|b| line.contains(b)) && !line.trim_start().starts_with("//") {
+                found.push(format!("{}: {}", f.display(), line.trim()));
+            }
+        }
+    }
+    found
+}
+
+#[test]
+fn every_whole_file_read_has_a_limit() {
+    let mut files = Vec::new();
+    rust_files(&common::root().join("src"), &mut files);
+    let found = unbounded_reads(&files);
+    assert!(
+        found.is_empty(),
+        "whole-file reads without a limit (use io::fs::read_capped or read_text_capped): {found:#?}"
+    );
+    // The check sees a planted read.
+    let dir = common::scratch("architecture", "reads");
+    std::fs::create_dir_all(&dir).unwrap();
+    let planted = dir.join("planted.rs");
+    std::fs::write(&planted, "fn f() { let _ = std::fs::read_to_string(\"x\"); }\n#[cfg(test)]\nmod tests { fn g() { let _ = std::fs::read(\"y\"); } }\n").unwrap();
+    assert_eq!(unbounded_reads(&[planted]).len(), 1);
+}

@@ -104,3 +104,84 @@ fn a_spacing_that_would_overflow_the_grid_is_refused_at_its_line() {
         "{stderr}"
     );
 }
+
+/// `probecal <args>` under a 768 MiB address space and a 30 s limit: exit code,
+/// stderr, and how long it took.
+fn bounded(args: &[String]) -> (Option<i32>, String, std::time::Duration) {
+    let quoted: Vec<String> = args.iter().map(|a| format!("'{a}'")).collect();
+    let command = format!(
+        "ulimit -v 786432; exec timeout 30 '{}' {}",
+        env!("CARGO_BIN_EXE_probecal"),
+        quoted.join(" ")
+    );
+    let start = std::time::Instant::now();
+    let o = std::process::Command::new("sh")
+        .args(["-c", &command])
+        .output()
+        .unwrap();
+    (
+        o.status.code(),
+        String::from_utf8_lossy(&o.stderr).into_owned(),
+        start.elapsed(),
+    )
+}
+
+#[test]
+#[ignore = "needs ../shared/data (full tier: scripts/test.sh)"]
+fn every_reader_believes_no_size_it_has_not_read() {
+    let dir = scratch("hostile_sizes", "readers");
+    std::fs::create_dir_all(&dir).unwrap();
+    let s = |p: &Path| p.display().to_string();
+    let nwire = |name: &str| s(&shared_data("plus-fcal2.0-3nwires", name));
+    let device_set = nwire("PlusDeviceSet_fCal_Sim_SpatialCalibration_2.0.xml");
+    let sweep = nwire("fCal_Test_Calibration_3NWires_fCal2.0.igs.mha");
+    let volume_config = s(&shared_data(SET, "PlusDeviceSet_VolumeReconstructionOnly_SpinePhantom_NN_MEAN.xml"));
+    // A 60-byte dictionary whose markers would be 40000 bits a side (OpenCV
+    // allocates for them before it reads one).
+    let dictionary = dir.join("dictionary.yml");
+    std::fs::write(&dictionary, "%YAML:1.0\n---\nnmarkers: 1\nmarkersize: 40000\nmarker_0: \"1\"\n").unwrap();
+    let photo = s(&shared_data("opencv-aruco", "choriginal.jpg"));
+    let out = |name: &str| s(&dir.join(name));
+    let cases: Vec<(Vec<String>, &str)> = vec![
+        (vec!["validate".into(), "/dev/zero".into()], "larger than any such file probecal reads"),
+        (
+            vec!["segment".into(), sweep.clone(), "--config".into(), "/dev/zero".into(), "--out".into(), out("a")],
+            "larger than any such file probecal reads",
+        ),
+        (
+            vec!["segment".into(), "/dev/zero".into(), "--config".into(), device_set, "--out".into(), out("b")],
+            "/dev/zero:1",
+        ),
+        (
+            vec!["reconstruct".into(), "/dev/zero".into(), "--config".into(), volume_config, "--out".into(), out("c")],
+            "/dev/zero:1",
+        ),
+        (
+            vec!["study".into(), "compare".into(), "/dev/zero".into(), "/dev/zero".into()],
+            "larger than any such file probecal reads",
+        ),
+        (
+            vec![
+                "calibrate-camera".into(),
+                "--charuco".into(),
+                "5x7".into(),
+                "--square-mm".into(),
+                "30".into(),
+                "--marker-mm".into(),
+                "15".into(),
+                "--dictionary".into(),
+                s(&dictionary),
+                "--out".into(),
+                out("camera.yml"),
+                photo,
+            ],
+            "`markersize: 40000`",
+        ),
+    ];
+    for (args, expect) in cases {
+        let (code, stderr, took) = bounded(&args);
+        assert!(matches!(code, Some(1 | 2)), "{args:?}: exit {code:?}: {stderr}");
+        assert!(stderr.contains(expect), "{args:?}: {stderr}");
+        assert!(took < std::time::Duration::from_secs(20), "{args:?}: {took:?}");
+    }
+}

@@ -22,6 +22,9 @@ pub const MAX_IMAGE_SIDE_PX: u64 = 30_000;
 /// Bytes of one image file, read whole before it is decoded: the largest
 /// image at 16 bits in four channels, rounded up (1 GiB).
 pub const MAX_IMAGE_FILE_BYTES: u64 = 1 << 30;
+/// Bytes of a JSON, CSV or text file read whole (a summary, a study, a frame
+/// list of 100 000 frames is about 20 MB, a tracker's poses): 64 MiB.
+pub const MAX_TEXT_FILE_BYTES: u64 = 64 << 20;
 /// Worker threads.
 pub const MAX_THREADS: usize = 256;
 /// Nesting of a manifest's YAML (mappings and sequences inside each other).

@@ -34,6 +34,11 @@ pub const DICTIONARY_NAMES: [(&str, PREDEFINED_DICTIONARY_NAME); 21] = [
     ("DICT_APRILTAG_36h11", PREDEFINED_DICTIONARY_NAME::DICT_APRILTAG_36h11),
 ];
 
+/// Markers of a dictionary file.
+const MAX_DICTIONARY_MARKERS: i32 = 10_000;
+/// Bits a side of a dictionary file's markers (OpenCV's dictionaries have 4 to 7).
+const MAX_MARKER_BITS: i32 = 16;
+
 #[derive(Debug, thiserror::Error)]
 pub enum ArucoError {
     #[error("unknown ArUco dictionary `{0}` (expected one of OpenCV's names, e.g. DICT_4X4_50)")]
@@ -149,6 +154,17 @@ pub fn dictionary_file(path: &Path) -> Result<Ptr<Dictionary>, ArucoError> {
     .map_err(|_| bad())?;
     let mut dictionary = Dictionary::new_def()?;
     let root = fs.root_def()?;
+    // The sizes first: OpenCV allocates for them before it reads a marker.
+    let count = |key: &str| root.get(key).and_then(|n| n.to_i32()).unwrap_or(-1);
+    let (markers, bits) = (count("nmarkers"), count("markersize"));
+    if !(1..=MAX_DICTIONARY_MARKERS).contains(&markers) || !(2..=MAX_MARKER_BITS).contains(&bits) {
+        return Err(ArucoError::Refused {
+            path: path.display().to_string(),
+            reason: format!(
+                "`nmarkers: {markers}`, `markersize: {bits}`: a dictionary holds 1 to {MAX_DICTIONARY_MARKERS} markers of 2 to {MAX_MARKER_BITS} bits a side (OpenCV's own hold up to 1024 markers of 4 to 7 bits)"
+            ),
+        });
+    }
     if !dictionary.read_dictionary(&root).map_err(|_| bad())? {
         return Err(bad());
     }

@@ -38,9 +38,11 @@ pub enum DatasetError {
 /// Reads and checks a dataset's frame list (the images themselves are checked when read).
 pub fn load_frame_list(folder: &Path) -> Result<Vec<FrameFiles>, DatasetError> {
     let path = folder.join(FRAME_LIST);
-    let text = std::fs::read_to_string(&path).map_err(|e| DatasetError::Unreadable {
-        path: path.clone(),
-        message: e.to_string(),
+    let text = crate::io::fs::read_text_capped(&path, crate::core::limits::MAX_TEXT_FILE_BYTES).map_err(|e| {
+        DatasetError::Unreadable {
+            path: path.clone(),
+            message: e.to_string(),
+        }
     })?;
     parse_frame_list(folder, &text)
 }

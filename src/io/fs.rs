@@ -76,6 +76,40 @@ pub fn display_path(path: &Path) -> String {
     path.to_string_lossy().replace('\\', "/")
 }
 
+/// A file's bytes, no more than `limit` of them: a file larger is an error that
+/// says so, whatever its metadata claims (a device such as `/dev/zero` reports
+/// no size and never ends; it is read no further than the limit). Every reader
+/// of a whole file goes through here or [`read_text_capped`].
+pub fn read_capped(path: &Path, limit: u64) -> std::io::Result<Vec<u8>> {
+    let file = std::fs::File::open(path)?;
+    let declared = file.metadata()?.len();
+    let too_large = |what: String| {
+        std::io::Error::new(
+            std::io::ErrorKind::InvalidData,
+            format!("{what}: larger than any such file probecal reads ({limit} bytes)"),
+        )
+    };
+    if declared > limit {
+        return Err(too_large(format!("{declared} bytes")));
+    }
+    let mut bytes = Vec::with_capacity(declared as usize);
+    file.take(limit.saturating_add(1)).read_to_end(&mut bytes)?;
+    if bytes.len() as u64 > limit {
+        return Err(too_large(format!("more than {limit} bytes")));
+    }
+    Ok(bytes)
+}
+
+/// A UTF-8 text file, no more than `limit` bytes of it (see [`read_capped`]).
+pub fn read_text_capped(path: &Path, limit: u64) -> std::io::Result<String> {
+    String::from_utf8(read_capped(path, limit)?).map_err(|e| {
+        std::io::Error::new(
+            std::io::ErrorKind::InvalidData,
+            format!("not UTF-8 text (byte {})", e.utf8_error().valid_up_to()),
+        )
+    })
+}
+
 /// SHA-256 of a file, streamed, with its size in bytes. A file hashed before in
 /// this process is not read again while its identity, size and times are the
 /// same (a run checks its cached dataset's hashes, then records them in its
@@ -83,7 +117,15 @@ pub fn display_path(path: &Path) -> String {
 /// write.
 pub fn file_sha256(path: &Path) -> std::io::Result<(u64, String)> {
     let mut file = std::fs::File::open(path)?;
-    let stamp = memo::Stamp::of(&file.metadata()?);
+    let metadata = file.metadata()?;
+    // A device or a pipe has no end to hash.
+    if !metadata.is_file() {
+        return Err(std::io::Error::new(
+            std::io::ErrorKind::InvalidInput,
+            "not a regular file",
+        ));
+    }
+    let stamp = memo::Stamp::of(&metadata);
     if let Some(known) = memo::lookup(path, &stamp) {
         return Ok(known);
     }

@@ -206,7 +206,7 @@ pub fn read_gray(path: &Path) -> Result<Mat, ImageError> {
             limit: MAX_IMAGE_FILE_BYTES,
         });
     }
-    let bytes = std::fs::read(path).map_err(|_| ImageError::Missing {
+    let bytes = crate::io::fs::read_capped(path, MAX_IMAGE_FILE_BYTES).map_err(|_| ImageError::Missing {
         path: path.to_path_buf(),
     })?;
     if let Some(format) = unsupported_format(&bytes) {

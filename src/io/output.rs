@@ -91,7 +91,7 @@ pub fn refusal(out: &Path, command: &str, inputs: &[&Path], force: bool) -> Opti
 /// What `out`'s marker says: `Some(None)` written by `command`, `Some(Some(why))`
 /// by another command, `None` no marker.
 fn written_by(out: &Path, command: &str) -> Option<Option<String>> {
-    let writer = std::fs::read_to_string(out.join(MARKER)).ok()?;
+    let writer = crate::io::fs::read_text_capped(&out.join(MARKER), 4096).ok()?;
     Some((writer.trim() != command).then(|| {
         format!(
             "holds the output of `probecal {}`; pass --force to replace it, or choose another --out",

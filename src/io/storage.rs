@@ -18,7 +18,11 @@ pub fn refusal(path: &Path) -> Option<String> {
             "{size} bytes: larger than any OpenCV FileStorage file probecal reads ({MAX_STORAGE_BYTES} bytes)"
         ));
     }
-    let text = String::from_utf8_lossy(&std::fs::read(path).ok()?).to_string();
+    let text = match crate::io::fs::read_capped(path, MAX_STORAGE_BYTES) {
+        Ok(bytes) => String::from_utf8_lossy(&bytes).to_string(),
+        // Unread here is unread by OpenCV too.
+        Err(e) => return Some(format!("cannot read: {e}")),
+    };
     let (mut depth, mut deepest) = (0usize, 0usize);
     for c in text.chars() {
         match c {

@@ -62,9 +62,11 @@ pub struct TrackedFrame {
 
 impl TrackerPoses {
     pub fn read(path: &Path) -> Result<TrackerPoses, TrackerPosesError> {
-        let text = std::fs::read_to_string(path).map_err(|e| TrackerPosesError::Unreadable {
-            path: path.to_path_buf(),
-            message: e.to_string(),
+        let text = crate::io::fs::read_text_capped(path, crate::core::limits::MAX_TEXT_FILE_BYTES).map_err(|e| {
+            TrackerPosesError::Unreadable {
+                path: path.to_path_buf(),
+                message: e.to_string(),
+            }
         })?;
         TrackerPoses::parse(path, &text)
     }

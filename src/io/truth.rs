@@ -90,7 +90,8 @@ impl GroundTruth {
             path: path.clone(),
             message,
         };
-        let text = std::fs::read_to_string(&path).map_err(|e| bad(e.to_string()))?;
+        let text = crate::io::fs::read_text_capped(&path, crate::core::limits::MAX_TEXT_FILE_BYTES)
+            .map_err(|e| bad(e.to_string()))?;
         let raw: RawTruth = crate::io::unique_keys::json(&text).map_err(|e| bad(e.to_string()))?;
         Ok(Some(GroundTruth {
             marker_T_image: rigid_from_rows(&raw.marker_T_image).map_err(|e| bad(format!("marker_T_image: {e}")))?,

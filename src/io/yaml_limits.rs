@@ -39,7 +39,7 @@ pub fn read(path: &Path, what: &str) -> Result<String, YamlRefusal> {
             format!("{size} bytes: larger than {what} can be ({MAX_YAML_BYTES} bytes)"),
         ));
     }
-    let text = std::fs::read_to_string(path).map_err(|e| refusal(None, e.to_string()))?;
+    let text = crate::io::fs::read_text_capped(path, MAX_YAML_BYTES).map_err(|e| refusal(None, e.to_string()))?;
     match too_deep(&text) {
         Some((line, depth)) => Err(refusal(
             Some(line),

@@ -134,7 +134,7 @@ fn summary_json(path: &Path, folder: &Path) -> Result<serde_json::Value, Reconst
         path: path.to_path_buf(),
         message,
     };
-    let text = std::fs::read_to_string(path).map_err(|e| {
+    let text = crate::io::fs::read_text_capped(path, crate::core::limits::MAX_TEXT_FILE_BYTES).map_err(|e| {
         fail(format!(
             "cannot read (is {} a probecal run folder?): {e}",
             folder.display()

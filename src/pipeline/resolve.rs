@@ -157,9 +157,11 @@ impl SolveInputs {
     /// Reads a run folder's `solve_inputs.yaml`; an error names the file and field.
     pub fn read(run_folder: &Path) -> Result<SolveInputs, SolveInputsError> {
         let path = run_folder.join(SOLVE_INPUTS_FILE);
-        let text = std::fs::read_to_string(&path).map_err(|e| SolveInputsError::Read {
-            path: path.clone(),
-            message: e.to_string(),
+        let text = crate::io::fs::read_text_capped(&path, crate::core::limits::MAX_TEXT_FILE_BYTES).map_err(|e| {
+            SolveInputsError::Read {
+                path: path.clone(),
+                message: e.to_string(),
+            }
         })?;
         let de = serde_yaml::Deserializer::from_str(&text);
         serde_path_to_error::deserialize(de).map_err(|e| {

@@ -137,7 +137,7 @@ fn seeds_phrase(seeds: &[u64]) -> String {
 /// The index's words for a study folder: its experiment and seeds from
 /// `study.json`, or the folder's name when that cannot be read.
 pub fn study_label(study_json: &Path, folder: &str) -> String {
-    let head = std::fs::read_to_string(study_json)
+    let head = crate::io::fs::read_text_capped(study_json, crate::core::limits::MAX_TEXT_FILE_BYTES)
         .ok()
         .and_then(|text| serde_json::from_str::<StudyHead>(&text).ok())
         .and_then(|s| s.monte_carlo);

@@ -133,7 +133,7 @@ pub const GIT_COMMIT: &str = env!("PROBECAL_GIT_COMMIT");
 
 /// Peak resident memory of this process (VmHWM of /proc/self/status), MB.
 pub fn peak_memory_mb() -> Option<f64> {
-    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let status = crate::io::fs::read_text_capped(std::path::Path::new("/proc/self/status"), 1 << 20).ok()?;
     let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
     let kb: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
     Some(kb / 1024.0)

@@ -19,7 +19,7 @@ pub const KIND: &str = "reconstruction";
 /// Whether a `summary.json` is a reconstruction's (`kind: reconstruction`), not a
 /// calibration run's.
 pub fn is_reconstruction(summary: &Path) -> bool {
-    std::fs::read_to_string(summary)
+    crate::io::fs::read_text_capped(summary, crate::core::limits::MAX_TEXT_FILE_BYTES)
         .ok()
         .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok())
         .is_some_and(|j| j.get("kind").and_then(|k| k.as_str()) == Some(KIND))
@@ -331,7 +331,7 @@ fn check_out(out: &Path) -> Result<(), OutputError> {
     if empty {
         return Ok(());
     }
-    let kind = std::fs::read_to_string(out.join("summary.json"))
+    let kind = crate::io::fs::read_text_capped(&out.join("summary.json"), crate::core::limits::MAX_TEXT_FILE_BYTES)
         .ok()
         .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok())
         .and_then(|j| j.get("kind").and_then(|k| k.as_str()).map(str::to_string));
@@ -370,7 +370,7 @@ pub fn agreement(
         "element_type": {"ours": ours.element_type, "reference": theirs.element_type},
         "offset_max_difference_mm": offset_mm,
         "spacing_equal": ours.spacing_mm == theirs.spacing_mm,
-        "identical_file": std::fs::read(path).map(|b| b == written).unwrap_or(false),
+        "identical_file": crate::io::fs::read_capped(path, written.len() as u64).map(|b| b == written).unwrap_or(false),
     });
     if same_grid && ours.element_type == "MET_UCHAR" {
         let mine = r.volume.bytes();

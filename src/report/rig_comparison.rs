@@ -46,7 +46,11 @@ const ROWS: [(&str, Cell); 8] = [
 /// The occluded experiments' stated rates, in words, from the manifests their runs copied.
 fn occluder_rates(root: &Path) -> String {
     let rates = |experiment: &str| -> Option<[f64; 3]> {
-        let text = std::fs::read_to_string(root.join(experiment).join("manifest.yaml")).ok()?;
+        let text = crate::io::fs::read_text_capped(
+            &root.join(experiment).join("manifest.yaml"),
+            crate::io::yaml_limits::MAX_YAML_BYTES,
+        )
+        .ok()?;
         let value: serde_yaml::Value = serde_yaml::from_str(&text).ok()?;
         let o = value.get("datasets")?.get(0)?.get("render")?.get("occluders")?;
         let get = |k: &str| o.get(k).and_then(serde_yaml::Value::as_f64);

@@ -18,7 +18,8 @@ impl StudyFile {
     /// Reads a `study.json`.
     pub fn read(path: &Path) -> Result<StudyFile, crate::report::error::ReadError> {
         let fail = |e: &dyn std::fmt::Display| crate::report::error::ReadError::new(path, e);
-        let text = std::fs::read_to_string(path).map_err(|e| fail(&e))?;
+        let text =
+            crate::io::fs::read_text_capped(path, crate::core::limits::MAX_TEXT_FILE_BYTES).map_err(|e| fail(&e))?;
         let file: StudyFile = crate::io::unique_keys::json(&text).map_err(|e| fail(&e))?;
         if let Some(why) = file.monte_carlo.as_ref().and_then(seeds_refusal) {
             return Err(fail(&why));

@@ -496,7 +496,8 @@ impl RunSummary {
 
     /// Reads a `summary.json`; an error names the file, the field and the line.
     pub fn read(path: &Path) -> Result<RunSummary, ReadError> {
-        let text = std::fs::read_to_string(path).map_err(|e| ReadError::new(path, e))?;
+        let text = crate::io::fs::read_text_capped(path, crate::core::limits::MAX_TEXT_FILE_BYTES)
+            .map_err(|e| ReadError::new(path, e))?;
         RunSummary::parse(&text, path)
     }
 

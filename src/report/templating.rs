@@ -11,7 +11,8 @@ pub const FIGURE_FONT: &str = "/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf";
 pub fn register_font() -> Result<(), OutputError> {
     static FONT: std::sync::OnceLock<Result<(), String>> = std::sync::OnceLock::new();
     FONT.get_or_init(|| {
-        let bytes = std::fs::read(FIGURE_FONT).map_err(|e| format!("{e} (install fonts-dejavu-core)"))?;
+        let bytes = crate::io::fs::read_capped(std::path::Path::new(FIGURE_FONT), 64 << 20)
+            .map_err(|e| format!("{e} (install fonts-dejavu-core)"))?;
         // The font lives as long as the program: figures are drawn until it ends.
         let bytes: &'static [u8] = Box::leak(bytes.into_boxed_slice());
         plotters::style::register_font("sans-serif", plotters::style::FontStyle::Normal, bytes)

@@ -171,7 +171,9 @@ fn listing(folder: &Path) -> Result<String, SynthError> {
 
 /// What is wrong with a cached rendered folder against its listing, if anything.
 fn damage(folder: &Path) -> Option<String> {
-    let Ok(listed) = std::fs::read_to_string(folder.join(RENDERED_FILES)) else {
+    let Ok(listed) =
+        crate::io::fs::read_text_capped(&folder.join(RENDERED_FILES), crate::core::limits::MAX_TEXT_FILE_BYTES)
+    else {
         return Some(format!("{RENDERED_FILES} is missing"));
     };
     let mut entries = Vec::new();
@@ -206,7 +208,11 @@ pub fn ensure_rendered(lab: &Lab<'_>, spec: &RenderSpec, folder: &Path) -> Resul
     })?;
     let spec_file = folder.join("render_spec.json");
     let mut outcome = RenderOutcome::Rendered;
-    if std::fs::read_to_string(&spec_file).ok().as_deref() == Some(inputs_json.as_str()) {
+    if crate::io::fs::read_text_capped(&spec_file, crate::core::limits::MAX_TEXT_FILE_BYTES)
+        .ok()
+        .as_deref()
+        == Some(inputs_json.as_str())
+    {
         match damage(folder) {
             None => return Ok(RenderOutcome::UpToDate),
             Some(reason) => outcome = RenderOutcome::Repaired(reason),

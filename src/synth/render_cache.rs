@@ -29,7 +29,11 @@ pub fn entry(inputs_json: &str) -> Option<PathBuf> {
 /// Fills the empty folder `into` from `entry` when the entry holds exactly
 /// this render; `false` (nothing written) when it does not.
 pub fn fetch(entry: &Path, inputs_json: &str, into: &Path) -> Result<bool, SynthError> {
-    let stated = std::fs::read_to_string(entry.join("render_spec.json")).ok();
+    let stated = crate::io::fs::read_text_capped(
+        &entry.join("render_spec.json"),
+        crate::core::limits::MAX_TEXT_FILE_BYTES,
+    )
+    .ok();
     if stated.as_deref() != Some(inputs_json) || damage(entry).is_some() {
         return Ok(false);
     }

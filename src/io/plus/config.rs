@@ -341,7 +341,8 @@ pub(crate) fn read_text(path: &Path) -> Result<String, ConfigError> {
             super::xml_limits::MAX_XML_BYTES
         )));
     }
-    std::fs::read_to_string(path).map_err(|e| fail(format!("cannot read: {e}")))
+    crate::io::fs::read_text_capped(path, super::xml_limits::MAX_XML_BYTES)
+        .map_err(|e| fail(format!("cannot read: {e}")))
 }
 
 /// Parses XML, a syntax error naming the file and line.

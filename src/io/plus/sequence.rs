@@ -16,11 +16,12 @@ use std::path::{Path, PathBuf};
 pub use super::orientation::Orientation;
 pub use super::sequence_deferred::Deferred;
 use super::sequence_header::{
-    big_endian, check_element, check_ndims, compressed_flag, dimensions, orientation, pixel_bytes, read_header,
-    samples_in_mf, Header, StoredSamples,
+    big_endian, bytes_of_samples, check_element, check_ndims, compressed_flag, dimensions, orientation, pixel_bytes,
+    read_bounded, read_header, samples_in_mf, Header, StoredSamples,
 };
 use super::sequence_types::clip;
 pub use super::sequence_types::{Field, SequenceError};
+pub use super::sequence_types::{MAX_FRAME_PIXELS, MAX_SAMPLE_BYTES};
 use crate::core::geometry::{rigid_from_rows, Rigid};
 
 /// Why one frame's transform cannot be used (the frame is rejected with it).
@@ -74,60 +75,6 @@ pub struct Sequence {
 pub enum Samples<'a> {
     U8(&'a [u8]),
     F32(&'a [f32]),
-}
-
-/// Most bytes of samples a sequence may hold, all frames together (4 GiB): a
-/// corrupt or hostile header is refused before anything is allocated for it.
-pub const MAX_SAMPLE_BYTES: usize = 1 << 32;
-
-/// Most pixels of one frame (8192 x 8192): far beyond any B-scan.
-pub const MAX_FRAME_PIXELS: usize = 1 << 26;
-
-/// A sequence file's bytes, refused unread when it is larger than any
-/// sequence probecal takes (its samples' limit and 64 MiB of header).
-fn read_bounded(path: &Path) -> Result<Vec<u8>, SequenceError> {
-    let fail = |message: String| SequenceError {
-        path: path.to_path_buf(),
-        line: None,
-        message,
-    };
-    let limit = (MAX_SAMPLE_BYTES + (64 << 20)) as u64;
-    let size = std::fs::metadata(path)
-        .map_err(|e| fail(format!("cannot read: {e}")))?
-        .len();
-    if size > limit {
-        return Err(fail(format!(
-            "{size} bytes: larger than any sequence probecal reads ({limit} bytes)"
-        )));
-    }
-    std::fs::read(path).map_err(|e| fail(format!("cannot read: {e}")))
-}
-
-/// Bytes of samples `count` frames of `width` x `height` take, refused (naming
-/// `dims`'s line) beyond [`MAX_FRAME_PIXELS`] a frame or [`MAX_SAMPLE_BYTES`] in all.
-fn bytes_of_samples(
-    width: usize,
-    height: usize,
-    count: usize,
-    sample_bytes: usize,
-    dims: &Field,
-    fail: &dyn Fn(Option<usize>, String) -> SequenceError,
-) -> Result<usize, SequenceError> {
-    let frame_pixels = width.checked_mul(height).filter(|&p| p <= MAX_FRAME_PIXELS);
-    frame_pixels
-        .and_then(|p| p.checked_mul(count))
-        .and_then(|p| p.checked_mul(sample_bytes))
-        .filter(|&b| b <= MAX_SAMPLE_BYTES)
-        .ok_or_else(|| {
-        fail(
-            Some(dims.line),
-            format!(
-            "`DimSize = {}` is implausibly large: at most {MAX_FRAME_PIXELS} pixels a frame and {} GiB of samples in all",
-            dims.value,
-            MAX_SAMPLE_BYTES >> 30
-            ),
-        )
-        })
 }
 
 /// The header's frames (their indices, ascending) are `DimSize`'s `count`,

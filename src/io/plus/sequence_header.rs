@@ -5,7 +5,8 @@ use std::collections::BTreeMap;
 use std::io::Read;
 
 use super::orientation::Orientation;
-use super::sequence_types::{clip, Field, SequenceError};
+use super::sequence_types::{clip, Field, SequenceError, MAX_FRAME_PIXELS, MAX_SAMPLE_BYTES};
+use std::path::Path;
 
 /// The header's fields (per-frame ones apart) and where the pixel data starts.
 pub(super) struct Header {
@@ -16,7 +17,7 @@ pub(super) struct Header {
 
 /// Longest header read, bytes: a PLUS header is about 1 KB a frame, and a
 /// sequence holds at most `MAX_FRAMES` frames.
-const MAX_HEADER_BYTES: usize = 256 << 20;
+pub(super) const MAX_HEADER_BYTES: usize = 256 << 20;
 
 /// Most header fields besides the frames' own (PLUS writes about twenty).
 const MAX_HEADER_FIELDS: usize = 10_000;
@@ -354,4 +355,120 @@ pub(super) fn check_ndims(
             n.value, dims.value, dims.line
         ),
     ))
+}
+
+/// A sequence file's bytes, read as far as its header lets them go: the header
+/// first (up to its `ElementDataFile = LOCAL` line, within the header's limit),
+/// then no more data than its `DimSize` and compression allow, plus one byte to
+/// tell a file with more. A file whose metadata claims more than any sequence
+/// probecal takes is refused unread; a device that never ends (`/dev/zero`) is
+/// read no further than its header's limit.
+pub(super) fn read_bounded(path: &Path) -> Result<Vec<u8>, SequenceError> {
+    use std::io::Read;
+    let fail = |message: String| SequenceError {
+        path: path.to_path_buf(),
+        line: None,
+        message,
+    };
+    let limit = (MAX_SAMPLE_BYTES + (64 << 20)) as u64;
+    let mut file = std::fs::File::open(path).map_err(|e| fail(format!("cannot read: {e}")))?;
+    let size = file.metadata().map_err(|e| fail(format!("cannot read: {e}")))?.len();
+    if size > limit {
+        return Err(fail(format!(
+            "{size} bytes: larger than any sequence probecal reads ({limit} bytes)"
+        )));
+    }
+    let mut bytes = Vec::with_capacity(size as usize);
+    let marker = b"ElementDataFile";
+    let header_end = loop {
+        let searched = bytes.len().saturating_sub(marker.len() + 64);
+        let before = bytes.len();
+        (&mut file)
+            .take(1 << 20)
+            .read_to_end(&mut bytes)
+            .map_err(|e| fail(format!("cannot read: {e}")))?;
+        let found = bytes[searched..]
+            .windows(marker.len())
+            .position(|w| w == marker)
+            .and_then(|at| {
+                bytes[searched + at..]
+                    .iter()
+                    .position(|&b| b == b'\n')
+                    .map(|nl| searched + at + nl + 1)
+            });
+        match found {
+            Some(end) => break end,
+            // The whole file, as much as a header may be, or bytes no header
+            // holds (a NUL): the parser says what is wrong.
+            None if bytes.len() == before || bytes.len() > MAX_HEADER_BYTES || bytes[before..].contains(&0) => {
+                return Ok(bytes)
+            }
+            None => {}
+        }
+    };
+    let most = header_end.saturating_add(data_bound(path, &bytes[..header_end])?);
+    if bytes.len() <= most {
+        (&mut file)
+            .take((most + 1 - bytes.len()) as u64)
+            .read_to_end(&mut bytes)
+            .map_err(|e| fail(format!("cannot read: {e}")))?;
+    }
+    Ok(bytes)
+}
+
+/// The most data bytes a header allows after it: its samples, or their zlib
+/// stream (at most a thousandth larger, or its `CompressedDataSize`); for a
+/// tracker-only sequence, 64 MiB of bytes no image owns (PLUS writes some).
+fn data_bound(path: &Path, header: &[u8]) -> Result<usize, SequenceError> {
+    let fail = |line: Option<usize>, message: String| SequenceError {
+        path: path.to_path_buf(),
+        line,
+        message,
+    };
+    let Header { fields, .. } = read_header(header, &fail)?;
+    let Some(dims) = fields.get("DimSize") else {
+        return Ok(0);
+    };
+    let (width, height, count) = dimensions(dims, &fail)?;
+    let float = fields.get("ElementType").is_some_and(|e| e.value == "MET_FLOAT");
+    let expected = bytes_of_samples(width, height, count, if float { 4 } else { 1 }, dims, &fail)?;
+    if expected == 0 {
+        return Ok(64 << 20);
+    }
+    if !compressed_flag(fields.get("CompressedData"), &fail)? {
+        return Ok(expected);
+    }
+    let declared = fields
+        .get("CompressedDataSize")
+        .and_then(|f| f.value.trim().parse::<usize>().ok())
+        .unwrap_or(0)
+        .min(MAX_SAMPLE_BYTES);
+    Ok(declared.max(expected + expected / 1000 + 1024))
+}
+
+/// Bytes of samples `count` frames of `width` x `height` take, refused (naming
+/// `dims`'s line) beyond [`MAX_FRAME_PIXELS`] a frame or [`MAX_SAMPLE_BYTES`] in all.
+pub(super) fn bytes_of_samples(
+    width: usize,
+    height: usize,
+    count: usize,
+    sample_bytes: usize,
+    dims: &Field,
+    fail: &dyn Fn(Option<usize>, String) -> SequenceError,
+) -> Result<usize, SequenceError> {
+    let frame_pixels = width.checked_mul(height).filter(|&p| p <= MAX_FRAME_PIXELS);
+    frame_pixels
+        .and_then(|p| p.checked_mul(count))
+        .and_then(|p| p.checked_mul(sample_bytes))
+        .filter(|&b| b <= MAX_SAMPLE_BYTES)
+        .ok_or_else(|| {
+        fail(
+            Some(dims.line),
+            format!(
+            "`DimSize = {}` is implausibly large: at most {MAX_FRAME_PIXELS} pixels a frame and {} GiB of samples in all",
+            dims.value,
+            MAX_SAMPLE_BYTES >> 30
+            ),
+        )
+        })
 }

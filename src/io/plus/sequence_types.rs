@@ -29,3 +29,10 @@ pub(super) fn clip(text: &str) -> String {
     }
     s
 }
+
+/// Most bytes of samples a sequence may hold, all frames together (4 GiB): a
+/// corrupt or hostile header is refused before anything is allocated for it.
+pub const MAX_SAMPLE_BYTES: usize = 1 << 32;
+
+/// Most pixels of one frame (8192 x 8192): far beyond any B-scan.
+pub const MAX_FRAME_PIXELS: usize = 1 << 26;
