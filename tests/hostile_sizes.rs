@@ -135,25 +135,56 @@ fn every_reader_believes_no_size_it_has_not_read() {
     let nwire = |name: &str| s(&shared_data("plus-fcal2.0-3nwires", name));
     let device_set = nwire("PlusDeviceSet_fCal_Sim_SpatialCalibration_2.0.xml");
     let sweep = nwire("fCal_Test_Calibration_3NWires_fCal2.0.igs.mha");
-    let volume_config = s(&shared_data(SET, "PlusDeviceSet_VolumeReconstructionOnly_SpinePhantom_NN_MEAN.xml"));
+    let volume_config = s(&shared_data(
+        SET,
+        "PlusDeviceSet_VolumeReconstructionOnly_SpinePhantom_NN_MEAN.xml",
+    ));
     // A 60-byte dictionary whose markers would be 40000 bits a side (OpenCV
     // allocates for them before it reads one).
     let dictionary = dir.join("dictionary.yml");
-    std::fs::write(&dictionary, "%YAML:1.0\n---\nnmarkers: 1\nmarkersize: 40000\nmarker_0: \"1\"\n").unwrap();
+    std::fs::write(
+        &dictionary,
+        "%YAML:1.0\n---\nnmarkers: 1\nmarkersize: 40000\nmarker_0: \"1\"\n",
+    )
+    .unwrap();
     let photo = s(&shared_data("opencv-aruco", "choriginal.jpg"));
     let out = |name: &str| s(&dir.join(name));
     let cases: Vec<(Vec<String>, &str)> = vec![
-        (vec!["validate".into(), "/dev/zero".into()], "larger than any such file probecal reads"),
         (
-            vec!["segment".into(), sweep.clone(), "--config".into(), "/dev/zero".into(), "--out".into(), out("a")],
+            vec!["validate".into(), "/dev/zero".into()],
             "larger than any such file probecal reads",
         ),
         (
-            vec!["segment".into(), "/dev/zero".into(), "--config".into(), device_set, "--out".into(), out("b")],
+            vec![
+                "segment".into(),
+                sweep.clone(),
+                "--config".into(),
+                "/dev/zero".into(),
+                "--out".into(),
+                out("a"),
+            ],
+            "larger than any such file probecal reads",
+        ),
+        (
+            vec![
+                "segment".into(),
+                "/dev/zero".into(),
+                "--config".into(),
+                device_set,
+                "--out".into(),
+                out("b"),
+            ],
             "/dev/zero:1",
         ),
         (
-            vec!["reconstruct".into(), "/dev/zero".into(), "--config".into(), volume_config, "--out".into(), out("c")],
+            vec![
+                "reconstruct".into(),
+                "/dev/zero".into(),
+                "--config".into(),
+                volume_config,
+                "--out".into(),
+                out("c"),
+            ],
             "/dev/zero:1",
         ),
         (

@@ -347,3 +347,42 @@ fn a_volume_no_pixel_reached_is_refused() {
     );
     assert!(!dir.join("out").exists());
 }
+
+/// The memory a volume's work takes, not only its voxel count, is held to one
+/// budget before anything is allocated: float frames at 0.07 mm give about
+/// 0.6 billion voxels (under the voxel limit) whose float voxels, weights,
+/// hole filling and written copy need 8 GiB.
+#[test]
+#[ignore = "needs ../shared/data (full tier: scripts/test.sh)"]
+fn a_volume_beyond_the_work_budget_is_refused_before_it_is_allocated() {
+    if !available() {
+        return;
+    }
+    let dir = scratch("hostile_values", "budget");
+    std::fs::create_dir_all(&dir).unwrap();
+    let sweep = float_sweep(&dir, "float.igs.mha", false, None);
+    let text = std::fs::read_to_string(shared_data(SET, CONFIG)).unwrap();
+    let fine = text.replace("OutputSpacing=\"0.5 0.5 0.5\"", "OutputSpacing=\"0.07 0.07 0.07\"");
+    assert_ne!(fine, text);
+    let config = dir.join("fine.xml");
+    std::fs::write(&config, fine).unwrap();
+    let command = format!(
+        "ulimit -v 8388608; exec timeout 60 '{}' reconstruct '{}' --config '{}' --out '{}'",
+        env!("CARGO_BIN_EXE_probecal"),
+        sweep.display(),
+        config.display(),
+        dir.join("out").display()
+    );
+    let o = std::process::Command::new("sh")
+        .args(["-c", &command])
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("fine.xml"), "{stderr}");
+    assert!(
+        stderr.contains("more than the 6 GiB a reconstruction may hold"),
+        "{stderr}"
+    );
+    assert!(!dir.join("out").exists());
+}

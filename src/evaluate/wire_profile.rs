@@ -77,12 +77,13 @@ pub struct WireFigures {
 }
 
 /// The volume as the measurement reads it.
-pub struct VolumeView<'a> {
+pub struct VolumeView<'a, T> {
     pub grid: &'a Grid,
-    pub values: &'a [f64],
+    /// The voxels as they are (8-bit, float): read one by one, never copied.
+    pub values: &'a [T],
 }
 
-impl VolumeView<'_> {
+impl<T: Copy + Into<f64>> VolumeView<'_, T> {
     /// Trilinear value at `p` (mm); `None` outside the volume.
     fn sample(&self, p: &Point3<f64>) -> Option<f64> {
         let g = self.grid;
@@ -96,7 +97,7 @@ impl VolumeView<'_> {
         for corner in 0..8 {
             let o = [corner & 1, (corner >> 1) & 1, (corner >> 2) & 1];
             let idx = [0, 1, 2].map(|k| (base[k] + o[k]).min(g.dims[k] - 1));
-            let v = self.values[(idx[2] * g.dims[1] + idx[1]) * g.dims[0] + idx[0]];
+            let v: f64 = self.values[(idx[2] * g.dims[1] + idx[1]) * g.dims[0] + idx[0]].into();
             let w: f64 = (0..3).map(|k| if o[k] == 1 { f[k] } else { 1.0 - f[k] }).product();
             total += w * v;
         }
@@ -177,7 +178,7 @@ fn rms_from_fitted_line(points: &[Point3<f64>]) -> Option<f64> {
 }
 
 /// One wire's figures in the volume.
-pub fn measure_wire(volume: &VolumeView, wire: &Wire) -> WireFigure {
+pub fn measure_wire<T: Copy + Into<f64>>(volume: &VolumeView<T>, wire: &Wire) -> WireFigure {
     let axis = wire.back_mm - wire.front_mm;
     let length = axis.norm();
     let u = axis / length.max(1e-12);
@@ -218,7 +219,7 @@ pub fn measure_wire(volume: &VolumeView, wire: &Wire) -> WireFigure {
 }
 
 /// Every wire's figures and their summary.
-pub fn measure(volume: &VolumeView, wires: &[Wire]) -> WireFigures {
+pub fn measure<T: Copy + Into<f64>>(volume: &VolumeView<T>, wires: &[Wire]) -> WireFigures {
     let figures: Vec<WireFigure> = wires.iter().map(|w| measure_wire(volume, w)).collect();
     let measured: Vec<&WireFigure> = figures.iter().filter(|f| f.position_error_mm.is_some()).collect();
     let n = measured.len();

@@ -10,7 +10,7 @@ use crate::io::plus::config::PlusConfig;
 use crate::io::plus::sequence::{Deferred, Samples, Sequence};
 use crate::io::plus::volume_config::VolumeSettings;
 use crate::reconstruct::arrivals::Arrivals;
-use crate::reconstruct::grid::Grid;
+use crate::reconstruct::grid::{budget_fault, Grid};
 use crate::reconstruct::holes::HoleStats;
 use crate::reconstruct::paste::{PasteSettings, Slice};
 use crate::reconstruct::poses::{frame_poses, FramePose, SkippedFrame};
@@ -69,14 +69,6 @@ impl AnyVolume {
             AnyVolume::F32(v) => f32::write_le(&v.voxels, &mut out),
         }
         out
-    }
-
-    /// Voxel values as f64 (for pictures and statistics).
-    pub fn values(&self) -> Vec<f64> {
-        match self {
-            AnyVolume::U8(v) => v.voxels.iter().map(|x| f64::from(*x)).collect(),
-            AnyVolume::F32(v) => v.voxels.iter().map(|x| f64::from(*x)).collect(),
-        }
     }
 }
 
@@ -305,6 +297,15 @@ pub fn run(inputs: &ReconstructInputs) -> Result<Reconstruction, ReconstructErro
         )));
     }
     let (grid, paste_settings) = grid_and_paste(&settings, &sequence, &poses)?;
+    let frames_bytes = sequence.held_bytes() + deferred.as_ref().map_or(0, |d| d.held_bytes());
+    let sample_bytes = if sequence.is_float() { 4 } else { 1 };
+    let hole_filling = !settings.hole_filling.is_empty();
+    if let Some(why) = budget_fault(grid.voxels(), sample_bytes, hole_filling, frames_bytes as u64) {
+        return Err(ReconstructError::Input {
+            path: settings.path.clone(),
+            message: format!("line {}: {why}", settings.line),
+        });
+    }
     lap("poses and grid", &mut timings);
     // PLUS's volume depends on its NumberOfThreads; probecal's does not, so it
     // uses every core unless told otherwise.
@@ -394,14 +395,22 @@ fn wire_figures(
             back_mm: place(&w.back_in_phantom_mm),
         })
         .collect();
-    let values = volume.values();
-    Ok(measure(
-        &VolumeView {
-            grid: volume.grid(),
-            values: &values,
-        },
-        &wires,
-    ))
+    Ok(match volume {
+        AnyVolume::U8(v) => measure(
+            &VolumeView {
+                grid: &v.grid,
+                values: &v.voxels,
+            },
+            &wires,
+        ),
+        AnyVolume::F32(v) => measure(
+            &VolumeView {
+                grid: &v.grid,
+                values: &v.voxels,
+            },
+            &wires,
+        ),
+    })
 }
 
 /// What the stages report, apart from the voxels.

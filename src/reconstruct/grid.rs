@@ -8,6 +8,35 @@ use nalgebra::{Matrix4, Vector4};
 /// extent, or needs a coarser spacing.
 pub const MAX_VOXELS: usize = 1 << 30;
 
+/// Bytes a reconstruction may hold at once, the frames it is made from
+/// included: 6 GiB, within an 8 GiB address space with the program's own.
+pub const MAX_WORK_BYTES: u64 = 6 << 30;
+
+/// Bytes the work on a volume of `voxels` holds: the voxels (`sample_bytes`
+/// each), their weights (2), the copy written out, and with hole filling the
+/// copy it reads from and its reach mask (1).
+pub fn volume_work_bytes(voxels: usize, sample_bytes: u64, hole_filling: bool) -> u64 {
+    let per_voxel = 2 * sample_bytes + 2 + if hole_filling { sample_bytes + 1 } else { 0 };
+    (voxels as u64).saturating_mul(per_voxel)
+}
+
+/// Why a volume of `voxels` cannot be made beside `frames_bytes` of frames
+/// within [`MAX_WORK_BYTES`], if it cannot.
+pub fn budget_fault(voxels: usize, sample_bytes: u64, hole_filling: bool, frames_bytes: u64) -> Option<String> {
+    let volume = volume_work_bytes(voxels, sample_bytes, hole_filling);
+    let gib = |b: u64| b as f64 / (1u64 << 30) as f64;
+    (volume.saturating_add(frames_bytes) > MAX_WORK_BYTES).then(|| {
+        format!(
+            "the volume's {voxels} voxels need {:.2} GiB (voxels, weights{}, the written copy) beside the frames' {:.2} GiB: \
+             more than the {:.0} GiB a reconstruction may hold; increase OutputSpacing or give a smaller OutputExtent",
+            gib(volume),
+            if hole_filling { ", hole filling" } else { "" },
+            gib(frames_bytes),
+            gib(MAX_WORK_BYTES)
+        )
+    })
+}
+
 /// A regular grid in the Reference frame, axes parallel to its axes.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct Grid {

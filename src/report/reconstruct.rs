@@ -101,17 +101,25 @@ pub struct Picture {
 /// maximum-intensity projection along z, grey levels scaled so that the
 /// brightest voxel is white.
 pub fn pictures(volume: &AnyVolume) -> Vec<Picture> {
-    let values = volume.values();
-    let [nx, ny, nz] = volume.grid().dims;
-    let top = values.iter().copied().fold(0.0f64, f64::max).max(f64::MIN_POSITIVE);
+    match volume {
+        AnyVolume::U8(v) => pictures_of(&v.grid, &v.voxels),
+        AnyVolume::F32(v) => pictures_of(&v.grid, &v.voxels),
+    }
+}
+
+/// [`pictures`] of voxels as they are (read one by one, never copied whole).
+fn pictures_of<T: Copy + Into<f64>>(grid: &crate::reconstruct::grid::Grid, voxels: &[T]) -> Vec<Picture> {
+    let [nx, ny, nz] = grid.dims;
+    let value = |v: &T| -> f64 { (*v).into() };
+    let top = voxels.iter().map(value).fold(0.0f64, f64::max).max(f64::MIN_POSITIVE);
     let grey = |v: f64| (v / top * 255.0).round().clamp(0.0, 255.0) as u8;
-    let at = |x: usize, y: usize, z: usize| values[(z * ny + y) * nx + x];
+    let at = |x: usize, y: usize, z: usize| value(&voxels[(z * ny + y) * nx + x]);
     // Slices through the intensity-weighted centre (the middle of an empty volume).
     // In memory order, as one pass over the voxels would add them.
     let (mut sum, mut at_sum) = (0.0, [0.0f64; 3]);
-    for (z, plane) in values.chunks_exact(nx * ny).enumerate() {
+    for (z, plane) in voxels.chunks_exact(nx * ny).enumerate() {
         for (y, row) in plane.chunks_exact(nx).enumerate() {
-            for (x, v) in row.iter().enumerate() {
+            for (x, v) in row.iter().map(value).enumerate() {
                 sum += v;
                 at_sum[0] += v * x as f64;
                 at_sum[1] += v * y as f64;
@@ -129,9 +137,9 @@ pub fn pictures(volume: &AnyVolume) -> Vec<Picture> {
     let (cx, cy, cz) = (centre(0, nx), centre(1, ny), centre(2, nz));
     // The maximum along z, plane after plane (in memory order).
     let mut highest = vec![0.0f64; nx * ny];
-    for plane in values.chunks_exact(nx * ny) {
+    for plane in voxels.chunks_exact(nx * ny) {
         for (m, v) in highest.iter_mut().zip(plane) {
-            *m = m.max(*v);
+            *m = m.max(value(v));
         }
     }
     let mip: Vec<u8> = highest.into_iter().map(grey).collect();

@@ -364,6 +364,16 @@ impl Sequence {
             .filter(|t| t.is_finite())
     }
 
+    /// Whether the samples are 32-bit floats.
+    pub fn is_float(&self) -> bool {
+        !self.float_pixels.is_empty()
+    }
+
+    /// Bytes of samples held in memory (8-bit and float).
+    pub fn held_bytes(&self) -> usize {
+        self.pixels.len() + 4 * self.float_pixels.len()
+    }
+
     /// A per-frame field as text (e.g. `Timestamp`).
     pub fn frame_field(&self, index: usize, name: &str) -> Option<&str> {
         self.frames[index].fields.get(name).map(|f| f.value.as_str())

@@ -30,6 +30,11 @@ impl Deferred {
         self.expected
     }
 
+    /// Bytes held once the frames are decoded: the file's and the pixels'.
+    pub fn held_bytes(&self) -> usize {
+        self.bytes.len() + self.expected
+    }
+
     /// Decodes the frames into `out` (all frames' pixels, frame after frame),
     /// flipped to MF as `Sequence::read_any` holds them, and hands each frame
     /// to `arrived` as soon as it is whole. A damaged, short or long stream is
