@@ -101,3 +101,21 @@ fn a_file_named_inside_a_manifest_or_a_device_set_is_never_replaced() {
         .unwrap();
     refused(&o, &mask);
 }
+
+/// Single-file writers replace an existing file only with `--force`:
+/// `calibrate-camera` wrote over any file named by `--out`.
+#[test]
+fn a_single_file_writer_replaces_an_existing_file_only_with_force() {
+    let dir = scratch("hostile_outputs", "single_file");
+    let notes = write(&dir.join("notes.yml"), b"my notes");
+    let o = probecal()
+        .args(["calibrate-camera", "--board", "9x6", "--square-mm", "25", "--out"])
+        .arg(&notes)
+        .arg(dir.join("no_such_photo.png"))
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("exists; pass --force to replace it"), "{stderr}");
+    assert_eq!(std::fs::read(&notes).unwrap(), b"my notes");
+}

@@ -1,14 +1,15 @@
 //! `probecal calibrate-camera`: intrinsics from chessboard or ChArUco views,
 //! printed and written as OpenCV FileStorage YAML with every image's fate; 0
-//! written, 2 bad options, 1 when no calibration could be solved or written.
+//! written, 2 bad options (an existing output file without `--force`), 1 when
+//! no calibration could be solved or written.
 
 use std::path::{Path, PathBuf};
 
 use super::failure::Failure;
 use crate::io::camera_model::ViewFate;
 
-pub fn command(images: &[PathBuf], board: [u32; 2], square_mm: f64, out: &Path) -> Result<(), Failure> {
-    output_file(out, images)?;
+pub fn command(images: &[PathBuf], board: [u32; 2], square_mm: f64, out: &Path, force: bool) -> Result<(), Failure> {
+    output_file(out, images, force)?;
     let cal = crate::detect::camera_calibration::calibrate_from(
         images,
         board,
@@ -42,9 +43,10 @@ pub fn charuco_command(
     images: &[PathBuf],
     spec: &crate::detect::charuco_calibration::CharucoSpec,
     out: &Path,
+    force: bool,
 ) -> Result<(), Failure> {
     spec.board().map_err(Failure::bad_input)?;
-    output_file(out, images)?;
+    output_file(out, images, force)?;
     let images = crate::detect::camera_calibration::collect_images(images).map_err(Failure::failed)?;
     let cal = crate::detect::charuco_calibration::calibrate(&images, spec).map_err(Failure::failed)?;
     crate::report::console::camera_calibration(&cal);
@@ -67,10 +69,10 @@ pub fn charuco_command(
 /// Refuses an output that is one of the images (or their folder's images), or
 /// a folder; makes `out`'s folder before the work, so a finished calibration
 /// has somewhere to go.
-fn output_file(out: &Path, images: &[PathBuf]) -> Result<(), Failure> {
+fn output_file(out: &Path, images: &[PathBuf], force: bool) -> Result<(), Failure> {
     let listed = crate::detect::camera_calibration::collect_images(images).unwrap_or_default();
     let read: Vec<&Path> = images.iter().chain(&listed).map(PathBuf::as_path).collect();
-    if let Some(why) = crate::io::output::file_refusal(out, "calibrate-camera", &read) {
+    if let Some(why) = crate::io::output::file_refusal(out, "calibrate-camera", &read, force) {
         return Err(Failure::bad_input(format!("--out {}: {why}", out.display())));
     }
     if let Some(parent) = out.parent().filter(|p| !p.as_os_str().is_empty()) {

@@ -90,16 +90,10 @@ fn write(args: &InitArgs) -> Result<(), InitError> {
     .flatten()
     .map(|p| p.as_path())
     .collect();
-    if let Some(why) = crate::io::output::file_refusal(&args.out, "init", &read) {
+    if let Some(why) = crate::io::output::file_refusal(&args.out, "init", &read, args.force) {
         return Err(InitError::Input {
             path: args.out.clone(),
             message: why,
-        });
-    }
-    if args.out.exists() && !args.force {
-        return Err(InitError::Input {
-            path: args.out.clone(),
-            message: "exists; pass --force to replace it".into(),
         });
     }
     let experiment = args

@@ -232,6 +232,9 @@ enum Command {
         /// Output file.
         #[arg(long)]
         out: PathBuf,
+        /// Replace an existing output file.
+        #[arg(long)]
+        force: bool,
     },
 }
 
@@ -347,6 +350,7 @@ pub fn main() -> ExitCode {
             marker_mm,
             dictionary,
             out,
+            force,
         } => failure::exit_code(match (board, charuco, marker_mm, dictionary) {
             (_, Some(squares), Some(marker_mm), Some(dictionary)) => {
                 let spec = crate::detect::charuco_calibration::CharucoSpec {
@@ -355,9 +359,9 @@ pub fn main() -> ExitCode {
                     marker_mm,
                     dictionary,
                 };
-                camera::charuco_command(&images, &spec, &out)
+                camera::charuco_command(&images, &spec, &out, force)
             }
-            (Some(board), ..) => camera::command(&images, board, square_mm, &out),
+            (Some(board), ..) => camera::command(&images, board, square_mm, &out, force),
             _ => Err(failure::Failure::bad_input(
                 "--board COLSxROWS, or --charuco XxY with --marker-mm and --dictionary".to_string(),
             )),

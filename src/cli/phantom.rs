@@ -19,16 +19,8 @@ pub fn command(manifest: &Path, stl: &Path, force: bool) -> Result<(), Failure> 
         )));
     }
     for written in [stl, sheet_path.as_path()] {
-        if let Some(why) = crate::io::output::file_refusal(written, "phantom", &[manifest]) {
+        if let Some(why) = crate::io::output::file_refusal(written, "phantom", &[manifest], force) {
             return Err(Failure::bad_input(format!("{}: {why}", written.display())));
-        }
-        // A file of the same name may be anything (another model's sheet, your
-        // notes): replaced only when asked.
-        if written.exists() && !force {
-            return Err(Failure::bad_input(format!(
-                "{}: exists; pass --force to replace it",
-                written.display()
-            )));
         }
     }
     let (manifest, render) = rendered_lab(manifest).map_err(Failure::bad_input)?;

@@ -204,14 +204,8 @@ pub fn compare(a: &Path, b: &Path, methods: [Option<&str>; 2], out: Option<&Path
             )));
         }
         for written in [out.to_path_buf(), out.with_extension("md")] {
-            if let Some(why) = crate::io::output::file_refusal(&written, "study compare", &[a, b]) {
+            if let Some(why) = crate::io::output::file_refusal(&written, "study compare", &[a, b], force) {
                 return Err(Failure::bad_input(format!("{}: {why}", written.display())));
-            }
-            if written.exists() && !force {
-                return Err(Failure::bad_input(format!(
-                    "{}: exists; pass --force to replace it",
-                    written.display()
-                )));
             }
         }
     }

@@ -107,7 +107,7 @@ fn not_a_folder(out: &Path) -> Option<String> {
 
 /// Why `out` may not be written as an output file of `command`, if it may
 /// not: it is one of the command's input files, or a folder.
-pub fn file_refusal(out: &Path, command: &str, inputs: &[&Path]) -> Option<String> {
+pub fn file_refusal(out: &Path, command: &str, inputs: &[&Path], force: bool) -> Option<String> {
     let target = resolved(out);
     if let Some(input) = inputs.iter().find(|i| resolved(i) == target) {
         return Some(format!(
@@ -115,7 +115,12 @@ pub fn file_refusal(out: &Path, command: &str, inputs: &[&Path]) -> Option<Strin
             input.display()
         ));
     }
-    out.is_dir().then(|| "is a folder; name a file".to_string())
+    if out.is_dir() {
+        return Some("is a folder; name a file".to_string());
+    }
+    // A file of the same name may be anything (another result, your notes):
+    // replaced only when asked.
+    (out.exists() && !force).then(|| "exists; pass --force to replace it".to_string())
 }
 
 /// The lock that claims output folder `out` (`.<name>.lock` beside it).
@@ -300,12 +305,27 @@ mod tests {
         let e = OutputFolder::claim(&dir.join("inputs/notes.txt"), "segment", &[], true).unwrap_err();
         assert!(e.to_string().contains("is a file"), "{e}");
         // An output file that is an input, or a folder.
-        let e = file_refusal(&dir.join("inputs/../inputs/seq.mha"), "calibrate-camera", &[&input]).unwrap();
+        let e = file_refusal(
+            &dir.join("inputs/../inputs/seq.mha"),
+            "calibrate-camera",
+            &[&input],
+            true,
+        )
+        .unwrap();
         assert!(e.contains("which `probecal calibrate-camera` reads"), "{e}");
-        assert!(file_refusal(&dir.join("inputs"), "phantom", &[])
+        assert!(file_refusal(&dir.join("inputs"), "phantom", &[], true)
             .unwrap()
             .contains("is a folder"));
-        assert_eq!(file_refusal(&dir.join("new.yml"), "calibrate-camera", &[&input]), None);
+        assert_eq!(
+            file_refusal(&dir.join("new.yml"), "calibrate-camera", &[&input], false),
+            None
+        );
+        // An existing file of another name is replaced only with force.
+        let notes = dir.join("inputs/notes.txt");
+        assert!(file_refusal(&notes, "calibrate-camera", &[&input], false)
+            .unwrap()
+            .contains("pass --force"));
+        assert_eq!(file_refusal(&notes, "calibrate-camera", &[&input], true), None);
         std::fs::remove_dir_all(&dir).unwrap();
     }
 
