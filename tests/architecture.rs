@@ -373,3 +373,37 @@ fn every_whole_file_read_has_a_limit() {
     std::fs::write(&planted, "fn f() { let _ = std::fs::read_to_string(\"x\"); }\n#[cfg(test)]\nmod tests { fn g() { let _ = std::fs::read(\"y\"); } }\n").unwrap();
     assert_eq!(unbounded_reads(&[planted]).len(), 1);
 }
+
+/// Lines of `src` (tests aside) that write HTML tags: pages are rendered from
+/// templates, where one escaping applies.
+fn html_in_rust(files: &[std::path::PathBuf]) -> Vec<String> {
+    let tags = [
+        "<html", "<p>", "<table", "<tr>", "<td", "<th", "<h1", "<h2", "<div", "<img", "<figure", "<svg", "<ul", "<li>",
+    ];
+    let mut found = Vec::new();
+    for f in files {
+        let text = without_tests(&std::fs::read_to_string(f).unwrap());
+        for line in text.lines().filter(|l| !l.trim_start().starts_with("//")) {
+            if tags.iter().any(|t| line.contains(t)) {
+                found.push(format!("{}: {}", f.display(), line.trim()));
+            }
+        }
+    }
+    found
+}
+
+#[test]
+fn pages_are_written_by_templates_not_rust_strings() {
+    let mut files = Vec::new();
+    rust_files(&common::root().join("src"), &mut files);
+    let found = html_in_rust(&files);
+    assert!(
+        found.is_empty(),
+        "HTML written in Rust (use a template in templates/): {found:#?}"
+    );
+    let dir = common::scratch("architecture", "html");
+    std::fs::create_dir_all(&dir).unwrap();
+    let planted = dir.join("planted.rs");
+    std::fs::write(&planted, "fn f() -> String { format!(\"<tr><td>{}</td></tr>\", 1) }\n").unwrap();
+    assert_eq!(html_in_rust(&[planted]).len(), 1);
+}

@@ -118,7 +118,7 @@ pub fn write(a: &Ablation, out: &std::path::Path) -> Result<String, crate::repor
         &[
             ("ablation.json".into(), json.into_bytes()),
             ("ablation.md".into(), md.clone().into_bytes()),
-            ("ablation.html".into(), super::study::html(&md).into_bytes()),
+            ("ablation.html".into(), super::study::html(&md)?.into_bytes()),
         ],
     )?;
     Ok(md)

@@ -59,7 +59,9 @@ pub struct RunContext {
     pub truth_by_cutoff: Vec<StatRow>,
     pub gates: Vec<Gate>,
     pub rejected: Vec<Rejected>,
-    pub bre_figure_svg: String,
+    /// The BRE figure's SVG, or why it was not drawn.
+    #[serde(serialize_with = "svg_or_reason")]
+    pub bre_figure: Result<String, String>,
     /// Other estimators on the same frames: name, description, frames, truth errors.
     pub methods: Vec<StatRow>,
     /// Why two estimators give the same calibration, when they do.
@@ -154,7 +156,7 @@ pub fn context(run: &DatasetRun, manifest: &crate::manifest::Manifest) -> RunCon
                 })
             })
             .collect(),
-        bre_figure_svg: super::figures::bre_figure(run).unwrap_or_else(|e| format!("<p>figure not drawn: {e}</p>")),
+        bre_figure: super::figures::bre_figure(run).map_err(|e| format!("figure not drawn: {e}")),
         methods: method_rows(run),
         methods_agree: agreements(&run.methods),
         start_offset: run
@@ -205,6 +207,17 @@ fn agreements(methods: &[crate::pipeline::record::MethodResult]) -> Vec<String> 
         }
     }
     out
+}
+
+/// A figure's SVG as `{svg}`, or why it was not drawn as `{not_drawn}`.
+fn svg_or_reason<S: serde::Serializer>(figure: &Result<String, String>, s: S) -> Result<S::Ok, S::Error> {
+    use serde::ser::SerializeMap;
+    let mut map = s.serialize_map(Some(1))?;
+    match figure {
+        Ok(svg) => map.serialize_entry("svg", svg)?,
+        Err(why) => map.serialize_entry("not_drawn", why)?,
+    }
+    map.end()
 }
 
 #[cfg(test)]

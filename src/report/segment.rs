@@ -135,10 +135,6 @@ pub fn summary(run: &SegmentRun, baseline: Option<&Baseline>) -> serde_json::Val
     })
 }
 
-fn escape(text: &str) -> String {
-    text.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;")
-}
-
 /// Frame `k` of the run drawn, as JPEG bytes.
 fn picture(run: &SegmentRun, k: usize) -> Result<Vec<u8>, opencv::Error> {
     let frame = &run.frames[k];
@@ -212,26 +208,10 @@ fn gallery_name(frame: usize) -> String {
     format!("gallery/frame_{frame:04}.jpg")
 }
 
-/// `report.html`.
-pub fn html(run: &SegmentRun, baseline: Option<&Baseline>) -> String {
-    let found = run.frames.iter().filter(|f| f.rejected.is_none()).count();
-    let mut by_check = String::new();
-    for (check, frames) in crate::pipeline::sequence_frames::rejections_by_check(&run.frames) {
-        let _ = writeln!(
-            by_check,
-            "<tr><td class=\"key\">{}</td><td>{frames}</td></tr>",
-            escape(&check)
-        );
-    }
-    let plus = baseline.map(baseline_html).unwrap_or_default();
-    let mut rows = String::new();
-    for (frame, reason) in failures(run) {
-        let _ = writeln!(
-            rows,
-            "<tr><td>{frame}</td><td class=\"key\">{}</td></tr>",
-            escape(&reason)
-        );
-    }
+const TEMPLATE: &str = include_str!("../../templates/segment.html.tera");
+
+/// `report.html`, from `templates/segment.html.tera` (every value escaped there).
+pub fn html(run: &SegmentRun, baseline: Option<&Baseline>) -> Result<String, OutputError> {
     let [u, v, w, h] = run.clip_rectangle_px;
     let region = match &run.overlay {
         None => format!("clip rectangle {u} {v} {w} {h} px"),
@@ -242,29 +222,49 @@ pub fn html(run: &SegmentRun, baseline: Option<&Baseline>) -> String {
             o.frames
         ),
     };
-    format!(
-        "<!DOCTYPE html>\n<html lang=\"en\">\n<head><meta charset=\"utf-8\"><title>segmentation</title>\n\
-         <style>body{{font-family:sans-serif;max-width:70em;margin:2em auto}}td,th{{padding:.2em .6em;text-align:right}}.key{{text-align:left}}figure{{display:inline-block;margin:.3em;width:320px;vertical-align:top;font-size:.8em}}</style></head>\n\
-         <body>\n<h1>N-wire segmentation</h1>\n<p>{} with {}: {} of {} frames segmented ({} N-wires, {} px images read as MF from {:?}, \
-         {region}, opening {} px, each frame's threshold {} % of its brightest opened pixel).</p>\n\
-         {plus}<h2>Frames not segmented</h2>\n<table id=\"not-found-by-check\"><thead><tr><th class=\"key\">check</th><th>frames</th></tr></thead><tbody>\n{by_check}</tbody></table>\n<table id=\"not-found\"><thead><tr><th>frame</th><th class=\"key\">reason</th></tr></thead><tbody>\n{rows}</tbody></table>\n\
-         <p>Every found point is in <code>segmentation.csv</code> (frame, found, wire id, x, y in pixels).</p>\n\
-         <h2>Gallery</h2>\n<p>Candidate spots yellow, the chosen patterns green (the dot is wire 1), the clip rectangle blue, a failed frame's reason red; frames not segmented first.</p>\n{}</body>\n</html>\n",
-        escape(&crate::io::fs::display_path(&run.sequence)),
-        escape(&crate::io::fs::display_path(&run.config)),
-        found,
-        run.frames.len(),
-        run.wire_ids.len() / 3,
-        format_args!("{}x{}", run.image_size_px[0], run.image_size_px[1]),
-        run.orientation,
-        run.segmentation.opening_radius_for(run.spacing_guess_mm_per_px),
-        run.segmentation.threshold_percent,
-        gallery_html(run),
-    )
+    let by_check: Vec<serde_json::Value> = crate::pipeline::sequence_frames::rejections_by_check(&run.frames)
+        .into_iter()
+        .map(|(check, frames)| serde_json::json!({"check": check, "frames": frames}))
+        .collect();
+    let not_found: Vec<serde_json::Value> = failures(run)
+        .into_iter()
+        .map(|(frame, reason)| serde_json::json!({"frame": frame, "reason": reason}))
+        .collect();
+    let mut order: Vec<&crate::pipeline::tracked::TrackedFrame> = run.frames.iter().collect();
+    order.sort_by_key(|f| (f.rejected.is_none(), f.index));
+    let gallery: Vec<serde_json::Value> = order
+        .iter()
+        .map(|f| {
+            let caption = match &f.rejected {
+                Some(r) => format!("frame {}: {r}", f.index),
+                None => format!("frame {}: {} patterns", f.index, f.dots_px.len()),
+            };
+            serde_json::json!({"src": gallery_name(f.index), "frame": f.index, "caption": caption})
+        })
+        .collect();
+    let mut ctx = tera::Context::new();
+    ctx.insert("sequence", &crate::io::fs::display_path(&run.sequence));
+    ctx.insert("config", &crate::io::fs::display_path(&run.config));
+    ctx.insert("found", &run.frames.iter().filter(|f| f.rejected.is_none()).count());
+    ctx.insert("total", &run.frames.len());
+    ctx.insert("nwires", &(run.wire_ids.len() / 3));
+    ctx.insert("size", &format!("{}x{}", run.image_size_px[0], run.image_size_px[1]));
+    ctx.insert("orientation", &format!("{:?}", run.orientation));
+    ctx.insert("region", &region);
+    ctx.insert(
+        "opening_px",
+        &run.segmentation.opening_radius_for(run.spacing_guess_mm_per_px),
+    );
+    ctx.insert("threshold_percent", &run.segmentation.threshold_percent);
+    ctx.insert("plus", &baseline.map(baseline_context));
+    ctx.insert("by_check", &by_check);
+    ctx.insert("not_found", &not_found);
+    ctx.insert("gallery", &gallery);
+    Ok(tera::Tera::one_off(TEMPLATE, &ctx, true)?)
 }
 
-/// The comparison with PLUS's segmentation, as a section of the page.
-fn baseline_html(b: &Baseline) -> String {
+/// The comparison with PLUS's segmentation, for the page.
+fn baseline_context(b: &Baseline) -> serde_json::Value {
     let s = &b.score;
     let list = |frames: &[usize]| {
         if frames.is_empty() {
@@ -273,22 +273,15 @@ fn baseline_html(b: &Baseline) -> String {
             frames.iter().map(|f| f.to_string()).collect::<Vec<_>>().join(", ")
         }
     };
-    format!(
-        "<h2>Against PLUS's segmentation</h2>\n<p>{} ({}).</p>\n<table id=\"plus-baseline\"><tbody>\n\
-         <tr><td class=\"key\">frames PLUS segmented</td><td>{}</td></tr>\n\
-         <tr><td class=\"key\">of them segmented here too (recall)</td><td>{} ({:.1} %)</td></tr>\n\
-         <tr><td class=\"key\">missed here</td><td>{}</td></tr>\n\
-         <tr><td class=\"key\">segmented here, not by PLUS</td><td>{}</td></tr>\n\
-         <tr><td class=\"key\">distance to PLUS's point of the same wire (px)</td><td>{}</td></tr>\n\
-         </tbody></table>\n",
-        escape(&crate::io::fs::display_path(&b.path)),
-        escape(&b.section),
-        s.plus_frames,
-        s.both_frames,
-        100.0 * s.recall,
-        list(&s.missed_frames),
-        list(&s.extra_frames),
-        s.point_distance_px
+    serde_json::json!({
+        "file": crate::io::fs::display_path(&b.path),
+        "section": b.section,
+        "plus_frames": s.plus_frames,
+        "both_frames": s.both_frames,
+        "recall_percent": format!("{:.1}", 100.0 * s.recall),
+        "missed": list(&s.missed_frames),
+        "extra": list(&s.extra_frames),
+        "distance": s.point_distance_px
             .map(|d| format!(
                 "mean {:.3}, SD {:.3}, max {:.3} (n = {})",
                 d.mean,
@@ -297,26 +290,7 @@ fn baseline_html(b: &Baseline) -> String {
                 d.n
             ))
             .unwrap_or_else(|| "—".into()),
-    )
-}
-
-fn gallery_html(run: &SegmentRun) -> String {
-    let mut order: Vec<&crate::pipeline::tracked::TrackedFrame> = run.frames.iter().collect();
-    order.sort_by_key(|f| (f.rejected.is_none(), f.index));
-    let mut out = String::from("<div class=\"gallery\">\n");
-    for f in order {
-        let caption = match &f.rejected {
-            Some(r) => format!("frame {}: {}", f.index, escape(&r.to_string())),
-            None => format!("frame {}: {} patterns", f.index, f.dots_px.len()),
-        };
-        let _ = writeln!(
-            out,
-            "<figure><img src=\"{}\" width=\"320\" alt=\"frame {}\"><figcaption>{caption}</figcaption></figure>",
-            gallery_name(f.index),
-            f.index
-        );
-    }
-    out + "</div>\n"
+    })
 }
 
 /// Writes every output into `out` (whole, or nothing).
@@ -334,6 +308,6 @@ fn outputs(run: &SegmentRun, baseline: Option<&Baseline>) -> Result<Vec<(String,
     let text = crate::report::summary::to_text(&summary(run, baseline))?;
     files.push(("segmentation.csv".into(), csv(run).into_bytes()));
     files.push(("summary.json".into(), text.into_bytes()));
-    files.push(("report.html".into(), html(run, baseline).into_bytes()));
+    files.push(("report.html".into(), html(run, baseline)?.into_bytes()));
     Ok(files)
 }

@@ -122,54 +122,71 @@ pub fn markdown(sigma: &[SigmaRow], monte_carlo: Option<&MonteCarlo>) -> String 
     md
 }
 
-fn escape_html(text: &str) -> String {
-    text.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;")
+/// One block of a study's Markdown: a heading, a paragraph or a table.
+#[derive(serde::Serialize)]
+struct Block {
+    kind: &'static str,
+    text: String,
+    head: Vec<String>,
+    rows: Vec<Vec<String>>,
 }
 
-/// A self-contained HTML page from the Markdown tables.
-pub(super) fn html(md: &str) -> String {
-    let mut body = String::new();
+/// The Markdown's headings, paragraphs and tables, in order (code marks dropped).
+fn blocks(md: &str) -> Vec<Block> {
+    let mut out: Vec<Block> = Vec::new();
     let mut in_table = false;
+    let text = |kind, text: &str| Block {
+        kind,
+        text: text.replace('`', ""),
+        head: Vec::new(),
+        rows: Vec::new(),
+    };
     for line in md.lines() {
         if line.starts_with('|') {
+            // The row under the head (`|---|:--|`) only marks it.
+            let rule = |c: &str| !c.trim().is_empty() && c.trim().chars().all(|ch| ch == '-' || ch == ':');
+            if line.trim_matches('|').split('|').all(rule) {
+                continue;
+            }
             let cells: Vec<String> = line
                 .trim_matches('|')
                 .split(" | ")
-                .map(|c| escape_html(c.trim()).replace("\\|", "|"))
+                .map(|c| c.trim().replace("\\|", "|"))
                 .collect();
-            if cells.iter().all(|c| c.chars().all(|ch| ch == '-')) {
-                continue;
+            match out.last_mut() {
+                Some(table) if in_table => table.rows.push(cells),
+                _ => out.push(Block {
+                    kind: "table",
+                    text: String::new(),
+                    head: cells,
+                    rows: Vec::new(),
+                }),
             }
-            if !in_table {
-                body.push_str("<table><thead><tr>");
-                body.push_str(&cells.iter().map(|c| format!("<th>{c}</th>")).collect::<String>());
-                body.push_str("</tr></thead><tbody>\n");
-                in_table = true;
-            } else {
-                body.push_str("<tr>");
-                body.push_str(&cells.iter().map(|c| format!("<td>{c}</td>")).collect::<String>());
-                body.push_str("</tr>\n");
-            }
+            in_table = true;
             continue;
         }
-        if in_table {
-            body.push_str("</tbody></table>\n");
-            in_table = false;
-        }
+        in_table = false;
         if let Some(h) = line.strip_prefix("## ") {
-            body.push_str(&format!("<h2>{}</h2>\n", escape_html(h).replace('`', "")));
+            out.push(text("h2", h));
         } else if let Some(h) = line.strip_prefix("# ") {
-            body.push_str(&format!("<h1>{}</h1>\n", escape_html(h)));
+            out.push(Block {
+                text: h.to_string(),
+                ..text("h1", "")
+            });
         } else if !line.trim().is_empty() {
-            body.push_str(&format!("<p>{}</p>\n", escape_html(line).replace('`', "")));
+            out.push(text("p", line));
         }
     }
-    if in_table {
-        body.push_str("</tbody></table>\n");
-    }
-    format!(
-        "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>probecal studies</title>\n<style>body{{font-family:sans-serif;max-width:60rem;margin:2rem auto;padding:0 1rem}}table{{border-collapse:collapse;margin:1rem 0}}td,th{{border:1px solid #bbb;padding:.3rem .6rem;text-align:right}}td:first-child,th:first-child{{text-align:left}}</style></head><body>\n{body}</body></html>\n"
-    )
+    out
+}
+
+const TEMPLATE: &str = include_str!("../../templates/study.html.tera");
+
+/// A self-contained HTML page of the Markdown's tables, from `templates/study.html.tera`.
+pub fn html(md: &str) -> Result<String, tera::Error> {
+    let mut ctx = tera::Context::new();
+    ctx.insert("blocks", &blocks(md));
+    tera::Tera::one_off(TEMPLATE, &ctx, true)
 }
 
 /// The files a study writes into its folder.
@@ -184,7 +201,7 @@ pub fn write(out: &Path, sigma: &[SigmaRow], monte_carlo: Option<&MonteCarlo>) -
     };
     let json = to_text(&file).map_err(std::io::Error::other)?;
     let md = markdown(sigma, monte_carlo);
-    let html = html(&md);
+    let html = html(&md).map_err(std::io::Error::other)?;
     // Each file is swapped in whole: an earlier study stays readable until then.
     for (name, bytes) in [
         ("study.json", json.as_bytes()),

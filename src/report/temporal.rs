@@ -8,6 +8,8 @@ use std::path::Path;
 use crate::io::fs::{display_path, write_all_atomic};
 use crate::pipeline::time::temporal::TemporalRun;
 use crate::report::error::OutputError;
+use crate::report::figures::{svg, Chart, Series, Style};
+use plotters::style::RGBColor;
 
 /// `lines.csv`: frame, found, origin and direction in pixels, or the reason.
 pub fn lines_csv(run: &TemporalRun) -> String {
@@ -49,52 +51,59 @@ pub fn summary(run: &TemporalRun) -> serde_json::Value {
     })
 }
 
-/// The correlation over the lags as an inline SVG polyline.
-fn curve_svg(run: &TemporalRun) -> String {
-    let (w, h) = (640.0, 240.0);
-    let lags = run.curve.iter().map(|(l, _)| *l);
-    let (lo, hi) = lags.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), l| (a.min(l), b.max(l)));
-    let x = |l: f64| (l - lo) / (hi - lo).max(1e-9) * w;
-    let y = |c: f64| (1.0 - (c + 1.0) / 2.0) * h;
-    let points: Vec<String> = run
-        .curve
-        .iter()
-        .map(|(l, c)| format!("{:.1},{:.1}", x(*l), y(*c)))
-        .collect();
-    format!(
-        "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{w}\" height=\"{h}\" viewBox=\"0 0 {w} {h}\">\
-         <line x1=\"0\" y1=\"{:.1}\" x2=\"{w}\" y2=\"{:.1}\" stroke=\"#bbb\"/>\
-         <line x1=\"{:.1}\" y1=\"0\" x2=\"{:.1}\" y2=\"{h}\" stroke=\"#c00\"/>\
-         <polyline fill=\"none\" stroke=\"#124\" stroke-width=\"1.5\" points=\"{}\"/></svg>",
-        y(0.0),
-        y(0.0),
-        x(run.tracker_lag_s),
-        x(run.tracker_lag_s),
-        points.join(" ")
-    )
+/// The correlation over the lags searched, and the estimate as its own series.
+fn curve_chart(run: &TemporalRun) -> Chart {
+    let lowest = run.curve.iter().map(|(_, c)| *c).fold(1.0f64, f64::min);
+    Chart {
+        id: "correlation",
+        caption: format!(
+            "The normalised cross-correlation of the reflector line's position in the video with the tracker's, \
+             over the lags searched (step {} ms); the estimate (red) is the interpolated peak, {:.1} ms. \
+             Look for one clear peak: several of nearly equal height, or a flat curve, mean the motion could not \
+             tell the lag.",
+            crate::pipeline::time::temporal::STEP_S * 1000.0,
+            run.tracker_lag_s * 1000.0
+        ),
+        x_desc: "tracker lag (s)".into(),
+        y_desc: "correlation".into(),
+        style: Style::Lines,
+        series: vec![
+            Series {
+                name: "correlation".into(),
+                colour: RGBColor(20, 40, 80),
+                points: run.curve.clone(),
+            },
+            Series {
+                name: "estimate".into(),
+                colour: RGBColor(200, 0, 0),
+                points: vec![
+                    (run.tracker_lag_s, lowest.min(0.0)),
+                    (run.tracker_lag_s, run.peak_correlation),
+                ],
+            },
+        ],
+        equal_axes: false,
+    }
 }
 
-pub fn html(run: &TemporalRun) -> String {
-    let with_line = run.frames.iter().filter(|f| f.line.is_ok()).count();
-    format!(
-        "<!DOCTYPE html>\n<html lang=\"en\">\n<head><meta charset=\"utf-8\"><title>temporal calibration</title>\n\
-         <style>body{{font-family:sans-serif;max-width:60em;margin:2em auto}}</style></head>\n<body>\n\
-         <h1>Temporal calibration</h1>\n<p>Video {} ({} frames, a line in {}), tracker {} ({} samples).</p>\n\
-         <p id=\"lag\">The tracker lags the video by <b>{:.1} ms</b> (PLUS's TrackerLagSec {:.4} s); normalised cross-correlation at the peak {:.3}.</p>\n\
-         <h2>Correlation over the lag (−{} s to +{} s; red: the estimate)</h2>\n{}\n\
-         <p>Each B-scan's line is in <code>lines.csv</code>.</p>\n</body>\n</html>\n",
-        display_path(&run.video),
-        run.frames.len(),
-        with_line,
-        display_path(&run.tracker),
-        run.tracker_samples,
-        run.tracker_lag_s * 1000.0,
-        run.tracker_lag_s,
-        run.peak_correlation,
-        crate::pipeline::time::temporal::MAX_LAG_S,
-        crate::pipeline::time::temporal::MAX_LAG_S,
-        curve_svg(run),
-    )
+const TEMPLATE: &str = include_str!("../../templates/temporal.html.tera");
+
+/// `report.html`, from `templates/temporal.html.tera`.
+pub fn html(run: &TemporalRun) -> Result<String, OutputError> {
+    let chart = curve_chart(run);
+    let mut ctx = tera::Context::new();
+    ctx.insert("video", &display_path(&run.video));
+    ctx.insert("frames", &run.frames.len());
+    ctx.insert("with_line", &run.frames.iter().filter(|f| f.line.is_ok()).count());
+    ctx.insert("tracker", &display_path(&run.tracker));
+    ctx.insert("tracker_samples", &run.tracker_samples);
+    ctx.insert("lag_ms", &format!("{:.1}", run.tracker_lag_s * 1000.0));
+    ctx.insert("lag_s", &format!("{:.4}", run.tracker_lag_s));
+    ctx.insert("peak", &format!("{:.3}", run.peak_correlation));
+    ctx.insert("range_s", &crate::pipeline::time::temporal::MAX_LAG_S);
+    ctx.insert("curve_svg", &svg(&chart)?);
+    ctx.insert("curve_caption", &chart.caption);
+    Ok(tera::Tera::one_off(TEMPLATE, &ctx, true)?)
 }
 
 /// Writes `summary.json`, `lines.csv` and `report.html` into `out` (whole, or nothing).
@@ -103,7 +112,7 @@ pub fn write(run: &TemporalRun, out: &Path) -> Result<(), OutputError> {
     let files = [
         ("summary.json".to_string(), text.into_bytes()),
         ("lines.csv".to_string(), lines_csv(run).into_bytes()),
-        ("report.html".to_string(), html(run).into_bytes()),
+        ("report.html".to_string(), html(run)?.into_bytes()),
     ];
     Ok(write_all_atomic(out, &files)?)
 }
