@@ -297,15 +297,7 @@ pub fn run(inputs: &ReconstructInputs) -> Result<Reconstruction, ReconstructErro
         )));
     }
     let (grid, paste_settings) = grid_and_paste(&settings, &sequence, &poses)?;
-    let frames_bytes = sequence.held_bytes() + deferred.as_ref().map_or(0, |d| d.held_bytes());
-    let sample_bytes = if sequence.is_float() { 4 } else { 1 };
-    let hole_filling = !settings.hole_filling.is_empty();
-    if let Some(why) = budget_fault(grid.voxels(), sample_bytes, hole_filling, frames_bytes as u64) {
-        return Err(ReconstructError::Input {
-            path: settings.path.clone(),
-            message: format!("line {}: {why}", settings.line),
-        });
-    }
+    check_budget(&settings, &sequence, deferred.as_ref(), &grid)?;
     lap("poses and grid", &mut timings);
     // PLUS's volume depends on its NumberOfThreads; probecal's does not, so it
     // uses every core unless told otherwise.
@@ -411,6 +403,26 @@ fn wire_figures(
             &wires,
         ),
     })
+}
+
+/// The volume's work within the one budget beside the frames held, refused at
+/// the device set's line before anything is allocated for it.
+fn check_budget(
+    settings: &VolumeSettings,
+    sequence: &Sequence,
+    deferred: Option<&crate::io::plus::sequence::Deferred>,
+    grid: &Grid,
+) -> Result<(), ReconstructError> {
+    let frames_bytes = sequence.held_bytes() + deferred.map_or(0, |d| d.held_bytes());
+    let sample_bytes = if sequence.is_float() { 4 } else { 1 };
+    let hole_filling = !settings.hole_filling.is_empty();
+    match budget_fault(grid.voxels(), sample_bytes, hole_filling, frames_bytes as u64) {
+        None => Ok(()),
+        Some(why) => Err(ReconstructError::Input {
+            path: settings.path.clone(),
+            message: format!("line {}: {why}", settings.line),
+        }),
+    }
 }
 
 /// What the stages report, apart from the voxels.
