@@ -538,3 +538,55 @@ fn frames_whose_transforms_are_not_ok_are_skipped_and_counted() {
         r.skipped[0].reason
     );
 }
+
+/// `reconstruct --calibration` takes a `run --out` folder at any level: the one
+/// tracked run below it is used; several are named and refused; none is said.
+#[test]
+#[ignore = "needs ../shared/data (full tier: scripts/test.sh)"]
+fn a_calibration_folder_is_found_at_any_level_of_a_runs_output() {
+    let dir = common::scratch("reconstruct_plus", "calibration_levels");
+    let summary = common::root().join("reports/plus_fcal2_nwire/fcal2_3nwires/summary.json");
+    let runs = dir.join("runs");
+    std::fs::create_dir_all(runs.join("fcal/sweep")).unwrap();
+    std::fs::copy(&summary, runs.join("fcal/sweep/summary.json")).unwrap();
+    std::fs::create_dir_all(dir.join("empty")).unwrap();
+    let reconstruct = |calibration: &std::path::Path, out: &str| {
+        common::probecal()
+            .arg("reconstruct")
+            .arg(common::shared_data(
+                "plus-fcal2.0-3nwires",
+                "fCal_Test_Validation_3NWires_fCal2.0.igs.mha",
+            ))
+            .arg("--config")
+            .arg(common::root().join("experiments/plus/fcal2_volume.xml"))
+            .arg("--calibration")
+            .arg(calibration)
+            .arg("--out")
+            .arg(dir.join(out))
+            .output()
+            .unwrap()
+    };
+    let o = reconstruct(&runs, "top");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let s: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("top/summary.json")).unwrap()).unwrap();
+    let source = s["image_to_probe_source"].as_str().unwrap();
+    assert!(source.ends_with("runs/fcal/sweep/summary.json"), "{source}");
+    std::fs::create_dir_all(runs.join("fcal/other")).unwrap();
+    std::fs::copy(&summary, runs.join("fcal/other/summary.json")).unwrap();
+    let o = reconstruct(&runs, "two");
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("holds 2 tracked runs"), "{stderr}");
+    assert!(
+        stderr.contains("fcal/other") && stderr.contains("fcal/sweep"),
+        "{stderr}"
+    );
+    let o = reconstruct(&dir.join("empty"), "none");
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{stderr}");
+    assert!(
+        stderr.contains("holds no probecal run with an ImageToProbe"),
+        "{stderr}"
+    );
+}

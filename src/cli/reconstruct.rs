@@ -20,7 +20,8 @@ pub struct ReconstructArgs {
     /// (written whole on success; an existing folder must be a reconstruction's).
     #[arg(long)]
     pub out: PathBuf,
-    /// A probecal run folder of a PLUS recording, or a PLUS calibration result
+    /// A probecal run folder of a PLUS recording (a run's --out folder at any
+    /// level: the one tracked run below it), or a PLUS calibration result
     /// (.xml): its ImageToProbe replaces the device set's.
     #[arg(long)]
     pub calibration: Option<PathBuf>,
@@ -69,7 +70,12 @@ pub fn command(args: &ReconstructArgs) -> Result<(), Failure> {
     let inputs = ReconstructInputs {
         sequence: args.sequence.clone(),
         config: args.config.clone(),
-        calibration: args.calibration.clone(),
+        calibration: args
+            .calibration
+            .as_deref()
+            .map(crate::pipeline::reconstruct::run_folder)
+            .transpose()
+            .map_err(Failure::bad_input)?,
         threads: args.threads.map(usize::from),
         wires: args.wires.clone(),
         image_to_probe: None,

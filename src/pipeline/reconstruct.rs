@@ -120,6 +120,62 @@ fn tracker_lag(inputs: &ReconstructInputs) -> Result<(f64, String), ReconstructE
     }
 }
 
+/// The folder of the one tracked run a `--calibration` folder names: the
+/// folder itself when it holds a run's `summary.json` with an `ImageToProbe`,
+/// or the one such folder below it (a `run --out` folder holds its runs two
+/// levels down, `<experiment>/<dataset>`). Several are refused with their
+/// names; none, with what was looked for.
+pub fn run_folder(given: &Path) -> Result<PathBuf, ReconstructError> {
+    let tracked = |dir: &Path| {
+        crate::io::fs::read_text_capped(&dir.join("summary.json"), crate::core::limits::MAX_TEXT_FILE_BYTES)
+            .ok()
+            .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok())
+            .is_some_and(|j| j.pointer("/image_to_probe/matrix").is_some())
+    };
+    if given.is_file() || given.join("summary.json").is_file() {
+        return Ok(given.to_path_buf());
+    }
+    let mut found = Vec::new();
+    let mut level = vec![given.to_path_buf()];
+    // Three levels down at most, folders in name order (hidden ones, such as a
+    // failed run's, left out).
+    for _ in 0..3 {
+        let mut next = Vec::new();
+        for dir in &level {
+            let Ok(entries) = std::fs::read_dir(dir) else { continue };
+            let mut children: Vec<PathBuf> = entries
+                .filter_map(Result::ok)
+                .map(|e| e.path())
+                .filter(|p| p.is_dir() && !p.file_name().is_some_and(|n| n.to_string_lossy().starts_with('.')))
+                .collect();
+            children.sort();
+            for child in children {
+                if tracked(&child) {
+                    found.push(child);
+                } else {
+                    next.push(child);
+                }
+            }
+        }
+        level = next;
+    }
+    let fail = |message: String| ReconstructError::Input {
+        path: given.to_path_buf(),
+        message,
+    };
+    match found.as_slice() {
+        [one] => Ok(one.clone()),
+        [] => Err(fail(
+            "holds no probecal run with an ImageToProbe (a tracked run's summary.json, here or up to three levels below); give a run's folder or a PLUS calibration result (.xml)".into(),
+        )),
+        many => Err(fail(format!(
+            "holds {} tracked runs: {}; give the one whose calibration places the sweep",
+            many.len(),
+            many.iter().map(|p| crate::io::fs::display_path(p)).collect::<Vec<_>>().join(", ")
+        ))),
+    }
+}
+
 /// A run folder's `summary.json`, parsed.
 fn summary_json(path: &Path, folder: &Path) -> Result<serde_json::Value, ReconstructError> {
     let fail = |message: String| ReconstructError::Input {
