@@ -407,3 +407,28 @@ fn pages_are_written_by_templates_not_rust_strings() {
     std::fs::write(&planted, "fn f() -> String { format!(\"<tr><td>{}</td></tr>\", 1) }\n").unwrap();
     assert_eq!(html_in_rust(&[planted]).len(), 1);
 }
+
+/// Errors carried as bare strings, tests aside: at most this many, lowered as
+/// they get types (the clap value parsers' `Result<_, String>` is clap's own).
+const MAX_STRING_ERRORS: usize = 24;
+
+#[test]
+fn string_errors_do_not_grow() {
+    let mut files = Vec::new();
+    rust_files(&common::root().join("src"), &mut files);
+    let mut found = Vec::new();
+    for f in &files {
+        let text = without_tests(&std::fs::read_to_string(f).unwrap());
+        for line in text.lines().filter(|l| !l.trim_start().starts_with("//")) {
+            let at = line.find("Result<");
+            if at.is_some_and(|a| line[a..].contains(", String>")) {
+                found.push(format!("{}: {}", f.display(), line.trim()));
+            }
+        }
+    }
+    assert!(
+        found.len() <= MAX_STRING_ERRORS,
+        "{} `Result<_, String>` (at most {MAX_STRING_ERRORS}; give the new ones an error type): {found:#?}",
+        found.len()
+    );
+}

@@ -25,10 +25,11 @@ use super::igtl_pairing::{Pairing, PendingImage};
 use super::live::{finish, live_offset_s, Arrived, LagQueue, LiveFrame, State};
 use super::live_volume::{volume_message, LiveVolume, VolumeRequest};
 use super::sequence_frames::{pattern_geometry, segment_frame};
-use super::tracked::{self, segmentation_inputs, Role, TrackedInputs, TrackedRun};
+use super::tracked::{self, segmentation_inputs, Role, TrackedError, TrackedInputs, TrackedRun};
 use crate::io::igtl::connection::{Connection, Event};
 use crate::io::igtl::message::{self, Body, Header};
 use crate::io::igtl::reader::Reader;
+use crate::io::igtl::IgtlError;
 use crate::io::plus::sequence::{Sequence, MAX_FRAME_PIXELS};
 use crate::manifest::tracked::LiveStream;
 
@@ -48,6 +49,20 @@ pub struct StreamSettings {
     pub volume: Option<VolumeRequest>,
 }
 
+/// Why a session could not start.
+#[derive(Debug, thiserror::Error)]
+pub enum SessionError {
+    /// No connection to the server.
+    #[error(transparent)]
+    Stream(#[from] IgtlError),
+    /// The tracker's lag to apply while frames arrive could not be had.
+    #[error(transparent)]
+    Lag(#[from] TrackedError),
+    /// The live volume's settings.
+    #[error("{0}")]
+    Volume(String),
+}
+
 /// Why the acquisition ended.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Ending {
@@ -61,7 +76,7 @@ pub enum Ending {
     Cut(String),
     /// The stream could not be read on (a header that cannot be framed, a body
     /// above the limit, a socket error): the frames before it are kept.
-    Broken(String),
+    Broken(IgtlError),
     /// The received frames reached [`MAX_RECEIVED_PIXELS`].
     FrameLimit,
 }
@@ -228,9 +243,9 @@ pub fn run(
     staging: &Path,
     stop: &AtomicBool,
     show: &mut dyn FnMut(&LiveFrame),
-) -> Result<StreamRun, String> {
+) -> Result<StreamRun, SessionError> {
     let stream = &settings.stream;
-    let offset_s = live_offset_s(inputs).map_err(|e| e.to_string())?;
+    let offset_s = live_offset_s(inputs)?;
     let mut connection = Reader::start(Connection::open(&settings.address, Duration::from_secs(5))?)?;
     let names = [inputs.probe_transform.clone(), inputs.reference_transform.clone()];
     let mut session = Session {
@@ -246,7 +261,12 @@ pub fn run(
         pairing: Pairing::new(&names, stream.max_transform_gap_s),
         counts: StreamCounts::default(),
         times: Vec::new(),
-        volume: settings.volume.as_ref().map(LiveVolume::open).transpose()?,
+        volume: settings
+            .volume
+            .as_ref()
+            .map(LiveVolume::open)
+            .transpose()
+            .map_err(SessionError::Volume)?,
         volume_cursor: 0,
         volumes_sent: 0,
         volume_device: settings.volume.as_ref().map(|v| v.device.clone()).unwrap_or_default(),
@@ -293,7 +313,7 @@ pub fn run(
     session.counts.bytes = connection.bytes_received();
     let final_run = batch(&session, inputs, min_frames);
     let sent = match (&final_run, ending.connected()) {
-        (Ok(run), true) => send_back(&mut connection, &stream.send_device, run),
+        (Ok(run), true) => send_back(&mut connection, &stream.send_device, run).map_err(|e| e.to_string()),
         (Ok(_), false) => Err(format!("not sent: {}", ending.describe(stream))),
         (Err(_), _) => Err("not sent: no calibration".into()),
     };
@@ -391,7 +411,7 @@ impl Session<'_> {
             .unwrap_or(0.0);
         match connection.send(&volume_message(&self.volume_device, now, &snapshot)) {
             Ok(()) => self.volumes_sent += 1,
-            Err(e) => self.volume_error = Some(e),
+            Err(e) => self.volume_error = Some(e.to_string()),
         }
     }
 
@@ -481,7 +501,7 @@ fn batch(session: &Session<'_>, inputs: &TrackedInputs, min_frames: usize) -> Re
 }
 
 /// Sends the calibration as a TRANSFORM message.
-fn send_back(connection: &mut Reader, device: &str, run: &TrackedRun) -> Result<Matrix4<f64>, String> {
+fn send_back(connection: &mut Reader, device: &str, run: &TrackedRun) -> Result<Matrix4<f64>, IgtlError> {
     let m = run.fit.image_to_probe.matrix();
     let now = std::time::SystemTime::now()
         .duration_since(std::time::UNIX_EPOCH)

@@ -60,8 +60,7 @@ pub struct RunContext {
     pub gates: Vec<Gate>,
     pub rejected: Vec<Rejected>,
     /// The BRE figure's SVG, or why it was not drawn.
-    #[serde(serialize_with = "svg_or_reason")]
-    pub bre_figure: Result<String, String>,
+    pub bre_figure: Figure,
     /// Other estimators on the same frames: name, description, frames, truth errors.
     pub methods: Vec<StatRow>,
     /// Why two estimators give the same calibration, when they do.
@@ -156,7 +155,10 @@ pub fn context(run: &DatasetRun, manifest: &crate::manifest::Manifest) -> RunCon
                 })
             })
             .collect(),
-        bre_figure: super::figures::bre_figure(run).map_err(|e| format!("figure not drawn: {e}")),
+        bre_figure: match super::figures::bre_figure(run) {
+            Ok(svg) => Figure::Svg(svg),
+            Err(e) => Figure::NotDrawn(format!("figure not drawn: {e}")),
+        },
         methods: method_rows(run),
         methods_agree: agreements(&run.methods),
         start_offset: run
@@ -209,15 +211,13 @@ fn agreements(methods: &[crate::pipeline::record::MethodResult]) -> Vec<String> 
     out
 }
 
-/// A figure's SVG as `{svg}`, or why it was not drawn as `{not_drawn}`.
-fn svg_or_reason<S: serde::Serializer>(figure: &Result<String, String>, s: S) -> Result<S::Ok, S::Error> {
-    use serde::ser::SerializeMap;
-    let mut map = s.serialize_map(Some(1))?;
-    match figure {
-        Ok(svg) => map.serialize_entry("svg", svg)?,
-        Err(why) => map.serialize_entry("not_drawn", why)?,
-    }
-    map.end()
+/// A page's figure: its SVG (`{"svg": …}` in the context), or why it was not
+/// drawn (`{"not_drawn": …}`).
+#[derive(Debug, Serialize, PartialEq)]
+#[serde(rename_all = "snake_case")]
+pub enum Figure {
+    Svg(String),
+    NotDrawn(String),
 }
 
 #[cfg(test)]

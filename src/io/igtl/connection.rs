@@ -9,6 +9,7 @@ use std::net::{TcpStream, ToSocketAddrs};
 use std::time::{Duration, Instant};
 
 use super::message::{decode, Body, Header, HEADER_BYTES};
+use super::IgtlError;
 
 /// Largest body accepted: 256 MiB (a 4096x4096 float image is 64 MiB).
 pub const MAX_BODY_BYTES: u64 = 1 << 28;
@@ -40,26 +41,37 @@ pub struct Connection {
 
 impl Connection {
     /// Connects to `address` (`HOST:PORT`) within `timeout`.
-    pub fn open(address: &str, timeout: Duration) -> Result<Connection, String> {
+    pub fn open(address: &str, timeout: Duration) -> Result<Connection, IgtlError> {
         let addresses: Vec<_> = address
             .to_socket_addrs()
-            .map_err(|e| format!("{address}: not a HOST:PORT address ({e})"))?
+            .map_err(|e| IgtlError::Connect {
+                address: address.to_string(),
+                reason: format!("not a HOST:PORT address ({e})"),
+            })?
             .collect();
-        let mut last = format!("{address}: resolves to no address");
+        let mut last = IgtlError::Connect {
+            address: address.to_string(),
+            reason: "resolves to no address".into(),
+        };
         for a in addresses {
             match TcpStream::connect_timeout(&a, timeout) {
                 Ok(stream) => {
                     let _ = stream.set_nodelay(true);
                     stream
                         .set_write_timeout(Some(Duration::from_secs(10)))
-                        .map_err(|e| format!("{address}: {e}"))?;
+                        .map_err(IgtlError::socket("setting the socket's timeout"))?;
                     return Ok(Connection {
                         stream,
                         buffer: Vec::new(),
                         bytes_received: 0,
                     });
                 }
-                Err(e) => last = format!("{address}: cannot connect ({e})"),
+                Err(e) => {
+                    last = IgtlError::Connect {
+                        address: address.to_string(),
+                        reason: format!("cannot connect ({e})"),
+                    }
+                }
             }
         }
         Err(last)
@@ -70,7 +82,7 @@ impl Connection {
     /// error).
     /// The wait is bounded as a whole: a server that trickles a message a byte
     /// at a time gives [`Event::Quiet`] after `wait`, not a read that never ends.
-    pub fn next(&mut self, wait: Duration) -> Result<Event, String> {
+    pub fn next(&mut self, wait: Duration) -> Result<Event, IgtlError> {
         let deadline = Instant::now() + wait;
         loop {
             if let Some(event) = self.take()? {
@@ -82,7 +94,7 @@ impl Connection {
             }
             self.stream
                 .set_read_timeout(Some(left.max(Duration::from_millis(1))))
-                .map_err(|e| e.to_string())?;
+                .map_err(IgtlError::socket("receiving"))?;
             let mut chunk = [0u8; 1 << 16];
             match self.stream.read(&mut chunk) {
                 Ok(0) => {
@@ -107,7 +119,7 @@ impl Connection {
                         Event::Cut(self.cut_reason())
                     })
                 }
-                Err(e) => return Err(format!("receiving: {e}")),
+                Err(e) => return Err(IgtlError::socket("receiving")(e)),
             }
         }
     }
@@ -129,25 +141,25 @@ impl Connection {
         }
     }
 
-    fn header(&self) -> Result<Option<Header>, String> {
+    fn header(&self) -> Result<Option<Header>, IgtlError> {
         if self.buffer.len() < HEADER_BYTES {
             return Ok(None);
         }
         let bytes: &[u8; HEADER_BYTES] = self.buffer[..HEADER_BYTES]
             .try_into()
-            .map_err(|_| "header".to_string())?;
+            .map_err(|_| IgtlError::Unframed("a header of the wrong length".into()))?;
         let header = Header::parse(bytes)?;
         if header.body_bytes > MAX_BODY_BYTES {
-            return Err(format!(
+            return Err(IgtlError::Unframed(format!(
                 "a {} message from `{}` announces a body of {} bytes, above the limit of {MAX_BODY_BYTES}: the stream cannot be framed past it",
                 header.kind, header.device, header.body_bytes
-            ));
+            )));
         }
         Ok(Some(header))
     }
 
     /// A whole message from the buffer, if one is there.
-    fn take(&mut self) -> Result<Option<Event>, String> {
+    fn take(&mut self) -> Result<Option<Event>, IgtlError> {
         let Some(header) = self.header()? else {
             return Ok(None);
         };
@@ -170,10 +182,10 @@ impl Connection {
         } else {
             match decode(&header, body) {
                 Ok(b) => Event::Message(header, b),
-                Err(reason) => Event::Skipped {
+                Err(e) => Event::Skipped {
                     kind: header.kind.clone(),
                     device: header.device.clone(),
-                    reason,
+                    reason: e.to_string(),
                 },
             }
         };
@@ -182,19 +194,19 @@ impl Connection {
     }
 
     /// A second handle on the socket, for sending while another thread reads.
-    pub fn sender(&self) -> Result<Sender, String> {
+    pub fn sender(&self) -> Result<Sender, IgtlError> {
         self.stream
             .try_clone()
             .map(|stream| Sender { stream })
-            .map_err(|e| format!("socket: {e}"))
+            .map_err(IgtlError::socket("cloning the socket"))
     }
 
     /// Sends a whole encoded message.
-    pub fn send(&mut self, bytes: &[u8]) -> Result<(), String> {
+    pub fn send(&mut self, bytes: &[u8]) -> Result<(), IgtlError> {
         self.stream
             .write_all(bytes)
             .and_then(|_| self.stream.flush())
-            .map_err(|e| format!("sending: {e}"))
+            .map_err(IgtlError::socket("sending"))
     }
 }
 
@@ -210,10 +222,10 @@ impl Sender {
     }
 
     /// Sends a whole encoded message.
-    pub fn send(&mut self, bytes: &[u8]) -> Result<(), String> {
+    pub fn send(&mut self, bytes: &[u8]) -> Result<(), IgtlError> {
         self.stream
             .write_all(bytes)
             .and_then(|_| self.stream.flush())
-            .map_err(|e| format!("sending: {e}"))
+            .map_err(IgtlError::socket("sending"))
     }
 }

@@ -7,6 +7,7 @@
 //! out as in version 1. The header's timestamp is seconds since 1970 in its
 //! high 32 bits and a fraction of a second in units of 2^-32 in its low 32 bits.
 
+use super::IgtlError;
 use nalgebra::Matrix4;
 
 /// Bytes of a message header.
@@ -89,12 +90,12 @@ pub fn timestamp_to_bits(seconds: f64) -> u64 {
 
 impl Header {
     /// Decodes a header; the version must be one probecal reads.
-    pub fn parse(bytes: &[u8; HEADER_BYTES]) -> Result<Header, String> {
+    pub fn parse(bytes: &[u8; HEADER_BYTES]) -> Result<Header, IgtlError> {
         let version = u16_at(bytes, 0);
         if !(1..=3).contains(&version) {
-            return Err(format!(
+            return Err(IgtlError::Unframed(format!(
                 "header version {version}: OpenIGTLink headers are versions 1, 2 and 3"
-            ));
+            )));
         }
         Ok(Header {
             version,
@@ -148,36 +149,39 @@ fn scalar_bytes(kind: u8) -> Option<usize> {
 }
 
 /// The content of a body (without a version-2 extended header and metadata).
-fn content<'a>(header: &Header, body: &'a [u8]) -> Result<&'a [u8], String> {
+fn content<'a>(header: &Header, body: &'a [u8]) -> Result<&'a [u8], IgtlError> {
     if header.version < 2 {
         return Ok(body);
     }
     if body.len() < EXTENDED_HEADER_BYTES {
-        return Err(format!(
+        return Err(IgtlError::Malformed(format!(
             "version-{} body of {} bytes is shorter than its {EXTENDED_HEADER_BYTES}-byte extended header",
             header.version,
             body.len()
-        ));
+        )));
     }
     let extended = u16_at(body, 0) as usize;
     let metadata_header = u16_at(body, 2) as usize;
     let metadata = u32_at(body, 4) as usize;
     let tail = metadata_header.saturating_add(metadata);
     if extended < EXTENDED_HEADER_BYTES || extended.saturating_add(tail) > body.len() {
-        return Err(format!(
+        return Err(IgtlError::Malformed(format!(
             "extended header of {extended} bytes and metadata of {tail} bytes do not fit a body of {} bytes",
             body.len()
-        ));
+        )));
     }
     Ok(&body[extended..body.len() - tail])
 }
 
 /// Decodes a body whose CRC has been checked.
-pub fn decode(header: &Header, body: &[u8]) -> Result<Body, String> {
+pub fn decode(header: &Header, body: &[u8]) -> Result<Body, IgtlError> {
     let c = content(header, body)?;
     let need = |n: usize, what: &str| {
         if c.len() < n {
-            Err(format!("{what} needs {n} bytes, the body has {}", c.len()))
+            Err(IgtlError::Malformed(format!(
+                "{what} needs {n} bytes, the body has {}",
+                c.len()
+            )))
         } else {
             Ok(())
         }
@@ -187,7 +191,7 @@ pub fn decode(header: &Header, body: &[u8]) -> Result<Body, String> {
             need(TRANSFORM_BYTES, "a TRANSFORM")?;
             let v: [f64; 12] = std::array::from_fn(|i| f32_at(c, 4 * i) as f64);
             if v.iter().any(|x| !x.is_finite()) {
-                return Err("a TRANSFORM with a non-finite entry".into());
+                return Err(IgtlError::Malformed("a TRANSFORM with a non-finite entry".into()));
             }
             // Columns first: the three axes, then the translation.
             Ok(Body::Transform(Matrix4::new(
@@ -213,12 +217,12 @@ pub fn decode(header: &Header, body: &[u8]) -> Result<Body, String> {
     }
 }
 
-fn decode_image(c: &[u8]) -> Result<Body, String> {
+fn decode_image(c: &[u8]) -> Result<Body, IgtlError> {
     if c.len() < IMAGE_HEADER_BYTES {
-        return Err(format!(
+        return Err(IgtlError::Malformed(format!(
             "an IMAGE needs its {IMAGE_HEADER_BYTES}-byte image header, the body has {}",
             c.len()
-        ));
+        )));
     }
     let components = c[2];
     let scalar_type = c[3];
@@ -230,26 +234,27 @@ fn decode_image(c: &[u8]) -> Result<Body, String> {
     let spacing_mm = [axis(0), axis(1), axis(2)];
     let offset = [u16_at(c, 60) as usize, u16_at(c, 62) as usize, u16_at(c, 64) as usize];
     let sub = [u16_at(c, 66) as usize, u16_at(c, 68) as usize, u16_at(c, 70) as usize];
-    let sample = scalar_bytes(scalar_type).ok_or_else(|| format!("an IMAGE of unknown scalar type {scalar_type}"))?;
+    let sample = scalar_bytes(scalar_type)
+        .ok_or_else(|| IgtlError::Malformed(format!("an IMAGE of unknown scalar type {scalar_type}")))?;
     if components == 0 {
-        return Err("an IMAGE of 0 components".into());
+        return Err(IgtlError::Malformed("an IMAGE of 0 components".into()));
     }
     if offset != [0, 0, 0] || sub != size {
-        return Err(format!(
+        return Err(IgtlError::Malformed(format!(
             "an IMAGE sub-volume ({}x{}x{} at {},{},{}) of a {}x{}x{} image: only whole images are read",
             sub[0], sub[1], sub[2], offset[0], offset[1], offset[2], size[0], size[1], size[2]
-        ));
+        )));
     }
     let expected = size[0] * size[1] * size[2] * components as usize * sample;
     let pixels = &c[IMAGE_HEADER_BYTES..];
     if pixels.len() != expected {
-        return Err(format!(
+        return Err(IgtlError::Malformed(format!(
             "an IMAGE of {}x{}x{} with {components} component(s) of {sample} byte(s) needs {expected} bytes of pixels, the body holds {}",
             size[0],
             size[1],
             size[2],
             pixels.len()
-        ));
+        )));
     }
     Ok(Body::Image(Image {
         size,
@@ -381,13 +386,15 @@ mod tests {
             body_bytes: 0,
             crc: 0,
         };
-        let e = decode(&header("TRANSFORM", 1), &[0; 40]).unwrap_err();
+        let e = decode(&header("TRANSFORM", 1), &[0; 40]).unwrap_err().to_string();
         assert!(e.contains("48 bytes") && e.contains("40"), "{e}");
         let mut image = image_body([4, 3, 1], [1.0; 3], [0.0; 3], &[7; 12]);
         image.pop();
-        let e = decode(&header("IMAGE", 1), &image).unwrap_err();
+        let e = decode(&header("IMAGE", 1), &image).unwrap_err().to_string();
         assert!(e.contains("needs 12 bytes") && e.contains("holds 11"), "{e}");
-        let e = decode(&header("IMAGE", 2), &[0, 200, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0]).unwrap_err();
+        let e = decode(&header("IMAGE", 2), &[0, 200, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0])
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("extended header of 200 bytes"), "{e}");
         assert_eq!(
             decode(&header("POSITION", 1), &[]).unwrap(),

@@ -10,12 +10,13 @@ use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use super::connection::{Connection, Event, Sender};
+use super::IgtlError;
 
 /// Bytes of messages read ahead of the processing: 512 MiB (a thousand 820x616 frames).
 pub const MAX_QUEUED_BYTES: u64 = 1 << 29;
 
 pub struct Reader {
-    events: Receiver<(Result<Event, String>, Instant)>,
+    events: Receiver<(Result<Event, IgtlError>, Instant)>,
     queued: Arc<AtomicU64>,
     received: Arc<AtomicU64>,
     stop: Arc<AtomicBool>,
@@ -32,7 +33,7 @@ fn size(event: &Event) -> u64 {
 
 impl Reader {
     /// Starts reading `connection` on a thread.
-    pub fn start(mut connection: Connection) -> Result<Reader, String> {
+    pub fn start(mut connection: Connection) -> Result<Reader, IgtlError> {
         let sender = connection.sender()?;
         let (tx, events) = channel();
         let queued = Arc::new(AtomicU64::new(0));
@@ -73,7 +74,7 @@ impl Reader {
 
     /// The next event and when it was read off the socket, or [`Event::Quiet`]
     /// after `wait`.
-    pub fn next(&self, wait: Duration) -> Result<(Event, Instant), String> {
+    pub fn next(&self, wait: Duration) -> Result<(Event, Instant), IgtlError> {
         match self.events.recv_timeout(wait) {
             Ok((event, read)) => {
                 let bytes = event.as_ref().map(size).unwrap_or(0);
@@ -91,7 +92,7 @@ impl Reader {
     }
 
     /// Sends a whole encoded message on the same connection.
-    pub fn send(&mut self, bytes: &[u8]) -> Result<(), String> {
+    pub fn send(&mut self, bytes: &[u8]) -> Result<(), IgtlError> {
         self.sender.send(bytes)
     }
 }
