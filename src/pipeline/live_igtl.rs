@@ -233,6 +233,43 @@ impl Session<'_> {
     }
 }
 
+impl<'a> Session<'a> {
+    /// A session on nothing received yet.
+    fn open(
+        inputs: &'a TrackedInputs,
+        settings: &StreamSettings,
+        staging: &Path,
+        offset_s: f64,
+    ) -> Result<Session<'a>, SessionError> {
+        let stream = &settings.stream;
+        let names = [inputs.probe_transform.clone(), inputs.reference_transform.clone()];
+        Ok(Session {
+            inputs,
+            sequence: None,
+            first: None,
+            state: State::new(inputs),
+            offset_s,
+            pending: LagQueue::default(),
+            frames: Vec::new(),
+            start: Instant::now(),
+            received_path: staging.join("received.igs.mha"),
+            pairing: Pairing::new(&names, stream.max_transform_gap_s),
+            counts: StreamCounts::default(),
+            times: Vec::new(),
+            volume: settings
+                .volume
+                .as_ref()
+                .map(LiveVolume::open)
+                .transpose()
+                .map_err(SessionError::Volume)?,
+            volume_cursor: 0,
+            volumes_sent: 0,
+            volume_device: settings.volume.as_ref().map(|v| v.device.clone()).unwrap_or_default(),
+            volume_error: None,
+        })
+    }
+}
+
 /// Connects, calibrates while frames arrive, then runs the batch calibration on
 /// the received frames (written to `staging/received.igs.mha`) and sends it back.
 /// `stop` set ends the acquisition (an interrupt).
@@ -247,31 +284,7 @@ pub fn run(
     let stream = &settings.stream;
     let offset_s = live_offset_s(inputs)?;
     let mut connection = Reader::start(Connection::open(&settings.address, Duration::from_secs(5))?)?;
-    let names = [inputs.probe_transform.clone(), inputs.reference_transform.clone()];
-    let mut session = Session {
-        inputs,
-        sequence: None,
-        first: None,
-        state: State::new(inputs),
-        offset_s,
-        pending: LagQueue::default(),
-        frames: Vec::new(),
-        start: Instant::now(),
-        received_path: staging.join("received.igs.mha"),
-        pairing: Pairing::new(&names, stream.max_transform_gap_s),
-        counts: StreamCounts::default(),
-        times: Vec::new(),
-        volume: settings
-            .volume
-            .as_ref()
-            .map(LiveVolume::open)
-            .transpose()
-            .map_err(SessionError::Volume)?,
-        volume_cursor: 0,
-        volumes_sent: 0,
-        volume_device: settings.volume.as_ref().map(|v| v.device.clone()).unwrap_or_default(),
-        volume_error: None,
-    };
+    let mut session = Session::open(inputs, settings, staging, offset_s)?;
     let mut last_message = Instant::now();
     let ending = loop {
         if stop.load(Ordering::Relaxed) {
