@@ -335,26 +335,26 @@ fn files_stay_small_and_main_only_dispatches() {
     );
 }
 
-/// The whole-file reads of `src` outside `io/fs.rs` (tests aside): each reader
-/// goes through `io::fs::read_capped`, which reads no more than its limit
-/// whatever the file's metadata says (`/dev/zero` claims 0 bytes and never ends).
-fn unbounded_reads(files: &[std::path::PathBuf]) -> Vec<String> {
-    let banned = [
-        "std::fs::read(",
-        "std::fs::read_to_string(",
-        "fs::read(",
-        "fs::read_to_string(",
-    ];
+/// The lines of `files` (tests and comments aside) holding any of `needles`.
+fn lines_holding(files: &[std::path::PathBuf], needles: &[&str]) -> Vec<String> {
     let mut found = Vec::new();
-    for f in files.iter().filter(|f| !f.ends_with("io/fs.rs")) {
+    for f in files {
         let text = without_tests(&std::fs::read_to_string(f).unwrap());
-        for line in text.lines() {
-            if banned.iter().any(|b| line.contains(b)) && !line.trim_start().starts_with("//") {
+        for line in text.lines().filter(|l| !l.trim_start().starts_with("//")) {
+            if needles.iter().any(|n| line.contains(n)) {
                 found.push(format!("{}: {}", f.display(), line.trim()));
             }
         }
     }
     found
+}
+
+/// The whole-file reads of `src` outside `io/fs.rs` (tests aside): each reader
+/// goes through `io::fs::read_capped`, which reads no more than its limit
+/// whatever the file's metadata says (`/dev/zero` claims 0 bytes and never ends).
+fn unbounded_reads(files: &[std::path::PathBuf]) -> Vec<String> {
+    let outside: Vec<std::path::PathBuf> = files.iter().filter(|f| !f.ends_with("io/fs.rs")).cloned().collect();
+    lines_holding(&outside, &["fs::read(", "fs::read_to_string("])
 }
 
 #[test]
@@ -377,19 +377,13 @@ fn every_whole_file_read_has_a_limit() {
 /// Lines of `src` (tests aside) that write HTML tags: pages are rendered from
 /// templates, where one escaping applies.
 fn html_in_rust(files: &[std::path::PathBuf]) -> Vec<String> {
-    let tags = [
-        "<html", "<p>", "<table", "<tr>", "<td", "<th", "<h1", "<h2", "<div", "<img", "<figure", "<svg", "<ul", "<li>",
-    ];
-    let mut found = Vec::new();
-    for f in files {
-        let text = without_tests(&std::fs::read_to_string(f).unwrap());
-        for line in text.lines().filter(|l| !l.trim_start().starts_with("//")) {
-            if tags.iter().any(|t| line.contains(t)) {
-                found.push(format!("{}: {}", f.display(), line.trim()));
-            }
-        }
-    }
-    found
+    lines_holding(
+        files,
+        &[
+            "<html", "<p>", "<table", "<tr>", "<td", "<th", "<h1", "<h2", "<div", "<img", "<figure", "<svg", "<ul",
+            "<li>",
+        ],
+    )
 }
 
 #[test]

@@ -108,17 +108,8 @@ fn a_spacing_that_would_overflow_the_grid_is_refused_at_its_line() {
 /// `probecal <args>` under a 768 MiB address space and a 30 s limit: exit code,
 /// stderr, and how long it took.
 fn bounded(args: &[String]) -> (Option<i32>, String, std::time::Duration) {
-    let quoted: Vec<String> = args.iter().map(|a| format!("'{a}'")).collect();
-    let command = format!(
-        "ulimit -v 786432; exec timeout 30 '{}' {}",
-        env!("CARGO_BIN_EXE_probecal"),
-        quoted.join(" ")
-    );
     let start = std::time::Instant::now();
-    let o = std::process::Command::new("sh")
-        .args(["-c", &command])
-        .output()
-        .unwrap();
+    let o = common::probecal_bounded(args, 786_432, 30);
     (
         o.status.code(),
         String::from_utf8_lossy(&o.stderr).into_owned(),

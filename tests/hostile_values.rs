@@ -366,17 +366,15 @@ fn a_volume_beyond_the_work_budget_is_refused_before_it_is_allocated() {
     assert_ne!(fine, text);
     let config = dir.join("fine.xml");
     std::fs::write(&config, fine).unwrap();
-    let command = format!(
-        "ulimit -v 8388608; exec timeout 60 '{}' reconstruct '{}' --config '{}' --out '{}'",
-        env!("CARGO_BIN_EXE_probecal"),
-        sweep.display(),
-        config.display(),
-        dir.join("out").display()
-    );
-    let o = std::process::Command::new("sh")
-        .args(["-c", &command])
-        .output()
-        .unwrap();
+    let args: Vec<String> = ["reconstruct".into(), sweep.display().to_string(), "--config".into()]
+        .into_iter()
+        .chain([
+            config.display().to_string(),
+            "--out".into(),
+            dir.join("out").display().to_string(),
+        ])
+        .collect();
+    let o = common::probecal_bounded(&args, 8_388_608, 60);
     let stderr = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(2), "{stderr}");
     assert!(stderr.contains("fine.xml"), "{stderr}");

@@ -48,3 +48,15 @@ pub fn fcal_manifest_text() -> String {
 pub fn shared_data(set: &str, name: &str) -> PathBuf {
     root().join("../shared/data").join(set).join(name)
 }
+
+/// `probecal <args>` under an address-space limit of `kib` KiB and a time
+/// limit of `seconds` (started through sh for its `ulimit`): the output.
+pub fn probecal_bounded(args: &[String], kib: u64, seconds: u64) -> std::process::Output {
+    let quoted: Vec<String> = args.iter().map(|a| format!("'{a}'")).collect();
+    let command = format!(
+        "ulimit -v {kib}; exec timeout {seconds} '{}' {}",
+        env!("CARGO_BIN_EXE_probecal"),
+        quoted.join(" ")
+    );
+    Command::new("sh").args(["-c", &command]).output().unwrap()
+}
