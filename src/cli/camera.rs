@@ -86,11 +86,12 @@ fn output_file(out: &Path, images: &[PathBuf], force: bool) -> Result<(), Failur
 const MAX_SQUARE_MM: f64 = 10_000.0;
 
 /// `--square-mm`: a positive size up to [`MAX_SQUARE_MM`].
-pub(crate) fn parse_square_mm(text: &str) -> Result<f64, String> {
+pub(crate) fn parse_square_mm(text: &str) -> Result<f64, super::failure::ValueError> {
     match text.parse::<f64>() {
         Ok(v) if v.is_finite() && v > 0.0 && v <= MAX_SQUARE_MM => Ok(v),
-        _ => Err(format!(
-            "--square-mm must be a positive number up to {MAX_SQUARE_MM}, got `{text}`"
-        )),
+        _ => Err(super::failure::ValueError::SquareMm {
+            text: text.to_string(),
+            most: MAX_SQUARE_MM,
+        }),
     }
 }

@@ -53,3 +53,18 @@ pub fn exit_code(result: Result<(), Failure>) -> u8 {
         }
     }
 }
+
+/// A command-line value its option does not take (clap shows it with the option).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ValueError {
+    #[error("--square-mm must be a positive number up to {most}, got `{text}`")]
+    SquareMm { text: String, most: f64 },
+    #[error("`{0}` is not a number of seconds above 0 and at most 86400 (a day)")]
+    IdleSeconds(String),
+    #[error("`{0}` is not HOST:PORT with a port from 1 to 65535 (e.g. localhost:18944)")]
+    Address(String),
+    #[error("not a number of seconds: {0}")]
+    NotSeconds(String),
+    #[error("{0} s: a tracker lag is between -1 and 1 s")]
+    Lag(f64),
+}

@@ -6,7 +6,7 @@
 use std::io::{IsTerminal, Write as _};
 use std::path::{Path, PathBuf};
 
-use super::failure::Failure;
+use super::failure::{Failure, ValueError};
 use crate::manifest::{Experiment, Manifest};
 use crate::pipeline::live::Replay;
 use crate::pipeline::live_folder::Watch;
@@ -130,18 +130,16 @@ pub(super) fn estimated_lag_note(offset: &crate::manifest::tracked::TimeOffset) 
 }
 
 /// `--idle-s`: a positive number of seconds, at most a day.
-pub(crate) fn parse_idle_s(text: &str) -> Result<f64, String> {
+pub(crate) fn parse_idle_s(text: &str) -> Result<f64, ValueError> {
     match text.parse::<f64>() {
         Ok(v) if v.is_finite() && v > 0.0 && v <= 86_400.0 => Ok(v),
-        _ => Err(format!(
-            "`{text}` is not a number of seconds above 0 and at most 86400 (a day)"
-        )),
+        _ => Err(ValueError::IdleSeconds(text.to_string())),
     }
 }
 
 /// `--igtl`: HOST:PORT, the port 1 to 65535.
-pub(crate) fn parse_address(text: &str) -> Result<String, String> {
-    let fail = || format!("`{text}` is not HOST:PORT with a port from 1 to 65535 (e.g. localhost:18944)");
+pub(crate) fn parse_address(text: &str) -> Result<String, ValueError> {
+    let fail = || ValueError::Address(text.to_string());
     let (host, port) = text.rsplit_once(':').ok_or_else(fail)?;
     match port.parse::<u16>() {
         Ok(p) if p > 0 && !host.is_empty() => Ok(text.to_string()),

@@ -215,10 +215,10 @@ enum Command {
         #[arg(required = true)]
         images: Vec<PathBuf>,
         /// A chessboard's inner corners, COLSxROWS (e.g. 9x6).
-        #[arg(long, value_parser = crate::detect::camera_calibration::parse_board)]
+        #[arg(long, value_parser = crate::detect::board_grid::parse_board)]
         board: Option<[u32; 2]>,
         /// A ChArUco board's squares, XxY (e.g. 5x7); with --marker-mm and --dictionary.
-        #[arg(long, value_parser = crate::detect::camera_calibration::parse_squares, requires_all = ["marker_mm", "dictionary"])]
+        #[arg(long, value_parser = crate::detect::board_grid::parse_squares, requires_all = ["marker_mm", "dictionary"])]
         charuco: Option<[u32; 2]>,
         /// Square size in millimetres (or any unit: the translations come out in it).
         #[arg(long, value_parser = camera::parse_square_mm)]

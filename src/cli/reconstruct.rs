@@ -122,11 +122,13 @@ pub fn command(args: &ReconstructArgs) -> Result<(), Failure> {
 }
 
 /// A lag in seconds within ±1 s.
-fn tracker_lag(text: &str) -> Result<f64, String> {
-    let s: f64 = text.parse().map_err(|e| format!("not a number of seconds: {e}"))?;
+fn tracker_lag(text: &str) -> Result<f64, super::failure::ValueError> {
+    let s: f64 = text
+        .parse()
+        .map_err(|e: std::num::ParseFloatError| super::failure::ValueError::NotSeconds(e.to_string()))?;
     if s.is_finite() && s.abs() <= 1.0 {
         Ok(s)
     } else {
-        Err(format!("{s} s: a tracker lag is between -1 and 1 s"))
+        Err(super::failure::ValueError::Lag(s))
     }
 }

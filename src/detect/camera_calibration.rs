@@ -478,38 +478,6 @@ pub fn calibrate_folder(
     calibrate_from(&[folder.to_path_buf()], inner_corners, square_mm, Search::Thorough)
 }
 
-/// A board's inner corners from `COLSxROWS` (the command line's `--board`).
-pub fn parse_board(text: &str) -> Result<[u32; 2], String> {
-    parse_grid(text, crate::core::limits::MAX_BOARD_CORNERS, "inner corners")
-}
-
-/// A ChArUco board's squares `XxY` from the command line (2 to 101 a side,
-/// as in manifests).
-pub fn parse_squares(text: &str) -> Result<[u32; 2], String> {
-    parse_grid(text, crate::core::limits::MAX_BOARD_CORNERS + 1, "squares")
-}
-
-/// `COLSxROWS`, each 2 to `most` (a board larger than any printed one would
-/// ask for gigabytes of corners).
-fn parse_grid(text: &str, most: u32, what: &str) -> Result<[u32; 2], String> {
-    let (c, r) = text
-        .split_once(['x', 'X'])
-        .ok_or_else(|| format!("`{text}` is not COLSxROWS (e.g. 9x6)"))?;
-    let parse = |s: &str| {
-        s.trim()
-            .parse::<u32>()
-            .map_err(|_| format!("`{text}` is not COLSxROWS (e.g. 9x6)"))
-    };
-    let (c, r) = (parse(c)?, parse(r)?);
-    if c < 2 || r < 2 {
-        return Err(format!("a board needs at least 2x2 {what}, got {c}x{r}"));
-    }
-    if c > most || r > most {
-        return Err(format!("a board has at most {most} {what} a side, got {c}x{r}"));
-    }
-    Ok([c, r])
-}
-
 /// What the added views changed.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct Refinement {

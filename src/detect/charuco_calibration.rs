@@ -35,39 +35,61 @@ pub struct CharucoSpec {
     pub dictionary: String,
 }
 
+/// Why a ChArUco board as given cannot be made.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum BoardSpecError {
+    #[error("--charuco {x}x{y}: a ChArUco board has 2 to {most} squares a side")]
+    Squares { x: u32, y: u32, most: u32 },
+    #[error("--square-mm {0}: a positive size")]
+    SquareMm(f64),
+    #[error("--marker-mm {marker_mm}: a positive size smaller than the square ({square_mm} mm)")]
+    MarkerMm { marker_mm: f64, square_mm: f64 },
+    #[error("a {x}x{y} ChArUco board holds {markers} markers, the dictionary `{dictionary}` has {available}")]
+    TooFewMarkers {
+        x: u32,
+        y: u32,
+        markers: i32,
+        dictionary: String,
+        available: i32,
+    },
+    /// The dictionary could not be opened, or OpenCV refused the board.
+    #[error("{0}")]
+    Dictionary(String),
+}
+
 impl CharucoSpec {
     /// Checks the sizes and opens the dictionary; the OpenCV board.
-    pub fn board(&self) -> Result<(Ptr<Dictionary>, Ptr<CharucoBoard>), String> {
+    pub fn board(&self) -> Result<(Ptr<Dictionary>, Ptr<CharucoBoard>), BoardSpecError> {
         let [x, y] = self.squares;
         let limit = crate::core::limits::MAX_BOARD_CORNERS;
         if x < 2 || y < 2 || x > limit + 1 || y > limit + 1 {
-            return Err(format!(
-                "--charuco {x}x{y}: a ChArUco board has 2 to {} squares a side",
-                limit + 1
-            ));
+            return Err(BoardSpecError::Squares { x, y, most: limit + 1 });
         }
         if !(self.square_mm.is_finite() && self.square_mm > 0.0) {
-            return Err(format!("--square-mm {}: a positive size", self.square_mm));
+            return Err(BoardSpecError::SquareMm(self.square_mm));
         }
         if !(self.marker_mm.is_finite() && self.marker_mm > 0.0 && self.marker_mm < self.square_mm) {
-            return Err(format!(
-                "--marker-mm {}: a positive size smaller than the square ({} mm)",
-                self.marker_mm, self.square_mm
-            ));
+            return Err(BoardSpecError::MarkerMm {
+                marker_mm: self.marker_mm,
+                square_mm: self.square_mm,
+            });
         }
         let dictionary = if self.dictionary.starts_with("DICT_") {
             predefined(&self.dictionary)
         } else {
             dictionary_file(Path::new(&self.dictionary))
         }
-        .map_err(|e| e.to_string())?;
+        .map_err(|e| BoardSpecError::Dictionary(e.to_string()))?;
         let markers = (x * y / 2) as i32;
         let available = dictionary.bytes_list().rows();
         if markers > available {
-            return Err(format!(
-                "a {x}x{y} ChArUco board holds {markers} markers, the dictionary `{}` has {available}",
-                self.dictionary
-            ));
+            return Err(BoardSpecError::TooFewMarkers {
+                x,
+                y,
+                markers,
+                dictionary: self.dictionary.clone(),
+                available,
+            });
         }
         let board = aruco::CharucoBoard::create(
             x as i32,
@@ -76,7 +98,7 @@ impl CharucoSpec {
             self.marker_mm as f32,
             &dictionary,
         )
-        .map_err(|e| e.to_string())?;
+        .map_err(|e| BoardSpecError::Dictionary(e.to_string()))?;
         Ok((dictionary, board))
     }
 }
@@ -148,7 +170,7 @@ fn same_view(view: &CharucoView, seen: &[SeenView]) -> Option<(usize, f64)> {
 
 /// Calibrates from the given image files.
 pub fn calibrate(images: &[PathBuf], spec: &CharucoSpec) -> Result<CameraCalibration, CalibrationError> {
-    let (dictionary, board) = spec.board().map_err(CalibrationError::Board)?;
+    let (dictionary, board) = spec.board().map_err(|e| CalibrationError::Board(e.to_string()))?;
     let mut views = Vec::new();
     let mut corners = Vector::<Vector<Point2f>>::new();
     let mut ids = Vector::<Vector<i32>>::new();

@@ -75,7 +75,7 @@ pub fn board_corners(
         marker_mm: layout.marker_mm,
         dictionary: layout.dictionary.clone(),
     };
-    let (_, board) = spec.board().map_err(ArucoError::Board)?;
+    let (_, board) = spec.board().map_err(|e| ArucoError::Board(e.to_string()))?;
     let (k, d) = (camera.camera_matrix_mat()?, camera.distortion_mat()?);
     let mut charuco = Vector::<Point2f>::new();
     let mut charuco_ids = Vector::<i32>::new();

@@ -5,6 +5,7 @@ pub mod arc;
 pub mod aruco;
 pub mod aruco_pose;
 pub mod board;
+pub mod board_grid;
 pub mod board_pose;
 pub mod camera_calibration;
 pub mod camera_refinement;

@@ -3,6 +3,7 @@
 //! pixels OpenCV's `imread` gives; OpenCV's own codec module is not linked (its
 //! 140 libraries took longer to load than most commands take to run).
 
+use super::codec::CodecError;
 use crate::core::limits::{MAX_IMAGE_FILE_BYTES, MAX_IMAGE_PIXELS, MAX_IMAGE_SIDE_PX};
 use std::path::{Path, PathBuf};
 
@@ -87,18 +88,19 @@ impl Gray8 {
     }
 }
 
-fn write_encoded(path: &Path, bytes: Result<Vec<u8>, String>) -> Result<(), ImageError> {
+fn write_encoded(path: &Path, bytes: Result<Vec<u8>, CodecError>) -> Result<(), ImageError> {
     let write = |message: String| ImageError::Write {
         path: path.to_path_buf(),
         message,
     };
-    crate::io::fs::write_atomic(path, &bytes.map_err(write)?).map_err(|e| write(e.message))
+    let bytes = bytes.map_err(|e| write(e.to_string()))?;
+    crate::io::fs::write_atomic(path, &bytes).map_err(|e| write(e.message))
 }
 
 /// PNG bytes of a colour image given as BGR bytes, row-major.
 pub fn encode_png_bgr(bgr: &[u8], width: usize, height: usize) -> Result<Vec<u8>, ImageError> {
     let rgb: Vec<u8> = bgr.chunks_exact(3).flat_map(|p| [p[2], p[1], p[0]]).collect();
-    super::png_codec::encode(&rgb, width, height, 3).map_err(ImageError::OpenCv)
+    super::png_codec::encode(&rgb, width, height, 3).map_err(|e| ImageError::OpenCv(e.to_string()))
 }
 
 /// JPEG bytes of an 8-bit grey or BGR matrix, with the settings of OpenCV's
@@ -113,7 +115,7 @@ pub fn mat_to_jpeg(mat: &Mat, quality: u8) -> Result<Vec<u8>, opencv::Error> {
             )));
         }
         let (width, height, channels) = (m.cols() as usize, m.rows() as usize, m.channels() as usize);
-        super::jpeg::encode(m.data_bytes()?, width, height, channels, quality).map_err(fail)
+        super::jpeg::encode(m.data_bytes()?, width, height, channels, quality).map_err(|e| fail(e.to_string()))
     })
 }
 
@@ -231,16 +233,13 @@ pub fn read_gray(path: &Path) -> Result<Mat, ImageError> {
         });
     }
     let decoded = if bytes.starts_with(b"\x89PNG") {
-        super::png_codec::decode_gray(&bytes).map_err(|e| match e {
-            super::png_codec::PngError::Corrupt(why) => format!("a damaged or truncated PNG ({why})"),
-            super::png_codec::PngError::Unsupported(why) => why,
-        })
+        super::png_codec::decode_gray(&bytes)
     } else {
         super::jpeg::decode_gray(&bytes)
     };
-    let (w, h, grey) = decoded.map_err(|reason| ImageError::Unreadable {
+    let (w, h, grey) = decoded.map_err(|e| ImageError::Unreadable {
         path: path.to_path_buf(),
-        reason,
+        reason: e.to_string(),
     })?;
     if (w as u64, h as u64) != (width, height) {
         return Err(ImageError::Undecodable {

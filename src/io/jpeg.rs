@@ -9,7 +9,10 @@
 //! not read, rather than read with its missing part filled in.
 //! Writing: the accurate DCT, 4:2:0 chroma for colour, baseline.
 
+use super::codec::CodecError;
 use std::ffi::{c_char, c_int, c_uchar, c_ulong, c_void, CStr};
+
+const FORMAT: &str = "JPEG";
 
 #[link(name = "turbojpeg")]
 extern "C" {
@@ -65,7 +68,7 @@ const TJFLAG_ACCURATEDCT: c_int = 4096;
 struct Handle(*mut c_void);
 
 impl Handle {
-    fn new(compress: bool) -> Result<Handle, String> {
+    fn new(compress: bool) -> Result<Handle, CodecError> {
         // SAFETY: the init functions take no arguments and return null on failure.
         let raw = unsafe {
             if compress {
@@ -75,9 +78,19 @@ impl Handle {
             }
         };
         if raw.is_null() {
-            return Err("libjpeg-turbo could not start".into());
+            return Err(CodecError::Start {
+                library: "libjpeg-turbo",
+            });
         }
         Ok(Handle(raw))
+    }
+
+    /// The last failure of this instance, read as a damaged file.
+    fn damaged(&self) -> CodecError {
+        CodecError::Damaged {
+            format: FORMAT,
+            detail: self.message(),
+        }
     }
 
     /// The library's message for the last failure of this instance.
@@ -102,7 +115,7 @@ impl Drop for Handle {
 }
 
 /// Width and height from a JPEG's header, without decoding it.
-fn header(handle: &Handle, bytes: &[u8]) -> Result<(usize, usize, c_int), String> {
+fn header(handle: &Handle, bytes: &[u8]) -> Result<(usize, usize, c_int), CodecError> {
     let (mut width, mut height, mut subsampling, mut colorspace) = (0, 0, 0, 0);
     // SAFETY: the buffer and its length are a live slice; the outputs are locals.
     let status = unsafe {
@@ -117,17 +130,19 @@ fn header(handle: &Handle, bytes: &[u8]) -> Result<(usize, usize, c_int), String
         )
     };
     if status != 0 || width <= 0 || height <= 0 {
-        return Err(format!("a damaged or truncated JPEG ({})", handle.message()));
+        return Err(handle.damaged());
     }
     Ok((width as usize, height as usize, colorspace))
 }
 
 /// Decodes a JPEG to (width, height, grey bytes, row-major).
-pub fn decode_gray(bytes: &[u8]) -> Result<(usize, usize, Vec<u8>), String> {
+pub fn decode_gray(bytes: &[u8]) -> Result<(usize, usize, Vec<u8>), CodecError> {
     let handle = Handle::new(false)?;
     let (width, height, colorspace) = header(&handle, bytes)?;
     if colorspace == TJCS_CMYK || colorspace == TJCS_YCCK {
-        return Err("a CMYK JPEG is not read: save it as RGB or grey".into());
+        return Err(CodecError::Unsupported(
+            "a CMYK JPEG is not read: save it as RGB or grey".into(),
+        ));
     }
     let mut grey = vec![0u8; width * height];
     // SAFETY: `grey` holds width x height bytes, the pitch is the width, and the
@@ -146,26 +161,34 @@ pub fn decode_gray(bytes: &[u8]) -> Result<(usize, usize, Vec<u8>), String> {
         )
     };
     if status != 0 {
-        return Err(format!("a damaged or truncated JPEG ({})", handle.message()));
+        return Err(handle.damaged());
     }
     Ok((width, height, grey))
 }
 
 /// JPEG bytes of 8-bit grey (`channels` 1) or BGR (`channels` 3) pixels,
 /// row-major, at `quality` (1–100).
-pub fn encode(pixels: &[u8], width: usize, height: usize, channels: usize, quality: u8) -> Result<Vec<u8>, String> {
+pub fn encode(pixels: &[u8], width: usize, height: usize, channels: usize, quality: u8) -> Result<Vec<u8>, CodecError> {
     let (format, subsampling) = match channels {
         1 => (TJPF_GRAY, TJSAMP_GRAY),
         3 => (TJPF_BGR, TJSAMP_420),
-        _ => return Err(format!("{channels} channels: a JPEG is written from 1 or 3")),
+        _ => {
+            return Err(CodecError::Channels {
+                format: FORMAT,
+                channels,
+            })
+        }
+    };
+    let shape = CodecError::Shape {
+        bytes: pixels.len(),
+        width,
+        height,
+        channels,
     };
     if pixels.len() != width * height * channels || width == 0 || height == 0 {
-        return Err(format!(
-            "{} bytes for {width}x{height} px of {channels} channels",
-            pixels.len()
-        ));
+        return Err(shape);
     }
-    let side = |n: usize| c_int::try_from(n).map_err(|e| e.to_string());
+    let side = |n: usize| c_int::try_from(n).map_err(|_| shape.clone());
     let handle = Handle::new(true)?;
     let mut out: *mut c_uchar = std::ptr::null_mut();
     let mut size: c_ulong = 0;
@@ -187,7 +210,10 @@ pub fn encode(pixels: &[u8], width: usize, height: usize, channels: usize, quali
         )
     };
     let result = if status != 0 || out.is_null() {
-        Err(handle.message())
+        Err(CodecError::Encode {
+            format: FORMAT,
+            detail: handle.message(),
+        })
     } else {
         // SAFETY: the library wrote `size` bytes at `out`.
         Ok(unsafe { std::slice::from_raw_parts(out, size as usize) }.to_vec())

@@ -1,6 +1,7 @@
 //! Files in and out: atomic writes, images, dataset frame lists, ground truth,
 //! tracker poses, camera models and PLUS's formats.
 pub mod camera_model;
+pub mod codec;
 pub mod csv;
 pub mod dataset;
 pub mod fs;

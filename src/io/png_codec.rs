@@ -18,18 +18,16 @@ const RED: u32 = 9797;
 const GREEN: u32 = 19234;
 const BLUE: u32 = 32768 - RED - GREEN;
 
-/// Why a PNG could not be read.
-#[derive(Debug, Clone, PartialEq)]
-pub enum PngError {
-    /// The decoder refused it (truncated, a bad checksum, not a PNG).
-    Corrupt(String),
-    /// A kind of PNG probecal does not convert as OpenCV would.
-    Unsupported(String),
-}
+use super::codec::CodecError;
+
+const FORMAT: &str = "PNG";
 
 /// Decodes a PNG to (width, height, grey bytes, row-major).
-pub fn decode_gray(bytes: &[u8]) -> Result<(usize, usize, Vec<u8>), PngError> {
-    let corrupt = |e: png::DecodingError| PngError::Corrupt(e.to_string());
+pub fn decode_gray(bytes: &[u8]) -> Result<(usize, usize, Vec<u8>), CodecError> {
+    let corrupt = |e: png::DecodingError| CodecError::Damaged {
+        format: FORMAT,
+        detail: e.to_string(),
+    };
     let mut decoder = png::Decoder::new(Cursor::new(bytes));
     decoder.set_transformations(png::Transformations::EXPAND);
     let mut reader = decoder.read_info().map_err(corrupt)?;
@@ -48,13 +46,13 @@ pub fn decode_gray(bytes: &[u8]) -> Result<(usize, usize, Vec<u8>), PngError> {
     let (out_type, depth) = reader.output_color_type();
     let size = reader
         .output_buffer_size()
-        .ok_or_else(|| PngError::Unsupported(format!("{width}x{height} px does not fit in memory")))?;
+        .ok_or_else(|| CodecError::Unsupported(format!("{width}x{height} px does not fit in memory")))?;
     let mut buffer = vec![0u8; size];
     let frame = reader.next_frame(&mut buffer).map_err(corrupt)?;
     let channels = out_type.samples();
     let wide = depth == png::BitDepth::Sixteen;
     if wide && colour && gamma.is_some() {
-        return Err(PngError::Unsupported(
+        return Err(CodecError::Unsupported(
             "a 16-bit colour PNG with a gamma chunk (gAMA or sRGB) is not converted to grey as OpenCV does; \
              save it as 8-bit or grey"
                 .into(),
@@ -140,30 +138,41 @@ fn table(gamma: u32) -> [u8; 256] {
 }
 
 /// PNG bytes of 8-bit grey (`channels` 1) or RGB (`channels` 3) pixels, row-major.
-pub fn encode(pixels: &[u8], width: usize, height: usize, channels: usize) -> Result<Vec<u8>, String> {
+pub fn encode(pixels: &[u8], width: usize, height: usize, channels: usize) -> Result<Vec<u8>, CodecError> {
     let colour = match channels {
         1 => png::ColorType::Grayscale,
         3 => png::ColorType::Rgb,
-        _ => return Err(format!("{channels} channels: a PNG is written from 1 or 3")),
+        _ => {
+            return Err(CodecError::Channels {
+                format: FORMAT,
+                channels,
+            })
+        }
+    };
+    let shape = CodecError::Shape {
+        bytes: pixels.len(),
+        width,
+        height,
+        channels,
     };
     if pixels.len() != width * height * channels {
-        return Err(format!(
-            "{} bytes for {width}x{height} px of {channels} channels",
-            pixels.len()
-        ));
+        return Err(shape);
     }
-    let (w, h) = (
-        u32::try_from(width).map_err(|e| e.to_string())?,
-        u32::try_from(height).map_err(|e| e.to_string())?,
-    );
+    let (Ok(w), Ok(h)) = (u32::try_from(width), u32::try_from(height)) else {
+        return Err(shape);
+    };
+    let encode_error = |e: png::EncodingError| CodecError::Encode {
+        format: FORMAT,
+        detail: e.to_string(),
+    };
     let mut out = Vec::new();
     let mut encoder = png::Encoder::new(&mut out, w, h);
     encoder.set_color(colour);
     encoder.set_depth(png::BitDepth::Eight);
     encoder.set_compression(png::Compression::Fast);
-    let mut writer = encoder.write_header().map_err(|e| e.to_string())?;
-    writer.write_image_data(pixels).map_err(|e| e.to_string())?;
-    writer.finish().map_err(|e| e.to_string())?;
+    let mut writer = encoder.write_header().map_err(encode_error)?;
+    writer.write_image_data(pixels).map_err(encode_error)?;
+    writer.finish().map_err(encode_error)?;
     Ok(out)
 }
 
@@ -192,7 +201,7 @@ mod tests {
         let bytes = encode(&[7u8; 64 * 64], 64, 64, 1).unwrap();
         assert!(matches!(
             decode_gray(&bytes[..bytes.len() / 2]),
-            Err(PngError::Corrupt(_))
+            Err(CodecError::Damaged { .. })
         ));
     }
 

@@ -145,7 +145,8 @@ impl Pairing {
             let list = &self.samples[name];
             let (matrix, status) = match pose_at(list, t, self.max_gap_s) {
                 Ok(m) => (m, "OK"),
-                Err(reason) => {
+                Err(miss) => {
+                    let reason = miss.to_string();
                     fields.insert(format!("{name}TransformReason"), reason.clone());
                     missing.push(format!("{name}: {reason}"));
                     (Matrix4::identity(), "INVALID")
@@ -159,8 +160,17 @@ impl Pairing {
     }
 }
 
+/// Why an image has no pose of one transform.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+enum PairMiss {
+    #[error("no sample {side} the image's time {t_s:.6} s")]
+    Outside { side: &'static str, t_s: f64 },
+    #[error("the samples around the image's time are {gap_s:.3} s apart (limit {limit_s} s)")]
+    Gap { gap_s: f64, limit_s: f64 },
+}
+
 /// The pose at `t` from time-ordered samples.
-fn pose_at(list: &[(f64, Matrix4<f64>)], t: f64, max_gap_s: f64) -> Result<Matrix4<f64>, String> {
+fn pose_at(list: &[(f64, Matrix4<f64>)], t: f64, max_gap_s: f64) -> Result<Matrix4<f64>, PairMiss> {
     let after = list.partition_point(|&(s, _)| s < t - SAME_TIME_S);
     if let Some(&(s, m)) = list.get(after) {
         if (s - t).abs() <= SAME_TIME_S {
@@ -169,13 +179,13 @@ fn pose_at(list: &[(f64, Matrix4<f64>)], t: f64, max_gap_s: f64) -> Result<Matri
     }
     let (Some(&(t0, a)), Some(&(t1, b))) = (after.checked_sub(1).and_then(|i| list.get(i)), list.get(after)) else {
         let side = if after == 0 { "before" } else { "after" };
-        return Err(format!("no sample {side} the image's time {t:.6} s"));
+        return Err(PairMiss::Outside { side, t_s: t });
     };
     if t1 - t0 > max_gap_s {
-        return Err(format!(
-            "the samples around the image's time are {:.3} s apart (limit {max_gap_s} s)",
-            t1 - t0
-        ));
+        return Err(PairMiss::Gap {
+            gap_s: t1 - t0,
+            limit_s: max_gap_s,
+        });
     }
     Ok(crate::core::trajectory::interpolate_matrix(
         &a,

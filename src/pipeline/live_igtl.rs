@@ -59,8 +59,8 @@ pub enum SessionError {
     #[error(transparent)]
     Lag(#[from] TrackedError),
     /// The live volume's settings.
-    #[error("{0}")]
-    Volume(String),
+    #[error(transparent)]
+    Volume(#[from] super::live_volume::VolumeSetupError),
 }
 
 /// Why the acquisition ended.
@@ -144,10 +144,56 @@ pub struct StreamRun {
     pub live_time_offset_s: f64,
     pub last_live: Option<crate::estimate::image_to_probe::Fit>,
     /// The batch pipeline on the received frames.
-    pub final_run: Result<TrackedRun, String>,
+    pub final_run: Result<TrackedRun, BatchFault>,
     /// The calibration sent back, or why it was not.
-    pub sent: Result<Matrix4<f64>, String>,
+    pub sent: Result<Matrix4<f64>, NotSent>,
     pub volume: Option<VolumeOutcome>,
+}
+
+/// Why the received frames gave no calibration.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum BatchFault {
+    #[error("no image was received")]
+    NoImage,
+    /// The received frames could not be written (the message names the file).
+    #[error("{0}")]
+    Write(String),
+    /// The batch pipeline refused them (its message).
+    #[error("{0}")]
+    Run(String),
+}
+
+/// Why the calibration was not sent back.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum NotSent {
+    #[error("not sent: {0}")]
+    Ended(String),
+    #[error("not sent: no calibration")]
+    NoCalibration,
+    #[error("{0}")]
+    Socket(String),
+}
+
+/// Why an IMAGE message's image is not a frame of the stream.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+enum ImageRefusal {
+    #[error("a {w}x{h}x{d} image of scalar type {scalar_type} with {components} component(s): B-scans are 2D 8-bit grey (scalar type 3, 1 component)")]
+    Kind {
+        w: usize,
+        h: usize,
+        d: usize,
+        scalar_type: u8,
+        components: u8,
+    },
+    #[error("a {w}x{h} image: a frame holds 1 to {MAX_FRAME_PIXELS} pixels (as in a sequence file)")]
+    Size { w: usize, h: usize },
+    #[error("a {w}x{h} image in a stream of {stream_w}x{stream_h} images")]
+    Mismatch {
+        w: usize,
+        h: usize,
+        stream_w: usize,
+        stream_h: usize,
+    },
 }
 
 /// What the live reconstruction did.
@@ -201,7 +247,7 @@ impl Session<'_> {
     ) {
         let Some(sequence) = self.sequence.as_mut() else { return };
         if let Err(reason) = sequence.push_frame(fields, pixels) {
-            self.counts.skip("IMAGE", "received frame", &reason);
+            self.counts.skip("IMAGE", "received frame", &reason.to_string());
             return;
         }
         let sequence: &Sequence = sequence;
@@ -326,9 +372,11 @@ pub fn run(
     session.counts.bytes = connection.bytes_received();
     let final_run = batch(&session, inputs, min_frames);
     let sent = match (&final_run, ending.connected()) {
-        (Ok(run), true) => send_back(&mut connection, &stream.send_device, run).map_err(|e| e.to_string()),
-        (Ok(_), false) => Err(format!("not sent: {}", ending.describe(stream))),
-        (Err(_), _) => Err("not sent: no calibration".into()),
+        (Ok(run), true) => {
+            send_back(&mut connection, &stream.send_device, run).map_err(|e| NotSent::Socket(e.to_string()))
+        }
+        (Ok(_), false) => Err(NotSent::Ended(ending.describe(stream))),
+        (Err(_), _) => Err(NotSent::NoCalibration),
     };
     Ok(StreamRun {
         frames: session.frames,
@@ -363,8 +411,8 @@ impl Session<'_> {
                 self.counts.images_received += 1;
                 let admitted = match self.admit(header, image, read) {
                     Ok(admitted) => admitted,
-                    Err(reason) => {
-                        self.counts.skip("IMAGE", &header.device, &reason);
+                    Err(refusal) => {
+                        self.counts.skip("IMAGE", &header.device, &refusal.to_string());
                         return None;
                     }
                 };
@@ -443,18 +491,24 @@ impl Session<'_> {
     /// stream's frame size is set by two images in a row of one size: a lone
     /// first image of another size (a stray, an oversized one) is skipped with
     /// its reason instead of fixing the size every later frame is held to.
-    fn admit(&mut self, header: &Header, image: message::Image, read: Instant) -> Result<Vec<PendingImage>, String> {
+    fn admit(
+        &mut self,
+        header: &Header,
+        image: message::Image,
+        read: Instant,
+    ) -> Result<Vec<PendingImage>, ImageRefusal> {
         let (w, h) = (image.size[0], image.size[1]);
         if image.scalar_type != 3 || image.components != 1 || image.size[2] != 1 {
-            return Err(format!(
-                "a {w}x{h}x{} image of scalar type {} with {} component(s): B-scans are 2D 8-bit grey (scalar type 3, 1 component)",
-                image.size[2], image.scalar_type, image.components
-            ));
+            return Err(ImageRefusal::Kind {
+                w,
+                h,
+                d: image.size[2],
+                scalar_type: image.scalar_type,
+                components: image.components,
+            });
         }
         if w == 0 || h == 0 || w.saturating_mul(h) > MAX_FRAME_PIXELS {
-            return Err(format!(
-                "a {w}x{h} image: a frame holds 1 to {MAX_FRAME_PIXELS} pixels (as in a sequence file)"
-            ));
+            return Err(ImageRefusal::Size { w, h });
         }
         let this = PendingImage {
             timestamp_s: header.timestamp_s,
@@ -463,10 +517,12 @@ impl Session<'_> {
         };
         if let Some(s) = &self.sequence {
             if (s.width, s.height) != (w, h) {
-                return Err(format!(
-                    "a {w}x{h} image in a stream of {}x{} images",
-                    s.width, s.height
-                ));
+                return Err(ImageRefusal::Mismatch {
+                    w,
+                    h,
+                    stream_w: s.width,
+                    stream_h: s.height,
+                });
             }
             return Ok(vec![this]);
         }
@@ -502,15 +558,13 @@ impl Session<'_> {
 }
 
 /// The received frames written out and calibrated in batch.
-fn batch(session: &Session<'_>, inputs: &TrackedInputs, min_frames: usize) -> Result<TrackedRun, String> {
-    let sequence = session
-        .sequence
-        .as_ref()
-        .ok_or_else(|| "no image was received".to_string())?;
-    crate::io::fs::write_atomic(&session.received_path, &sequence.to_file_bytes()).map_err(|e| e.to_string())?;
+fn batch(session: &Session<'_>, inputs: &TrackedInputs, min_frames: usize) -> Result<TrackedRun, BatchFault> {
+    let sequence = session.sequence.as_ref().ok_or(BatchFault::NoImage)?;
+    crate::io::fs::write_atomic(&session.received_path, &sequence.to_file_bytes())
+        .map_err(|e| BatchFault::Write(e.to_string()))?;
     let mut received = inputs.clone();
     received.calibration_sequence = session.received_path.clone();
-    tracked::run(&received, min_frames).map_err(|e| e.to_string())
+    tracked::run(&received, min_frames).map_err(|e| BatchFault::Run(e.to_string()))
 }
 
 /// Sends the calibration as a TRANSFORM message.

@@ -33,6 +33,22 @@ pub struct VolumeRequest {
 /// Largest voxel count of a live volume (it is sent whole, every N frames).
 pub const MAX_LIVE_VOXELS: usize = 1 << 27;
 
+/// Why a live volume cannot be set up (each names the device set and line).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum VolumeSetupError {
+    /// The device set's `<VolumeReconstruction>` could not be read.
+    #[error("{0}")]
+    Settings(String),
+    #[error("{at}: a live volume needs OutputOrigin and OutputExtent (its grid cannot be fitted to frames that have not arrived)")]
+    NoGrid { at: String },
+    #[error("{at}: {reason}")]
+    Grid { at: String, reason: String },
+    #[error("{at}: a live volume of {}x{}x{} voxels is sent whole every N frames: at most {MAX_LIVE_VOXELS} voxels and {} a side", .dims[0], .dims[1], .dims[2], u16::MAX)]
+    TooLarge { at: String, dims: [usize; 3] },
+    #[error("--volume-every 0: send the volume every N ≥ 1 inserted frames")]
+    EveryZero,
+}
+
 /// A volume being filled.
 pub struct LiveVolume {
     pub settings: VolumeSettings,
@@ -51,26 +67,26 @@ pub struct LiveVolume {
 
 impl LiveVolume {
     /// Reads the device set's reconstruction settings; its grid must be given.
-    pub fn open(request: &VolumeRequest) -> Result<LiveVolume, String> {
-        let settings = VolumeSettings::read(&request.config).map_err(|e| e.to_string())?;
+    pub fn open(request: &VolumeRequest) -> Result<LiveVolume, VolumeSetupError> {
+        let settings = VolumeSettings::read(&request.config).map_err(|e| VolumeSetupError::Settings(e.to_string()))?;
         let at = format!("{}: line {}", request.config.display(), settings.line);
         let (Some(origin), Some(extent)) = (settings.origin_mm, settings.extent) else {
-            return Err(format!(
-                "{at}: a live volume needs OutputOrigin and OutputExtent (its grid cannot be fitted to frames that have not arrived)"
-            ));
+            return Err(VolumeSetupError::NoGrid { at });
         };
-        let grid = Grid::from_extent(origin, settings.spacing_mm, extent).map_err(|e| format!("{at}: {e}"))?;
+        let grid = match Grid::from_extent(origin, settings.spacing_mm, extent) {
+            Ok(grid) => grid,
+            Err(e) => {
+                return Err(VolumeSetupError::Grid {
+                    at,
+                    reason: e.to_string(),
+                })
+            }
+        };
         if grid.voxels() > MAX_LIVE_VOXELS || grid.dims.iter().any(|&d| d > u16::MAX as usize) {
-            return Err(format!(
-                "{at}: a live volume of {}x{}x{} voxels is sent whole every N frames: at most {MAX_LIVE_VOXELS} voxels and {} a side",
-                grid.dims[0],
-                grid.dims[1],
-                grid.dims[2],
-                u16::MAX
-            ));
+            return Err(VolumeSetupError::TooLarge { at, dims: grid.dims });
         }
         if request.every == 0 {
-            return Err("--volume-every 0: send the volume every N ≥ 1 inserted frames".into());
+            return Err(VolumeSetupError::EveryZero);
         }
         Ok(LiveVolume {
             settings,

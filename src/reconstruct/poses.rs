@@ -29,6 +29,49 @@ pub struct SkippedFrame {
     pub reason: String,
 }
 
+/// Why a frame has no pose.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum PoseFault {
+    #[error("ImageStatus is {0}, not OK")]
+    ImageStatus(String),
+    #[error("no chain of usable transforms from {image_frame} to {reference_frame}{}", unusable_list(.unusable))]
+    NoChain {
+        image_frame: String,
+        reference_frame: String,
+        /// Why each transform on the way was unusable.
+        unusable: Vec<String>,
+    },
+    #[error("frame {index}: no timestamp to apply the tracker's lag at")]
+    NoTimestamp { index: usize },
+    #[error("no trajectory of `{0}`")]
+    NoTrajectory(String),
+    #[error("frame {index}: `{name}` is wanted at {at_s:.6} s, {side} of the recorded trajectory")]
+    Outside {
+        index: usize,
+        name: String,
+        at_s: f64,
+        side: &'static str,
+    },
+    #[error("frame {index}: the samples of `{name}` around {at_s:.6} s are {gap_s:.3} s apart (limit {limit_s} s)")]
+    Gap {
+        index: usize,
+        name: String,
+        at_s: f64,
+        gap_s: f64,
+        limit_s: f64,
+    },
+    #[error("{0}")]
+    Sample(String),
+}
+
+fn unusable_list(unusable: &[String]) -> String {
+    if unusable.is_empty() {
+        String::new()
+    } else {
+        format!(" ({})", unusable.join("; "))
+    }
+}
+
 /// A transform between two named frames: `to_T_from`.
 #[derive(Debug, Clone)]
 struct Edge {
@@ -100,7 +143,10 @@ pub fn frame_poses(
                 index,
                 reference_T_pixel,
             }),
-            Err(reason) => skipped.push(SkippedFrame { index, reason }),
+            Err(fault) => skipped.push(SkippedFrame {
+                index,
+                reason: fault.to_string(),
+            }),
         }
     }
     (kept, skipped)
@@ -114,10 +160,10 @@ fn frame_pose(
     reference_frame: &str,
     lagged: Option<&Lagged>,
     replaced_image: bool,
-) -> Result<Matrix4<f64>, String> {
+) -> Result<Matrix4<f64>, PoseFault> {
     if let Some(status) = sequence.frame_field(index, "ImageStatus") {
         if status != "OK" {
-            return Err(format!("ImageStatus is {status}, not OK"));
+            return Err(PoseFault::ImageStatus(status.to_string()));
         }
     }
     let mut edges = fixed.to_vec();
@@ -144,7 +190,7 @@ fn frame_pose(
                 .and_then(|_| sequence.matrix(index, transform))
                 .map_err(|e| e.to_string()),
             None => sequence.matrix(index, transform).map_err(|e| e.to_string()),
-            Some(lagged) => lagged.at(sequence, index, transform),
+            Some(lagged) => lagged.at(sequence, index, transform).map_err(|e| e.to_string()),
         };
         match matrix {
             Ok(matrix) => edges.push(Edge {
@@ -155,12 +201,10 @@ fn frame_pose(
             Err(fault) => unusable.push(fault),
         }
     }
-    path(&edges, image_frame, reference_frame).ok_or_else(|| {
-        let mut reason = format!("no chain of usable transforms from {image_frame} to {reference_frame}");
-        if !unusable.is_empty() {
-            reason += &format!(" ({})", unusable.join("; "));
-        }
-        reason
+    path(&edges, image_frame, reference_frame).ok_or_else(|| PoseFault::NoChain {
+        image_frame: image_frame.to_string(),
+        reference_frame: reference_frame.to_string(),
+        unusable,
     })
 }
 
@@ -196,23 +240,29 @@ impl Lagged {
     }
 
     /// Frame `index`'s `name` at its time plus the lag.
-    fn at(&self, sequence: &Sequence, index: usize, name: &str) -> Result<Matrix4<f64>, String> {
-        let time = sequence
-            .timestamp_s(index)
-            .ok_or_else(|| format!("frame {index}: no timestamp to apply the tracker's lag at"))?;
+    fn at(&self, sequence: &Sequence, index: usize, name: &str) -> Result<Matrix4<f64>, PoseFault> {
+        let time = sequence.timestamp_s(index).ok_or(PoseFault::NoTimestamp { index })?;
         let path = self
             .paths
             .get(name)
-            .ok_or_else(|| format!("no trajectory of `{name}`"))?;
-        let at = time + self.lag_s;
-        path.at(at).map(|p| p.to_homogeneous()).map_err(|miss| match miss {
-            Miss::Outside(side) => {
-                format!("frame {index}: `{name}` is wanted at {at:.6} s, {side} of the recorded trajectory")
-            }
-            Miss::Gap { gap_s, limit_s } => format!(
-                "frame {index}: the samples of `{name}` around {at:.6} s are {gap_s:.3} s apart (limit {limit_s} s)"
-            ),
-            Miss::Sample(fault) => fault,
+            .ok_or_else(|| PoseFault::NoTrajectory(name.to_string()))?;
+        let at_s = time + self.lag_s;
+        let name = name.to_string();
+        path.at(at_s).map(|p| p.to_homogeneous()).map_err(|miss| match miss {
+            Miss::Outside(side) => PoseFault::Outside {
+                index,
+                name,
+                at_s,
+                side,
+            },
+            Miss::Gap { gap_s, limit_s } => PoseFault::Gap {
+                index,
+                name,
+                at_s,
+                gap_s,
+                limit_s,
+            },
+            Miss::Sample(fault) => PoseFault::Sample(fault),
         })
     }
 }

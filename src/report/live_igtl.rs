@@ -121,7 +121,7 @@ pub fn summary(run: &StreamRun, settings: &StreamSettings) -> IgtlSummary {
         running_pre3d_mm: run.frames.last().and_then(|f| f.running_pre3d_mm),
         last_live_matrix: run.last_live.as_ref().map(|f| rows(f.image_to_probe.matrix())),
         image_to_probe_matrix: batch.map(|b| rows(b.fit.image_to_probe.matrix())),
-        calibration_error: run.final_run.as_ref().err().cloned(),
+        calibration_error: run.final_run.as_ref().err().map(|e| e.to_string()),
         live_time_offset_s: run.live_time_offset_s,
         time_offset_s: batch.map(|b| b.time_offset_s),
         final_validation_pre3d_mm: batch
@@ -129,7 +129,7 @@ pub fn summary(run: &StreamRun, settings: &StreamSettings) -> IgtlSummary {
             .map(|s| s.mean),
         sent_device: settings.stream.send_device.clone(),
         sent_matrix: run.sent.as_ref().ok().map(|m| rows(*m)),
-        sent_error: run.sent.as_ref().err().cloned(),
+        sent_error: run.sent.as_ref().err().map(|e| e.to_string()),
         live_volume: run.volume.clone(),
     }
 }

@@ -2,24 +2,25 @@
 //! escape filter, the figures' font, and tera's errors with their causes.
 
 pub use super::error::error_chain;
-use super::error::OutputError;
+use super::error::{OutputError, ReadError};
 
 /// Where the bitmap figures' font is read from.
 pub const FIGURE_FONT: &str = "/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf";
 
 /// Registers the figures' font once (plotters lays text out with it, SVG included).
 pub fn register_font() -> Result<(), OutputError> {
-    static FONT: std::sync::OnceLock<Result<(), String>> = std::sync::OnceLock::new();
+    static FONT: std::sync::OnceLock<Result<(), ReadError>> = std::sync::OnceLock::new();
+    let path = std::path::Path::new(FIGURE_FONT);
     FONT.get_or_init(|| {
-        let bytes = crate::io::fs::read_capped(std::path::Path::new(FIGURE_FONT), 64 << 20)
-            .map_err(|e| format!("{e} (install fonts-dejavu-core)"))?;
+        let bytes = crate::io::fs::read_capped(path, 64 << 20)
+            .map_err(|e| ReadError::new(path, format!("{e} (install fonts-dejavu-core)")))?;
         // The font lives as long as the program: figures are drawn until it ends.
         let bytes: &'static [u8] = Box::leak(bytes.into_boxed_slice());
         plotters::style::register_font("sans-serif", plotters::style::FontStyle::Normal, bytes)
-            .map_err(|_| "not a TrueType font".to_string())
+            .map_err(|_| ReadError::new(path, "not a TrueType font"))
     })
     .clone()
-    .map_err(|message| OutputError::Read(super::error::ReadError::new(FIGURE_FONT.as_ref(), message)))
+    .map_err(OutputError::Read)
 }
 
 /// Adds the `tex` filter ([`tex_escape`]) to a template set.

@@ -219,12 +219,10 @@ pub fn render(scene: &SweepScene<'_>, spec: &SweepSpec, path: &Path) -> Result<(
             ),
             ("ReferenceToTrackerTransformStatus".to_string(), "OK".to_string()),
         ]);
-        sequence
-            .push_frame(fields, &pixels)
-            .map_err(|message| SweepError::Write {
-                path: path.display().to_string(),
-                message,
-            })?;
+        sequence.push_frame(fields, &pixels).map_err(|e| SweepError::Write {
+            path: path.display().to_string(),
+            message: e.to_string(),
+        })?;
     }
     crate::io::fs::write_atomic(path, &sequence.to_file_bytes()).map_err(|e| SweepError::Write {
         path: path.display().to_string(),

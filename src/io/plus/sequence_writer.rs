@@ -10,6 +10,17 @@ use std::path::Path;
 use super::orientation::Orientation;
 use super::sequence::{Field, Sequence, SequenceFrame};
 
+/// Why a frame could not be appended to a sequence.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum PushFrameError {
+    #[error("frames are appended to 8-bit sequences only")]
+    NotEightBit,
+    #[error("a frame of {pixels} pixels, the sequence's frames are {width}x{height}")]
+    Size { pixels: usize, width: usize, height: usize },
+    #[error("field `{key} = {value}` does not fit one header line")]
+    Field { key: String, value: String },
+}
+
 impl Sequence {
     /// A sequence of no frames of `width` x `height` 8-bit MF images.
     pub fn empty(path: &Path, width: usize, height: usize) -> Sequence {
@@ -27,23 +38,25 @@ impl Sequence {
 
     /// Appends a frame of MF pixels and its fields (keys without the
     /// `Seq_FrameNNNN_` prefix; values one line of text each).
-    pub fn push_frame(&mut self, fields: BTreeMap<String, String>, pixels: &[u8]) -> Result<(), String> {
+    pub fn push_frame(&mut self, fields: BTreeMap<String, String>, pixels: &[u8]) -> Result<(), PushFrameError> {
         if !self.float_pixels.is_empty() {
-            return Err("frames are appended to 8-bit sequences only".into());
+            return Err(PushFrameError::NotEightBit);
         }
         if pixels.len() != self.width * self.height {
-            return Err(format!(
-                "a frame of {} pixels, the sequence's frames are {}x{}",
-                pixels.len(),
-                self.width,
-                self.height
-            ));
+            return Err(PushFrameError::Size {
+                pixels: pixels.len(),
+                width: self.width,
+                height: self.height,
+            });
         }
         if let Some((k, v)) = fields
             .iter()
             .find(|(k, v)| k.contains(['=', '\n', '\r']) || v.contains(['\n', '\r']))
         {
-            return Err(format!("field `{k} = {v}` does not fit one header line"));
+            return Err(PushFrameError::Field {
+                key: k.clone(),
+                value: v.clone(),
+            });
         }
         self.frames.push(SequenceFrame {
             index: self.frames.len(),
@@ -104,7 +117,11 @@ mod tests {
             ]);
             s.push_frame(fields, &[i, 1, 2, 3, 4, 5 + i]).unwrap();
         }
-        assert!(s.push_frame(BTreeMap::new(), &[0; 5]).unwrap_err().contains("3x2"));
+        assert!(s
+            .push_frame(BTreeMap::new(), &[0; 5])
+            .unwrap_err()
+            .to_string()
+            .contains("3x2"));
         let bad = BTreeMap::from([("A".to_string(), "x\ny".to_string())]);
         assert!(s.push_frame(bad, &[0; 6]).is_err());
         let back = Sequence::parse(Path::new("received.igs.mha"), &s.to_file_bytes()).unwrap();
