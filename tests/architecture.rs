@@ -402,7 +402,6 @@ fn pages_are_written_by_templates_not_rust_strings() {
     assert_eq!(html_in_rust(&[planted]).len(), 1);
 }
 
-
 /// The `Result<_, String>` lines of the files, tests and comments left out.
 fn string_errors(files: &[std::path::PathBuf]) -> Vec<String> {
     let mut found = Vec::new();

@@ -7,7 +7,7 @@
 mod common;
 
 use common::{probecal, root, scratch};
-use probecal::pipeline::design::{self, DESIGN_SEEDS};
+use probecal::pipeline::run::design::{self, DESIGN_SEEDS};
 
 fn bound_mm(v: &serde_json::Value) -> f64 {
     v["Ok"]["rms_mm"].as_f64().unwrap_or(f64::INFINITY)

@@ -32,10 +32,13 @@ pub fn command(args: &AblateArgs) -> Result<(), Failure> {
     let (manifest_path, out) = (&args.manifest, &args.out);
     let manifest = crate::manifest::Manifest::load(manifest_path).map_err(Failure::bad_input)?;
     let folder = crate::io::output::OutputFolder::claim(out, "ablate", &[manifest_path, &args.datasets], args.force)?;
-    let result =
-        crate::pipeline::ablation::ablate(&manifest, &args.datasets, args.keep_datasets, &args.only, &mut |line| {
-            eprintln!("{line}")
-        });
+    let result = crate::pipeline::study::ablation::ablate(
+        &manifest,
+        &args.datasets,
+        args.keep_datasets,
+        &args.only,
+        &mut |line| eprintln!("{line}"),
+    );
     let a = match result {
         Ok(a) => a,
         Err(RunError::Unsupported(why)) => {

@@ -8,7 +8,7 @@ use super::failure::Failure;
 pub fn command(manifest: &Path, out: &Path, force: bool) -> Result<(), Failure> {
     let folder = crate::io::output::OutputFolder::claim(out, "design", &[manifest], force)?;
     let (manifest, spec) = crate::report::phantom::rendered_lab(manifest).map_err(Failure::bad_input)?;
-    let rows = crate::pipeline::design::design(&manifest, &spec)
+    let rows = crate::pipeline::run::design::design(&manifest, &spec)
         .map_err(|e| Failure::bad_input(format!("{}: {e}", manifest.path.display())))?;
     let md = crate::report::design::write(&manifest, &spec, &rows, folder.path()).map_err(Failure::failed)?;
     folder.commit().map_err(Failure::failed)?;

@@ -8,8 +8,8 @@ use std::path::{Path, PathBuf};
 
 use super::failure::{Failure, ValueError};
 use crate::manifest::{Experiment, Manifest};
+use crate::pipeline::live::folder::Watch;
 use crate::pipeline::live::Replay;
-use crate::pipeline::live_folder::Watch;
 use crate::pipeline::tracked::TrackedInputs;
 
 /// How `probecal live` gets its frames: a tracked manifest's sequence replayed,
@@ -101,8 +101,8 @@ pub fn command(manifest: &Path, out: &Path, source: &LiveSource) -> Result<(), F
 fn folder_command(manifest: &Manifest, watch: &Watch, out: &Path) -> Result<(), Failure> {
     let terminal = std::io::stderr().is_terminal();
     let mut show =
-        |f: &crate::pipeline::live_folder::FolderFrame| shown(terminal, &crate::report::live_folder::line(f));
-    let run = crate::pipeline::live_folder::run(manifest, watch, &mut show);
+        |f: &crate::pipeline::live::folder::FolderFrame| shown(terminal, &crate::report::live_folder::line(f));
+    let run = crate::pipeline::live::folder::run(manifest, watch, &mut show);
     if terminal {
         eprintln!();
     }

@@ -14,8 +14,8 @@ use super::failure::Failure;
 use crate::io::fs::Staged;
 use crate::manifest::tracked::TrackedManifest;
 use crate::manifest::Experiment;
-use crate::pipeline::live_igtl::StreamSettings;
-use crate::pipeline::live_volume::VolumeRequest;
+use crate::pipeline::live::igtl::StreamSettings;
+use crate::pipeline::live::volume::VolumeRequest;
 use crate::pipeline::tracked::TrackedInputs;
 
 pub fn command(
@@ -45,7 +45,7 @@ pub fn command(
     }
     let _lock = crate::io::output::lock(out).map_err(Failure::failed)?;
     if let Some(request) = &volume {
-        crate::pipeline::live_volume::LiveVolume::open(request).map_err(Failure::bad_input)?;
+        crate::pipeline::live::volume::LiveVolume::open(request).map_err(Failure::bad_input)?;
     }
     session(&m, address, volume, out)
 }
@@ -79,14 +79,15 @@ fn session(
         settings.stream.silence_s
     );
     if let Some(v) = &settings.volume {
-        eprintln!("reconstructing live: {}", crate::pipeline::live_volume::describe(v));
+        eprintln!("reconstructing live: {}", crate::pipeline::live::volume::describe(v));
     }
     if let Some(note) = super::live::estimated_lag_note(&manifest.time_offset) {
         eprintln!("{note}");
     }
     let mut show = |f: &crate::pipeline::live::LiveFrame| super::live::shown(terminal, &crate::report::live::line(f));
     let inputs = TrackedInputs::from_manifest(manifest);
-    let run = crate::pipeline::live_igtl::run(&inputs, manifest.min_frames, &settings, staged.path(), &stop, &mut show);
+    let run =
+        crate::pipeline::live::igtl::run(&inputs, manifest.min_frames, &settings, staged.path(), &stop, &mut show);
     if terminal {
         eprintln!();
     }

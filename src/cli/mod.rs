@@ -317,7 +317,7 @@ pub fn main() -> ExitCode {
             force,
         } => match igtl {
             Some(address) => {
-                let volume = reconstruct.map(|config| crate::pipeline::live_volume::VolumeRequest {
+                let volume = reconstruct.map(|config| crate::pipeline::live::volume::VolumeRequest {
                     config,
                     every: volume_every as usize,
                     device: "Volume".into(),

@@ -36,7 +36,7 @@ pub fn command(args: &SegmentArgs) -> Result<(), Failure> {
         .flatten()
         .collect();
     let folder = crate::io::output::OutputFolder::claim(out, "segment", &inputs, args.force)?;
-    let run = crate::pipeline::segment::run(sequence, config).map_err(Failure::failed)?;
+    let run = crate::pipeline::tracked::segment::run(sequence, config).map_err(Failure::failed)?;
     let baseline = plus_baseline
         .map(|p| against_plus(&run, p))
         .transpose()

@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use super::failure::Failure;
 use crate::core::limits::MAX_SEEDS;
 use crate::io::output::OutputFiles;
-use crate::pipeline::shard::{self, Shard, ShardFile};
+use crate::pipeline::study::shard::{self, Shard, ShardFile};
 use crate::pipeline::study::BoundModel;
 use crate::report::study::{sigma_table, write, STUDY_FILES};
 

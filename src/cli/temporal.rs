@@ -7,7 +7,7 @@ use super::failure::Failure;
 
 pub fn command(video: &Path, tracker: &Path, out: &Path, force: bool) -> Result<(), Failure> {
     let folder = crate::io::output::OutputFolder::claim(out, "temporal", &[video, tracker], force)?;
-    let run = crate::pipeline::time::temporal::run(video, tracker, "ProbeToTracker", "ReferenceToTracker")
+    let run = crate::pipeline::tracked::time::temporal::run(video, tracker, "ProbeToTracker", "ReferenceToTracker")
         .map_err(Failure::failed)?;
     crate::report::temporal::write(&run, folder.path()).map_err(Failure::failed)?;
     folder.commit().map_err(Failure::failed)?;

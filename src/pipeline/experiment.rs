@@ -5,14 +5,14 @@
 use std::path::{Path, PathBuf};
 use std::time::SystemTime;
 
-use super::error::ReporterError;
-use super::record::DatasetRun;
-use super::tracked::{self, TrackedInputs, TrackedRun};
-use super::tracked_resolution::{self, TrackedAfter};
 use crate::io::fs::{write_atomic, Lock, Staged};
 use crate::io::plus::result::PlusResult;
 use crate::manifest::tracked::TrackedManifest;
 use crate::manifest::{CameraSource, DatasetSource, Experiment, Manifest, ManifestErrors};
+use crate::pipeline::error::ReporterError;
+use crate::pipeline::record::DatasetRun;
+use crate::pipeline::tracked::resolution::{self as tracked_resolution, TrackedAfter};
+use crate::pipeline::tracked::{self, TrackedInputs, TrackedRun};
 
 /// Where a dataset's outputs are written now, and where they will be once its
 /// experiment's folder is swapped in.
@@ -298,7 +298,7 @@ pub fn run_all(
         for d in &m.datasets {
             let started = SystemTime::now();
             reporter.dataset_started(&m.experiment, &d.name);
-            let run = match super::run::run_dataset(m, d, options.datasets, log) {
+            let run = match crate::pipeline::run::run_dataset(m, d, options.datasets, log) {
                 Ok(r) => r,
                 Err(e) => {
                     reporter.error(&format!("{}: {e}", m.path.display()));
@@ -340,7 +340,7 @@ pub fn run_all(
 }
 
 /// A failed gate in words: which, its value and its limit.
-fn failed_gate(experiment: &str, dataset: &str, g: &super::record::GateResult) -> String {
+fn failed_gate(experiment: &str, dataset: &str, g: &crate::pipeline::record::GateResult) -> String {
     format!(
         "{experiment} / {dataset}: {} = {} exceeds {}",
         g.name,
@@ -393,11 +393,11 @@ pub enum TrackedExperimentError {
 fn tracked_volume(
     m: &TrackedManifest,
     run: &TrackedRun,
-) -> Result<Option<super::reconstruct::Reconstruction>, TrackedExperimentError> {
+) -> Result<Option<crate::pipeline::reconstruct::Reconstruction>, TrackedExperimentError> {
     let Some(r) = &m.reconstruct else {
         return Ok(None);
     };
-    let inputs = super::reconstruct::ReconstructInputs {
+    let inputs = crate::pipeline::reconstruct::ReconstructInputs {
         sequence: r.sweep.clone(),
         config: r.config.clone(),
         calibration: None,
@@ -406,7 +406,7 @@ fn tracked_volume(
         image_to_probe: Some((run.fit.image_to_probe.matrix(), "this run's calibration".to_string())),
         tracker_lag_s: Some((run.time_offset_s, "this run's tracker lag".to_string())),
     };
-    let mut volume = super::reconstruct::run(&inputs).map_err(|e| TrackedExperimentError::Volume {
+    let mut volume = crate::pipeline::reconstruct::run(&inputs).map_err(|e| TrackedExperimentError::Volume {
         manifest: m.path.clone(),
         message: e.to_string(),
     })?;

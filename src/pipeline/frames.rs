@@ -4,14 +4,14 @@
 
 use opencv::prelude::MatTraitConst;
 
-use super::error::RunError;
-use super::record::{CameraStage, FrameRecord, Implausible, Rejection};
 use crate::core::parallel::parallel_map;
 use crate::detect::arc::{self, ArcSettings};
 use crate::detect::board_pose::{self, RigBoards};
 use crate::detect::spot::{self, Spot, SpotSettings};
 use crate::io::dataset::FrameFiles;
 use crate::io::image::{read_gray, read_gray_sized, ImageError};
+use crate::pipeline::error::RunError;
+use crate::pipeline::record::{CameraStage, FrameRecord, Implausible, Rejection};
 use crate::spec::phantom::{Sphere, Wire};
 
 /// The B-scan feature detector of a phantom.

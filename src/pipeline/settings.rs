@@ -1,14 +1,14 @@
 //! The manifest turned into each stage's settings: the one place where the
 //! pipeline reads a manifest for the stages below it.
 
-use super::frames::{Detector, Targets};
-use super::solve::SolveSettings;
 use crate::detect::arc::ArcSettings;
 use crate::detect::ridge::RidgePeak;
 use crate::detect::spot::SpotSettings;
 use crate::estimate::horn::Variant;
 use crate::estimate::sphere_fit::KnownSphere;
 use crate::manifest::{CameraSource, EchoPeak, FitRadius, Manifest, SolveVariant};
+use crate::pipeline::frames::{Detector, Targets};
+use crate::pipeline::solve::SolveSettings;
 use crate::spec::phantom::Phantom;
 use crate::synth::Lab;
 

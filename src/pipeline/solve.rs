@@ -3,10 +3,6 @@
 
 use nalgebra::Point3;
 
-use super::error::RunError;
-use super::frames::Targets;
-pub use super::record::SolveSettings;
-use super::record::{FrameRecord, Rejection};
 use crate::core::geometry::Rigid;
 use crate::estimate::correspondence::{self, Correspondence};
 use crate::estimate::horn::HornFit;
@@ -15,6 +11,10 @@ use crate::estimate::sphere_matching::{self, FrameArcs, NamedSphere, SeenArc};
 use crate::estimate::start_basin::{self, StartGuess};
 use crate::estimate::wire_matching::{self, FrameWireDots, WireAxis};
 use crate::evaluate::{self, EvaluationInputs, ThresholdRow};
+use crate::pipeline::error::RunError;
+use crate::pipeline::frames::Targets;
+pub use crate::pipeline::record::SolveSettings;
+use crate::pipeline::record::{FrameRecord, Rejection};
 use crate::spec::phantom::Sphere;
 
 /// The basin's random starts: fixed, so a run is reproducible.

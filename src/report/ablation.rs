@@ -3,7 +3,7 @@
 
 use std::fmt::Write as _;
 
-use crate::pipeline::ablation::{Ablation, VariantResult};
+use crate::pipeline::study::ablation::{Ablation, VariantResult};
 
 fn methods_of(a: &Ablation) -> Vec<String> {
     let mut names: Vec<String> = Vec::new();

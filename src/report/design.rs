@@ -8,7 +8,7 @@ use serde::Serialize;
 
 use crate::estimate::edge_blur::SliceBlur;
 use crate::estimate::edge_offset::EdgeOffset;
-use crate::pipeline::design::{self, Bound, BoundError, BoundNoise, DesignRow, DESIGN_SEEDS};
+use crate::pipeline::run::design::{self, Bound, BoundError, BoundNoise, DesignRow, DESIGN_SEEDS};
 use crate::report::error::OutputError;
 use crate::spec::phantom::Phantom;
 

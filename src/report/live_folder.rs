@@ -12,7 +12,7 @@ use std::path::Path;
 use serde::Serialize;
 
 use crate::estimate::horn::HornFit;
-use crate::pipeline::live_folder::{Ending, FolderFrame, FolderRun};
+use crate::pipeline::live::folder::{Ending, FolderFrame, FolderRun};
 use crate::report::live_timing::{number, timing, write_session, Timing};
 
 /// `live.csv`.

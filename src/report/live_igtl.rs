@@ -12,7 +12,7 @@ use super::error::OutputError;
 use super::live_timing::{timing, Timing};
 use crate::core::stats::percentile;
 use crate::manifest::tracked::TrackedManifest;
-use crate::pipeline::live_igtl::{StreamRun, StreamSettings};
+use crate::pipeline::live::igtl::{StreamRun, StreamSettings};
 use crate::pipeline::tracked::Role;
 
 /// Percentiles of per-frame times, ms.
@@ -82,7 +82,7 @@ pub struct IgtlSummary {
     pub sent_matrix: Option<Vec<Vec<f64>>>,
     pub sent_error: Option<String>,
     /// The live reconstruction, when asked for.
-    pub live_volume: Option<crate::pipeline::live_igtl::VolumeOutcome>,
+    pub live_volume: Option<crate::pipeline::live::igtl::VolumeOutcome>,
 }
 
 pub fn summary(run: &StreamRun, settings: &StreamSettings) -> IgtlSummary {
@@ -151,8 +151,8 @@ pub fn write(
     if let Ok(batch) = &run.final_run {
         let mut inputs = crate::pipeline::tracked::TrackedInputs::from_manifest(manifest);
         inputs.calibration_sequence = folder.join("received.igs.mha");
-        let after = crate::pipeline::tracked_resolution::TrackedAfter {
-            resolution: crate::pipeline::tracked_resolution::evaluate(batch, &inputs),
+        let after = crate::pipeline::tracked::resolution::TrackedAfter {
+            resolution: crate::pipeline::tracked::resolution::evaluate(batch, &inputs),
             volume: None,
         };
         super::tracked::write(batch, &after, manifest, None, &folder.join("calibration"))?;

@@ -6,7 +6,7 @@ use std::path::Path;
 
 use super::summary::RunSummary;
 use crate::core::geometry::to_rows;
-use crate::pipeline::resolve::{solve_again, SolveInputs};
+use crate::pipeline::run::resolve::{solve_again, SolveInputs};
 
 /// Largest difference between two transforms' matrix entries that still counts
 /// as the same calibration (mm for the translation, unitless for the rotation).
@@ -41,5 +41,5 @@ pub enum ResolveError {
     #[error("{0}")]
     Summary(#[from] ReadError),
     #[error("{0}")]
-    Inputs(#[from] crate::pipeline::resolve::SolveInputsError),
+    Inputs(#[from] crate::pipeline::run::resolve::SolveInputsError),
 }

@@ -14,7 +14,7 @@ use opencv::prelude::*;
 
 use crate::io::fs::write_all_atomic;
 use crate::io::plus::segmentation::{score, FrameResults, PlusSegmentation, SegmentationScore};
-use crate::pipeline::segment::SegmentRun;
+use crate::pipeline::tracked::segment::SegmentRun;
 use crate::report::error::{OutputError, ReadError};
 
 /// PLUS's segmentation of the same sequence, and how probecal's compares.

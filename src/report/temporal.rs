@@ -6,7 +6,7 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 use crate::io::fs::{display_path, write_all_atomic};
-use crate::pipeline::time::temporal::TemporalRun;
+use crate::pipeline::tracked::time::temporal::TemporalRun;
 use crate::report::error::OutputError;
 use crate::report::figures::{svg, Chart, Series, Style};
 use plotters::style::RGBColor;
@@ -46,8 +46,8 @@ pub fn summary(run: &TemporalRun) -> serde_json::Value {
         "frames": run.frames.len(),
         "frames_with_line": run.frames.iter().filter(|f| f.line.is_ok()).count(),
         "tracker_samples": run.tracker_samples,
-        "lag_step_s": crate::pipeline::time::temporal::STEP_S,
-        "lag_range_s": crate::pipeline::time::temporal::MAX_LAG_S,
+        "lag_step_s": crate::pipeline::tracked::time::temporal::STEP_S,
+        "lag_range_s": crate::pipeline::tracked::time::temporal::MAX_LAG_S,
     })
 }
 
@@ -61,7 +61,7 @@ fn curve_chart(run: &TemporalRun) -> Chart {
              over the lags searched (step {} ms); the estimate (red) is the interpolated peak, {:.1} ms. \
              Look for one clear peak: several of nearly equal height, or a flat curve, mean the motion could not \
              tell the lag.",
-            crate::pipeline::time::temporal::STEP_S * 1000.0,
+            crate::pipeline::tracked::time::temporal::STEP_S * 1000.0,
             run.tracker_lag_s * 1000.0
         ),
         x_desc: "tracker lag (s)".into(),
@@ -100,7 +100,7 @@ pub fn html(run: &TemporalRun) -> Result<String, OutputError> {
     ctx.insert("lag_ms", &format!("{:.1}", run.tracker_lag_s * 1000.0));
     ctx.insert("lag_s", &format!("{:.4}", run.tracker_lag_s));
     ctx.insert("peak", &format!("{:.3}", run.peak_correlation));
-    ctx.insert("range_s", &crate::pipeline::time::temporal::MAX_LAG_S);
+    ctx.insert("range_s", &crate::pipeline::tracked::time::temporal::MAX_LAG_S);
     ctx.insert("curve_svg", &svg(&chart)?);
     ctx.insert("curve_caption", &chart.caption);
     Ok(tera::Tera::one_off(TEMPLATE, &ctx, true)?)

@@ -12,8 +12,8 @@ use crate::evaluate::pose_coverage::AngleRange;
 use crate::io::fs::write_atomic;
 use crate::io::plus::result::PlusResult;
 use crate::manifest::tracked::TrackedManifest;
+use crate::pipeline::tracked::resolution::{TrackedAfter, ValidationResolution};
 use crate::pipeline::tracked::{Role, TrackedRun};
-use crate::pipeline::tracked_resolution::{TrackedAfter, ValidationResolution};
 use crate::report::error::OutputError;
 use crate::report::summary::{
     to_text, CandidateScore, ConstraintCounts, FramesCompared, ImageToProbeSummary, ModelSelectionSummary,

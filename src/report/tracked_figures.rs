@@ -152,7 +152,7 @@ pub fn residuals_in_phantom(run: &TrackedRun, manifest: &TrackedManifest) -> Opt
 /// and validation frames.
 pub fn tilts(run: &TrackedRun, manifest: &TrackedManifest) -> Option<Chart> {
     let of = |role: Role| -> Vec<(f64, f64)> {
-        crate::pipeline::tracked_resolution::wires_in_image(run, &manifest.nwires, role)
+        crate::pipeline::tracked::resolution::wires_in_image(run, &manifest.nwires, role)
             .iter()
             .filter_map(crate::evaluate::pose_coverage::tilt_deg)
             .collect()

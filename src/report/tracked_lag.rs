@@ -6,7 +6,7 @@ use crate::core::geometry::Rigid;
 use crate::core::stats::best_95;
 use crate::io::plus::result::PlusResult;
 use crate::manifest::tracked::TrackedManifest;
-use crate::pipeline::time::lag_joint::LagEstimate;
+use crate::pipeline::tracked::time::lag_joint::LagEstimate;
 use crate::pipeline::tracked::{Role, TrackedFrame, TrackedRun};
 use crate::report::figures::{Chart, Series, Style};
 use crate::report::summary::NoLagPre3d;
@@ -163,7 +163,7 @@ pub fn insert_figure(ctx: &mut tera::Context, run: &TrackedRun) -> Result<(), cr
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::pipeline::time::lag::Coarse;
+    use crate::pipeline::tracked::time::lag::Coarse;
 
     #[test]
     fn the_figure_says_when_the_two_estimates_disagree() {

@@ -6,7 +6,7 @@ use serde::{Deserialize, Serialize};
 use crate::core::stats::MeanSd;
 use crate::estimate::image_to_probe::{ConstraintModel, PixelModel};
 use crate::pipeline::record::GateResult;
-use crate::pipeline::tracked_resolution::ValidationResolution;
+use crate::pipeline::tracked::resolution::ValidationResolution;
 
 /// `summary.json` of a tracked-sequence run.
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
@@ -23,7 +23,7 @@ pub struct TrackedSummary {
     /// estimate (`lag_s` null where the calibration frames cannot tell it), the
     /// motion estimate beside it, and which is applied and why.
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub time_offset_estimate: Option<crate::pipeline::time::lag_joint::LagEstimate>,
+    pub time_offset_estimate: Option<crate::pipeline::tracked::time::lag_joint::LagEstimate>,
     pub image_to_probe: ImageToProbeSummary,
     /// How the model was chosen: cross-validation on the calibration frames.
     pub model_selection: ModelSelectionSummary,

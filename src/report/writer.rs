@@ -14,8 +14,8 @@ use crate::manifest::Manifest;
 use crate::pipeline::error::ReporterError;
 use crate::pipeline::experiment::{Reporter, RunFolder};
 use crate::pipeline::record::DatasetRun;
+use crate::pipeline::tracked::resolution::TrackedAfter;
 use crate::pipeline::tracked::TrackedRun;
-use crate::pipeline::tracked_resolution::TrackedAfter;
 
 /// Writes each run's folder and the index; prints unless quiet.
 pub struct ReportWriter {

@@ -5,7 +5,6 @@
 
 use nalgebra::Point3;
 
-use super::record::{FrameRecord, Method, MethodResult, ResamplingSummary};
 use crate::core::geometry::Calibration;
 use crate::core::geometry::Rigid;
 use crate::estimate::correspondence::{self, Correspondence};
@@ -16,6 +15,7 @@ use crate::estimate::sphere_fit::{self, ArcFrame, SphereSettings};
 use crate::evaluate::resampling::{self, FitInputs};
 use crate::evaluate::{CutoffRule, ThresholdRow};
 use crate::manifest::Manifest;
+use crate::pipeline::record::{FrameRecord, Method, MethodResult, ResamplingSummary};
 
 /// Leave-one-out PRE, CR over half-splits and bootstrap intervals of the frames
 /// of the reported calibration.
@@ -306,7 +306,7 @@ pub fn spheres_methods(
     inputs: &MethodInputs<'_>,
     spheres: &[crate::spec::phantom::Sphere],
     fit_pixel_size: bool,
-    pose: Option<&super::sphere_pose::PoseInputs<'_>>,
+    pose: Option<&crate::pipeline::run::sphere_pose::PoseInputs<'_>>,
     log: &mut dyn FnMut(&str),
 ) -> Vec<MethodResult> {
     let spacing = inputs.fit.spacing;
@@ -383,7 +383,7 @@ pub fn spheres_methods(
             fit_pixel_size: false,
             ..settings
         };
-        match super::sphere_pose::fit(&sphere.marker_T_image, &kept, inputs.records, &settings, pose) {
+        match crate::pipeline::run::sphere_pose::fit(&sphere.marker_T_image, &kept, inputs.records, &settings, pose) {
             Ok((posed, noise)) => out.push(inputs.result(
                 Method::SphereFitPosePrior {
                     arcs: kept.len(),

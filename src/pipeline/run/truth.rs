@@ -3,8 +3,6 @@
 
 use std::collections::BTreeMap;
 
-use super::record::{CameraStage, DatasetRun, FrameRecord, FrameTruth, MethodResult, TruthSummary};
-use super::settings;
 use crate::core::geometry::{rigid_from_rows, rotation_angle_between_deg, Rigid};
 use crate::core::stats::mean_max;
 use crate::detect::camera_refinement::calibration_information;
@@ -14,6 +12,8 @@ use crate::evaluate::arc_noise::{self, ArcAgainstTruth, ArcNoiseCheck};
 use crate::evaluate::sphere_bound::EdgeNoise;
 use crate::evaluate::{TrueCalibration, TruthComparison};
 use crate::io::truth::{GroundTruth, TruthCamera};
+use crate::pipeline::record::{CameraStage, DatasetRun, FrameRecord, FrameTruth, MethodResult, TruthSummary};
+use crate::pipeline::settings;
 
 /// The evaluation's view of a rendered dataset's truth.
 pub fn true_calibration(t: &GroundTruth) -> TrueCalibration {

@@ -22,6 +22,8 @@
 //! and the translation) is `F = Σ_i J_iᵀ Σ⁻¹ J_i` with `J_i = [−[T x_i]ₓ  I]`;
 //! the bound on a probe point `q`'s mean squared error is `tr(J_q F⁻¹ J_qᵀ)`.
 
+pub mod ablation;
+pub mod shard;
 use std::path::Path;
 
 use nalgebra::{Matrix3, Matrix6, Point3, Vector3};
@@ -339,7 +341,7 @@ pub fn seed_results(
         // Dome phantoms fitted on their arcs' edges: the bound of that model over
         // this seed's sweep; point pairs: the bound from their residuals.
         let crlb = match BoundModel::of(manifest) {
-            BoundModel::SphereFit => super::design::bound_of(manifest, &manifest.phantom, &spec)
+            BoundModel::SphereFit => crate::pipeline::run::design::bound_of(manifest, &manifest.phantom, &spec)
                 .ok()
                 .map(|b| b.rms_mm),
             BoundModel::PointPairs => seed_bound(&run, &truth.marker_T_image, size),

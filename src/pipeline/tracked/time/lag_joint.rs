@@ -1,6 +1,6 @@
 //! The lag refined with the calibration's own model, its uncertainty, and
 //! whether to apply it (spatio-temporal calibration, after the coarse search of
-//! [`crate::pipeline::time::lag`]).
+//! [`crate::pipeline::tracked::time::lag`]).
 //!
 //! - **Joint refinement.** The lag and the calibration are fitted together by
 //!   profiling: at each lag tried, the model chosen by cross-validation (its
@@ -25,7 +25,7 @@
 //!   frames); otherwise the simpler model, no lag, is kept. Validation frames
 //!   never enter.
 //! - **A second opinion.** The sweep's motion cross-correlation
-//!   ([`crate::pipeline::time::sweep_lag`]) is reported beside it; where the two
+//!   ([`crate::pipeline::tracked::time::sweep_lag`]) is reported beside it; where the two
 //!   intervals do not overlap the disagreement is said, and which is applied.
 
 use std::collections::HashSet;
@@ -35,11 +35,11 @@ use serde::{Deserialize, Serialize};
 use crate::core::stats::{best_95, MeanSd};
 use crate::estimate::model_selection::{self, Candidate, FrameConstraints};
 use crate::pipeline::sequence_frames::{Role, TrackedFrame};
-use crate::pipeline::time::lag::Coarse;
-use crate::pipeline::time::sweep_lag::SweepLag;
-use crate::pipeline::tracked_inputs::{
+use crate::pipeline::tracked::inputs::{
     attach_poses_along, fit_settings, usable_constraints, TrackedInputs, TrackerPaths,
 };
+use crate::pipeline::tracked::time::lag::Coarse;
+use crate::pipeline::tracked::time::sweep_lag::SweepLag;
 
 /// Golden-section tolerance of the joint refinement, s.
 const TOLERANCE_S: f64 = 1e-4;

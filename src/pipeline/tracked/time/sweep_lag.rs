@@ -1,5 +1,5 @@
 //! The tracker's lag behind the images from an N-wire calibration sweep's own
-//! motion (PLUS's temporal calibration, [`crate::pipeline::time::temporal`], with the
+//! motion (PLUS's temporal calibration, [`crate::pipeline::tracked::time::temporal`], with the
 //! phantom's wires in place of a flat reflector):
 //!
 //! - Video signal: the mean of each frame's segmented wire dots (px).
@@ -11,7 +11,7 @@
 //!   smooths a shifted signal more than an unshifted one and pulls the peak
 //!   to whole frame periods), correlated with the video signal at the frames'
 //!   own times, and the peak found as PLUS's temporal calibration finds it
-//!   ([`crate::pipeline::time::temporal::peak`]).
+//!   ([`crate::pipeline::tracked::time::temporal::peak`]).
 //! - Its spread over block-bootstrap resamples of the frames must lie within
 //!   one frame period (90 %), or the lag is unresolved.
 //!
@@ -30,7 +30,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::estimate::image_to_probe::Fit;
 use crate::pipeline::sequence_frames::{Role, TrackedFrame};
-use crate::pipeline::time::temporal;
+use crate::pipeline::tracked::time::temporal;
 use crate::spec::nwire::NWire;
 
 /// Fewest frames with dots, poses and timestamps the estimate needs.

@@ -1,26 +1,25 @@
 //! The runner: one manifest's dataset, every stage, in order.
 //!
-//! dataset (render or folder) → camera intrinsics (stage 1, [`super::camera`]) →
+//! dataset (render or folder) → camera intrinsics (stage 1, [`crate::pipeline::run::camera`]) →
 //! per frame: board poses (stage 2) and the phantom's feature (stage 3,
-//! [`super::frames`]) → point pairs and Horn (stage 4, [`super::solve`]) → BRE,
+//! [`crate::pipeline::frames`]) → point pairs and Horn (stage 4, [`crate::pipeline::solve`]) → BRE,
 //! threshold table (stage 5, [`crate::evaluate`]), the other estimators and the
-//! resampling metrics ([`super::methods`]) → and only then the ground truth
-//! (rendered data, [`super::truth`]), which scores the estimates and is read by
+//! resampling metrics ([`crate::pipeline::run::methods`]) → and only then the ground truth
+//! (rendered data, [`crate::pipeline::run::truth`]), which scores the estimates and is read by
 //! nothing before it. Every frame's fate is kept: used, or rejected with the
 //! stage and the reason.
 
+pub mod camera;
+pub mod design;
+pub mod methods;
+pub mod resolve;
+pub mod sphere_pose;
+pub mod truth;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use crate::core::timing::StageClock;
 
-pub use super::error::RunError;
-use super::frames::{self, Targets};
-use super::methods::{self, MethodInputs};
-use super::record::{DatasetRun, GateResult, TruthSummary};
-use super::solve::{self, PairingInputs};
-pub use super::truth::true_calibration;
-use super::{camera, settings, truth};
 use crate::detect::board_pose::RigBoards;
 use crate::estimate::correspondence::Correspondence;
 use crate::evaluate::resampling::FitInputs;
@@ -29,7 +28,14 @@ use crate::io::dataset;
 use crate::io::fs::Lock;
 use crate::io::truth::GroundTruth;
 use crate::manifest::{CameraSource, Dataset, DatasetSource, Manifest};
+pub use crate::pipeline::error::RunError;
+use crate::pipeline::frames::{self, Targets};
+use crate::pipeline::record::{DatasetRun, GateResult, TruthSummary};
+pub use crate::pipeline::run::truth::true_calibration;
+use crate::pipeline::settings;
+use crate::pipeline::solve::{self, PairingInputs};
 use crate::synth;
+use methods::MethodInputs;
 
 /// The dataset's folder: rendered into `datasets_root` (unless up to date), or recorded.
 fn dataset_folder(
@@ -188,7 +194,7 @@ fn score_against_truth(manifest: &Manifest, run: &mut DatasetRun) -> Result<(), 
     if let Some(t) = &truth {
         let arcs_against = truth::ArcCheck {
             spacing_mm_per_px: manifest.bscan_spacing_mm_per_px,
-            noise: super::design::edge_noise(manifest),
+            noise: crate::pipeline::run::design::edge_noise(manifest),
         };
         truth::score_run(run, t, &arcs_against);
     }
@@ -197,7 +203,7 @@ fn score_against_truth(manifest: &Manifest, run: &mut DatasetRun) -> Result<(), 
 
 /// Logs the camera's intrinsics: as calibrated (with its RMS), or as refined
 /// with the frames' boards.
-fn log_camera(camera: &super::record::CameraStage, refined: bool, log: &mut dyn FnMut(&str)) {
+fn log_camera(camera: &crate::pipeline::record::CameraStage, refined: bool, log: &mut dyn FnMut(&str)) {
     let Some(k) = &camera.intrinsics else { return };
     let line = format!("fx {:.2} fy {:.2} cx {:.2} cy {:.2} px", k.fx(), k.fy(), k.cx(), k.cy());
     if !refined {
@@ -216,7 +222,7 @@ fn log_camera(camera: &super::record::CameraStage, refined: bool, log: &mut dyn 
 struct Calibrated {
     correspondences: Vec<Correspondence>,
     start_guess: Option<crate::estimate::start_basin::StartGuess>,
-    solve_settings: super::record::SolveSettings,
+    solve_settings: crate::pipeline::record::SolveSettings,
     solved: solve::Calibrations,
 }
 
@@ -224,7 +230,7 @@ struct Calibrated {
 fn calibrate(
     manifest: &Manifest,
     name: &str,
-    frames: &mut [super::record::FrameRecord],
+    frames: &mut [crate::pipeline::record::FrameRecord],
     targets: Targets<'_>,
     log: &mut dyn FnMut(&str),
 ) -> Result<Calibrated, RunError> {
@@ -253,7 +259,7 @@ fn calibrate(
 /// The other estimators and the resampling metrics, after the reported calibration.
 struct Estimators<'a> {
     manifest: &'a Manifest,
-    camera: &'a super::record::CameraStage,
+    camera: &'a crate::pipeline::record::CameraStage,
     rig: &'a RigBoards,
     targets: Targets<'a>,
     /// The feature and radius are filled per phantom.
@@ -265,8 +271,8 @@ impl Estimators<'_> {
         &self,
         log: &mut dyn FnMut(&str),
     ) -> (
-        Option<super::record::ResamplingSummary>,
-        Vec<super::record::MethodResult>,
+        Option<crate::pipeline::record::ResamplingSummary>,
+        Vec<crate::pipeline::record::MethodResult>,
     ) {
         let manifest = self.manifest;
         let reported = self.inputs.reported;
@@ -286,7 +292,7 @@ impl Estimators<'_> {
         };
         let camera = self.camera;
         let pose_inputs = match (&manifest.sphere_fit.pose_prior, &camera.intrinsics) {
-            (Some(prior), Some(intrinsics)) => Some(super::sphere_pose::PoseInputs {
+            (Some(prior), Some(intrinsics)) => Some(crate::pipeline::run::sphere_pose::PoseInputs {
                 camera: intrinsics,
                 calibration: camera.calibration.as_ref(),
                 probe_board: &self.rig.probe,
@@ -331,7 +337,7 @@ fn input_files(
     manifest: &Manifest,
     folder: &Path,
     files: &[dataset::FrameFiles],
-    camera: &super::record::CameraStage,
+    camera: &crate::pipeline::record::CameraStage,
 ) -> Vec<PathBuf> {
     let mut input_files = vec![manifest.path.clone(), folder.join(dataset::FRAME_LIST)];
     for f in files {
@@ -355,7 +361,7 @@ fn evaluate_gates(
     manifest: &Manifest,
     primary: &ThresholdRow,
     truth: Option<&TruthSummary>,
-    methods: &[super::record::MethodResult],
+    methods: &[crate::pipeline::record::MethodResult],
 ) -> Vec<GateResult> {
     let g = &manifest.thresholds.gates;
     // The truth gates check the named estimator, or the reported calibration.

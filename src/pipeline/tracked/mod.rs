@@ -6,6 +6,10 @@
 //! ([`crate::detect::nwire`]); build constraints in the probe frame; fit `Calibration`
 //! ([`crate::estimate::image_to_probe`]); evaluate PRE3D on the validation frames.
 
+pub mod inputs;
+pub mod resolution;
+pub mod segment;
+pub mod time;
 use std::path::{Path, PathBuf};
 
 use nalgebra::{Matrix4, Point3};
@@ -23,11 +27,11 @@ pub use crate::pipeline::sequence_frames::{
     clip_or_overlay, constraints, segment_frames, timestamp_s, PoseFault, Role, SegmentationInputs, TrackedFrame,
     TrackedRejection,
 };
-use crate::pipeline::time::lag_joint::{self, LagEstimate};
-use crate::pipeline::time::sweep_lag::SweepLag;
-pub use crate::pipeline::tracked_inputs::{
+pub use crate::pipeline::tracked::inputs::{
     attach_poses, attach_poses_along, fit_settings, usable_constraints, TrackedInputs, TrackerPaths,
 };
+use crate::pipeline::tracked::time::lag_joint::{self, LagEstimate};
+use crate::pipeline::tracked::time::sweep_lag::SweepLag;
 use crate::spec::nwire::NWire;
 
 #[derive(Debug, thiserror::Error)]
@@ -39,7 +43,7 @@ pub enum TrackedError {
     #[error("calibration: {0}")]
     Fit(#[from] FitError),
     #[error("temporal calibration: {0}")]
-    Temporal(#[from] crate::pipeline::time::temporal::TemporalError),
+    Temporal(#[from] crate::pipeline::tracked::time::temporal::TemporalError),
     #[error("{sequence}: only {usable} frames could be segmented, at least {needed} are needed")]
     TooFewFrames {
         sequence: PathBuf,
@@ -254,7 +258,7 @@ fn lag_from_sweep(paths: &TrackerPaths, frames: &mut [TrackedFrame], inputs: &Tr
     attach_poses_along(paths, frames, inputs, 0.0);
     let usable = usable_constraints(frames, &inputs.nwires, Role::Calibration);
     match model_selection::fit(usable.iter(), candidate, fit_settings(inputs)) {
-        Ok(trained) => crate::pipeline::time::sweep_lag::estimate(frames, &inputs.nwires, &trained.fit),
+        Ok(trained) => crate::pipeline::tracked::time::sweep_lag::estimate(frames, &inputs.nwires, &trained.fit),
         Err(e) => SweepLag {
             unresolved: Some(format!("no calibration to map the poses with: {e}")),
             ..Default::default()
@@ -312,8 +316,8 @@ fn choose_model(frames: &[TrackedFrame], inputs: &TrackedInputs) -> Result<Selec
 }
 
 /// The tracker's lag estimated with the calibration from the calibration
-/// frames alone ([`crate::pipeline::time::lag`], then
-/// [`crate::pipeline::time::lag_joint`]), beside the sweep's motion estimate.
+/// frames alone ([`crate::pipeline::tracked::time::lag`], then
+/// [`crate::pipeline::tracked::time::lag_joint`]), beside the sweep's motion estimate.
 fn estimate_lag(
     calibration: &Sequence,
     paths: &TrackerPaths,
@@ -322,7 +326,7 @@ fn estimate_lag(
 ) -> Result<LagEstimate, TrackedError> {
     if let Some(fault) = crate::pipeline::sequence_frames::clock_fault(calibration) {
         let why = format!("{}: {fault}", inputs.calibration_sequence.display());
-        let motion = crate::pipeline::time::sweep_lag::SweepLag {
+        let motion = crate::pipeline::tracked::time::sweep_lag::SweepLag {
             unresolved: Some(why.clone()),
             ..Default::default()
         };
@@ -333,7 +337,7 @@ fn estimate_lag(
     // by a kernel of one frame period.
     let sigma_s = SMOOTHING_PERIODS * median_period_s(frames).unwrap_or(0.0).max(1e-3);
     let paths = &paths.smoothed(sigma_s);
-    let coarse = crate::pipeline::time::lag::search(paths, frames, inputs);
+    let coarse = crate::pipeline::tracked::time::lag::search(paths, frames, inputs);
     let Some(coarse_lag) = coarse.lag_s else {
         return Ok(lag_joint::assemble(coarse, None, None, Some(motion)));
     };
@@ -376,8 +380,13 @@ pub fn run(inputs: &TrackedInputs, min_frames: usize) -> Result<TrackedRun, Trac
     let time_offset_s = match &inputs.time_offset {
         TimeOffset::Fixed(s) => *s,
         TimeOffset::Temporal { tracker, video } => {
-            crate::pipeline::time::temporal::run(video, tracker, &inputs.probe_transform, &inputs.reference_transform)?
-                .tracker_lag_s
+            crate::pipeline::tracked::time::temporal::run(
+                video,
+                tracker,
+                &inputs.probe_transform,
+                &inputs.reference_transform,
+            )?
+            .tracker_lag_s
         }
         TimeOffset::Estimate => {
             let found = estimate_lag(&calibration, &paths, &mut frames, inputs)?;

@@ -1,8 +1,8 @@
 //! Live calibration from an OpenIGTLink stream (PlusServer's): IMAGE messages
 //! from the image device and TRANSFORM messages from the probe's and the
 //! reference's devices, paired at the images' timestamps (see
-//! [`super::igtl_pairing`]); each paired frame is segmented, posed, predicted
-//! and refitted as the file replay does ([`super::live`]). The acquisition ends
+//! [`crate::pipeline::live::igtl_pairing`]); each paired frame is segmented, posed, predicted
+//! and refitted as the file replay does ([`crate::pipeline::live`]). The acquisition ends
 //! on a STRING message from the end device, a silence, an interrupt, or the
 //! server closing the connection. Then the received frames are written as a
 //! PLUS sequence file, the batch pipeline runs on it (so the result is
@@ -21,17 +21,17 @@ use std::time::{Duration, Instant};
 
 use nalgebra::Matrix4;
 
-use super::igtl_pairing::{Pairing, PendingImage};
-use super::live::{finish, live_offset_s, Arrived, LagQueue, LiveFrame, State};
-use super::live_volume::{volume_message, LiveVolume, VolumeRequest};
-use super::sequence_frames::{pattern_geometry, segment_frame};
-use super::tracked::{self, segmentation_inputs, Role, TrackedError, TrackedInputs, TrackedRun};
 use crate::io::igtl::connection::{Connection, Event};
 use crate::io::igtl::message::{self, Body, Header};
 use crate::io::igtl::reader::Reader;
 use crate::io::igtl::IgtlError;
 use crate::io::plus::sequence::{Sequence, MAX_FRAME_PIXELS};
 use crate::manifest::tracked::LiveStream;
+use crate::pipeline::live::igtl_pairing::{Pairing, PendingImage};
+use crate::pipeline::live::volume::{volume_message, LiveVolume, VolumeRequest};
+use crate::pipeline::live::{finish, live_offset_s, Arrived, LagQueue, LiveFrame, State};
+use crate::pipeline::sequence_frames::{pattern_geometry, segment_frame};
+use crate::pipeline::tracked::{self, segmentation_inputs, Role, TrackedError, TrackedInputs, TrackedRun};
 
 /// Skip reasons listed one by one (the rest are counted).
 const MAX_LISTED: usize = 50;
@@ -60,7 +60,7 @@ pub enum SessionError {
     Lag(#[from] TrackedError),
     /// The live volume's settings.
     #[error(transparent)]
-    Volume(#[from] super::live_volume::VolumeSetupError),
+    Volume(#[from] crate::pipeline::live::volume::VolumeSetupError),
 }
 
 /// Why the acquisition ended.

@@ -3,8 +3,6 @@
 
 use std::path::Path;
 
-use super::error::RunError;
-use super::record::{CameraStage, FrameRecord, Rejection, TrackerSource};
 use crate::detect::board::PrintedBoard;
 use crate::detect::board_pose::{RigBoards, RigLayout};
 use crate::detect::camera_calibration;
@@ -12,6 +10,8 @@ use crate::detect::camera_refinement::{self, BoardView};
 use crate::io::camera_model::CameraIntrinsics;
 use crate::io::tracker_poses::TrackerPoses;
 use crate::manifest::{CameraSource, Manifest};
+use crate::pipeline::error::RunError;
+use crate::pipeline::record::{CameraStage, FrameRecord, Rejection, TrackerSource};
 
 pub fn camera_stage(manifest: &Manifest, dataset: &str, folder: &Path) -> Result<CameraStage, RunError> {
     match &manifest.camera {
@@ -117,7 +117,7 @@ pub fn refine_with_frames(
         phantom: *phantom,
     };
     for record in frames.iter_mut() {
-        super::frames::pose_again(record, &refined.intrinsics, &layout)?;
+        crate::pipeline::frames::pose_again(record, &refined.intrinsics, &layout)?;
     }
     if let Some(r) = &refined.refined {
         camera.source = match r.boards_repeated {

@@ -37,7 +37,7 @@ use serde::{Deserialize, Serialize};
 use crate::core::stats::percentile;
 use crate::evaluate::block_bootstrap::{self, BlockBootstrap, ScoreSpread};
 use crate::pipeline::sequence_frames::{Role, TrackedFrame, TrackedRejection};
-use crate::pipeline::tracked_inputs::{TrackedInputs, TrackerPaths};
+use crate::pipeline::tracked::inputs::{TrackedInputs, TrackerPaths};
 use crate::spec::nwire::NWire;
 
 /// Fewest frames the search needs.

@@ -12,9 +12,9 @@ use std::path::{Path, PathBuf};
 
 use nalgebra::Matrix4;
 
-use super::reconstruct::paste_settings;
 use crate::io::plus::sequence::Sequence;
 use crate::io::plus::volume_config::VolumeSettings;
+use crate::pipeline::reconstruct::paste_settings;
 use crate::reconstruct::grid::Grid;
 use crate::reconstruct::paste::{paste_into, PasteSettings, Pasted, Slice};
 use crate::reconstruct::Volume;

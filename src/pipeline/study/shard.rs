@@ -10,8 +10,8 @@ use std::str::FromStr;
 
 use serde::{Deserialize, Serialize};
 
-use super::study::{BoundModel, SeedResult};
 use crate::core::limits::MAX_SEEDS;
+use crate::pipeline::study::{BoundModel, SeedResult};
 
 /// Slice `index` (1-based) of `count`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]

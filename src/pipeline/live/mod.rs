@@ -13,6 +13,10 @@
 //! finished when the next one arrives. The clip rectangle is the manifest's or
 //! the whole image: a screen overlay is found only from the whole recording.
 
+pub mod folder;
+pub mod igtl;
+pub mod igtl_pairing;
+pub mod volume;
 use std::time::{Duration, Instant};
 
 use crate::core::stats::best_95;
@@ -208,8 +212,13 @@ pub(super) fn live_offset_s(inputs: &TrackedInputs) -> Result<f64, TrackedError>
     Ok(match &inputs.time_offset {
         TimeOffset::Fixed(s) => *s,
         TimeOffset::Temporal { tracker, video } => {
-            crate::pipeline::time::temporal::run(video, tracker, &inputs.probe_transform, &inputs.reference_transform)?
-                .tracker_lag_s
+            crate::pipeline::tracked::time::temporal::run(
+                video,
+                tracker,
+                &inputs.probe_transform,
+                &inputs.reference_transform,
+            )?
+            .tracker_lag_s
         }
         TimeOffset::Estimate => 0.0,
     })

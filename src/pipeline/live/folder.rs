@@ -25,16 +25,16 @@ use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
-use super::error::RunError;
-use super::frames::{process_frame, Targets};
-use super::record::{DatasetRun, FrameRecord};
-use super::settings;
-use super::solve::{self, PairingInputs};
 use crate::detect::board_pose::RigBoards;
 use crate::estimate::correspondence::{self, Correspondence};
 use crate::estimate::horn::HornFit;
 use crate::io::dataset::FrameFiles;
 use crate::manifest::{Dataset, DatasetSource, Manifest};
+use crate::pipeline::error::RunError;
+use crate::pipeline::frames::{process_frame, Targets};
+use crate::pipeline::record::{DatasetRun, FrameRecord};
+use crate::pipeline::settings;
+use crate::pipeline::solve::{self, PairingInputs};
 
 /// Predictions the running accuracy estimate pools (the latest).
 pub const RUNNING_WINDOW: usize = 30;
@@ -248,7 +248,7 @@ pub fn run(manifest: &Manifest, watch: &Watch, show: &mut dyn FnMut(&FolderFrame
             watch.folder.display()
         )));
     }
-    let camera = super::camera::camera_stage(manifest, &name, &watch.folder)?;
+    let camera = crate::pipeline::run::camera::camera_stage(manifest, &name, &watch.folder)?;
     if camera.intrinsics.is_none() {
         return Err(RunError::Unsupported(
             "live calibration from a folder needs the camera (photos), not tracker poses".into(),
@@ -309,7 +309,12 @@ pub fn run(manifest: &Manifest, watch: &Watch, show: &mut dyn FnMut(&FolderFrame
                 source: DatasetSource::Folder(watch.folder.clone()),
             }];
             let dataset = whole.datasets[0].clone();
-            Some(super::run::run_dataset(&whole, &dataset, &watch.folder, &mut |_| {})?)
+            Some(crate::pipeline::run::run_dataset(
+                &whole,
+                &dataset,
+                &watch.folder,
+                &mut |_| {},
+            )?)
         }
         Ending::Idle => None,
     };

@@ -20,8 +20,6 @@
 //!   (`solve.sphere_fit.pose_prior.edge_offset`), solved without a prior
 //!   ([`crate::estimate::edge_offset`]).
 
-use super::record::FrameRecord;
-pub use super::record::PoseFitNoise;
 use crate::core::geometry::Rigid;
 use crate::core::stats::median;
 use crate::detect::board::PrintedBoard;
@@ -32,6 +30,8 @@ use crate::estimate::sphere_fit::{ArcFrame, SphereFit, SphereFitError, SphereSet
 use crate::evaluate::pose_noise::{frame_pose_noise, PhotoNoise, SweepPhoto};
 use crate::io::camera_model::CameraIntrinsics;
 use crate::manifest::raw::PosePrior;
+use crate::pipeline::record::FrameRecord;
+pub use crate::pipeline::record::PoseFitNoise;
 
 /// What the pose-prior fit needs from the run.
 pub struct PoseInputs<'a> {

@@ -237,7 +237,7 @@ fn intrinsics_information(
 /// The noise is the manifest's [`noise`].
 pub fn bound_of(manifest: &Manifest, phantom: &Phantom, spec: &RenderSpec) -> Result<Bound, BoundError> {
     let noise = noise(manifest);
-    let mut lab = super::settings::lab(manifest);
+    let mut lab = crate::pipeline::settings::lab(manifest);
     lab.phantom = phantom;
     let scene = crate::synth::scene_of(&lab, spec).map_err(|e| BoundError::Scene(e.to_string()))?;
     if lab.calibration_board.is_none() {
@@ -255,7 +255,7 @@ pub fn bound_of(manifest: &Manifest, phantom: &Phantom, spec: &RenderSpec) -> Re
     let phantom_corners = scene.phantom_board.feature_points_mm();
     let camera_T_phantom = scene.camera_T_world * scene.world_T_phantom;
     let intrinsics_information = intrinsics_information(manifest, &scene, &noise)?;
-    let spheres: Vec<KnownSphere> = super::settings::known_spheres(phantom).ok_or(BoundError::Unusable(
+    let spheres: Vec<KnownSphere> = crate::pipeline::settings::known_spheres(phantom).ok_or(BoundError::Unusable(
         "the bound is of dome phantoms (hemisphere, spheres)",
     ))?;
     let [sx, _] = manifest.bscan_spacing_mm_per_px;

@@ -11,13 +11,13 @@ use std::path::Path;
 use nalgebra::{Isometry3, Point3, Quaternion, Translation3, UnitQuaternion, Vector3};
 use serde::{Deserialize, Serialize};
 
-use super::error::RunError;
-use super::solve::{self, Calibrations, SolveSettings};
 use crate::core::geometry::Rigid;
 use crate::estimate::correspondence::{Correspondence, Observed};
 use crate::estimate::horn::Variant;
 use crate::estimate::image_to_probe::Target;
 use crate::evaluate::CutoffRule;
+use crate::pipeline::error::RunError;
+use crate::pipeline::solve::{self, Calibrations, SolveSettings};
 
 /// The file a run's solve inputs are written to.
 pub const SOLVE_INPUTS_FILE: &str = "solve_inputs.yaml";
