@@ -114,7 +114,7 @@ fn main() {
         frames as f64 / full,
         full * 1e3 / frames as f64
     );
-    if let Some(mb) = probecal::report::provenance::peak_memory_mb() {
+    if let Some(mb) = probecal::report::page::provenance::peak_memory_mb() {
         println!("peak memory of this process: {mb:.0} MB");
     }
 }

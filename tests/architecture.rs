@@ -439,3 +439,51 @@ fn string_errors_do_not_grow() {
     .unwrap();
     assert_eq!(string_errors(&[planted]).len(), 1);
 }
+
+/// The folders of `layer` (itself included) holding more than `most` `.rs` files
+/// directly.
+fn crowded_folders(layer: &Path, most: usize) -> Vec<String> {
+    let mut crowded = Vec::new();
+    let mut folders = vec![layer.to_path_buf()];
+    while let Some(folder) = folders.pop() {
+        let mut files = 0;
+        for entry in std::fs::read_dir(&folder).unwrap() {
+            let path = entry.unwrap().path();
+            if path.is_dir() {
+                folders.push(path);
+            } else if path.extension().is_some_and(|e| e == "rs") {
+                files += 1;
+            }
+        }
+        if files > most {
+            crowded.push(format!("{} ({files} files)", folder.display()));
+        }
+    }
+    crowded.sort();
+    crowded
+}
+
+/// The stage layers that hold applications (`pipeline/`, `report/`) keep one
+/// room (a sub-folder) per application: at most 12 files directly in each.
+#[test]
+fn application_layers_are_sorted_into_rooms() {
+    let src = common::root().join("src");
+    for layer in ["pipeline", "report"] {
+        let crowded = crowded_folders(&src.join(layer), 12);
+        assert!(
+            crowded.is_empty(),
+            "more than 12 files directly in a folder (sort them into rooms): {crowded:?}"
+        );
+    }
+    // The check sees a crowded layer and a crowded room.
+    let dir = common::scratch("architecture", "rooms");
+    std::fs::create_dir_all(dir.join("layer/room")).unwrap();
+    for i in 0..13 {
+        std::fs::write(dir.join(format!("layer/room/f{i}.rs")), "").unwrap();
+    }
+    assert_eq!(crowded_folders(&dir.join("layer"), 12).len(), 1);
+    for i in 0..13 {
+        std::fs::write(dir.join(format!("layer/f{i}.rs")), "").unwrap();
+    }
+    assert_eq!(crowded_folders(&dir.join("layer"), 12).len(), 2);
+}

@@ -180,8 +180,11 @@ fn committed_baselines_cover_every_default_experiment() {
         let path = entry.unwrap().path();
         if path.extension().is_some_and(|e| e == "yaml") {
             let experiment = probecal::manifest::Experiment::load(&path).unwrap();
-            let baseline = probecal::report::check::load_baseline(
-                &probecal::report::check::baseline_path(&root.join("experiments/baselines"), experiment.experiment()),
+            let baseline = probecal::report::runs::check::load_baseline(
+                &probecal::report::runs::check::baseline_path(
+                    &root.join("experiments/baselines"),
+                    experiment.experiment(),
+                ),
                 experiment.experiment(),
             )
             .unwrap_or_else(|e| panic!("{e}"));

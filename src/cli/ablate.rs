@@ -46,7 +46,7 @@ pub fn command(args: &AblateArgs) -> Result<(), Failure> {
         }
         Err(e) => return Err(Failure::failed(e)),
     };
-    let md = crate::report::ablation::write(&a, folder.path()).map_err(Failure::failed)?;
+    let md = crate::report::study::ablation::write(&a, folder.path()).map_err(Failure::failed)?;
     folder.commit().map_err(Failure::failed)?;
     print!("{md}");
     println!(

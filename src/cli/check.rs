@@ -6,7 +6,7 @@
 use std::path::{Path, PathBuf};
 
 use super::failure::Failure;
-use crate::report::check::{compare, failed_gates, find_summaries, table, update, Verdict};
+use crate::report::runs::check::{compare, failed_gates, find_summaries, table, update, Verdict};
 
 pub fn command(runs: &[PathBuf], baselines: &Path, write_baselines: bool, allow_drop: bool) -> Result<(), Failure> {
     let summaries = find_summaries(runs).map_err(Failure::bad_input)?;

@@ -101,14 +101,14 @@ pub fn command(manifest: &Path, out: &Path, source: &LiveSource) -> Result<(), F
 fn folder_command(manifest: &Manifest, watch: &Watch, out: &Path) -> Result<(), Failure> {
     let terminal = std::io::stderr().is_terminal();
     let mut show =
-        |f: &crate::pipeline::live::folder::FolderFrame| shown(terminal, &crate::report::live_folder::line(f));
+        |f: &crate::pipeline::live::folder::FolderFrame| shown(terminal, &crate::report::live::folder::line(f));
     let run = crate::pipeline::live::folder::run(manifest, watch, &mut show);
     if terminal {
         eprintln!();
     }
     let run = run.map_err(Failure::failed)?;
-    let s =
-        crate::report::live_folder::write(&run, out).map_err(|e| Failure::failed(format!("{}: {e}", out.display())))?;
+    let s = crate::report::live::folder::write(&run, out)
+        .map_err(|e| Failure::failed(format!("{}: {e}", out.display())))?;
     println!(
         "{} frames ({} used), ended by {}; latency {:.1} ms mean, {:.1} ms max; live and batch all-frames fits differ by {}; written to {}",
         s.frames,

@@ -105,7 +105,7 @@ fn session(
             run.counts.frames
         );
     }
-    let s = crate::report::live_igtl::write(&run, &settings, manifest, staged.path())
+    let s = crate::report::live::igtl::write(&run, &settings, manifest, staged.path())
         .map_err(|e| Failure::failed(format!("{}: {e}", out.display())))?;
     if s.messages.skipped > 0 {
         eprintln!(

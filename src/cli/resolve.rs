@@ -5,7 +5,7 @@
 use std::path::Path;
 
 use super::failure::Failure;
-use crate::report::resolve::{resolve, SAME_CALIBRATION};
+use crate::report::runs::resolve::{resolve, SAME_CALIBRATION};
 
 pub fn command(run_folder: &Path) -> Result<(), Failure> {
     let (difference, again) = resolve(run_folder).map_err(Failure::failed)?;

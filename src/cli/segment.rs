@@ -3,7 +3,7 @@
 //! inputs cannot be read or the outputs written.
 
 use super::failure::Failure;
-use crate::report::segment::against_plus;
+use crate::report::plus_tools::segment::against_plus;
 
 /// `probecal segment`'s arguments.
 #[derive(Debug, clap::Args)]
@@ -41,7 +41,7 @@ pub fn command(args: &SegmentArgs) -> Result<(), Failure> {
         .map(|p| against_plus(&run, p))
         .transpose()
         .map_err(Failure::failed)?;
-    crate::report::segment::write(&run, baseline.as_ref(), folder.path()).map_err(Failure::failed)?;
+    crate::report::plus_tools::segment::write(&run, baseline.as_ref(), folder.path()).map_err(Failure::failed)?;
     folder.commit().map_err(Failure::failed)?;
     let found = run.frames.iter().filter(|f| f.rejected.is_none()).count();
     let role = crate::pipeline::sequence_frames::Role::Calibration;

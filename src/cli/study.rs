@@ -195,7 +195,7 @@ fn claim(out: &Path, names: &[&str], inputs: &[&Path], force: bool, exclusive: b
 /// `probecal study compare`: the paired comparison, printed and written to `out`.
 /// `methods`: only this method, and the method of `b` it is paired with.
 pub fn compare(a: &Path, b: &Path, methods: [Option<&str>; 2], out: Option<&Path>, force: bool) -> Result<(), Failure> {
-    use crate::report::study_compare;
+    use crate::report::study::compare as study_compare;
     if let Some(out) = out {
         if out.extension().is_none_or(|e| e != "json") {
             return Err(Failure::bad_input(format!(

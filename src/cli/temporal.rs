@@ -9,7 +9,7 @@ pub fn command(video: &Path, tracker: &Path, out: &Path, force: bool) -> Result<
     let folder = crate::io::output::OutputFolder::claim(out, "temporal", &[video, tracker], force)?;
     let run = crate::pipeline::tracked::time::temporal::run(video, tracker, "ProbeToTracker", "ReferenceToTracker")
         .map_err(Failure::failed)?;
-    crate::report::temporal::write(&run, folder.path()).map_err(Failure::failed)?;
+    crate::report::plus_tools::temporal::write(&run, folder.path()).map_err(Failure::failed)?;
     folder.commit().map_err(Failure::failed)?;
     println!("tracker lag {:.4} s; written to {}", run.tracker_lag_s, out.display());
     Ok(())

@@ -92,7 +92,7 @@ pub fn tracked_run(run: &TrackedRun, summary: &TrackedSummary, folder: &std::pat
     if let Some(e) = &run.lag_estimate {
         match &e.unresolved {
             Some(why) => eprintln!("warning: the tracker's lag could not be estimated, none is applied: {why}"),
-            None => println!("{}", crate::report::tracked_lag::lag_line(e)),
+            None => println!("{}", crate::report::tracked::lag::lag_line(e)),
         }
         if let Some(d) = &e.disagreement {
             eprintln!("warning: {d}");

@@ -1,8 +1,8 @@
 //! What every page's rendering shares, below the pages themselves: the LaTeX
 //! escape filter, the figures' font, and tera's errors with their causes.
 
-pub use super::error::error_chain;
-use super::error::{OutputError, ReadError};
+pub use crate::report::error::error_chain;
+use crate::report::error::{OutputError, ReadError};
 
 /// Where the bitmap figures' font is read from.
 pub const FIGURE_FONT: &str = "/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf";

@@ -40,7 +40,7 @@ pub struct TrackedSummary {
     pub plus_result: Option<PlusResultSummary>,
     /// The sweep the manifest names, reconstructed with this calibration.
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub reconstruction: Option<super::tracked_volume::TrackedVolume>,
+    pub reconstruction: Option<crate::report::tracked_volume::TrackedVolume>,
 }
 
 /// One candidate model's cross-validated PRE3D (or why it has none).

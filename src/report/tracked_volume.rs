@@ -7,10 +7,10 @@ use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 
-use super::error::OutputError;
 use crate::evaluate::wire_profile::WireFigures;
 use crate::io::fs::display_path;
 use crate::pipeline::reconstruct::Reconstruction;
+use crate::report::error::OutputError;
 
 /// The run folder's subfolder that holds the reconstruction.
 pub const FOLDER: &str = "reconstruction";
@@ -35,11 +35,11 @@ pub struct TrackedVolume {
 pub fn write(volume: &Reconstruction, run_folder: &Path) -> Result<TrackedVolume, OutputError> {
     let dir = run_folder.join(FOLDER);
     std::fs::create_dir_all(&dir).map_err(|e| OutputError::io(&dir, e))?;
-    let options = super::reconstruct::WriteOptions {
+    let options = crate::report::reconstruct::WriteOptions {
         nrrd: false,
         compare: None,
     };
-    super::reconstruct::write(volume, &dir, &options)?;
+    crate::report::reconstruct::write(volume, &dir, &options)?;
     let grid = volume.volume.grid();
     Ok(TrackedVolume {
         folder: FOLDER.to_string(),

@@ -4,10 +4,6 @@
 use std::path::Path;
 use std::time::SystemTime;
 
-use super::error::OutputError;
-use super::index::{index_entry, IndexEntry};
-use super::provenance::Provenance;
-use super::summary::RunSummary;
 use crate::io::plus::result::PlusResult;
 use crate::manifest::tracked::TrackedManifest;
 use crate::manifest::Manifest;
@@ -16,6 +12,10 @@ use crate::pipeline::experiment::{Reporter, RunFolder};
 use crate::pipeline::record::DatasetRun;
 use crate::pipeline::tracked::resolution::TrackedAfter;
 use crate::pipeline::tracked::TrackedRun;
+use crate::report::error::OutputError;
+use crate::report::page::provenance::Provenance;
+use crate::report::runs::index::{index_entry, IndexEntry};
+use crate::report::summary::RunSummary;
 
 /// Writes each run's folder and the index; prints unless quiet.
 pub struct ReportWriter {
@@ -47,7 +47,7 @@ impl ReportWriter {
     ) -> Result<(), OutputError> {
         let compared = match runs {
             [] => Ok(()),
-            _ => super::compare::write(out, manifests, runs, quiet).map(|()| {
+            _ => crate::report::thesis::compare::write(out, manifests, runs, quiet).map(|()| {
                 println!("written to {} (compare.md, compare.html, compare.tex)", out.display());
             }),
         };
@@ -57,7 +57,7 @@ impl ReportWriter {
 
     /// Writes `out/index.html` for the runs reported so far and the pages beside them.
     pub fn write_index(&self, out: &Path) -> Result<(), OutputError> {
-        let errors = super::index::write(out, &self.entries);
+        let errors = crate::report::runs::index::write(out, &self.entries);
         if errors.is_empty() {
             Ok(())
         } else {
@@ -81,7 +81,7 @@ impl Reporter for ReportWriter {
         started: SystemTime,
     ) -> Result<(), ReporterError> {
         let (shown, folder) = (folder.final_path, folder.write_to);
-        let summary = super::write::write_dataset_run(run, manifest, folder)?;
+        let summary = crate::report::page::write::write_dataset_run(run, manifest, folder)?;
         let mut provenance = Provenance::new(
             &manifest.path,
             &manifest.sha256,
@@ -94,7 +94,7 @@ impl Reporter for ReportWriter {
         provenance.timings_s = run.timings_s.iter().map(|(k, v)| (k.to_string(), *v)).collect();
         let written = provenance.write(folder).map_err(ReporterError::from);
         if !self.quiet {
-            super::console::dataset_run(run, &summary, shown);
+            crate::report::console::dataset_run(run, &summary, shown);
         }
         self.entries.push(index_entry(&RunSummary::Camera(Box::new(summary))));
         written
@@ -110,7 +110,7 @@ impl Reporter for ReportWriter {
         started: SystemTime,
     ) -> Result<(), ReporterError> {
         let (shown, folder) = (folder.final_path, folder.write_to);
-        let summary = super::tracked::write(run, after, manifest, plus, folder)?;
+        let summary = crate::report::tracked::write(run, after, manifest, plus, folder)?;
         Provenance::new(
             &manifest.path,
             &manifest.sha256,
@@ -121,7 +121,7 @@ impl Reporter for ReportWriter {
         )
         .write(folder)?;
         if !self.quiet {
-            super::console::tracked_run(run, &summary, shown);
+            crate::report::console::tracked_run(run, &summary, shown);
         }
         self.entries.push(index_entry(&RunSummary::Tracked(Box::new(summary))));
         Ok(())

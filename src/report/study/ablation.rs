@@ -78,8 +78,8 @@ pub fn markdown(a: &Ablation) -> String {
         methods.join(" | ")
     );
     let _ = writeln!(s, "|{}", "---|".repeat(7 + methods.len()));
-    let t = &super::thesis::DATASET3_THESIS;
-    let f = super::thesis::DATASET3_THESIS_FRAMES;
+    let t = &crate::report::thesis::DATASET3_THESIS;
+    let f = crate::report::thesis::DATASET3_THESIS_FRAMES;
     let _ = writeln!(
         s,
         "| thesis, Dataset 3 (published) | {:.3} | {:.3} | {:.3} | {} / {} / {} / {} | — | — |{}",
@@ -118,7 +118,7 @@ pub fn write(a: &Ablation, out: &std::path::Path) -> Result<String, crate::repor
         &[
             ("ablation.json".into(), json.into_bytes()),
             ("ablation.md".into(), md.clone().into_bytes()),
-            ("ablation.html".into(), super::study::html(&md)?.into_bytes()),
+            ("ablation.html".into(), crate::report::study::html(&md)?.into_bytes()),
         ],
     )?;
     Ok(md)

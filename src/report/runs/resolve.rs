@@ -4,9 +4,9 @@
 use crate::report::error::ReadError;
 use std::path::Path;
 
-use super::summary::RunSummary;
 use crate::core::geometry::to_rows;
 use crate::pipeline::run::resolve::{solve_again, SolveInputs};
+use crate::report::summary::RunSummary;
 
 /// Largest difference between two transforms' matrix entries that still counts
 /// as the same calibration (mm for the translation, unitless for the rotation).

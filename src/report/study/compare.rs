@@ -11,9 +11,9 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
-use super::study::StudyFile;
 use crate::core::stats::{mean_interval, IntervalMethod};
 use crate::pipeline::study::{MonteCarlo, SeedResult, INTERVAL_LEVEL};
+use crate::report::study::StudyFile;
 
 /// One method's paired comparison.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -96,7 +96,7 @@ pub struct PairedStudies {
 #[derive(Debug, thiserror::Error)]
 pub enum CompareError {
     #[error("{0}")]
-    Read(#[from] super::error::ReadError),
+    Read(#[from] crate::report::error::ReadError),
     #[error("{0}: no Monte Carlo study in it (a σ-table only)")]
     NoStudy(PathBuf),
     #[error("{a} and {b} share {n} seeds; a paired comparison needs at least 2")]

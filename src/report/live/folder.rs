@@ -13,7 +13,7 @@ use serde::Serialize;
 
 use crate::estimate::horn::HornFit;
 use crate::pipeline::live::folder::{Ending, FolderFrame, FolderRun};
-use crate::report::live_timing::{number, timing, write_session, Timing};
+use crate::report::live::timing::{number, timing, write_session, Timing};
 
 /// `live.csv`.
 pub fn frames_csv(run: &FolderRun) -> String {

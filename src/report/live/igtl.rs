@@ -8,12 +8,12 @@ use std::path::Path;
 
 use serde::Serialize;
 
-use super::error::OutputError;
-use super::live_timing::{timing, Timing};
 use crate::core::stats::percentile;
 use crate::manifest::tracked::TrackedManifest;
 use crate::pipeline::live::igtl::{StreamRun, StreamSettings};
 use crate::pipeline::tracked::Role;
+use crate::report::error::OutputError;
+use crate::report::live::timing::{timing, Timing};
 
 /// Percentiles of per-frame times, ms.
 #[derive(Serialize)]
@@ -94,7 +94,7 @@ pub fn summary(run: &StreamRun, settings: &StreamSettings) -> IgtlSummary {
         .map(|w| (w[1].arrival_s - w[0].arrival_s) * 1e3)
         .collect();
     let interval_ms = (!gaps.is_empty()).then(|| percentile(&gaps, 0.5));
-    let rows = |m: nalgebra::Matrix4<f64>| super::tracked::rows(&m);
+    let rows = |m: nalgebra::Matrix4<f64>| crate::report::tracked::rows(&m);
     let c = &run.counts;
     let batch = run.final_run.as_ref().ok();
     IgtlSummary {
@@ -143,10 +143,13 @@ pub fn write(
     folder: &Path,
 ) -> Result<IgtlSummary, OutputError> {
     let s = summary(run, settings);
-    crate::io::fs::write_atomic(&folder.join("summary.json"), super::summary::to_text(&s)?.as_bytes())?;
+    crate::io::fs::write_atomic(
+        &folder.join("summary.json"),
+        crate::report::summary::to_text(&s)?.as_bytes(),
+    )?;
     crate::io::fs::write_atomic(
         &folder.join("live.csv"),
-        super::live::frames_csv(&run.frames).as_bytes(),
+        crate::report::live::frames_csv(&run.frames).as_bytes(),
     )?;
     if let Ok(batch) = &run.final_run {
         let mut inputs = crate::pipeline::tracked::TrackedInputs::from_manifest(manifest);
@@ -155,7 +158,7 @@ pub fn write(
             resolution: crate::pipeline::tracked::resolution::evaluate(batch, &inputs),
             volume: None,
         };
-        super::tracked::write(batch, &after, manifest, None, &folder.join("calibration"))?;
+        crate::report::tracked::write(batch, &after, manifest, None, &folder.join("calibration"))?;
     }
     Ok(s)
 }

@@ -5,13 +5,17 @@
 //! The runs are read back from their `summary.json` (the results model as
 //! written), so the chapter can be laid out again from any output folder.
 
+pub mod chapter_table;
+pub mod compare;
+pub mod phantom;
+pub mod rig_comparison;
 use std::path::Path;
 
 use serde::Serialize;
 
-use super::chapter_table::{fmt, summary, Row, Table};
 use crate::evaluate::{AxisStats, STAT_ROWS};
 use crate::report::summary::{BreSummary, Summary};
+use crate::report::thesis::chapter_table::{fmt, summary, Row, Table};
 
 /// One of the thesis's three-axis tables (Std./Mean/Min/Max × x, y, z).
 struct AxisTable {
@@ -192,7 +196,7 @@ pub fn chapter(root: &Path) -> Chapter {
         Some(s) => tables.push(dataset3_table(&s)),
         None => missing.push(format!("{experiment}/{dataset}")),
     }
-    match super::rig_comparison::rigs_table(root) {
+    match crate::report::thesis::rig_comparison::rigs_table(root) {
         Ok(t) => tables.push(t),
         Err(absent) => missing.extend(absent),
     }
@@ -355,8 +359,8 @@ pub fn layout(chapter: &Chapter) -> String {
 
 use crate::report::error::OutputError;
 
-const HTML_TEMPLATE: &str = include_str!("../../templates/thesis.html.tera");
-const TEX_TEMPLATE: &str = include_str!("../../templates/thesis.tex.tera");
+const HTML_TEMPLATE: &str = include_str!("../../../templates/thesis.html.tera");
+const TEX_TEMPLATE: &str = include_str!("../../../templates/thesis.tex.tera");
 
 /// The chapter and its pages (HTML, LaTeX) from the runs under `root`; `None`
 /// when none of the chapter's experiments has a run there.

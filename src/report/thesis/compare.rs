@@ -287,7 +287,7 @@ pub fn markdown(columns: &[CompareColumn]) -> String {
     s
 }
 
-const COMPARE_TEMPLATE: &str = include_str!("../../templates/compare.html.tera");
+const COMPARE_TEMPLATE: &str = include_str!("../../../templates/compare.html.tera");
 
 /// The comparison page.
 pub fn render_html(columns: &[CompareColumn]) -> Result<String, OutputError> {
@@ -334,7 +334,7 @@ fn render(columns: &[CompareColumn], template: &str) -> Result<String, OutputErr
     Ok(t.render(template, &ctx)?)
 }
 
-const COMPARE_TEX_TEMPLATE: &str = include_str!("../../templates/compare.tex.tera");
+const COMPARE_TEX_TEMPLATE: &str = include_str!("../../../templates/compare.tex.tera");
 
 /// Writes `compare.md`, `compare.html` and `compare.tex` into `out` for the runs
 /// (each with its manifest's index); the markdown is printed unless quiet.

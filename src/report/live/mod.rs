@@ -4,15 +4,18 @@
 //! frames used) and `summary.json` (the recorded rate, the latency, whether it
 //! kept up, and the final calibration, the batch run's).
 
+pub mod folder;
+pub mod igtl;
+pub mod timing;
 use crate::report::error::OutputError;
 use std::fmt::Write as _;
 use std::path::Path;
 
 use serde::Serialize;
 
-pub(crate) use super::live_timing::{number, timing, write_session, Timing};
 use crate::pipeline::live::{LiveFrame, LiveRun, Replay};
 use crate::pipeline::tracked::Role;
+pub(crate) use crate::report::live::timing::{number, timing, write_session, Timing};
 
 /// `live.csv`.
 pub fn frames_csv(frames: &[LiveFrame]) -> String {

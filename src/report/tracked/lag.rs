@@ -8,7 +8,7 @@ use crate::io::plus::result::PlusResult;
 use crate::manifest::tracked::TrackedManifest;
 use crate::pipeline::tracked::time::lag_joint::LagEstimate;
 use crate::pipeline::tracked::{Role, TrackedFrame, TrackedRun};
-use crate::report::figures::{Chart, Series, Style};
+use crate::report::page::figures::{Chart, Series, Style};
 use crate::report::summary::NoLagPre3d;
 
 /// The lag in one console line: the estimate, its intervals, what was
@@ -154,7 +154,7 @@ pub fn insert_figure(ctx: &mut tera::Context, run: &TrackedRun) -> Result<(), cr
     let chart = run.lag_estimate.as_ref().and_then(lag_chart);
     ctx.insert(
         "lag_figure",
-        &chart.as_ref().map(crate::report::figures::svg).transpose()?,
+        &chart.as_ref().map(crate::report::page::figures::svg).transpose()?,
     );
     ctx.insert("lag_caption", &chart.as_ref().map(|c| c.caption.clone()));
     Ok(())

@@ -4,14 +4,14 @@
 
 use serde::Serialize;
 
-use super::context_rows::{
-    calibration_rows, camera_rows, method_rows, mm, setup_rows, start_basin_rows, stat_rows, threshold_blocks,
-    truth_by_cutoff, truth_rows, validation_rows,
-};
-pub use super::context_rows::{AxisBlock, KeyValue, StatRow};
 use crate::core::geometry::to_rows;
 use crate::evaluate::cutoff_label;
 use crate::pipeline::record::DatasetRun;
+use crate::report::page::context_rows::{
+    calibration_rows, camera_rows, method_rows, mm, setup_rows, start_basin_rows, stat_rows, threshold_blocks,
+    truth_by_cutoff, truth_rows, validation_rows,
+};
+pub use crate::report::page::context_rows::{AxisBlock, KeyValue, StatRow};
 
 #[derive(Debug, Serialize, PartialEq)]
 pub struct CutoffColumn {
@@ -155,7 +155,7 @@ pub fn context(run: &DatasetRun, manifest: &crate::manifest::Manifest) -> RunCon
                 })
             })
             .collect(),
-        bre_figure: match super::figures::bre_figure(run) {
+        bre_figure: match crate::report::page::figures::bre_figure(run) {
             Ok(svg) => Figure::Svg(svg),
             Err(e) => Figure::NotDrawn(format!("figure not drawn: {e}")),
         },

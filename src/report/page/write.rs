@@ -14,7 +14,7 @@ use crate::report::summary::{to_text, Summary};
 use crate::io::fs::write_atomic;
 use crate::io::fs::{display_path, WriteError};
 
-pub use super::error::OutputError;
+pub use crate::report::error::OutputError;
 
 /// The frames' truth columns (rendered datasets; empty otherwise).
 fn truth_columns(run: &DatasetRun) -> Vec<Column> {
@@ -198,15 +198,15 @@ pub fn write_dataset_run(
     let summary = Summary::of(run, manifest);
     let text = to_text(&summary)?;
     write_atomic(&folder.join("summary.json"), text.as_bytes())?;
-    let mut context = crate::report::context::context(run, manifest);
-    let gallery = crate::report::gallery::gallery(run).map_err(|e| OutputError::Report(e.to_string()))?;
+    let mut context = crate::report::page::context::context(run, manifest);
+    let gallery = crate::report::page::gallery::gallery(run).map_err(|e| OutputError::Report(e.to_string()))?;
     if !gallery.is_empty() {
         let dir = folder.join("gallery");
         std::fs::create_dir_all(&dir).map_err(io(&dir))?;
         for g in &gallery {
             let file = format!("gallery/frame_{:03}.jpg", g.frame);
             write_atomic(&folder.join(&file), &g.jpeg)?;
-            context.gallery.push(crate::report::context::GalleryEntry {
+            context.gallery.push(crate::report::page::context::GalleryEntry {
                 file,
                 caption: g.caption.clone(),
             });
@@ -214,10 +214,10 @@ pub fn write_dataset_run(
     }
     let uris: Vec<String> = gallery
         .iter()
-        .map(|g| crate::report::gallery::data_uri(&g.jpeg))
+        .map(|g| crate::report::page::gallery::data_uri(&g.jpeg))
         .collect();
     let mut svgs = Vec::new();
-    let charts = crate::report::figures::charts(run);
+    let charts = crate::report::page::figures::charts(run);
     if !charts.is_empty() {
         let dir = folder.join("figures");
         std::fs::create_dir_all(&dir).map_err(io(&dir))?;
@@ -225,25 +225,28 @@ pub fn write_dataset_run(
     // Each chart is drawn (PNG and SVG) on a core of its own, in chart order.
     let drawn = crate::core::parallel::parallel_map(charts.len(), |i| {
         let chart = &charts[i];
-        Ok::<_, OutputError>((crate::report::figures::png(chart)?, crate::report::figures::svg(chart)?))
+        Ok::<_, OutputError>((
+            crate::report::page::figures::png(chart)?,
+            crate::report::page::figures::svg(chart)?,
+        ))
     });
     for (chart, drawn) in charts.iter().zip(drawn) {
         let (png, svg) = drawn?;
         let file = format!("figures/{}.png", chart.id);
         write_atomic(&folder.join(&file), &png)?;
         svgs.push(svg);
-        context.figures.push(crate::report::context::GalleryEntry {
+        context.figures.push(crate::report::page::context::GalleryEntry {
             file,
             caption: chart.caption.clone(),
         });
     }
     let context_json = serde_json::to_string_pretty(&context)? + "\n";
     write_atomic(&folder.join("report_context.json"), context_json.as_bytes())?;
-    let html = crate::report::render::render_html(&context, &uris, &svgs)?;
+    let html = crate::report::page::render::render_html(&context, &uris, &svgs)?;
     write_atomic(&folder.join("report.html"), html.as_bytes())?;
-    let tex = crate::report::render::render_tex(&context)?;
+    let tex = crate::report::page::render::render_tex(&context)?;
     write_atomic(&folder.join("report.tex"), tex.as_bytes())?;
-    let png = crate::report::figures::bre_figure_png(run)?;
+    let png = crate::report::page::figures::bre_figure_png(run)?;
     write_atomic(&folder.join("bre_per_frame.png"), &png)?;
     if let Some(cal) = &run.camera.calibration {
         let path = folder.join("camera_intrinsics.yml");

@@ -16,7 +16,7 @@ use std::path::{Path, PathBuf};
 
 use serde::Serialize;
 
-pub use crate::report::baseline::{baseline_path, metrics, Baseline, Metric};
+pub use crate::report::runs::baseline::{baseline_path, metrics, Baseline, Metric};
 use crate::report::summary::RunSummary;
 
 /// The outcome of one comparison.

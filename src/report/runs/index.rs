@@ -4,10 +4,10 @@ use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 
-use super::error::OutputError;
-use super::render::tera;
-use super::summary::RunSummary;
 use crate::io::fs::write_atomic;
+use crate::report::error::OutputError;
+use crate::report::page::render::tera;
+use crate::report::summary::RunSummary;
 
 /// One line of the index page.
 #[derive(Debug, Serialize)]
@@ -165,7 +165,7 @@ pub fn pages_beside(out: &Path) -> (Vec<(String, String)>, Vec<String>) {
         ));
     }
     // The thesis's results chapter, from whichever of its experiments are in `out`.
-    match super::thesis::write(out) {
+    match crate::report::thesis::write(out) {
         Ok(Some(_)) => studies.push((
             "thesis.html".into(),
             "The thesis's results chapter, regenerated (also thesis.tex)".into(),

@@ -1,5 +1,8 @@
 //! A study's pages: `study.json` (typed, [`StudyFile`]), `study.md` and `study.html`.
 
+pub mod ablation;
+pub mod compare;
+pub mod design;
 use std::path::Path;
 
 use serde::{Deserialize, Serialize};
@@ -180,7 +183,7 @@ fn blocks(md: &str) -> Vec<Block> {
     out
 }
 
-const TEMPLATE: &str = include_str!("../../templates/study.html.tera");
+const TEMPLATE: &str = include_str!("../../../templates/study.html.tera");
 
 /// A self-contained HTML page of the Markdown's tables, from `templates/study.html.tera`.
 pub fn html(md: &str) -> Result<String, tera::Error> {

@@ -4,7 +4,7 @@
 //! once by plotters on any backend: SVG inline in the HTML page, PNG beside the
 //! LaTeX report.
 
-use super::error::OutputError;
+use crate::report::error::OutputError;
 use plotters::coord::Shift;
 use plotters::prelude::*;
 
@@ -139,7 +139,7 @@ pub fn draw<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, chart: &Chart) ->
 
 /// The chart as SVG text (760 x 320).
 pub fn svg(chart: &Chart) -> Result<String, OutputError> {
-    super::templating::register_font()?;
+    crate::report::templating::register_font()?;
     let mut text = String::new();
     {
         let root = SVGBackend::with_string(&mut text, (760, 320)).into_drawing_area();
@@ -150,7 +150,7 @@ pub fn svg(chart: &Chart) -> Result<String, OutputError> {
 
 /// The chart as PNG bytes (1140 x 480).
 pub fn png(chart: &Chart) -> Result<Vec<u8>, OutputError> {
-    super::templating::register_font()?;
+    crate::report::templating::register_font()?;
     let (w, h) = (1140u32, 480u32);
     let mut rgb = vec![0u8; (w * h * 3) as usize];
     {

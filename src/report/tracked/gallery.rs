@@ -12,7 +12,7 @@ use opencv::prelude::*;
 use crate::io::plus::sequence::Sequence;
 use crate::manifest::tracked::TrackedManifest;
 use crate::pipeline::tracked::{Role, TrackedFrame, TrackedRun};
-use crate::report::gallery::{GalleryImage, WIDTH_PX};
+use crate::report::page::gallery::{GalleryImage, WIDTH_PX};
 
 /// Used frames shown per sweep, and rejected frames shown in all, at most.
 pub const USED_PER_SWEEP: usize = 3;
@@ -179,7 +179,7 @@ pub fn insert(ctx: &mut tera::Context, gallery: &[GalleryImage]) {
         .map(|(k, g)| {
             serde_json::json!({
                 "caption": g.caption,
-                "uri": crate::report::gallery::data_uri(&g.jpeg),
+                "uri": crate::report::page::gallery::data_uri(&g.jpeg),
                 "file": file_name(k),
             })
         })

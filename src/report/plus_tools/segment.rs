@@ -208,7 +208,7 @@ fn gallery_name(frame: usize) -> String {
     format!("gallery/frame_{frame:04}.jpg")
 }
 
-const TEMPLATE: &str = include_str!("../../templates/segment.html.tera");
+const TEMPLATE: &str = include_str!("../../../templates/segment.html.tera");
 
 /// `report.html`, from `templates/segment.html.tera` (every value escaped there).
 pub fn html(run: &SegmentRun, baseline: Option<&Baseline>) -> Result<String, OutputError> {

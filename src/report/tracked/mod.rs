@@ -1,6 +1,10 @@
 //! Outputs of a tracked (sequence-file) run: frames.csv/.parquet, summary.json,
 //! `Calibration.xml` (PLUS), `Calibration.tfm` (ITK/Slicer) and report.html.
 
+pub mod figures;
+pub mod gallery;
+pub mod lag;
+mod transform_files;
 use std::path::Path;
 
 use nalgebra::Matrix4;
@@ -66,7 +70,7 @@ fn pre3d(run: &TrackedRun, manifest: &TrackedManifest, plus: Option<&PlusResult>
         pre3d_all_mm: mean_sd_of(&ours),
         ..Pre3d::default()
     };
-    out.no_lag = super::tracked_lag::no_lag_pre3d(run, manifest, plus, role, |index| {
+    out.no_lag = crate::report::tracked::lag::no_lag_pre3d(run, manifest, plus, role, |index| {
         let listed = plus.and_then(|p| match role {
             Role::Calibration => p.calibration_frames_segmented.as_ref(),
             Role::Validation => p.validation_frames_segmented.as_ref(),
@@ -279,7 +283,7 @@ pub fn frames_table(run: &TrackedRun, patterns: usize) -> PolarsResult<DataFrame
     DataFrame::new(f.len(), columns)
 }
 
-pub use super::transform_files::{itk_tfm, plus_xml};
+pub use crate::report::tracked::transform_files::{itk_tfm, plus_xml};
 
 /// Writes the run's files into `folder`.
 pub fn write(
@@ -293,10 +297,10 @@ pub fn write(
         path: folder.to_path_buf(),
         message: e.to_string(),
     })?;
-    super::write::write_frames_table(folder, &mut frames_table(run, manifest.nwires.len())?)?;
+    crate::report::page::write::write_frames_table(folder, &mut frames_table(run, manifest.nwires.len())?)?;
     let mut summary = summary(run, &after.resolution, manifest, plus);
     if let Some(volume) = &after.volume {
-        summary.reconstruction = Some(super::tracked_volume::write(volume, folder)?);
+        summary.reconstruction = Some(crate::report::tracked_volume::write(volume, folder)?);
     }
     let text = to_text(&summary)?;
     write_atomic(&folder.join("summary.json"), text.as_bytes())?;
@@ -304,13 +308,20 @@ pub fn write(
     write_atomic(&folder.join("ImageToProbe.xml"), plus_xml(&matrix).as_bytes())?;
     let tfm = itk_tfm(&matrix).ok_or_else(|| OutputError::Report("ImageToProbe is singular".into()))?;
     write_atomic(&folder.join("ImageToProbe.tfm"), tfm.as_bytes())?;
-    let lag = super::transform_files::tracker_lag_xml(run.time_offset_s, &time_offset_note(run));
+    let lag = crate::report::tracked::transform_files::tracker_lag_xml(run.time_offset_s, &time_offset_note(run));
     write_atomic(&folder.join("TrackerLag.xml"), lag.as_bytes())?;
-    if let Some(chart) = run.lag_estimate.as_ref().and_then(super::tracked_lag::lag_chart) {
-        write_atomic(&folder.join("lag_objective.png"), &super::figures::png(&chart)?)?;
+    if let Some(chart) = run
+        .lag_estimate
+        .as_ref()
+        .and_then(crate::report::tracked::lag::lag_chart)
+    {
+        write_atomic(
+            &folder.join("lag_objective.png"),
+            &crate::report::page::figures::png(&chart)?,
+        )?;
     }
-    let charts = super::tracked_figures::charts(run, manifest, plus);
-    let gallery = super::tracked_gallery::gallery(run, manifest);
+    let charts = crate::report::tracked::figures::charts(run, manifest, plus);
+    let gallery = crate::report::tracked::gallery::gallery(run, manifest);
     let (html, tex, mut figures) = render_pages(run, manifest, &summary, &charts, &gallery)?;
     if !gallery.is_empty() {
         std::fs::create_dir_all(folder.join("gallery")).map_err(|e| OutputError::io(folder.join("gallery"), e))?;
@@ -319,7 +330,7 @@ pub fn write(
         gallery
             .into_iter()
             .enumerate()
-            .map(|(k, g)| (super::tracked_gallery::file_name(k), g.jpeg)),
+            .map(|(k, g)| (crate::report::tracked::gallery::file_name(k), g.jpeg)),
     );
     for (name, bytes) in figures {
         write_atomic(&folder.join(name), &bytes)?;
@@ -329,8 +340,8 @@ pub fn write(
     Ok(summary)
 }
 
-const TRACKED_TEMPLATE: &str = include_str!("../../templates/tracked.html.tera");
-const TRACKED_TEX_TEMPLATE: &str = include_str!("../../templates/tracked.tex.tera");
+const TRACKED_TEMPLATE: &str = include_str!("../../../templates/tracked.html.tera");
+const TRACKED_TEX_TEMPLATE: &str = include_str!("../../../templates/tracked.tex.tera");
 
 /// The page's "what the validation score can tell" table; `null` when there is nothing in it.
 fn resolution_rows(r: &ValidationResolution) -> serde_json::Value {
@@ -472,9 +483,9 @@ fn render_pages(
     run: &TrackedRun,
     manifest: &TrackedManifest,
     summary: &TrackedSummary,
-    charts: &[super::figures::Chart],
-    gallery: &[super::gallery::GalleryImage],
-) -> Result<(String, String, super::tracked_figures::FigureFiles), OutputError> {
+    charts: &[crate::report::page::figures::Chart],
+    gallery: &[crate::report::page::gallery::GalleryImage],
+) -> Result<(String, String, crate::report::tracked::figures::FigureFiles), OutputError> {
     let f3 = |v: Option<f64>| v.map(|x| format!("{x:.3}")).unwrap_or_else(|| "—".into());
     let mut ctx = tera::Context::new();
     ctx.insert("experiment", &manifest.experiment);
@@ -498,7 +509,7 @@ fn render_pages(
     };
     ctx.insert("plus_config", &definition);
     ctx.insert("nwires", &manifest.nwires.len());
-    super::tracked_summary::insert_selection(&mut ctx, run);
+    crate::report::tracked_summary::insert_selection(&mut ctx, run);
     ctx.insert("folds", &run.selection.folds);
     ctx.insert("selection_frames", &run.selection.frames);
     ctx.insert("constraints", &run.constraints);
@@ -506,7 +517,7 @@ fn render_pages(
     ctx.insert("time_offset_ms", &format!("{:.0}", run.time_offset_s * 1000.0));
     ctx.insert("time_offset_note", &time_offset_note(run));
     ctx.insert("probecal_version", env!("CARGO_PKG_VERSION"));
-    ctx.insert("opencv_version", &super::provenance::opencv_version());
+    ctx.insert("opencv_version", &crate::report::page::provenance::opencv_version());
     let (cs, ct) = run.segmented(Role::Calibration);
     let (vs, vt) = run.segmented(Role::Validation);
     ctx.insert("cal_segmented", &cs);
@@ -526,16 +537,19 @@ fn render_pages(
     ctx.insert("translation", &format!("[{:.2}, {:.2}, {:.2}]", t.x, t.y, t.z));
     let pre3d = pre3d_rows(summary);
     ctx.insert("pre3d", &pre3d);
-    super::tracked_lag::insert_figure(&mut ctx, run)?;
-    let figures = super::tracked_figures::insert(&mut ctx, charts)?;
-    super::tracked_gallery::insert(&mut ctx, gallery);
+    crate::report::tracked::lag::insert_figure(&mut ctx, run)?;
+    let figures = crate::report::tracked::figures::insert(&mut ctx, charts)?;
+    crate::report::tracked::gallery::insert(&mut ctx, gallery);
     let paired = summary
         .validation
         .ours_minus_plus_matrix_mm
         .map(|d| d.sentence("probecal", "PLUS's matrix"));
     ctx.insert("paired", &paired);
     ctx.insert("resolution", &resolution_rows(&summary.resolution));
-    let volume = summary.reconstruction.as_ref().map(super::tracked_volume::page_context);
+    let volume = summary
+        .reconstruction
+        .as_ref()
+        .map(crate::report::tracked_volume::page_context);
     ctx.insert("volume", &volume);
     let gates: Vec<serde_json::Value> = summary
         .gates
@@ -544,7 +558,7 @@ fn render_pages(
         .collect();
     ctx.insert("gates", &gates);
     let mut t = tera::Tera::default();
-    super::templating::register_tex_filter(&mut t);
+    crate::report::templating::register_tex_filter(&mut t);
     t.add_raw_templates(vec![
         ("tracked.html", TRACKED_TEMPLATE),
         ("tracked.tex", TRACKED_TEX_TEMPLATE),

@@ -5,8 +5,8 @@
 
 use std::path::Path;
 
-use super::chapter_table::{fmt, summary, Row, Table};
-use super::summary::Summary;
+use crate::report::summary::Summary;
+use crate::report::thesis::chapter_table::{fmt, summary, Row, Table};
 
 /// The rigs' experiments: (rig, clear, occluded), all on `dataset3`.
 pub const RIG_EXPERIMENTS: [(&str, &str, &str); 3] = [

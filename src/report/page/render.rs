@@ -1,14 +1,14 @@
 //! The run page's templates to pages: the tera set (compiled into the binary)
 //! and the HTML and LaTeX run pages.
 
-use super::context::RunContext;
-use super::error::OutputError;
-pub use super::templating::{error_chain, register_font, register_tex_filter, tex_escape, FIGURE_FONT};
+use crate::report::error::OutputError;
+use crate::report::page::context::RunContext;
+pub use crate::report::templating::{error_chain, register_font, register_tex_filter, tex_escape, FIGURE_FONT};
 
-const RUN_TEMPLATE: &str = include_str!("../../templates/run.html.tera");
-pub(super) const INDEX_TEMPLATE: &str = include_str!("../../templates/index.html.tera");
+const RUN_TEMPLATE: &str = include_str!("../../../templates/run.html.tera");
+pub(in crate::report) const INDEX_TEMPLATE: &str = include_str!("../../../templates/index.html.tera");
 
-pub(super) fn tera() -> Result<tera::Tera, tera::Error> {
+pub(in crate::report) fn tera() -> Result<tera::Tera, tera::Error> {
     let mut t = tera::Tera::default();
     t.add_raw_templates(vec![
         ("run.html", RUN_TEMPLATE),
@@ -19,7 +19,7 @@ pub(super) fn tera() -> Result<tera::Tera, tera::Error> {
     Ok(t)
 }
 
-const RUN_TEX_TEMPLATE: &str = include_str!("../../templates/run.tex.tera");
+const RUN_TEX_TEMPLATE: &str = include_str!("../../../templates/run.tex.tera");
 
 /// The run's report as LaTeX (its figure, `bre_per_frame.png`, is written beside it).
 pub fn render_tex(context: &RunContext) -> Result<String, OutputError> {

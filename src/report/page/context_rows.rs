@@ -3,13 +3,13 @@
 
 use serde::Serialize;
 
-use super::summary::describe;
 use crate::core::geometry::euler_zyx_deg;
 use crate::evaluate::cutoff_label;
 use crate::evaluate::{BreStats, STAT_ROWS};
 use crate::pipeline::record::{DatasetRun, TruthSummary};
+use crate::report::summary::describe;
 
-pub(super) fn mm(v: f64) -> String {
+pub(in crate::report) fn mm(v: f64) -> String {
     if v.is_finite() {
         format!("{v:.3}")
     } else {
@@ -35,7 +35,7 @@ pub struct KeyValue {
     pub value: String,
 }
 
-pub(super) fn setup_rows(run: &DatasetRun, manifest: &crate::manifest::Manifest) -> Vec<KeyValue> {
+pub(in crate::report) fn setup_rows(run: &DatasetRun, manifest: &crate::manifest::Manifest) -> Vec<KeyValue> {
     use crate::manifest::CameraSource;
     use crate::spec::phantom::Phantom;
     let phantom = match &manifest.phantom {
@@ -74,10 +74,10 @@ pub(super) fn setup_rows(run: &DatasetRun, manifest: &crate::manifest::Manifest)
             "tracker poses from {} ({}, {})",
             t.file, t.probe_transform, t.reference_transform
         ),
-        _ => super::compare::rig_label(&manifest.rig),
+        _ => crate::report::thesis::compare::rig_label(&manifest.rig),
     };
     let mut rows = vec![kv("phantom", phantom), kv("pose source", rig)];
-    if let Some(p) = super::compare::board_points(run) {
+    if let Some(p) = crate::report::thesis::compare::board_points(run) {
         rows.push(kv(
             "board points per used frame: probe / phantom",
             format!(
@@ -104,7 +104,7 @@ pub(super) fn setup_rows(run: &DatasetRun, manifest: &crate::manifest::Manifest)
             format!(
                 "probecal {}, OpenCV {}",
                 env!("CARGO_PKG_VERSION"),
-                super::provenance::opencv_version()
+                crate::report::page::provenance::opencv_version()
             ),
         ),
         kv(
@@ -115,7 +115,7 @@ pub(super) fn setup_rows(run: &DatasetRun, manifest: &crate::manifest::Manifest)
     rows
 }
 
-pub(super) fn stat_rows(stats: &BreStats) -> Vec<StatRow> {
+pub(in crate::report) fn stat_rows(stats: &BreStats) -> Vec<StatRow> {
     let axes = stats.axes();
     STAT_ROWS
         .iter()
@@ -126,7 +126,7 @@ pub(super) fn stat_rows(stats: &BreStats) -> Vec<StatRow> {
         .collect()
 }
 
-pub(super) fn kv(key: &str, value: String) -> KeyValue {
+pub(in crate::report) fn kv(key: &str, value: String) -> KeyValue {
     KeyValue {
         key: key.to_string(),
         value,
@@ -135,7 +135,7 @@ pub(super) fn kv(key: &str, value: String) -> KeyValue {
 
 /// Per-frame BRE along x, y, z (all-frames calibration) as an inline SVG.
 /// The per-frame BRE along each axis (all-frames calibration).
-pub(super) fn validation_rows(run: &DatasetRun) -> Vec<KeyValue> {
+pub(in crate::report) fn validation_rows(run: &DatasetRun) -> Vec<KeyValue> {
     let Some(v) = &run.validation else { return Vec::new() };
     let b = &v.bootstrap;
     let iv = |i: crate::evaluate::resampling::Interval| format!("[{}, {}]", mm(i.low), mm(i.high));
@@ -184,7 +184,7 @@ pub(super) fn validation_rows(run: &DatasetRun) -> Vec<KeyValue> {
 }
 
 /// The camera's intrinsics and, when calibrated here, its views.
-pub(super) fn camera_rows(run: &DatasetRun) -> Vec<KeyValue> {
+pub(in crate::report) fn camera_rows(run: &DatasetRun) -> Vec<KeyValue> {
     let mut camera = vec![kv("source", run.camera.source.clone())];
     if let Some(k) = &run.camera.intrinsics {
         camera.push(kv("fx, fy (px)", format!("{:.2}, {:.2}", k.fx(), k.fy())));
@@ -212,7 +212,7 @@ pub(super) fn camera_rows(run: &DatasetRun) -> Vec<KeyValue> {
 
 /// The calibration: frames used, its rotation and translation, the pixel size
 /// and the closed form's residual.
-pub(super) fn calibration_rows(run: &DatasetRun, manifest: &crate::manifest::Manifest) -> Vec<KeyValue> {
+pub(in crate::report) fn calibration_rows(run: &DatasetRun, manifest: &crate::manifest::Manifest) -> Vec<KeyValue> {
     let fit = run.primary_fit();
     let primary = &run.thresholds[run.primary];
     let euler = euler_zyx_deg(&fit.target_T_source);
@@ -245,7 +245,7 @@ pub(super) fn calibration_rows(run: &DatasetRun, manifest: &crate::manifest::Man
 }
 
 /// The BRE statistics per axis, one column per cut-off.
-pub(super) fn threshold_blocks(run: &DatasetRun) -> Vec<AxisBlock> {
+pub(in crate::report) fn threshold_blocks(run: &DatasetRun) -> Vec<AxisBlock> {
     let threshold_blocks = ["X", "Y", "Z"]
         .iter()
         .enumerate()
@@ -272,7 +272,7 @@ pub(super) fn threshold_blocks(run: &DatasetRun) -> Vec<AxisBlock> {
 }
 
 /// The calibration's and the stages' errors against the ground truth.
-pub(super) fn truth_rows(tr: &TruthSummary) -> Vec<KeyValue> {
+pub(in crate::report) fn truth_rows(tr: &TruthSummary) -> Vec<KeyValue> {
     let mut truth = Vec::new();
     let c = &tr.calibration;
     truth.push(kv(
@@ -339,7 +339,7 @@ pub(super) fn truth_rows(tr: &TruthSummary) -> Vec<KeyValue> {
 }
 
 /// The truth errors of each cut-off's calibration.
-pub(super) fn truth_by_cutoff(run: &DatasetRun) -> Vec<StatRow> {
+pub(in crate::report) fn truth_by_cutoff(run: &DatasetRun) -> Vec<StatRow> {
     vec![
         StatRow {
             parameter: "corner error mean (mm)".into(),
@@ -365,7 +365,7 @@ pub(super) fn truth_by_cutoff(run: &DatasetRun) -> Vec<StatRow> {
 }
 
 /// One row per estimator: its description, frames, and truth errors.
-pub(super) fn method_rows(run: &DatasetRun) -> Vec<StatRow> {
+pub(in crate::report) fn method_rows(run: &DatasetRun) -> Vec<StatRow> {
     run.methods
         .iter()
         .map(|m| StatRow {
@@ -393,7 +393,7 @@ pub(super) fn method_rows(run: &DatasetRun) -> Vec<StatRow> {
 }
 
 /// How often the solve converged from starts around the manifest's guess.
-pub(super) fn start_basin_rows(run: &DatasetRun) -> Vec<StatRow> {
+pub(in crate::report) fn start_basin_rows(run: &DatasetRun) -> Vec<StatRow> {
     run.start_guess
         .iter()
         .flat_map(|g| &g.basin)

@@ -10,7 +10,7 @@ use crate::core::geometry::Rigid;
 use crate::io::plus::result::PlusResult;
 use crate::manifest::tracked::TrackedManifest;
 use crate::pipeline::tracked::{Role, TrackedFrame, TrackedRun};
-use crate::report::figures::{Chart, Series, Style};
+use crate::report::page::figures::{Chart, Series, Style};
 
 const OURS: RGBColor = RGBColor(40, 70, 200);
 const PLUS: RGBColor = RGBColor(200, 40, 40);
@@ -199,10 +199,10 @@ pub fn insert(ctx: &mut tera::Context, charts: &[Chart]) -> Result<FigureFiles, 
     for c in charts {
         context.push(serde_json::json!({
             "id": c.id,
-            "svg": crate::report::figures::svg(c)?,
+            "svg": crate::report::page::figures::svg(c)?,
             "caption": c.caption,
         }));
-        files.push((format!("{}.png", c.id), crate::report::figures::png(c)?));
+        files.push((format!("{}.png", c.id), crate::report::page::figures::png(c)?));
     }
     ctx.insert("figures", &context);
     Ok(files)

@@ -8,7 +8,7 @@ use std::path::Path;
 use crate::io::fs::{display_path, write_all_atomic};
 use crate::pipeline::tracked::time::temporal::TemporalRun;
 use crate::report::error::OutputError;
-use crate::report::figures::{svg, Chart, Series, Style};
+use crate::report::page::figures::{svg, Chart, Series, Style};
 use plotters::style::RGBColor;
 
 /// `lines.csv`: frame, found, origin and direction in pixels, or the reason.
@@ -86,7 +86,7 @@ fn curve_chart(run: &TemporalRun) -> Chart {
     }
 }
 
-const TEMPLATE: &str = include_str!("../../templates/temporal.html.tera");
+const TEMPLATE: &str = include_str!("../../../templates/temporal.html.tera");
 
 /// `report.html`, from `templates/temporal.html.tera`.
 pub fn html(run: &TemporalRun) -> Result<String, OutputError> {
