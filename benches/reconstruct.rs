@@ -39,7 +39,6 @@ fn reconstruct(c: &mut Criterion) {
     let inputs = ReconstructInputs {
         sequence: sequence.clone(),
         config: config.clone(),
-        calibration: None,
         threads: None,
         wires: None,
         image_to_probe: None,

@@ -14,8 +14,9 @@
 //!
 //! | layer | modules | what |
 //! |---|---|---|
-//! | 8 | [`cli`] | the command line: arguments, dispatch, exit codes |
-//! | 7 | [`report`] | results into pages and files, the regression gate |
+//! | 9 | [`cli`] | the command line: arguments, dispatch, exit codes |
+//! | 8 | [`report`] | results into pages and files, the regression gate |
+//! | 7 | [`results`] | the results model: each run's outcome typed, `summary.json` |
 //! | 6 | [`pipeline`] | the stages chained; the only reader of manifests' settings |
 //! | 5 | [`manifest`] | YAML in, a validated experiment out |
 //! | 4 | [`evaluate`], [`synth`] | BRE, cut-offs, truth, resampling; the rendered lab |
@@ -61,5 +62,6 @@ pub mod manifest;
 pub mod pipeline;
 pub mod reconstruct;
 pub mod report;
+pub mod results;
 pub mod spec;
 pub mod synth;

@@ -25,8 +25,9 @@ const LAYERS: &[(&str, usize)] = &[
     ("synth", 4),
     ("manifest", 5),
     ("pipeline", 6),
-    ("report", 7),
-    ("cli", 8),
+    ("results", 7),
+    ("report", 8),
+    ("cli", 9),
 ];
 
 type Graph = BTreeMap<String, BTreeSet<String>>;
@@ -296,7 +297,7 @@ fn the_checks_catch_planted_faults() {
         g
     };
     let g = planted(&[("core", "report"), ("pipeline", "detect")]);
-    assert_eq!(upward(&g, &layers()), vec!["core (layer 0) -> report (layer 7)"]);
+    assert_eq!(upward(&g, &layers()), vec!["core (layer 0) -> report (layer 8)"]);
     let g = planted(&[("detect", "estimate")]);
     assert_eq!(
         upward(&g, &layers()).len(),

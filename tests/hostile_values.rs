@@ -145,8 +145,8 @@ fn a_calibration_that_is_not_affine_is_refused_where_it_is_read() {
     ] {
         let run = dir.join(name);
         std::fs::create_dir_all(&run).unwrap();
-        let summary = serde_json::json!({"kind": "tracked", "image_to_probe": {"matrix": rows}});
-        std::fs::write(run.join("summary.json"), summary.to_string()).unwrap();
+        let summary = common::tracked_summary_with_matrix(serde_json::json!(rows));
+        std::fs::write(run.join("summary.json"), summary).unwrap();
         let out = format!("out_{name}");
         let (code, stderr, _) = reconstruct(&dir, &sweep, &out, &["--calibration", run.to_str().unwrap()]);
         assert_eq!(code, Some(2), "{name}: {stderr}");
@@ -210,8 +210,8 @@ fn a_given_calibration_places_the_image_even_where_the_frames_carry_one() {
         [0.0, 0.0, 0.05, 0.0],
         [0.0, 0.0, 0.0, 1.0],
     ];
-    let summary = serde_json::json!({"kind": "tracked", "image_to_probe": {"matrix": given}});
-    std::fs::write(run.join("summary.json"), summary.to_string()).unwrap();
+    let summary = common::tracked_summary_with_matrix(serde_json::json!(given));
+    std::fs::write(run.join("summary.json"), summary).unwrap();
     let (code, stderr, plain) = reconstruct(&dir, &sweep, "plain", &[]);
     assert_eq!(code, Some(0), "{stderr}");
     let (code, stderr, calibrated) = reconstruct(&dir, &sweep, "given", &["--calibration", run.to_str().unwrap()]);

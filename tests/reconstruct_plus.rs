@@ -24,7 +24,6 @@ fn inputs(sequence: &Path, config: &Path, threads: usize) -> ReconstructInputs {
     ReconstructInputs {
         sequence: sequence.to_path_buf(),
         config: config.to_path_buf(),
-        calibration: None,
         threads: Some(threads),
         wires: None,
         image_to_probe: None,
@@ -397,19 +396,24 @@ fn a_run_folders_calibration_replaces_the_device_sets() {
     let same = dir.join("same");
     let shifted = dir.join("shifted");
     let matrix = |x: f64| {
-        serde_json::json!({"image_to_probe": {"matrix": [
+        common::tracked_summary_with_matrix(serde_json::json!([
             [-0.00157821, 0.0785919, -0.00803285, 15.3978 + x],
             [-0.0839128, 0.00372697, 0.0153803, 49.5705],
             [0.0159024, 0.00714276, 0.0803604, -8.63446],
-            [0.0, 0.0, 0.0, 1.0]]}})
+            [0.0, 0.0, 0.0, 1.0]
+        ]))
     };
     for (folder, x) in [(&same, 0.0), (&shifted, 5.0)] {
         std::fs::create_dir_all(folder).unwrap();
-        std::fs::write(folder.join("summary.json"), matrix(x).to_string()).unwrap();
+        std::fs::write(folder.join("summary.json"), matrix(x)).unwrap();
     }
+    let given = |calibration: &Path| probecal::results::calibration::read(calibration);
     let with = |calibration: Option<&Path>| {
         let mut i = inputs(&shared_data(SET, SWEEP), &cfg, 2);
-        i.calibration = calibration.map(Path::to_path_buf);
+        i.image_to_probe = calibration.map(|c| {
+            let g = given(c).unwrap();
+            (g.image_to_probe, g.source)
+        });
         run(&i).unwrap()
     };
     let device = with(None);
@@ -417,15 +421,33 @@ fn a_run_folders_calibration_replaces_the_device_sets() {
     let moved = with(Some(&shifted));
     assert_ne!(moved.volume, device.volume);
     assert!(moved.image_to_probe_source.ends_with("shifted/summary.json"));
-    // No matrix in the folder: a clear error naming the file.
+    // The same run's lag comes with its matrix.
+    let written: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(same.join("summary.json")).unwrap()).unwrap();
+    assert_eq!(
+        given(&same).unwrap().tracker_lag_s.map(|(lag, _)| lag),
+        written["time_offset_s"].as_f64()
+    );
+    // No matrix in the folder: a clear error naming the file and the field.
     let empty = dir.join("empty");
     std::fs::create_dir_all(&empty).unwrap();
     std::fs::write(empty.join("summary.json"), "{\"kind\": \"camera\"}").unwrap();
-    let mut i = inputs(&shared_data(SET, SWEEP), &cfg, 2);
-    i.calibration = Some(empty.clone());
-    let e = run(&i).unwrap_err().to_string();
+    let e = given(&empty).unwrap_err().to_string();
     assert!(
-        e.contains("empty/summary.json") && e.contains("image_to_probe.matrix"),
+        e.contains("empty/summary.json") && e.contains("not a probecal summary"),
+        "{e}"
+    );
+    // A camera-rig run's summary: it has no ImageToProbe.
+    let camera = dir.join("camera");
+    std::fs::create_dir_all(&camera).unwrap();
+    std::fs::copy(
+        common::root().join("reports/hemisphere_checkerboard/dataset3/summary.json"),
+        camera.join("summary.json"),
+    )
+    .unwrap();
+    let e = given(&camera).unwrap_err().to_string();
+    assert!(
+        e.contains("camera/summary.json") && e.contains("image_to_probe.matrix"),
         "{e}"
     );
 }

@@ -49,8 +49,8 @@ fn run_folder(dir: &Path, shift_mm: f64) -> PathBuf {
     let rows: Vec<Vec<f64>> = (0..4).map(|i| (0..4).map(|j| m[(i, j)]).collect()).collect();
     let folder = dir.join(format!("run_{shift_mm}"));
     std::fs::create_dir_all(&folder).unwrap();
-    let summary = serde_json::json!({"image_to_probe": {"matrix": rows}});
-    std::fs::write(folder.join("summary.json"), summary.to_string()).unwrap();
+    let summary = common::tracked_summary_with_matrix(serde_json::json!(rows));
+    std::fs::write(folder.join("summary.json"), summary).unwrap();
     folder
 }
 

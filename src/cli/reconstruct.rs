@@ -67,19 +67,20 @@ pub fn command(args: &ReconstructArgs) -> Result<(), Failure> {
     // A folder of an earlier reconstruction (before folders were marked) is this command's.
     let replace = args.force || crate::report::reconstruct::holds_reconstruction(&args.out);
     let folder = crate::io::output::OutputFolder::claim(&args.out, "reconstruct", &read, replace)?;
+    let given = args
+        .calibration
+        .as_deref()
+        .map(crate::results::calibration::read)
+        .transpose()
+        .map_err(Failure::bad_input)?;
+    let given_lag = given.as_ref().and_then(|g| g.tracker_lag_s.clone());
     let inputs = ReconstructInputs {
         sequence: args.sequence.clone(),
         config: args.config.clone(),
-        calibration: args
-            .calibration
-            .as_deref()
-            .map(crate::pipeline::reconstruct::run_folder)
-            .transpose()
-            .map_err(Failure::bad_input)?,
         threads: args.threads.map(usize::from),
         wires: args.wires.clone(),
-        image_to_probe: None,
-        tracker_lag_s: args.tracker_lag.map(|s| (s, "--tracker-lag".to_string())),
+        image_to_probe: given.map(|g| (g.image_to_probe, g.source)),
+        tracker_lag_s: args.tracker_lag.map(|s| (s, "--tracker-lag".to_string())).or(given_lag),
     };
     let mut run = crate::pipeline::reconstruct::run(&inputs).map_err(Failure::bad_input)?;
     if args.no_times {

@@ -400,7 +400,6 @@ fn tracked_volume(
     let inputs = crate::pipeline::reconstruct::ReconstructInputs {
         sequence: r.sweep.clone(),
         config: r.config.clone(),
-        calibration: None,
         threads: None,
         wires: m.plus_config.clone(),
         image_to_probe: Some((run.fit.image_to_probe.matrix(), "this run's calibration".to_string())),

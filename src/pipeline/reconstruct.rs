@@ -21,9 +21,6 @@ use crate::reconstruct::{reconstruct, reconstruct_frames, ReconstructError, Samp
 pub struct ReconstructInputs {
     pub sequence: PathBuf,
     pub config: PathBuf,
-    /// A probecal run folder whose `summary.json` gives `ImageToProbe`, or a
-    /// PLUS calibration result (.xml) with its `ImageToProbe`.
-    pub calibration: Option<PathBuf>,
     /// Worker threads (0 or `None`: all cores); the device set's
     /// `NumberOfThreads` is not needed, the volume is the same for any number.
     pub threads: Option<usize>,
@@ -31,11 +28,11 @@ pub struct ReconstructInputs {
     /// (`PhantomToReference`): each wire's position, straightness and thickness
     /// in the volume are measured.
     pub wires: Option<PathBuf>,
-    /// `ImageToProbe` given directly (a run's own calibration, with where it
-    /// came from); it replaces the device set's and `calibration`.
+    /// `ImageToProbe` given (a run's own calibration, a run folder's or a PLUS
+    /// result's, with where it came from); it replaces the device set's.
     pub image_to_probe: Option<(Matrix4<f64>, String)>,
-    /// The tracker's lag behind the images, s, given directly (with where it
-    /// came from); otherwise a run folder's `time_offset_s`, else none.
+    /// The tracker's lag behind the images, s, given (a number or a run
+    /// folder's `time_offset_s`, with where it came from); else none.
     pub tracker_lag_s: Option<(f64, String)>,
 }
 
@@ -100,124 +97,12 @@ pub struct Reconstruction {
     pub wires: Option<crate::evaluate::wire_profile::WireFigures>,
 }
 
-/// The tracker's lag to apply and where it came from: given, a run folder's
-/// `time_offset_s` (the lag its calibration was fitted with), or none.
-fn tracker_lag(inputs: &ReconstructInputs) -> Result<(f64, String), ReconstructError> {
-    if let Some((lag, source)) = &inputs.tracker_lag_s {
-        return Ok((*lag, source.clone()));
-    }
-    match inputs.calibration.as_deref() {
-        Some(folder) if !folder.is_file() => {
-            let path = folder.join("summary.json");
-            let lag = summary_json(&path, folder)?
-                .get("time_offset_s")
-                .and_then(|v| v.as_f64())
-                .filter(|v| v.is_finite() && v.abs() <= 1.0)
-                .unwrap_or(0.0);
-            Ok((lag, format!("{} (time_offset_s)", crate::io::fs::display_path(&path))))
-        }
-        _ => Ok((0.0, "none given".into())),
-    }
-}
-
-/// The folder of the one tracked run a `--calibration` folder names: the
-/// folder itself when it holds a run's `summary.json` with an `ImageToProbe`,
-/// or the one such folder below it (a `run --out` folder holds its runs two
-/// levels down, `<experiment>/<dataset>`). Several are refused with their
-/// names; none, with what was looked for.
-pub fn run_folder(given: &Path) -> Result<PathBuf, ReconstructError> {
-    let tracked = |dir: &Path| {
-        crate::io::fs::read_text_capped(&dir.join("summary.json"), crate::core::limits::MAX_TEXT_FILE_BYTES)
-            .ok()
-            .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok())
-            .is_some_and(|j| j.pointer("/image_to_probe/matrix").is_some())
-    };
-    if given.is_file() || given.join("summary.json").is_file() {
-        return Ok(given.to_path_buf());
-    }
-    let mut found = Vec::new();
-    let mut level = vec![given.to_path_buf()];
-    // Three levels down at most, folders in name order (hidden ones, such as a
-    // failed run's, left out).
-    for _ in 0..3 {
-        let mut next = Vec::new();
-        for dir in &level {
-            let Ok(entries) = std::fs::read_dir(dir) else { continue };
-            let mut children: Vec<PathBuf> = entries
-                .filter_map(Result::ok)
-                .map(|e| e.path())
-                .filter(|p| p.is_dir() && !p.file_name().is_some_and(|n| n.to_string_lossy().starts_with('.')))
-                .collect();
-            children.sort();
-            for child in children {
-                if tracked(&child) {
-                    found.push(child);
-                } else {
-                    next.push(child);
-                }
-            }
-        }
-        level = next;
-    }
-    let fail = |message: String| ReconstructError::Input {
-        path: given.to_path_buf(),
-        message,
-    };
-    match found.as_slice() {
-        [one] => Ok(one.clone()),
-        [] => Err(fail(
-            "holds no probecal run with an ImageToProbe (a tracked run's summary.json, here or up to three levels below); give a run's folder or a PLUS calibration result (.xml)".into(),
-        )),
-        many => Err(fail(format!(
-            "holds {} tracked runs: {}; give the one whose calibration places the sweep",
-            many.len(),
-            many.iter().map(|p| crate::io::fs::display_path(p)).collect::<Vec<_>>().join(", ")
-        ))),
-    }
-}
-
-/// A run folder's `summary.json`, parsed.
-fn summary_json(path: &Path, folder: &Path) -> Result<serde_json::Value, ReconstructError> {
-    let fail = |message: String| ReconstructError::Input {
-        path: path.to_path_buf(),
-        message,
-    };
-    let text = crate::io::fs::read_text_capped(path, crate::core::limits::MAX_TEXT_FILE_BYTES).map_err(|e| {
-        fail(format!(
-            "cannot read (is {} a probecal run folder?): {e}",
-            folder.display()
-        ))
-    })?;
-    crate::io::unique_keys::json_value(&text).map_err(|e| fail(format!("not JSON: {e}")))
-}
-
-/// `ImageToProbe` of a probecal run folder (its `summary.json`'s
-/// `image_to_probe.matrix`), or of a PLUS calibration result file (.xml).
-pub fn run_image_to_probe(folder: &Path) -> Result<Matrix4<f64>, ReconstructError> {
-    if folder.is_file() && folder.extension().is_some_and(|e| e.eq_ignore_ascii_case("xml")) {
-        return Ok(crate::io::plus::result::PlusResult::read(folder)?.image_to_probe);
-    }
-    let path = folder.join("summary.json");
-    let fail = |message: String| ReconstructError::Input {
-        path: path.clone(),
-        message,
-    };
-    let json = summary_json(&path, folder)?;
-    let rows = json
-        .pointer("/image_to_probe/matrix")
-        .and_then(|m| serde_json::from_value::<Vec<Vec<f64>>>(m.clone()).ok())
-        .ok_or_else(|| {
-            fail("no `image_to_probe.matrix` (4 rows of 4 numbers): only a tracked (PLUS recording) run has one".into())
-        })?;
-    if rows.len() != 4 || rows.iter().any(|r| r.len() != 4 || r.iter().any(|v| !v.is_finite())) {
-        return Err(fail(
-            "`image_to_probe.matrix` must be 4 rows of 4 finite numbers".into(),
-        ));
-    }
-    let matrix = Matrix4::from_fn(|r, c| rows[r][c]);
-    match crate::io::plus::xml_limits::affine_fault(&matrix) {
-        Some(why) => Err(fail(format!("`image_to_probe.matrix`: {why}"))),
-        None => Ok(matrix),
+/// The tracker's lag to apply and where it came from: given (a number, or a
+/// run folder's `time_offset_s`), or none.
+fn tracker_lag(inputs: &ReconstructInputs) -> (f64, String) {
+    match &inputs.tracker_lag_s {
+        Some((lag, source)) => (*lag, source.clone()),
+        None => (0.0, "none given".into()),
     }
 }
 
@@ -325,11 +210,8 @@ pub fn run(inputs: &ReconstructInputs) -> Result<Reconstruction, ReconstructErro
     };
     let settings = VolumeSettings::read(&inputs.config)?;
     let config = PlusConfig::read(&inputs.config)?;
-    let image_to_probe = match &inputs.image_to_probe {
-        Some((matrix, _)) => Some(*matrix),
-        None => inputs.calibration.as_deref().map(run_image_to_probe).transpose()?,
-    };
-    let (tracker_lag_s, tracker_lag_source) = tracker_lag(inputs)?;
+    let image_to_probe = inputs.image_to_probe.as_ref().map(|(matrix, _)| *matrix);
+    let (tracker_lag_s, tracker_lag_source) = tracker_lag(inputs);
     // A compressed 8-bit sequence's frames are decoded while they are pasted.
     let (sequence, deferred) = Sequence::read_any_deferred(&inputs.sequence)?;
     lap("read", &mut timings);
@@ -387,11 +269,9 @@ pub fn run(inputs: &ReconstructInputs) -> Result<Reconstruction, ReconstructErro
     }
     Ok(Reconstruction {
         inputs: inputs.clone(),
-        image_to_probe_source: match (&inputs.image_to_probe, &inputs.calibration) {
-            (Some((_, source)), _) => source.clone(),
-            (None, Some(file)) if file.is_file() => crate::io::fs::display_path(file),
-            (None, Some(folder)) => format!("{}/summary.json", crate::io::fs::display_path(folder)),
-            (None, None) => format!(
+        image_to_probe_source: match &inputs.image_to_probe {
+            Some((_, source)) => source.clone(),
+            None => format!(
                 "{} (CoordinateDefinitions)",
                 crate::io::fs::display_path(&inputs.config)
             ),

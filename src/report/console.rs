@@ -5,7 +5,7 @@ use crate::detect::camera_calibration::CameraCalibration;
 use crate::evaluate::{cutoff_label, BreStats, STAT_ROWS};
 use crate::pipeline::record::DatasetRun;
 use crate::pipeline::tracked::{Role, TrackedRun};
-use crate::report::summary::{Summary, TrackedSummary};
+use crate::results::summary::{Summary, TrackedSummary};
 
 /// The thesis's BRE table (rows Std./Mean/Min/Max, columns x, y, z) as text.
 pub fn bre_table_text(stats: &BreStats) -> String {

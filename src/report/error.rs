@@ -33,23 +33,7 @@ impl From<OutputError> for crate::pipeline::error::ReporterError {
     }
 }
 
-/// A file that could not be read or is not what it should be: the path and
-/// what is wrong (with the field and line where the format has them).
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-#[error("{}: {message}", path.display())]
-pub struct ReadError {
-    pub path: PathBuf,
-    pub message: String,
-}
-
-impl ReadError {
-    pub fn new(path: &std::path::Path, message: impl std::fmt::Display) -> ReadError {
-        ReadError {
-            path: path.to_path_buf(),
-            message: message.to_string(),
-        }
-    }
-}
+pub use crate::results::ReadError;
 
 impl OutputError {
     /// An I/O failure at `path`.

@@ -1,5 +1,5 @@
-//! Results into pages and files: the typed results model ([`summary`],
-//! [`tracked_summary`]), and one room per application: what every run page is
+//! Results into pages and files, from the typed results model
+//! ([`crate::results`]), one room per application: what every run page is
 //! made of ([`page`]), the camera-rig runs' thesis chapter and comparison
 //! ([`thesis`]), tracked recordings ([`tracked`]), live sessions ([`live`]),
 //! studies ([`study`]), the PLUS tools' pages ([`plus_tools`]), a reconstruction
@@ -15,10 +15,7 @@ pub mod plus_tools;
 pub mod reconstruct;
 pub mod runs;
 pub mod study;
-pub mod summary;
 pub mod templating;
 pub mod thesis;
 pub mod tracked;
-pub mod tracked_summary;
-pub mod tracked_volume;
 pub mod writer;

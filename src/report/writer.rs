@@ -15,7 +15,7 @@ use crate::pipeline::tracked::TrackedRun;
 use crate::report::error::OutputError;
 use crate::report::page::provenance::Provenance;
 use crate::report::runs::index::{index_entry, IndexEntry};
-use crate::report::summary::RunSummary;
+use crate::results::summary::RunSummary;
 
 /// Writes each run's folder and the index; prints unless quiet.
 pub struct ReportWriter {
@@ -142,7 +142,7 @@ impl Reporter for ReportWriter {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::report::summary::{MeanMax, MethodSummary, Summary, TruthError, TruthSummaryJson};
+    use crate::results::summary::{MeanMax, MethodSummary, Summary, TruthError, TruthSummaryJson};
 
     fn camera(gated_method: Option<&str>) -> RunSummary {
         RunSummary::Camera(Box::new(Summary {

@@ -60,3 +60,16 @@ pub fn probecal_bounded(args: &[String], kib: u64, seconds: u64) -> std::process
     );
     Command::new("sh").args(["-c", &command]).output().unwrap()
 }
+
+/// A tracked run's `summary.json` text with `rows` as its `ImageToProbe` and no
+/// lag: the committed fCal 2.0 run's summary, its matrix and `time_offset_s`
+/// replaced (a real probecal summary, so that only the matrix is what a test
+/// varies).
+#[allow(dead_code)]
+pub fn tracked_summary_with_matrix(rows: serde_json::Value) -> String {
+    let path = root().join("reports/plus_fcal2_nwire/fcal2_3nwires/summary.json");
+    let mut summary: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
+    summary["image_to_probe"]["matrix"] = rows;
+    summary["time_offset_s"] = serde_json::json!(0.0);
+    serde_json::to_string_pretty(&summary).unwrap()
+}

@@ -145,7 +145,7 @@ pub fn write(
     let s = summary(run, settings);
     crate::io::fs::write_atomic(
         &folder.join("summary.json"),
-        crate::report::summary::to_text(&s)?.as_bytes(),
+        crate::results::summary::to_text(&s)?.as_bytes(),
     )?;
     crate::io::fs::write_atomic(
         &folder.join("live.csv"),

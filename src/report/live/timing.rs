@@ -39,7 +39,7 @@ pub(crate) fn write_session<S: Serialize>(
     let files = [
         (
             "summary.json".to_string(),
-            crate::report::summary::to_text(summary)?.into_bytes(),
+            crate::results::summary::to_text(summary)?.into_bytes(),
         ),
         ("live.csv".to_string(), frames_csv.into_bytes()),
     ];

@@ -7,7 +7,7 @@ use crate::core::geometry::euler_zyx_deg;
 use crate::evaluate::cutoff_label;
 use crate::evaluate::{BreStats, STAT_ROWS};
 use crate::pipeline::record::{DatasetRun, TruthSummary};
-use crate::report::summary::describe;
+use crate::results::summary::describe;
 
 pub(in crate::report) fn mm(v: f64) -> String {
     if v.is_finite() {

@@ -9,7 +9,7 @@ use polars::prelude::*;
 use crate::evaluate::trim_number;
 use crate::pipeline::record::{DatasetRun, FrameTruth};
 use crate::pipeline::run::resolve::{SolveInputs, SOLVE_INPUTS_FILE};
-use crate::report::summary::{to_text, Summary};
+use crate::results::summary::{to_text, Summary};
 
 use crate::io::fs::write_atomic;
 use crate::io::fs::{display_path, WriteError};

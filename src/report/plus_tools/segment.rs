@@ -305,7 +305,7 @@ fn outputs(run: &SegmentRun, baseline: Option<&Baseline>) -> Result<Vec<(String,
         let jpeg = picture(run, k).map_err(|e| OutputError::figure(format!("frame {}: {e}", f.index)))?;
         files.push((gallery_name(f.index), jpeg));
     }
-    let text = crate::report::summary::to_text(&summary(run, baseline))?;
+    let text = crate::results::summary::to_text(&summary(run, baseline))?;
     files.push(("segmentation.csv".into(), csv(run).into_bytes()));
     files.push(("summary.json".into(), text.into_bytes()));
     files.push(("report.html".into(), html(run, baseline)?.into_bytes()));

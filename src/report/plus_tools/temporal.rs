@@ -108,7 +108,7 @@ pub fn html(run: &TemporalRun) -> Result<String, OutputError> {
 
 /// Writes `summary.json`, `lines.csv` and `report.html` into `out` (whole, or nothing).
 pub fn write(run: &TemporalRun, out: &Path) -> Result<(), OutputError> {
-    let text = crate::report::summary::to_text(&summary(run))?;
+    let text = crate::results::summary::to_text(&summary(run))?;
     let files = [
         ("summary.json".to_string(), text.into_bytes()),
         ("lines.csv".to_string(), lines_csv(run).into_bytes()),

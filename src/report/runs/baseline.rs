@@ -9,7 +9,7 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
-use crate::report::summary::RunSummary;
+use crate::results::summary::RunSummary;
 
 /// One metric of a baseline.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]

@@ -17,7 +17,7 @@ use std::path::{Path, PathBuf};
 use serde::Serialize;
 
 pub use crate::report::runs::baseline::{baseline_path, metrics, Baseline, Metric};
-use crate::report::summary::RunSummary;
+use crate::results::summary::RunSummary;
 
 /// The outcome of one comparison.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
@@ -383,7 +383,7 @@ mod tests {
     use super::*;
     use crate::evaluate::AxisStats;
     use crate::pipeline::record::GateResult;
-    use crate::report::summary::{
+    use crate::results::summary::{
         BreSummary, FrameCounts, MeanMax, MethodSummary, Summary, TruthError, TruthSummaryJson,
     };
 

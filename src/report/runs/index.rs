@@ -7,7 +7,7 @@ use serde::{Deserialize, Serialize};
 use crate::io::fs::write_atomic;
 use crate::report::error::OutputError;
 use crate::report::page::render::tera;
-use crate::report::summary::RunSummary;
+use crate::results::summary::RunSummary;
 
 /// One line of the index page.
 #[derive(Debug, Serialize)]

@@ -6,7 +6,7 @@ use std::path::Path;
 
 use crate::core::geometry::to_rows;
 use crate::pipeline::run::resolve::{solve_again, SolveInputs};
-use crate::report::summary::RunSummary;
+use crate::results::summary::RunSummary;
 
 /// Largest difference between two transforms' matrix entries that still counts
 /// as the same calibration (mm for the translation, unitless for the rotation).

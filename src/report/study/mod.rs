@@ -8,7 +8,7 @@ use std::path::Path;
 use serde::{Deserialize, Serialize};
 
 use crate::pipeline::study::{BoundModel, MonteCarlo, SigmaRow};
-use crate::report::summary::to_text;
+use crate::results::summary::to_text;
 
 /// `study.json`: the σ-table and, when seeds were run, the Monte Carlo study.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

@@ -5,7 +5,7 @@ use std::path::Path;
 
 use serde::Serialize;
 
-use crate::report::summary::{RunSummary, Summary};
+use crate::results::summary::{RunSummary, Summary};
 
 /// A table row: a label and its cells (already formatted).
 #[derive(Debug, Clone, Serialize, PartialEq)]

@@ -14,8 +14,8 @@ use std::path::Path;
 use serde::Serialize;
 
 use crate::evaluate::{AxisStats, STAT_ROWS};
-use crate::report::summary::{BreSummary, Summary};
 use crate::report::thesis::chapter_table::{fmt, summary, Row, Table};
+use crate::results::summary::{BreSummary, Summary};
 
 /// One of the thesis's three-axis tables (Std./Mean/Min/Max × x, y, z).
 struct AxisTable {

@@ -5,8 +5,8 @@
 
 use std::path::Path;
 
-use crate::report::summary::Summary;
 use crate::report::thesis::chapter_table::{fmt, summary, Row, Table};
+use crate::results::summary::Summary;
 
 /// The rigs' experiments: (rig, clear, occluded), all on `dataset3`.
 pub const RIG_EXPERIMENTS: [(&str, &str, &str); 3] = [

@@ -9,7 +9,7 @@ use crate::manifest::tracked::TrackedManifest;
 use crate::pipeline::tracked::time::lag_joint::LagEstimate;
 use crate::pipeline::tracked::{Role, TrackedFrame, TrackedRun};
 use crate::report::page::figures::{Chart, Series, Style};
-use crate::report::summary::NoLagPre3d;
+use crate::results::summary::NoLagPre3d;
 
 /// The lag in one console line: the estimate, its intervals, what was
 /// applied, and the motion's estimate.

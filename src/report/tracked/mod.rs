@@ -4,7 +4,9 @@
 pub mod figures;
 pub mod gallery;
 pub mod lag;
+mod selection;
 mod transform_files;
+pub mod volume;
 use std::path::Path;
 
 use nalgebra::Matrix4;
@@ -19,7 +21,7 @@ use crate::manifest::tracked::TrackedManifest;
 use crate::pipeline::tracked::resolution::{TrackedAfter, ValidationResolution};
 use crate::pipeline::tracked::{Role, TrackedRun};
 use crate::report::error::OutputError;
-use crate::report::summary::{
+use crate::results::summary::{
     to_text, CandidateScore, ConstraintCounts, FramesCompared, ImageToProbeSummary, ModelSelectionSummary,
     PairedDifference, ParameterSd, PlusResultSummary, Pre3d, PublishedPre3d, Segmented, TrackedFrameCounts,
     TrackedSummary, TrackedTolerances, TRACKED_KIND,
@@ -166,6 +168,7 @@ pub fn summary(
     let (val_used, val_total) = run.segmented(Role::Validation);
     let t = fit.marker_T_image.translation.vector;
     TrackedSummary {
+        schema_version: crate::results::SCHEMA_VERSION,
         experiment: manifest.experiment.clone(),
         dataset: manifest.dataset.clone(),
         kind: TRACKED_KIND.into(),
@@ -300,7 +303,7 @@ pub fn write(
     crate::report::page::write::write_frames_table(folder, &mut frames_table(run, manifest.nwires.len())?)?;
     let mut summary = summary(run, &after.resolution, manifest, plus);
     if let Some(volume) = &after.volume {
-        summary.reconstruction = Some(crate::report::tracked_volume::write(volume, folder)?);
+        summary.reconstruction = Some(crate::report::tracked::volume::write(volume, folder)?);
     }
     let text = to_text(&summary)?;
     write_atomic(&folder.join("summary.json"), text.as_bytes())?;
@@ -509,7 +512,7 @@ fn render_pages(
     };
     ctx.insert("plus_config", &definition);
     ctx.insert("nwires", &manifest.nwires.len());
-    crate::report::tracked_summary::insert_selection(&mut ctx, run);
+    selection::insert_selection(&mut ctx, run);
     ctx.insert("folds", &run.selection.folds);
     ctx.insert("selection_frames", &run.selection.frames);
     ctx.insert("constraints", &run.constraints);
@@ -549,7 +552,7 @@ fn render_pages(
     let volume = summary
         .reconstruction
         .as_ref()
-        .map(crate::report::tracked_volume::page_context);
+        .map(crate::report::tracked::volume::page_context);
     ctx.insert("volume", &volume);
     let gates: Vec<serde_json::Value> = summary
         .gates

@@ -6,7 +6,7 @@
 //! Millimetres and degrees throughout; a cut-off of infinity is written `"inf"`.
 //! Objects are written with their keys sorted, so the file is stable.
 
-use crate::report::error::ReadError;
+use super::ReadError;
 use std::collections::BTreeMap;
 use std::path::Path;
 
@@ -218,6 +218,9 @@ pub struct TruthSummaryJson {
 /// `summary.json` of a camera (or tracker-CSV) run.
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct Summary {
+    /// The layout's version ([`crate::results::SCHEMA_VERSION`]).
+    #[serde(default = "crate::results::first_schema_version")]
+    pub schema_version: u32,
     pub experiment: String,
     pub dataset: String,
     pub rendered: bool,
@@ -386,6 +389,7 @@ impl Summary {
         }
         let t = fit.target_T_source.translation.vector;
         Summary {
+            schema_version: crate::results::SCHEMA_VERSION,
             experiment: run.experiment.clone(),
             dataset: run.dataset.clone(),
             rendered: run.rendered,
@@ -504,6 +508,26 @@ impl RunSummary {
     /// Parses a summary's text read from `path` (the kind from its `kind` field).
     pub fn parse(text: &str, path: &Path) -> Result<RunSummary, ReadError> {
         let value = crate::io::unique_keys::json_value(text).map_err(|e| ReadError::new(path, e))?;
+        if let Some(version) = value.get("schema_version") {
+            match version.as_u64() {
+                Some(v) if v >= 1 && v <= u64::from(crate::results::SCHEMA_VERSION) => {}
+                Some(v) if v > u64::from(crate::results::SCHEMA_VERSION) => {
+                    return Err(ReadError::new(
+                        path,
+                        format!(
+                            "field `schema_version`: {v}: written by a newer probecal (this one reads summaries of schema version 1 to {})",
+                            crate::results::SCHEMA_VERSION
+                        ),
+                    ))
+                }
+                _ => {
+                    return Err(ReadError::new(
+                        path,
+                        format!("field `schema_version`: {version}: not a schema version (a whole number from 1)"),
+                    ))
+                }
+            }
+        }
         let tracked = value.get("kind").and_then(|k| k.as_str()) == Some(TRACKED_KIND);
         let described = |e: serde_path_to_error::Error<serde_json::Error>| {
             let field = e.path().to_string();
@@ -528,4 +552,4 @@ impl RunSummary {
 }
 
 pub use crate::io::json::to_text;
-pub use crate::report::tracked_summary::*;
+pub use crate::results::tracked::*;

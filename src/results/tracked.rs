@@ -11,6 +11,9 @@ use crate::pipeline::tracked::resolution::ValidationResolution;
 /// `summary.json` of a tracked-sequence run.
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct TrackedSummary {
+    /// The layout's version ([`crate::results::SCHEMA_VERSION`]).
+    #[serde(default = "crate::results::first_schema_version")]
+    pub schema_version: u32,
     pub experiment: String,
     pub dataset: String,
     /// Always `tracked_sequence`.
@@ -40,7 +43,7 @@ pub struct TrackedSummary {
     pub plus_result: Option<PlusResultSummary>,
     /// The sweep the manifest names, reconstructed with this calibration.
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub reconstruction: Option<crate::report::tracked_volume::TrackedVolume>,
+    pub reconstruction: Option<crate::results::volume::TrackedVolume>,
 }
 
 /// One candidate model's cross-validated PRE3D (or why it has none).
@@ -231,30 +234,4 @@ pub struct PlusResultSummary {
     pub matrix: Vec<Vec<f64>>,
     pub published_validation_pre3d_mm: PublishedPre3d,
     pub published_calibration_pre3d_mm: PublishedPre3d,
-}
-
-/// The model family's cross-validation in a page's context (`model`, `selection`).
-pub(super) fn insert_selection(ctx: &mut tera::Context, run: &crate::pipeline::tracked::TrackedRun) {
-    let f3 = |v: Option<f64>| v.map(|x| format!("{x:.3}")).unwrap_or_else(|| "—".into());
-    let chosen = run.selection.chosen();
-    ctx.insert(
-        "model",
-        &format!("{:?}, {} pixels", chosen.constraints, chosen.pixel_model.name()),
-    );
-    let selection: Vec<serde_json::Value> = run
-        .selection
-        .scored
-        .iter()
-        .enumerate()
-        .map(|(k, c)| {
-            serde_json::json!({
-                "constraints": format!("{:?}", c.candidate.constraints),
-                "pixel_model": c.candidate.pixel_model.name(),
-                "cv": f3(c.cv_pre3d_mm.map(|s| s.mean)),
-                "note": c.failure.clone().unwrap_or_default(),
-                "chosen": k == run.selection.chosen,
-            })
-        })
-        .collect();
-    ctx.insert("selection", &selection);
 }
