@@ -488,3 +488,27 @@ fn application_layers_are_sorted_into_rooms() {
     }
     assert_eq!(crowded_folders(&dir.join("layer"), 12).len(), 2);
 }
+
+/// Lines of the files (tests and comments aside) that name the manifest module.
+fn manifest_reads(files: &[std::path::PathBuf]) -> Vec<String> {
+    lines_holding(files, &["crate::manifest", "manifest::", "manifest.yaml"])
+}
+
+/// The pages render from the results model and the labels `pipeline::labels`
+/// reads from a manifest once: nothing in `report/` names the manifest.
+#[test]
+fn report_reads_no_manifest() {
+    let mut files = Vec::new();
+    rust_files(&common::root().join("src/report"), &mut files);
+    let found = manifest_reads(&files);
+    assert!(found.is_empty(), "report/ reads a manifest: {found:#?}");
+    let dir = common::scratch("architecture", "manifest_reads");
+    std::fs::create_dir_all(&dir).unwrap();
+    let planted = dir.join("planted.rs");
+    std::fs::write(
+        &planted,
+        "use crate::manifest::Manifest;\n// crate::manifest in a comment\nlet copy = run.join(\"manifest.yaml\");\n",
+    )
+    .unwrap();
+    assert_eq!(manifest_reads(&[planted]).len(), 2);
+}

@@ -36,7 +36,7 @@ fn run_default_seed(manifest: &str, name: &str) -> std::path::PathBuf {
 #[test]
 fn the_committed_table_is_current_and_ranks_the_experiments_layout() {
     let path = root().join("experiments/spheres_checkerboard.yaml");
-    let (manifest, spec) = probecal::report::thesis::phantom::rendered_lab(&path).unwrap();
+    let (manifest, spec) = probecal::pipeline::run::lab::rendered_lab(&path).unwrap();
     let committed: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(root().join("reports/design/design.json")).unwrap()).unwrap();
     let layouts = committed["layouts"].as_array().unwrap();

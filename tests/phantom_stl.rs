@@ -42,7 +42,7 @@ fn written(test: &str) -> Written {
         .output()
         .unwrap();
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    let (manifest, render) = probecal::report::thesis::phantom::rendered_lab(&path).unwrap();
+    let (manifest, render) = probecal::pipeline::run::lab::rendered_lab(&path).unwrap();
     let board = probecal::detect::board_pose::RigBoards::from_rig(&manifest.rig)
         .unwrap()
         .phantom;

@@ -7,10 +7,11 @@ use super::failure::Failure;
 
 pub fn command(manifest: &Path, out: &Path, force: bool) -> Result<(), Failure> {
     let folder = crate::io::output::OutputFolder::claim(out, "design", &[manifest], force)?;
-    let (manifest, spec) = crate::report::thesis::phantom::rendered_lab(manifest).map_err(Failure::bad_input)?;
+    let (manifest, spec) = crate::pipeline::run::lab::rendered_lab(manifest).map_err(Failure::bad_input)?;
     let rows = crate::pipeline::run::design::design(&manifest, &spec)
         .map_err(|e| Failure::bad_input(format!("{}: {e}", manifest.path.display())))?;
-    let md = crate::report::study::design::write(&manifest, &spec, &rows, folder.path()).map_err(Failure::failed)?;
+    let study = crate::pipeline::run::design::study(&manifest, &spec, &rows);
+    let md = crate::report::study::design::write(&study, folder.path()).map_err(Failure::failed)?;
     folder.commit().map_err(Failure::failed)?;
     print!("{}", md.lines().take(12).collect::<Vec<_>>().join("\n"));
     println!("\nwritten to {} (design.json, design.md)", out.display());

@@ -105,7 +105,11 @@ fn session(
             run.counts.frames
         );
     }
-    let s = crate::report::live::igtl::write(&run, &settings, manifest, staged.path())
+    let received = staged.path().join("received.igs.mha");
+    let after = (run.final_run.as_ref().ok())
+        .map(|batch| crate::pipeline::tracked::resolution::after_received(batch, manifest, &received));
+    let labels = crate::pipeline::labels::TrackedLabels::of(manifest);
+    let s = crate::report::live::igtl::write(&run, &settings, &labels, after.as_ref(), staged.path())
         .map_err(|e| Failure::failed(format!("{}: {e}", out.display())))?;
     if s.messages.skipped > 0 {
         eprintln!(

@@ -266,7 +266,8 @@ fn run(args: RunArgs, side_by_side: bool) -> u8 {
     if !side_by_side {
         return code;
     }
-    if let Err(e) = writer.write_comparison(&out, &manifests, &runs, args.quiet) {
+    let labels: Vec<_> = manifests.iter().map(crate::pipeline::labels::RunLabels::of).collect();
+    if let Err(e) = writer.write_comparison(&out, &labels, &runs, args.quiet) {
         eprintln!("error: {e}");
         return 1;
     }

@@ -5,7 +5,7 @@ use std::path::Path;
 
 use super::failure::Failure;
 use crate::detect::board_pose::RigBoards;
-use crate::report::thesis::phantom::rendered_lab;
+use crate::pipeline::run::lab::rendered_lab;
 use crate::synth::printable;
 
 /// Writes the STL and its sheet (`<name>.json` beside it); prints the model's
@@ -30,7 +30,7 @@ pub fn command(manifest: &Path, stl: &Path, force: bool) -> Result<(), Failure> 
     let triangles = model.triangles().map_err(|e| at(&e))?;
     let header = format!("probecal phantom of {} (mm)", manifest.experiment);
     crate::io::stl::write(stl, &header, &triangles).map_err(Failure::failed)?;
-    let sheet = crate::report::thesis::phantom::sheet(&manifest, &model, stl, triangles.len());
+    let sheet = crate::report::thesis::phantom::sheet(&manifest.experiment, &model, stl, triangles.len());
     let json = serde_json::to_string_pretty(&sheet)
         .map_err(|e| Failure::failed(format!("{}: {e}", sheet_path.display())))?
         + "\n";

@@ -31,7 +31,7 @@ pub trait Reporter {
     /// (the experiment's folder is swapped in when all its datasets are written).
     fn dataset_done(
         &mut self,
-        _manifest: &Manifest,
+        _labels: &crate::pipeline::labels::RunLabels,
         _run: &DatasetRun,
         _folder: &RunFolder<'_>,
         _started: SystemTime,
@@ -41,7 +41,7 @@ pub trait Reporter {
     /// A tracked experiment has run (with PLUS's result, when the manifest names it).
     fn tracked_done(
         &mut self,
-        _manifest: &TrackedManifest,
+        _labels: &crate::pipeline::labels::TrackedLabels,
         _run: &TrackedRun,
         _after: &TrackedAfter,
         _plus: Option<&PlusResult>,
@@ -312,7 +312,9 @@ pub fn run_all(
                 write_to: &write_to,
                 final_path: &final_path,
             };
-            if let Err(e) = reporter.dataset_done(m, &run, &run_folder, started) {
+            if let Err(e) =
+                reporter.dataset_done(&crate::pipeline::labels::RunLabels::of(m), &run, &run_folder, started)
+            {
                 reporter.error(&e.to_string());
                 written = false;
                 continue;
@@ -431,6 +433,7 @@ fn run_tracked(
     // After the calibration is fitted, and never feeding back into it.
     let after = TrackedAfter {
         resolution: tracked_resolution::evaluate(&run, &inputs),
+        gates: tracked::gates(&run, m),
         volume: tracked_volume(m, &run)?,
     };
     let plus = match &m.plus_result {
@@ -442,10 +445,10 @@ fn run_tracked(
         write_to: &write_to,
         final_path: &final_path,
     };
-    reporter.tracked_done(m, &run, &after, plus.as_ref(), &run_folder, started)?;
-    let gates = tracked::gates(&run, m);
-    for g in gates.iter().filter(|g| !g.passed) {
+    let labels = crate::pipeline::labels::TrackedLabels::of(m);
+    reporter.tracked_done(&labels, &run, &after, plus.as_ref(), &run_folder, started)?;
+    for g in after.gates.iter().filter(|g| !g.passed) {
         reporter.gate_failed(&failed_gate(&m.experiment, &m.dataset, g));
     }
-    Ok(gates.iter().all(|g| g.passed))
+    Ok(after.gates.iter().all(|g| g.passed))
 }

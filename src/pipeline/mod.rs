@@ -9,6 +9,7 @@
 pub mod error;
 pub mod experiment;
 pub mod frames;
+pub mod labels;
 pub mod live;
 pub mod reconstruct;
 pub mod record;

@@ -5,10 +5,10 @@ use std::path::Path;
 use std::time::SystemTime;
 
 use crate::io::plus::result::PlusResult;
-use crate::manifest::tracked::TrackedManifest;
-use crate::manifest::Manifest;
 use crate::pipeline::error::ReporterError;
 use crate::pipeline::experiment::{Reporter, RunFolder};
+use crate::pipeline::labels::RunLabels;
+use crate::pipeline::labels::TrackedLabels;
 use crate::pipeline::record::DatasetRun;
 use crate::pipeline::tracked::resolution::TrackedAfter;
 use crate::pipeline::tracked::TrackedRun;
@@ -41,13 +41,13 @@ impl ReportWriter {
     pub fn write_comparison(
         &self,
         out: &Path,
-        manifests: &[crate::manifest::Manifest],
+        labels: &[RunLabels],
         runs: &[(usize, crate::pipeline::record::DatasetRun)],
         quiet: bool,
     ) -> Result<(), OutputError> {
         let compared = match runs {
             [] => Ok(()),
-            _ => crate::report::thesis::compare::write(out, manifests, runs, quiet).map(|()| {
+            _ => crate::report::thesis::compare::write(out, labels, runs, quiet).map(|()| {
                 println!("written to {} (compare.md, compare.html, compare.tex)", out.display());
             }),
         };
@@ -75,16 +75,16 @@ impl Reporter for ReportWriter {
 
     fn dataset_done(
         &mut self,
-        manifest: &Manifest,
+        labels: &RunLabels,
         run: &DatasetRun,
         folder: &RunFolder<'_>,
         started: SystemTime,
     ) -> Result<(), ReporterError> {
         let (shown, folder) = (folder.final_path, folder.write_to);
-        let summary = crate::report::page::write::write_dataset_run(run, manifest, folder)?;
+        let summary = crate::report::page::write::write_dataset_run(run, labels, folder)?;
         let mut provenance = Provenance::new(
-            &manifest.path,
-            &manifest.sha256,
+            &labels.manifest_path,
+            &labels.manifest_sha256,
             &run.dataset,
             &run.dataset_folder,
             &run.input_files,
@@ -102,7 +102,7 @@ impl Reporter for ReportWriter {
 
     fn tracked_done(
         &mut self,
-        manifest: &TrackedManifest,
+        labels: &TrackedLabels,
         run: &TrackedRun,
         after: &TrackedAfter,
         plus: Option<&PlusResult>,
@@ -110,13 +110,13 @@ impl Reporter for ReportWriter {
         started: SystemTime,
     ) -> Result<(), ReporterError> {
         let (shown, folder) = (folder.final_path, folder.write_to);
-        let summary = crate::report::tracked::write(run, after, manifest, plus, folder)?;
+        let summary = crate::report::tracked::write(run, after, labels, plus, folder)?;
         Provenance::new(
-            &manifest.path,
-            &manifest.sha256,
-            &manifest.dataset,
-            &manifest.calibration_sequence,
-            &manifest.input_files(),
+            &labels.manifest_path,
+            &labels.manifest_sha256,
+            &labels.dataset,
+            &labels.calibration_sequence,
+            &labels.input_files,
             started,
         )
         .write(folder)?;

@@ -55,6 +55,8 @@ mod tests {
     fn a_summary_says_its_schema_version_and_a_newer_one_is_refused() {
         let summary = super::tracked::TrackedSummary {
             schema_version: super::SCHEMA_VERSION,
+            experiment: "fcal".into(),
+            dataset: "sweep".into(),
             kind: super::tracked::TRACKED_KIND.into(),
             ..Default::default()
         };
@@ -72,5 +74,9 @@ mod tests {
             let e = read(&text).unwrap_err().to_string();
             assert!(e.contains("not a schema version"), "{bad}: {e}");
         }
+        // The experiment's name names folders: a path is not one.
+        let escaping = text.replacen("\"experiment\": \"fcal\"", "\"experiment\": \"../x\"", 1);
+        let e = read(&escaping).unwrap_err().to_string();
+        assert!(e.contains("field `experiment`"), "{e}");
     }
 }

@@ -18,7 +18,8 @@ use crate::estimate::edge_offset::EdgeOffset;
 use crate::estimate::start_basin::StartGuess;
 use crate::evaluate::resampling::Bootstrap;
 use crate::evaluate::{cutoff_label, AxisStats, BreStats, TruthComparison};
-use crate::manifest::{Manifest, Regression, SolveVariant};
+use crate::manifest::{Regression, SolveVariant};
+use crate::pipeline::labels::RunLabels;
 use crate::pipeline::record::{DatasetRun, GateResult, Method, MethodResult};
 
 /// A BRE cut-off in mm; infinity (all frames) is written `"inf"`.
@@ -247,6 +248,9 @@ pub struct Summary {
     /// Wire phantoms: the start guess's offset and basin of convergence.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub start_guess: Option<StartGuess>,
+    /// A rendered handheld session's stated occluders (`render.occluders`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub occluders: Option<crate::spec::render::SessionOccluders>,
 }
 
 impl Summary {
@@ -377,7 +381,7 @@ impl CameraSummary {
 
 impl Summary {
     /// The summary of a dataset's run.
-    pub fn of(run: &DatasetRun, manifest: &Manifest) -> Summary {
+    pub fn of(run: &DatasetRun, labels: &RunLabels) -> Summary {
         let primary = &run.thresholds[run.primary];
         let fit = run.primary_fit();
         let used = run.used_frames();
@@ -394,7 +398,7 @@ impl Summary {
             dataset: run.dataset.clone(),
             rendered: run.rendered,
             probecal_version: env!("CARGO_PKG_VERSION").into(),
-            manifest_sha256: manifest.sha256.clone(),
+            manifest_sha256: labels.manifest_sha256.clone(),
             frames: FrameCounts {
                 total: run.frames.len(),
                 used,
@@ -408,7 +412,7 @@ impl Summary {
                     run.spacing_mm_per_px[0] * fit.scale,
                     run.spacing_mm_per_px[1] * fit.scale,
                 ],
-                solve_variant: manifest.solve_variant,
+                solve_variant: labels.solve_variant,
                 euler_zyx_deg: euler_zyx_deg(&fit.target_T_source),
                 translation_mm: [t.x, t.y, t.z],
                 cutoff_mm: CutoffMm(primary.cutoff_mm),
@@ -428,8 +432,8 @@ impl Summary {
                 })
                 .collect(),
             gates: run.gates.clone(),
-            gated_method: manifest.thresholds.gates.method.clone(),
-            regression_tolerances: manifest.thresholds.regression.clone(),
+            gated_method: labels.gated_method.clone(),
+            regression_tolerances: labels.regression.clone(),
             methods: run
                 .methods
                 .iter()
@@ -444,6 +448,7 @@ impl Summary {
                 })
                 .collect(),
             start_guess: run.start_guess.clone(),
+            occluders: labels.occluders.get(&run.dataset).cloned(),
             validation: run.validation.as_ref().map(|v| ValidationSummary {
                 protocol: "frames of the calibration cut-off; PRE by leave-one-out; CR over random half-splits; bootstrap percentile intervals (2.5 %, 97.5 %)".into(),
                 pre_loo_mm: v.leave_one_out.summary,
@@ -539,7 +544,7 @@ impl RunSummary {
             ReadError::new(path, message)
         };
         let de = &mut serde_json::Deserializer::from_str(text);
-        if tracked {
+        let summary = if tracked {
             serde_path_to_error::deserialize(de)
                 .map(|s| RunSummary::Tracked(Box::new(s)))
                 .map_err(described)
@@ -547,7 +552,12 @@ impl RunSummary {
             serde_path_to_error::deserialize(de)
                 .map(|s| RunSummary::Camera(Box::new(s)))
                 .map_err(described)
+        }?;
+        // The experiment's name names folders and baseline files: a plain name only.
+        if let Some(fault) = crate::manifest::name_fault(summary.experiment()) {
+            return Err(ReadError::new(path, format!("field `experiment`: {fault}")));
         }
+        Ok(summary)
     }
 }
 

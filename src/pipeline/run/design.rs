@@ -17,6 +17,7 @@ use crate::core::geometry::{image_probe_points, Rigid};
 use crate::detect::board_pose::RigBoards;
 use crate::detect::camera_refinement::{self, BoardView};
 use crate::estimate::edge_blur::SliceBlur;
+use crate::estimate::edge_offset::EdgeOffset;
 use crate::estimate::sphere_fit::KnownSphere;
 use crate::evaluate::pose_noise::{self, PhotoNoise, SweepPhoto};
 use crate::evaluate::sphere_bound::{self, BoundFrame, EdgeNoise};
@@ -455,4 +456,67 @@ pub fn design(manifest: &Manifest, spec: &RenderSpec) -> Result<Vec<DesignRow>, 
         (Err(_), Err(_)) => std::cmp::Ordering::Equal,
     });
     Ok(rows)
+}
+
+/// A design study: the ranked layouts with the manifest's own phantom and the
+/// thesis's hemisphere beside them (`design.json`).
+#[derive(Debug, Clone, Serialize)]
+pub struct DesignStudy {
+    pub experiment: String,
+    pub seeds: [u64; 2],
+    pub frames: usize,
+    pub noise: BoundNoise,
+    /// The intrinsics also solved from the boards in the frames' photos.
+    pub camera_refined_with_frames: bool,
+    /// The terms of the echo edge's offset solved with the calibration
+    /// (nuisances of the bound; absent: none).
+    #[serde(skip_serializing_if = "is_no_offset")]
+    pub edge_offset: EdgeOffset,
+    /// The growth of the edge noise with the cut (absent: every arc alike).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub slice_blur: Option<SliceBlur>,
+    /// The manifest's own phantom.
+    #[serde(serialize_with = "bound_or_reason")]
+    pub manifest_phantom: Result<Bound, BoundError>,
+    /// The thesis's hemisphere (R = 15 mm) at the lab's feature point.
+    #[serde(serialize_with = "bound_or_reason")]
+    pub hemisphere: Result<Bound, BoundError>,
+    pub layouts: Vec<DesignRow>,
+}
+
+fn is_no_offset(o: &EdgeOffset) -> bool {
+    *o == EdgeOffset::None
+}
+
+/// The study of the ranked `rows`: the manifest's own phantom and the thesis's
+/// hemisphere beside them.
+pub fn study(manifest: &Manifest, spec: &RenderSpec, rows: &[DesignRow]) -> DesignStudy {
+    let hemisphere = match crate::detect::board_pose::RigBoards::from_rig(&manifest.rig) {
+        Ok(rig) => {
+            let (_, world_T_phantom) = crate::synth::scene::lab_layout(spec.board_distance_mm, &rig.phantom);
+            let c = world_T_phantom.inverse() * nalgebra::Point3::origin();
+            bound_over_sweeps(
+                manifest,
+                &Phantom::Hemisphere {
+                    centre_in_phantom_mm: [c.x, c.y, c.z],
+                    radius_mm: 15.0,
+                },
+                spec,
+                DESIGN_SEEDS,
+            )
+        }
+        Err(e) => Err(BoundError::Scene(e.to_string())),
+    };
+    DesignStudy {
+        experiment: manifest.experiment.clone(),
+        seeds: [DESIGN_SEEDS.start, DESIGN_SEEDS.end - 1],
+        frames: spec.frames,
+        noise: noise(manifest),
+        camera_refined_with_frames: refines_with_frames(manifest),
+        edge_offset: edge_offset_model(manifest),
+        slice_blur: slice_blur_model(manifest),
+        manifest_phantom: bound_over_sweeps(manifest, &manifest.phantom, spec, DESIGN_SEEDS),
+        hemisphere,
+        layouts: rows.to_vec(),
+    }
 }

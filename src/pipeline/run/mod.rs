@@ -11,6 +11,7 @@
 
 pub mod camera;
 pub mod design;
+pub mod lab;
 pub mod methods;
 pub mod resolve;
 pub mod sphere_pose;

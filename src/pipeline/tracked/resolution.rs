@@ -34,6 +34,8 @@ pub const BOOTSTRAP: BlockBootstrap = BlockBootstrap {
 #[derive(Debug, Clone, Default)]
 pub struct TrackedAfter {
     pub resolution: ValidationResolution,
+    /// The manifest's gates on the run.
+    pub gates: Vec<crate::pipeline::record::GateResult>,
     pub volume: Option<crate::pipeline::reconstruct::Reconstruction>,
 }
 
@@ -84,6 +86,23 @@ pub fn wires_in_image(run: &TrackedRun, nwires: &[NWire], role: Role) -> Vec<Vec
 }
 
 /// The run's resolution; everything `None` without validation frames.
+/// What is measured after a calibration of frames received live (no volume):
+/// the validation score's resolution, with the received file as the
+/// calibration sequence, and the manifest's gates.
+pub fn after_received(
+    run: &TrackedRun,
+    manifest: &crate::manifest::tracked::TrackedManifest,
+    received: &std::path::Path,
+) -> TrackedAfter {
+    let mut inputs = TrackedInputs::from_manifest(manifest);
+    inputs.calibration_sequence = received.to_path_buf();
+    TrackedAfter {
+        resolution: evaluate(run, &inputs),
+        gates: tracked::gates(run, manifest),
+        volume: None,
+    }
+}
+
 pub fn evaluate(run: &TrackedRun, inputs: &TrackedInputs) -> ValidationResolution {
     if used(&run.frames, Role::Validation).next().is_none() {
         return ValidationResolution::default();

@@ -9,7 +9,7 @@ use std::path::Path;
 use serde::Serialize;
 
 use crate::core::stats::percentile;
-use crate::manifest::tracked::TrackedManifest;
+use crate::pipeline::labels::TrackedLabels;
 use crate::pipeline::live::igtl::{StreamRun, StreamSettings};
 use crate::pipeline::tracked::Role;
 use crate::report::error::OutputError;
@@ -135,11 +135,13 @@ pub fn summary(run: &StreamRun, settings: &StreamSettings) -> IgtlSummary {
 }
 
 /// Writes the session's files into `folder` (the staged output, which already
-/// holds `received.igs.mha`); the summary.
+/// holds `received.igs.mha`), with the batch calibration's page when there is
+/// one (`after`: what was measured after it); the summary.
 pub fn write(
     run: &StreamRun,
     settings: &StreamSettings,
-    manifest: &TrackedManifest,
+    labels: &TrackedLabels,
+    after: Option<&crate::pipeline::tracked::resolution::TrackedAfter>,
     folder: &Path,
 ) -> Result<IgtlSummary, OutputError> {
     let s = summary(run, settings);
@@ -151,14 +153,8 @@ pub fn write(
         &folder.join("live.csv"),
         crate::report::live::frames_csv(&run.frames).as_bytes(),
     )?;
-    if let Ok(batch) = &run.final_run {
-        let mut inputs = crate::pipeline::tracked::TrackedInputs::from_manifest(manifest);
-        inputs.calibration_sequence = folder.join("received.igs.mha");
-        let after = crate::pipeline::tracked::resolution::TrackedAfter {
-            resolution: crate::pipeline::tracked::resolution::evaluate(batch, &inputs),
-            volume: None,
-        };
-        crate::report::tracked::write(batch, &after, manifest, None, &folder.join("calibration"))?;
+    if let (Ok(batch), Some(after)) = (&run.final_run, after) {
+        crate::report::tracked::write(batch, after, labels, None, &folder.join("calibration"))?;
     }
     Ok(s)
 }

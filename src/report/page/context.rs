@@ -85,11 +85,11 @@ pub struct GalleryEntry {
 }
 
 /// Prepares the page's context.
-pub fn context(run: &DatasetRun, manifest: &crate::manifest::Manifest) -> RunContext {
+pub fn context(run: &DatasetRun, labels: &crate::pipeline::labels::RunLabels) -> RunContext {
     let fit = run.primary_fit();
     let primary = &run.thresholds[run.primary];
     let camera = camera_rows(run);
-    let calibration = calibration_rows(run, manifest);
+    let calibration = calibration_rows(run, labels);
     let threshold_blocks = threshold_blocks(run);
     let (truth, truth_by_cutoff) = match &run.truth {
         Some(tr) => (truth_rows(tr), truth_by_cutoff(run)),
@@ -99,13 +99,13 @@ pub fn context(run: &DatasetRun, manifest: &crate::manifest::Manifest) -> RunCon
     RunContext {
         experiment: run.experiment.clone(),
         dataset: run.dataset.clone(),
-        description: manifest.description.clone(),
-        manifest: manifest
-            .path
+        description: labels.description.clone(),
+        manifest: labels
+            .manifest_path
             .file_name()
             .map(|n| n.to_string_lossy().to_string())
             .unwrap_or_default(),
-        manifest_sha256: manifest.sha256.clone(),
+        manifest_sha256: labels.manifest_sha256.clone(),
         probecal_version: env!("CARGO_PKG_VERSION").into(),
         frames_total: run.frames.len(),
         frames_used: used,
@@ -173,7 +173,7 @@ pub fn context(run: &DatasetRun, manifest: &crate::manifest::Manifest) -> RunCon
             .unwrap_or_default(),
         start_basin: start_basin_rows(run),
         validation: validation_rows(run),
-        setup: setup_rows(run, manifest),
+        setup: setup_rows(run, labels),
         gallery: Vec::new(),
         figures: Vec::new(),
     }

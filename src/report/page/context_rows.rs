@@ -35,10 +35,9 @@ pub struct KeyValue {
     pub value: String,
 }
 
-pub(in crate::report) fn setup_rows(run: &DatasetRun, manifest: &crate::manifest::Manifest) -> Vec<KeyValue> {
-    use crate::manifest::CameraSource;
+pub(in crate::report) fn setup_rows(run: &DatasetRun, labels: &crate::pipeline::labels::RunLabels) -> Vec<KeyValue> {
     use crate::spec::phantom::Phantom;
-    let phantom = match &manifest.phantom {
+    let phantom = match &labels.phantom {
         Phantom::Hemisphere {
             centre_in_phantom_mm: c,
             radius_mm,
@@ -69,14 +68,7 @@ pub(in crate::report) fn setup_rows(run: &DatasetRun, manifest: &crate::manifest
                 .join(" / ")
         ),
     };
-    let rig = match &manifest.camera {
-        CameraSource::TrackerCsv(t) => format!(
-            "tracker poses from {} ({}, {})",
-            t.file, t.probe_transform, t.reference_transform
-        ),
-        _ => crate::report::thesis::compare::rig_label(&manifest.rig),
-    };
-    let mut rows = vec![kv("phantom", phantom), kv("pose source", rig)];
+    let mut rows = vec![kv("phantom", phantom), kv("pose source", labels.pose_source.clone())];
     if let Some(p) = crate::report::thesis::compare::board_points(run) {
         rows.push(kv(
             "board points per used frame: probe / phantom",
@@ -212,7 +204,10 @@ pub(in crate::report) fn camera_rows(run: &DatasetRun) -> Vec<KeyValue> {
 
 /// The calibration: frames used, its rotation and translation, the pixel size
 /// and the closed form's residual.
-pub(in crate::report) fn calibration_rows(run: &DatasetRun, manifest: &crate::manifest::Manifest) -> Vec<KeyValue> {
+pub(in crate::report) fn calibration_rows(
+    run: &DatasetRun,
+    labels: &crate::pipeline::labels::RunLabels,
+) -> Vec<KeyValue> {
     let fit = run.primary_fit();
     let primary = &run.thresholds[run.primary];
     let euler = euler_zyx_deg(&fit.target_T_source);
@@ -237,7 +232,7 @@ pub(in crate::report) fn calibration_rows(run: &DatasetRun, manifest: &crate::ma
         ),
         kv(
             "solved as",
-            format!("{:?}, scale {:.5}", manifest.solve_variant, fit.scale).to_lowercase(),
+            format!("{:?}, scale {:.5}", labels.solve_variant, fit.scale).to_lowercase(),
         ),
         kv("Horn RMS residual (mm)", mm(fit.rms_residual_mm)),
     ];

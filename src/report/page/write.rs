@@ -180,7 +180,7 @@ pub fn write_frames_table(folder: &Path, table: &mut DataFrame) -> Result<(), Ou
 /// Writes a dataset run into `folder`.
 pub fn write_dataset_run(
     run: &DatasetRun,
-    manifest: &crate::manifest::Manifest,
+    labels: &crate::pipeline::labels::RunLabels,
     folder: &Path,
 ) -> Result<Summary, OutputError> {
     let io = |path: &Path| {
@@ -195,10 +195,10 @@ pub fn write_dataset_run(
     let inputs = SolveInputs::of(&run.experiment, &run.dataset, &run.pairs, &run.solve);
     let inputs = inputs.to_yaml().map_err(|e| OutputError::Report(e.to_string()))?;
     write_atomic(&folder.join(SOLVE_INPUTS_FILE), inputs.as_bytes())?;
-    let summary = Summary::of(run, manifest);
+    let summary = Summary::of(run, labels);
     let text = to_text(&summary)?;
     write_atomic(&folder.join("summary.json"), text.as_bytes())?;
-    let mut context = crate::report::page::context::context(run, manifest);
+    let mut context = crate::report::page::context::context(run, labels);
     let gallery = crate::report::page::gallery::gallery(run).map_err(|e| OutputError::Report(e.to_string()))?;
     if !gallery.is_empty() {
         let dir = folder.join("gallery");

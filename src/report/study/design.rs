@@ -4,41 +4,10 @@
 use std::fmt::Write as _;
 use std::path::Path;
 
-use serde::Serialize;
-
-use crate::estimate::edge_blur::SliceBlur;
 use crate::estimate::edge_offset::EdgeOffset;
-use crate::pipeline::run::design::{self, Bound, BoundError, BoundNoise, DesignRow, DESIGN_SEEDS};
+use crate::pipeline::run::design::{Bound, BoundError, DesignStudy};
 use crate::report::error::OutputError;
 use crate::spec::phantom::Phantom;
-
-#[derive(Serialize)]
-struct DesignFile<'a> {
-    experiment: &'a str,
-    seeds: [u64; 2],
-    frames: usize,
-    noise: BoundNoise,
-    /// The intrinsics also solved from the boards in the frames' photos.
-    camera_refined_with_frames: bool,
-    /// The terms of the echo edge's offset solved with the calibration
-    /// (nuisances of the bound; absent: none).
-    #[serde(skip_serializing_if = "is_no_offset")]
-    edge_offset: EdgeOffset,
-    /// The growth of the edge noise with the cut (absent: every arc alike).
-    #[serde(skip_serializing_if = "Option::is_none")]
-    slice_blur: Option<SliceBlur>,
-    /// The manifest's own phantom.
-    #[serde(serialize_with = "design::bound_or_reason")]
-    manifest_phantom: Result<Bound, BoundError>,
-    /// The thesis's hemisphere (R = 15 mm) at the lab's feature point.
-    #[serde(serialize_with = "design::bound_or_reason")]
-    hemisphere: Result<Bound, BoundError>,
-    layouts: &'a [DesignRow],
-}
-
-fn is_no_offset(o: &EdgeOffset) -> bool {
-    *o == EdgeOffset::None
-}
 
 fn bound_cell(b: &Result<Bound, BoundError>) -> String {
     match b {
@@ -47,7 +16,7 @@ fn bound_cell(b: &Result<Bound, BoundError>) -> String {
     }
 }
 
-fn markdown(file: &DesignFile<'_>) -> String {
+fn markdown(file: &DesignStudy) -> String {
     let mut s = String::new();
     let _ = writeln!(
         s,
@@ -136,45 +105,10 @@ fn markdown(file: &DesignFile<'_>) -> String {
     s
 }
 
-/// Writes `design.json` and `design.md` into `out` for the ranked `rows` (with
-/// the manifest's own phantom and the thesis's hemisphere beside them); the
-/// Markdown page.
-pub fn write(
-    manifest: &crate::manifest::Manifest,
-    spec: &crate::spec::render::RenderSpec,
-    rows: &[DesignRow],
-    out: &Path,
-) -> Result<String, OutputError> {
-    let hemisphere = match crate::detect::board_pose::RigBoards::from_rig(&manifest.rig) {
-        Ok(rig) => {
-            let (_, world_T_phantom) = crate::synth::scene::lab_layout(spec.board_distance_mm, &rig.phantom);
-            let c = world_T_phantom.inverse() * nalgebra::Point3::origin();
-            design::bound_over_sweeps(
-                manifest,
-                &Phantom::Hemisphere {
-                    centre_in_phantom_mm: [c.x, c.y, c.z],
-                    radius_mm: 15.0,
-                },
-                spec,
-                DESIGN_SEEDS,
-            )
-        }
-        Err(e) => Err(BoundError::Scene(e.to_string())),
-    };
-    let file = DesignFile {
-        experiment: &manifest.experiment,
-        seeds: [DESIGN_SEEDS.start, DESIGN_SEEDS.end - 1],
-        frames: spec.frames,
-        noise: design::noise(manifest),
-        camera_refined_with_frames: design::refines_with_frames(manifest),
-        edge_offset: design::edge_offset_model(manifest),
-        slice_blur: design::slice_blur_model(manifest),
-        manifest_phantom: design::bound_over_sweeps(manifest, &manifest.phantom, spec, DESIGN_SEEDS),
-        hemisphere,
-        layouts: rows,
-    };
-    let json = crate::io::json::to_text(&file)?;
-    let md = markdown(&file);
+/// Writes `design.json` and `design.md` into `out`; the Markdown page.
+pub fn write(file: &DesignStudy, out: &Path) -> Result<String, OutputError> {
+    let json = crate::io::json::to_text(file)?;
+    let md = markdown(file);
     crate::io::fs::write_all_atomic(
         out,
         &[

@@ -8,9 +8,8 @@ use serde::Serialize;
 use crate::core::geometry::pixel_to_image_mm;
 use crate::core::stats::mean;
 use crate::evaluate::cutoff_label;
-use crate::manifest::Manifest;
+use crate::pipeline::labels::RunLabels;
 use crate::pipeline::record::{DatasetRun, Stage};
-use crate::spec::rig::Rig;
 
 /// One column of the comparison.
 #[derive(Debug, Clone, Serialize)]
@@ -22,29 +21,6 @@ pub struct CompareColumn {
     pub values: Vec<(String, String)>,
     /// Where the error comes from, in words, with the numbers of this run.
     pub explanation: String,
-}
-
-pub(crate) fn rig_label(rig: &Rig) -> String {
-    match rig {
-        Rig::Checkerboard { probe_board, .. } => format!(
-            "checkerboard {}x{} squares of {} mm",
-            probe_board.inner_corners[0] + 1,
-            probe_board.inner_corners[1] + 1,
-            probe_board.square_mm
-        ),
-        Rig::Aruco {
-            dictionary,
-            probe_board,
-            ..
-        } => format!(
-            "ArUco {} {}x{} markers of {} mm",
-            dictionary, probe_board.markers[0], probe_board.markers[1], probe_board.marker_mm
-        ),
-        Rig::Charuco { probe_board, .. } => format!(
-            "ChArUco {} {}x{} squares of {} mm",
-            probe_board.dictionary, probe_board.squares[0], probe_board.squares[1], probe_board.square_mm
-        ),
-    }
 }
 
 fn mm(v: Option<f64>) -> String {
@@ -85,7 +61,7 @@ fn bre_rows(run: &DatasetRun) -> Vec<(String, String)> {
 /// boards' poses and their lever arm), added to `values`; the paragraph that
 /// explains them.
 fn truth_rows(
-    manifest: &Manifest,
+    labels: &RunLabels,
     run: &DatasetRun,
     used: &[&crate::pipeline::record::FrameRecord],
     t: &crate::pipeline::record::TruthSummary,
@@ -98,7 +74,7 @@ fn truth_rows(
     ));
     // The estimator the gates check (`thresholds.gates.method`): the one a
     // phantom is for, when it is not the reported calibration.
-    let gated = manifest.thresholds.gates.method.as_deref().and_then(|name| {
+    let gated = labels.gated_method.as_deref().and_then(|name| {
         let m = run.methods.iter().find(|m| m.method.name() == name)?;
         Some((name, m.truth?.corner_error_mean_mm))
     });
@@ -198,7 +174,7 @@ pub(crate) fn board_points(run: &DatasetRun) -> Option<BoardPoints> {
 }
 
 /// Builds one column from a dataset run.
-pub fn column(manifest: &Manifest, run: &DatasetRun) -> CompareColumn {
+pub fn column(labels: &RunLabels, run: &DatasetRun) -> CompareColumn {
     let used: Vec<_> = run.frames.iter().filter(|f| f.rejection.is_none()).collect();
     let rejected_at = |stage: Stage| {
         run.frames
@@ -238,16 +214,13 @@ pub fn column(manifest: &Manifest, run: &DatasetRun) -> CompareColumn {
     ];
     values.extend(bre_rows(run));
     let explanation = match &run.truth {
-        Some(t) => truth_rows(manifest, run, &used, t, &mut values),
+        Some(t) => truth_rows(labels, run, &used, t, &mut values),
         None => String::new(),
     };
     CompareColumn {
         experiment: run.experiment.clone(),
         dataset: run.dataset.clone(),
-        rig: match &manifest.camera {
-            crate::manifest::CameraSource::TrackerCsv(t) => format!("tracker poses from {}", t.file),
-            _ => rig_label(&manifest.rig),
-        },
+        rig: labels.pose_source_short.clone(),
         values,
         explanation,
     }
@@ -340,12 +313,12 @@ const COMPARE_TEX_TEMPLATE: &str = include_str!("../../../templates/compare.tex.
 /// (each with its manifest's index); the markdown is printed unless quiet.
 pub fn write(
     out: &std::path::Path,
-    manifests: &[Manifest],
+    labels: &[RunLabels],
     runs: &[(usize, DatasetRun)],
     quiet: bool,
 ) -> Result<(), OutputError> {
     use crate::io::fs::write_atomic;
-    let columns: Vec<CompareColumn> = runs.iter().map(|(i, r)| column(&manifests[*i], r)).collect();
+    let columns: Vec<CompareColumn> = runs.iter().map(|(i, r)| column(&labels[*i], r)).collect();
     let markdown = markdown(&columns);
     if !quiet {
         println!("{markdown}");

@@ -1,51 +1,12 @@
-//! `probecal phantom`: the printable model of a manifest's dome phantom as an STL.
+//! `probecal phantom`: the printable model of a manifest's dome phantom as an
+//! STL, and its sheet.
 
 use std::path::Path;
 
-use crate::manifest::{DatasetSource, Experiment, Manifest};
 use nalgebra::Point3;
 use serde::Serialize;
 
-use crate::report::error::ReadError;
-use crate::spec::render::RenderSpec;
 use crate::synth::{board_seat, printable};
-
-/// A camera experiment and the render spec of its first rendered dataset (the
-/// lab its phantom stands in and the sweep over it), or why there is none.
-pub fn rendered_lab(path: &Path) -> Result<(Box<Manifest>, RenderSpec), LabError> {
-    let manifest = match Experiment::load(path)? {
-        Experiment::Camera(m) => m,
-        Experiment::Tracked(_) => {
-            return Err(LabError::Missing(ReadError::new(
-                path,
-                "a tracked experiment has no rendered lab or sweep",
-            )))
-        }
-    };
-    let spec = manifest
-        .datasets
-        .iter()
-        .find_map(|d| match &d.source {
-            DatasetSource::Render(spec) => Some(spec.as_ref().clone()),
-            DatasetSource::Folder(_) => None,
-        })
-        .ok_or_else(|| {
-            LabError::Missing(ReadError::new(
-                path,
-                "field `datasets`: no rendered dataset gives the lab the phantom stands in",
-            ))
-        })?;
-    Ok((manifest, spec))
-}
-
-/// Why a manifest gives no rendered lab.
-#[derive(Debug, thiserror::Error)]
-pub enum LabError {
-    #[error("{0}")]
-    Manifest(#[from] crate::manifest::ManifestErrors),
-    #[error("{0}")]
-    Missing(ReadError),
-}
 
 /// The model's sheet, written beside its STL (`<name>.json`): its size, its
 /// domes and where the seat holds the board, for checking a print with calipers
@@ -82,12 +43,12 @@ pub struct SheetSeat {
     pub front_corner_mm: [f64; 3],
 }
 
-pub fn sheet(manifest: &Manifest, model: &printable::PrintableModel, stl: &Path, triangles: usize) -> ModelSheet {
+pub fn sheet(experiment: &str, model: &printable::PrintableModel, stl: &Path, triangles: usize) -> ModelSheet {
     let mount = model.seat.mount;
     let corner = model.seat.upright_T_phantom * Point3::new(mount.left_x_mm, mount.bottom_y_mm, 0.0);
     let size = model.plate_max_mm - model.plate_min_mm;
     ModelSheet {
-        experiment: manifest.experiment.clone(),
+        experiment: experiment.to_string(),
         stl: stl
             .file_name()
             .map(|n| n.to_string_lossy().to_string())

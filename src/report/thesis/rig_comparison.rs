@@ -43,20 +43,17 @@ const ROWS: [(&str, Cell); 8] = [
     }),
 ];
 
-/// The occluded experiments' stated rates, in words, from the manifests their runs copied.
-fn occluder_rates(root: &Path) -> String {
-    let rates = |experiment: &str| -> Option<[f64; 3]> {
-        let text = crate::io::fs::read_text_capped(
-            &root.join(experiment).join("manifest.yaml"),
-            crate::io::yaml_limits::MAX_YAML_BYTES,
-        )
-        .ok()?;
-        let value: serde_yaml::Value = serde_yaml::from_str(&text).ok()?;
-        let o = value.get("datasets")?.get(0)?.get("render")?.get("occluders")?;
-        let get = |k: &str| o.get(k).and_then(serde_yaml::Value::as_f64);
-        Some([get("hand_rate")?, get("cable_rate")?, get("rim_rate")?])
-    };
-    let all: Vec<Option<[f64; 3]>> = RIG_EXPERIMENTS.iter().map(|(_, _, occluded)| rates(occluded)).collect();
+/// The occluded experiments' stated rates, in words, from their summaries.
+fn occluder_rates(runs: &[Summary]) -> String {
+    let all: Vec<Option<[f64; 3]>> = [1, 3, 5]
+        .iter()
+        .map(|&k| {
+            runs[k]
+                .occluders
+                .as_ref()
+                .map(|o| [o.hand_rate, o.cable_rate, o.rim_rate])
+        })
+        .collect();
     match all[0] {
         Some(r) if all.iter().all(|a| *a == Some(r)) => format!(
             "two fingers over the probe board in {:.0} % of the photos, the probe cable across it in {:.0} %, \
@@ -112,7 +109,7 @@ pub fn rigs_table(root: &Path) -> Result<Table, Vec<String>> {
              Occluded: the same frames with {} (stated rates; shapes in docs/manifest.md). Occlusion keeps \
              {:.0} % of the checkerboard rig's frames, {:.0} % of the ArUco rig's and {:.0} % of the ChArUco \
              rig's. One seed each; the rigs over ten seeds, paired, are in docs/results/rigs.md. probecal: {}.",
-            occluder_rates(root),
+            occluder_rates(&runs),
             kept(1),
             kept(3),
             kept(5),

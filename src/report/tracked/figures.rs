@@ -8,7 +8,7 @@ use plotters::style::RGBColor;
 
 use crate::core::geometry::Rigid;
 use crate::io::plus::result::PlusResult;
-use crate::manifest::tracked::TrackedManifest;
+use crate::pipeline::labels::TrackedLabels;
 use crate::pipeline::tracked::{Role, TrackedFrame, TrackedRun};
 use crate::report::page::figures::{Chart, Series, Style};
 
@@ -28,11 +28,11 @@ fn mean(values: &[f64]) -> Option<f64> {
 }
 
 /// Every figure the run has data for, in page order.
-pub fn charts(run: &TrackedRun, manifest: &TrackedManifest, plus: Option<&PlusResult>) -> Vec<Chart> {
+pub fn charts(run: &TrackedRun, labels: &TrackedLabels, plus: Option<&PlusResult>) -> Vec<Chart> {
     [
-        pre3d_per_frame(run, manifest, plus),
-        residuals_in_phantom(run, manifest),
-        tilts(run, manifest),
+        pre3d_per_frame(run, labels, plus),
+        residuals_in_phantom(run, labels),
+        tilts(run, labels),
     ]
     .into_iter()
     .flatten()
@@ -41,7 +41,7 @@ pub fn charts(run: &TrackedRun, manifest: &TrackedManifest, plus: Option<&PlusRe
 
 /// Each validation frame's PRE3D (the mean over its middle dots), ours and
 /// PLUS's matrix on the same dots and poses.
-pub fn pre3d_per_frame(run: &TrackedRun, manifest: &TrackedManifest, plus: Option<&PlusResult>) -> Option<Chart> {
+pub fn pre3d_per_frame(run: &TrackedRun, labels: &TrackedLabels, plus: Option<&PlusResult>) -> Option<Chart> {
     let ours: Vec<(f64, f64)> = used(run, Role::Validation)
         .filter_map(|f| Some((f.index as f64, mean(&f.pre3d_mm)?)))
         .collect();
@@ -58,7 +58,7 @@ pub fn pre3d_per_frame(run: &TrackedRun, manifest: &TrackedManifest, plus: Optio
         let map = |pixel: [f64; 2]| m.transform_point(&Point3::new(pixel[0], pixel[1], 0.0));
         let points = used(run, Role::Validation)
             .filter_map(|f| {
-                let e = crate::pipeline::tracked::pre3d(f, &manifest.nwires, map, &Rigid::identity());
+                let e = crate::pipeline::tracked::pre3d(f, &labels.nwires, map, &Rigid::identity());
                 Some((f.index as f64, mean(&e)?))
             })
             .collect();
@@ -75,7 +75,7 @@ pub fn pre3d_per_frame(run: &TrackedRun, manifest: &TrackedManifest, plus: Optio
              figure leaves the worst out), {}under the lag applied. Look for frames where every matrix is high (the \
              frame's dots or its pose are off, not the calibration) and for stretches where one matrix alone is (the \
              two differ there, e.g. at tilts the calibration sweep did not hold).",
-            manifest.nwires.len(),
+            labels.nwires.len(),
             if plus.is_some() {
                 "probecal's matrix and PLUS's on the same dots and poses, "
             } else {
@@ -92,7 +92,7 @@ pub fn pre3d_per_frame(run: &TrackedRun, manifest: &TrackedManifest, plus: Optio
 
 /// The middle dot's error vector (mapped by our calibration, less its position
 /// from the phantom's geometry), mm, in the phantom's frame; one per pattern.
-fn residuals(f: &TrackedFrame, run: &TrackedRun, manifest: &TrackedManifest) -> Vec<Vector3<f64>> {
+fn residuals(f: &TrackedFrame, run: &TrackedRun, labels: &TrackedLabels) -> Vec<Vector3<f64>> {
     let Some(marker_T_phantom) = f.marker_T_phantom else {
         return Vec::new();
     };
@@ -100,7 +100,7 @@ fn residuals(f: &TrackedFrame, run: &TrackedRun, manifest: &TrackedManifest) -> 
     let phantom_R_marker = marker_T_phantom.fixed_view::<3, 3>(0, 0).transpose();
     f.dots_px
         .iter()
-        .zip(&manifest.nwires)
+        .zip(&labels.nwires)
         .map(|(dots, nwire)| {
             let expected = marker_T_phantom.transform_point(&nwire.middle_in_phantom_mm(dots));
             phantom_R_marker * (run.fit.image_to_probe.apply(dots[1]) - expected)
@@ -109,10 +109,10 @@ fn residuals(f: &TrackedFrame, run: &TrackedRun, manifest: &TrackedManifest) -> 
 }
 
 /// The residuals' components in the phantom's frame along the validation sweep.
-pub fn residuals_in_phantom(run: &TrackedRun, manifest: &TrackedManifest) -> Option<Chart> {
+pub fn residuals_in_phantom(run: &TrackedRun, labels: &TrackedLabels) -> Option<Chart> {
     let mut axes: [Vec<(f64, f64)>; 3] = Default::default();
     for f in used(run, Role::Validation) {
-        for r in residuals(f, run, manifest) {
+        for r in residuals(f, run, labels) {
             for (k, axis) in axes.iter_mut().enumerate() {
                 axis.push((f.index as f64, r[k]));
             }
@@ -150,9 +150,9 @@ pub fn residuals_in_phantom(run: &TrackedRun, manifest: &TrackedManifest) -> Opt
 
 /// Each used frame's tilt of the wires against the image plane, calibration
 /// and validation frames.
-pub fn tilts(run: &TrackedRun, manifest: &TrackedManifest) -> Option<Chart> {
+pub fn tilts(run: &TrackedRun, labels: &TrackedLabels) -> Option<Chart> {
     let of = |role: Role| -> Vec<(f64, f64)> {
-        crate::pipeline::tracked::resolution::wires_in_image(run, &manifest.nwires, role)
+        crate::pipeline::tracked::resolution::wires_in_image(run, &labels.nwires, role)
             .iter()
             .filter_map(crate::evaluate::pose_coverage::tilt_deg)
             .collect()

@@ -10,7 +10,7 @@ use opencv::imgproc;
 use opencv::prelude::*;
 
 use crate::io::plus::sequence::Sequence;
-use crate::manifest::tracked::TrackedManifest;
+use crate::pipeline::labels::TrackedLabels;
 use crate::pipeline::tracked::{Role, TrackedFrame, TrackedRun};
 use crate::report::page::gallery::{GalleryImage, WIDTH_PX};
 
@@ -132,13 +132,13 @@ fn caption(f: &TrackedFrame) -> String {
 }
 
 /// The gallery of a tracked run (deterministic: the same frames, drawn the same).
-pub fn gallery(run: &TrackedRun, manifest: &TrackedManifest) -> Vec<GalleryImage> {
+pub fn gallery(run: &TrackedRun, labels: &TrackedLabels) -> Vec<GalleryImage> {
     let frames = shown(run);
     let mut out = Vec::new();
     for role in [Role::Calibration, Role::Validation] {
         let path = match role {
-            Role::Calibration => Some(&manifest.calibration_sequence),
-            Role::Validation => manifest.validation_sequence.as_ref(),
+            Role::Calibration => Some(&labels.calibration_sequence),
+            Role::Validation => labels.validation_sequence.as_ref(),
         };
         let of_role: Vec<&&TrackedFrame> = frames.iter().filter(|f| f.role == role).collect();
         let Some(sequence) = path

@@ -5,7 +5,7 @@
 use crate::core::geometry::Rigid;
 use crate::core::stats::best_95;
 use crate::io::plus::result::PlusResult;
-use crate::manifest::tracked::TrackedManifest;
+use crate::pipeline::labels::TrackedLabels;
 use crate::pipeline::tracked::time::lag_joint::LagEstimate;
 use crate::pipeline::tracked::{Role, TrackedFrame, TrackedRun};
 use crate::report::page::figures::{Chart, Series, Style};
@@ -47,7 +47,7 @@ fn at_no_lag(f: &TrackedFrame) -> TrackedFrame {
 /// the frames `keep` admits.
 pub fn no_lag_pre3d(
     run: &TrackedRun,
-    manifest: &TrackedManifest,
+    labels: &TrackedLabels,
     plus: Option<&PlusResult>,
     role: Role,
     keep: impl Fn(usize) -> bool,
@@ -64,7 +64,7 @@ pub fn no_lag_pre3d(
         .flat_map(|f| {
             crate::pipeline::tracked::pre3d(
                 f,
-                &manifest.nwires,
+                &labels.nwires,
                 |pixel| fit.image_to_probe.apply(pixel),
                 &fit.phantom_correction,
             )
@@ -78,7 +78,7 @@ pub fn no_lag_pre3d(
         frames
             .iter()
             .filter(|f| keep(f.index))
-            .flat_map(|f| crate::pipeline::tracked::pre3d(f, &manifest.nwires, map, &Rigid::identity()))
+            .flat_map(|f| crate::pipeline::tracked::pre3d(f, &labels.nwires, map, &Rigid::identity()))
             .collect::<Vec<f64>>()
     });
     Some(NoLagPre3d {

@@ -17,7 +17,7 @@ use crate::core::stats::{best_95, block_mean_interval, mean, mean_sd_of, MeanSd}
 use crate::evaluate::pose_coverage::AngleRange;
 use crate::io::fs::write_atomic;
 use crate::io::plus::result::PlusResult;
-use crate::manifest::tracked::TrackedManifest;
+use crate::pipeline::labels::TrackedLabels;
 use crate::pipeline::tracked::resolution::{TrackedAfter, ValidationResolution};
 use crate::pipeline::tracked::{Role, TrackedRun};
 use crate::report::error::OutputError;
@@ -37,7 +37,7 @@ const PAIRED_BLOCK_FRAMES: usize = 10;
 /// matrix's).
 pub fn pre3d_of_matrix(
     run: &TrackedRun,
-    manifest: &TrackedManifest,
+    labels: &TrackedLabels,
     image_to_probe: &Matrix4<f64>,
     role: Role,
     keep: impl Fn(usize) -> bool,
@@ -46,7 +46,7 @@ pub fn pre3d_of_matrix(
     run.frames
         .iter()
         .filter(|f| f.role == role && f.rejected.is_none() && keep(f.index))
-        .flat_map(|f| crate::pipeline::tracked::pre3d(f, &manifest.nwires, map, &Rigid::identity()))
+        .flat_map(|f| crate::pipeline::tracked::pre3d(f, &labels.nwires, map, &Rigid::identity()))
         .collect()
 }
 
@@ -65,14 +65,14 @@ pub fn rows(m: &Matrix4<f64>) -> Vec<Vec<f64>> {
 /// PRE3D of our calibration on `role`'s frames; with PLUS's result, its matrix
 /// and ours side by side on the frames both segmented (all ours where the file
 /// does not list PLUS's).
-fn pre3d(run: &TrackedRun, manifest: &TrackedManifest, plus: Option<&PlusResult>, role: Role) -> Pre3d {
+fn pre3d(run: &TrackedRun, labels: &TrackedLabels, plus: Option<&PlusResult>, role: Role) -> Pre3d {
     let ours = run.pre3d(role);
     let mut out = Pre3d {
         pre3d_mm: best_95(&ours),
         pre3d_all_mm: mean_sd_of(&ours),
         ..Pre3d::default()
     };
-    out.no_lag = crate::report::tracked::lag::no_lag_pre3d(run, manifest, plus, role, |index| {
+    out.no_lag = crate::report::tracked::lag::no_lag_pre3d(run, labels, plus, role, |index| {
         let listed = plus.and_then(|p| match role {
             Role::Calibration => p.calibration_frames_segmented.as_ref(),
             Role::Validation => p.validation_frames_segmented.as_ref(),
@@ -91,7 +91,7 @@ fn pre3d(run: &TrackedRun, manifest: &TrackedManifest, plus: Option<&PlusResult>
         .filter(|f| f.role == role && f.rejected.is_none())
         .map(|f| f.index)
         .collect();
-    let matrix = pre3d_of_matrix(run, manifest, &plus.image_to_probe, role, keep);
+    let matrix = pre3d_of_matrix(run, labels, &plus.image_to_probe, role, keep);
     let fit = &run.fit;
     let plus_map = |pixel: [f64; 2]| {
         plus.image_to_probe
@@ -106,11 +106,11 @@ fn pre3d(run: &TrackedRun, manifest: &TrackedManifest, plus: Option<&PlusResult>
     {
         let ours = crate::pipeline::tracked::pre3d(
             f,
-            &manifest.nwires,
+            &labels.nwires,
             |pixel| fit.image_to_probe.apply(pixel),
             &fit.phantom_correction,
         );
-        let theirs = crate::pipeline::tracked::pre3d(f, &manifest.nwires, plus_map, &Rigid::identity());
+        let theirs = crate::pipeline::tracked::pre3d(f, &labels.nwires, plus_map, &Rigid::identity());
         if let (Some(a), Some(b)) = (mean(ours.iter().copied()), mean(theirs.iter().copied())) {
             differences.push(a - b);
         }
@@ -158,8 +158,8 @@ fn model_selection(run: &TrackedRun) -> ModelSelectionSummary {
 /// `summary.json`.
 pub fn summary(
     run: &TrackedRun,
-    resolution: &ValidationResolution,
-    manifest: &TrackedManifest,
+    after: &TrackedAfter,
+    labels: &TrackedLabels,
     plus: Option<&PlusResult>,
 ) -> TrackedSummary {
     let fit = &run.fit.image_to_probe;
@@ -169,8 +169,8 @@ pub fn summary(
     let t = fit.marker_T_image.translation.vector;
     TrackedSummary {
         schema_version: crate::results::SCHEMA_VERSION,
-        experiment: manifest.experiment.clone(),
-        dataset: manifest.dataset.clone(),
+        experiment: labels.experiment.clone(),
+        dataset: labels.dataset.clone(),
         kind: TRACKED_KIND.into(),
         frames: TrackedFrameCounts {
             calibration: Segmented {
@@ -207,13 +207,13 @@ pub fn summary(
             },
         },
         model_selection: model_selection(run),
-        validation: pre3d(run, manifest, plus, Role::Validation),
-        resolution: *resolution,
-        calibration: pre3d(run, manifest, plus, Role::Calibration),
-        gates: crate::pipeline::tracked::gates(run, manifest),
+        validation: pre3d(run, labels, plus, Role::Validation),
+        resolution: after.resolution,
+        calibration: pre3d(run, labels, plus, Role::Calibration),
+        gates: after.gates.clone(),
         regression_tolerances: TrackedTolerances {
-            pre3d_mm: manifest.regression.pre3d_mm,
-            frames_rejected: manifest.regression.frames_rejected,
+            pre3d_mm: labels.regression_pre3d_mm,
+            frames_rejected: labels.regression_frames_rejected,
         },
         plus_result: plus.map(|p| PlusResultSummary {
             matrix: rows(&p.image_to_probe),
@@ -292,7 +292,7 @@ pub use crate::report::tracked::transform_files::{itk_tfm, plus_xml};
 pub fn write(
     run: &TrackedRun,
     after: &TrackedAfter,
-    manifest: &TrackedManifest,
+    labels: &TrackedLabels,
     plus: Option<&PlusResult>,
     folder: &Path,
 ) -> Result<TrackedSummary, OutputError> {
@@ -300,8 +300,8 @@ pub fn write(
         path: folder.to_path_buf(),
         message: e.to_string(),
     })?;
-    crate::report::page::write::write_frames_table(folder, &mut frames_table(run, manifest.nwires.len())?)?;
-    let mut summary = summary(run, &after.resolution, manifest, plus);
+    crate::report::page::write::write_frames_table(folder, &mut frames_table(run, labels.nwires.len())?)?;
+    let mut summary = summary(run, after, labels, plus);
     if let Some(volume) = &after.volume {
         summary.reconstruction = Some(crate::report::tracked::volume::write(volume, folder)?);
     }
@@ -323,9 +323,9 @@ pub fn write(
             &crate::report::page::figures::png(&chart)?,
         )?;
     }
-    let charts = crate::report::tracked::figures::charts(run, manifest, plus);
-    let gallery = crate::report::tracked::gallery::gallery(run, manifest);
-    let (html, tex, mut figures) = render_pages(run, manifest, &summary, &charts, &gallery)?;
+    let charts = crate::report::tracked::figures::charts(run, labels, plus);
+    let gallery = crate::report::tracked::gallery::gallery(run, labels);
+    let (html, tex, mut figures) = render_pages(run, labels, &summary, &charts, &gallery)?;
     if !gallery.is_empty() {
         std::fs::create_dir_all(folder.join("gallery")).map_err(|e| OutputError::io(folder.join("gallery"), e))?;
     }
@@ -484,34 +484,34 @@ fn insert_rejections(ctx: &mut tera::Context, run: &TrackedRun) {
 /// The run's page in HTML and in LaTeX, from one context.
 fn render_pages(
     run: &TrackedRun,
-    manifest: &TrackedManifest,
+    labels: &TrackedLabels,
     summary: &TrackedSummary,
     charts: &[crate::report::page::figures::Chart],
     gallery: &[crate::report::page::gallery::GalleryImage],
 ) -> Result<(String, String, crate::report::tracked::figures::FigureFiles), OutputError> {
     let f3 = |v: Option<f64>| v.map(|x| format!("{x:.3}")).unwrap_or_else(|| "—".into());
     let mut ctx = tera::Context::new();
-    ctx.insert("experiment", &manifest.experiment);
-    ctx.insert("dataset", &manifest.dataset);
-    ctx.insert("description", &manifest.description);
+    ctx.insert("experiment", &labels.experiment);
+    ctx.insert("dataset", &labels.dataset);
+    ctx.insert("description", &labels.description);
     ctx.insert(
         "calibration_sequence",
-        &manifest.calibration_sequence.display().to_string(),
+        &labels.calibration_sequence.display().to_string(),
     );
     ctx.insert(
         "validation_sequence",
-        &manifest
+        &labels
             .validation_sequence
             .as_ref()
             .map(|p| p.display().to_string())
             .unwrap_or_else(|| "—".into()),
     );
-    let definition = match &manifest.plus_config {
+    let definition = match &labels.plus_config {
         Some(path) => path.display().to_string(),
         None => "the manifest's patterns".to_string(),
     };
     ctx.insert("plus_config", &definition);
-    ctx.insert("nwires", &manifest.nwires.len());
+    ctx.insert("nwires", &labels.nwires.len());
     selection::insert_selection(&mut ctx, run);
     ctx.insert("folds", &run.selection.folds);
     ctx.insert("selection_frames", &run.selection.frames);
