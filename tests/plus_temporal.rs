@@ -44,8 +44,11 @@ fn tracker_lag_and_lines_agree_with_plus() {
         .output()
         .unwrap();
     assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
-    let summary: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    let text = std::fs::read_to_string(out.join("summary.json")).unwrap();
+    // The typed model holds every field written: read back, it writes the same values.
+    let typed: probecal::results::temporal::TemporalSummary = serde_json::from_str(&text).unwrap();
+    let summary: serde_json::Value = serde_json::from_str(&text).unwrap();
+    assert_eq!(serde_json::to_value(&typed).unwrap(), summary);
     let lag = summary["tracker_lag_s"].as_f64().unwrap();
     println!("tracker lag {lag:.4} s (PLUS: -0.0648266 s)");
     assert!((lag - -0.0648266).abs() <= 0.005, "{lag}");

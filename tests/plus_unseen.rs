@@ -171,8 +171,11 @@ fn segment_scores_itself_against_plus_s_own_segmentation() {
         .output()
         .unwrap();
     assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
-    let summary: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    let text = std::fs::read_to_string(out.join("summary.json")).unwrap();
+    // The typed model holds every field written: read back, it writes the same values.
+    let typed: probecal::results::segmentation::SegmentationSummary = serde_json::from_str(&text).unwrap();
+    let summary: serde_json::Value = serde_json::from_str(&text).unwrap();
+    assert_eq!(serde_json::to_value(&typed).unwrap(), summary);
     let b = &summary["plus_baseline"];
     assert_eq!(b["section"], "validation");
     let score = &b["score"];

@@ -89,3 +89,57 @@ fn run_pages_have_the_thesis_columns_and_rows() {
     }
     assert!(checked >= 7, "only {checked} run pages found");
 }
+
+/// The committed reconstructions' `summary.json` and `agreement.json` read into
+/// the typed results model and write back the same values: the model holds every
+/// field the files carry (a field it dropped or renamed would change them).
+#[test]
+fn committed_reconstructions_read_into_the_results_model_whole() {
+    use probecal::results::reconstruction::{Agreement, ReconstructionSummary, KIND};
+    let dir = root().join("reports/reconstruction");
+    let mut summaries = 0;
+    for entry in std::fs::read_dir(&dir).unwrap() {
+        let folder = entry.unwrap().path();
+        let text = std::fs::read_to_string(folder.join("summary.json")).unwrap();
+        let typed: ReconstructionSummary =
+            serde_json::from_str(&text).unwrap_or_else(|e| panic!("{}: {e}", folder.display()));
+        assert_eq!(typed.kind, KIND);
+        assert_eq!(same_values(&typed, &text), Ok(()), "{}", folder.display());
+        summaries += 1;
+        if let Ok(text) = std::fs::read_to_string(folder.join("agreement.json")) {
+            let typed: Agreement = serde_json::from_str(&text).unwrap();
+            assert_eq!(same_values(&typed, &text), Ok(()), "{}", folder.display());
+        }
+    }
+    assert!(summaries >= 5, "{summaries} reconstructions under {}", dir.display());
+    // A dropped field is seen: the same text without one key does not come back whole.
+    let text = std::fs::read_to_string(dir.join("SpinePhantom_NN_MEAN/summary.json")).unwrap();
+    let mut value: serde_json::Value = serde_json::from_str(&text).unwrap();
+    value["volume"]["extra"] = serde_json::json!(1);
+    let typed: ReconstructionSummary = serde_json::from_value(value.clone()).unwrap();
+    let e = same_values(&typed, &value.to_string()).unwrap_err();
+    assert_eq!(e, "/volume/extra: only on one side");
+}
+
+/// Whether `typed`, written again, holds the values of `text` (numbers as the
+/// same parser reads them), or the first key path that differs.
+fn same_values<T: serde::Serialize>(typed: &T, text: &str) -> Result<(), String> {
+    fn diff(a: &serde_json::Value, b: &serde_json::Value, at: &str) -> Result<(), String> {
+        match (a, b) {
+            (serde_json::Value::Object(x), serde_json::Value::Object(y)) => {
+                for k in x.keys().chain(y.keys()) {
+                    match (x.get(k), y.get(k)) {
+                        (Some(p), Some(q)) => diff(p, q, &format!("{at}/{k}"))?,
+                        _ => return Err(format!("{at}/{k}: only on one side")),
+                    }
+                }
+                Ok(())
+            }
+            _ if a == b => Ok(()),
+            _ => Err(format!("{at}: {a} against {b}")),
+        }
+    }
+    let again = serde_json::to_value(typed).map_err(|e| e.to_string())?;
+    let read: serde_json::Value = serde_json::from_str(text).map_err(|e| e.to_string())?;
+    diff(&again, &read, "")
+}

@@ -3,7 +3,7 @@
 //! inputs cannot be read or the outputs written.
 
 use super::failure::Failure;
-use crate::report::plus_tools::segment::against_plus;
+use crate::results::segmentation::{against_plus, SegmentationSummary};
 
 /// `probecal segment`'s arguments.
 #[derive(Debug, clap::Args)]
@@ -41,14 +41,15 @@ pub fn command(args: &SegmentArgs) -> Result<(), Failure> {
         .map(|p| against_plus(&run, p))
         .transpose()
         .map_err(Failure::failed)?;
-    crate::report::plus_tools::segment::write(&run, baseline.as_ref(), folder.path()).map_err(Failure::failed)?;
+    let summary = SegmentationSummary::of(&run, baseline);
+    crate::report::plus_tools::segment::write(&summary, &run, folder.path()).map_err(Failure::failed)?;
     folder.commit().map_err(Failure::failed)?;
     let found = run.frames.iter().filter(|f| f.rejected.is_none()).count();
     let role = crate::pipeline::sequence_frames::Role::Calibration;
     if let Some(w) = crate::pipeline::sequence_frames::rejection_warning(&run.frames, role, "sequence") {
         eprintln!("warning: {w}");
     }
-    if let Some(b) = &baseline {
+    if let Some(b) = &summary.plus_baseline {
         let s = &b.score;
         println!(
             "against PLUS's segmentation ({}): {} of the {} frames PLUS segmented found here ({:.1} %), {} found here only; mean distance to PLUS's points {}",

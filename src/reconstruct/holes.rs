@@ -32,7 +32,7 @@ use crate::io::plus::volume_config::HoleFilling;
 use super::{Grid, Sample};
 
 /// What hole filling did.
-#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct HoleStats {
     /// Voxels with zero weight after distribution.
     pub holes_before: u64,

@@ -23,7 +23,7 @@ pub struct FramePose {
 }
 
 /// A frame left out, and why.
-#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct SkippedFrame {
     pub index: usize,
     pub reason: String,

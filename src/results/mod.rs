@@ -1,15 +1,21 @@
 //! The results model: each run's outcome as typed values (Serialize and
 //! Deserialize), from which its `summary.json` is written and every page,
 //! gate and reader works. `summary.json` is its serialisation, with a
-//! `schema_version` ([`SCHEMA_VERSION`]); `docs/results.md` documents it.
+//! `schema_version` ([`SCHEMA_VERSION`]); `docs/summary-json.md` documents it.
 //!
 //! - [`summary`]: a camera (or tracker-CSV) run, and [`summary::RunSummary`],
 //!   either kind as read back from disk;
 //! - [`tracked`]: a tracked-sequence (PLUS recording) run;
-//! - [`volume`]: what a tracked run says of its reconstruction.
+//! - [`volume`]: what a tracked run says of its reconstruction;
+//! - [`reconstruction`]: `probecal reconstruct` (and its agreement with a reference);
+//! - [`segmentation`]: `probecal segment` (and its score against PLUS's);
+//! - [`temporal`]: `probecal temporal`.
 
 pub mod calibration;
+pub mod reconstruction;
+pub mod segmentation;
 pub mod summary;
+pub mod temporal;
 pub mod tracked;
 pub mod volume;
 

@@ -146,7 +146,7 @@ fn calibration_frames(x: &Xml, section: roxmltree::Node) -> Result<FrameResults,
 }
 
 /// How probecal's segmentation of a sequence compares with PLUS's.
-#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct SegmentationScore {
     /// Frames PLUS segmented, and how many of them probecal segmented too.
     pub plus_frames: usize,

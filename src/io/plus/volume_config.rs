@@ -11,7 +11,7 @@ use std::path::{Path, PathBuf};
 use super::config::{parse_xml, read_text, ConfigError, Xml};
 
 /// How an input pixel is spread into the volume.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub enum Interpolation {
     /// Into the nearest voxel.
     NearestNeighbor,
@@ -20,7 +20,7 @@ pub enum Interpolation {
 }
 
 /// How values that meet in one voxel combine.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub enum Compounding {
     Mean,
     Latest,
@@ -29,7 +29,7 @@ pub enum Compounding {
 
 /// PLUS's `Optimization`: `Full` computes voxel positions in 14-bit fixed point
 /// (PLUS's integer math), the others in double precision.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub enum Optimization {
     None,
     Partial,
@@ -37,7 +37,7 @@ pub enum Optimization {
 }
 
 /// The fan that clips each image (pixels, degrees), applied inside the clip rectangle.
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Fan {
     /// `FanAnglesDeg`: the edges' angles from the image's downward column axis.
     pub angles_deg: [f64; 2],
@@ -49,7 +49,7 @@ pub struct Fan {
 }
 
 /// One `<HoleFillingElement>`: tried in order until one fills the hole.
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub enum HoleFilling {
     /// Interpolation along the shortest of 13 sticks through the hole.
     Stick { length_limit: usize, sticks_to_use: usize },
@@ -72,7 +72,7 @@ pub enum HoleFilling {
 }
 
 /// `<VolumeReconstruction>`, checked.
-#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct VolumeSettings {
     pub path: PathBuf,
     /// Line of the element.

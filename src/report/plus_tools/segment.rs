@@ -6,73 +6,15 @@
 //! marked) or the reason it failed (red), and the clip rectangle (blue).
 
 use std::fmt::Write as _;
-use std::path::Path;
 
 use opencv::core::{Mat, Point, Rect, Scalar};
 use opencv::imgproc;
 use opencv::prelude::*;
 
 use crate::io::fs::write_all_atomic;
-use crate::io::plus::segmentation::{score, FrameResults, PlusSegmentation, SegmentationScore};
 use crate::pipeline::tracked::segment::SegmentRun;
-use crate::report::error::{OutputError, ReadError};
-
-/// PLUS's segmentation of the same sequence, and how probecal's compares.
-pub struct Baseline {
-    pub path: std::path::PathBuf,
-    pub section: String,
-    pub score: SegmentationScore,
-}
-
-/// The section of `file` that is `run`'s sequence: its only one, or the one
-/// listing as many frames as the sequence has.
-fn baseline_section<'a>(
-    file: &'a PlusSegmentation,
-    frames: usize,
-    path: &Path,
-) -> Result<(&'a str, &'a FrameResults), OutputError> {
-    let fits: Vec<&(String, FrameResults)> = if file.sections.len() == 1 {
-        file.sections.iter().collect()
-    } else {
-        file.sections.iter().filter(|(_, f)| f.len() == frames).collect()
-    };
-    match fits.as_slice() {
-        [(name, f)] => Ok((name.as_str(), f)),
-        _ => Err(OutputError::Read(ReadError::new(
-            path,
-            format!(
-                "no single section lists the sequence's {frames} frames (sections: {})",
-                file.sections
-                    .iter()
-                    .map(|(n, f)| format!("{n} with {} frames", f.len()))
-                    .collect::<Vec<_>>()
-                    .join(", ")
-            ),
-        ))),
-    }
-}
-
-/// Scores `run` against PLUS's segmentation in `path`.
-pub fn against_plus(run: &SegmentRun, path: &Path) -> Result<Baseline, OutputError> {
-    let file = PlusSegmentation::read(path)?;
-    let (section, plus) = baseline_section(&file, run.frames.len(), path)?;
-    let ours = run
-        .frames
-        .iter()
-        .map(|f| {
-            let points = f
-                .rejected
-                .is_none()
-                .then(|| f.dots_px.iter().flatten().copied().collect::<Vec<_>>());
-            (f.index, points)
-        })
-        .collect();
-    Ok(Baseline {
-        path: path.to_path_buf(),
-        section: section.to_string(),
-        score: score(&ours, plus),
-    })
-}
+use crate::report::error::OutputError;
+use crate::results::segmentation::{PlusBaseline, SegmentationSummary};
 
 /// `segmentation.csv`.
 pub fn csv(run: &SegmentRun) -> String {
@@ -90,49 +32,6 @@ pub fn csv(run: &SegmentRun) -> String {
         }
     }
     out
-}
-
-fn failures(run: &SegmentRun) -> Vec<(usize, String)> {
-    run.frames
-        .iter()
-        .filter_map(|f| f.rejected.as_ref().map(|r| (f.index, r.to_string())))
-        .collect()
-}
-
-/// `summary.json`.
-pub fn summary(run: &SegmentRun, baseline: Option<&Baseline>) -> serde_json::Value {
-    let found = run.frames.iter().filter(|f| f.rejected.is_none()).count();
-    let by_check: Vec<serde_json::Value> = crate::pipeline::sequence_frames::rejections_by_check(&run.frames)
-        .into_iter()
-        .map(|(check, frames)| serde_json::json!({"check": check, "frames": frames}))
-        .collect();
-    serde_json::json!({
-        "plus_baseline": baseline.map(|b| serde_json::json!({
-            "file": crate::io::fs::display_path(&b.path),
-            "section": b.section,
-            "score": b.score,
-        })),
-        "not_found_by_check": by_check,
-        "sequence": crate::io::fs::display_path(&run.sequence),
-        "config": crate::io::fs::display_path(&run.config),
-        "image_size_px": run.image_size_px,
-        "orientation": format!("{:?}", run.orientation).to_uppercase(),
-        "clip_rectangle_px": run.clip_rectangle_px,
-        "overlay": run.overlay.as_ref().map(|o| serde_json::json!({
-            "pixels": o.pixels(),
-            "threshold_grey": o.threshold_grey,
-            "frames": o.frames,
-        })),
-        "approximate_spacing_mm_per_px": run.spacing_guess_mm_per_px,
-        "opening_radius_px": run.segmentation.opening_radius_for(run.spacing_guess_mm_per_px),
-        "threshold_percent": run.segmentation.threshold_percent,
-        "frames": run.frames.len(),
-        "found": found,
-        "not_found": failures(run)
-            .into_iter()
-            .map(|(frame, reason)| serde_json::json!({"frame": frame, "reason": reason}))
-            .collect::<Vec<_>>(),
-    })
 }
 
 /// Frame `k` of the run drawn, as JPEG bytes.
@@ -211,25 +110,17 @@ fn gallery_name(frame: usize) -> String {
 const TEMPLATE: &str = include_str!("../../../templates/segment.html.tera");
 
 /// `report.html`, from `templates/segment.html.tera` (every value escaped there).
-pub fn html(run: &SegmentRun, baseline: Option<&Baseline>) -> Result<String, OutputError> {
-    let [u, v, w, h] = run.clip_rectangle_px;
-    let region = match &run.overlay {
+pub fn html(summary: &SegmentationSummary, run: &SegmentRun) -> Result<String, OutputError> {
+    let [u, v, w, h] = summary.clip_rectangle_px;
+    let region = match &summary.overlay {
         None => format!("clip rectangle {u} {v} {w} {h} px"),
         Some(o) => format!(
             "no clip rectangle given: the whole image, with the screen's overlay left out ({} px at grey {} or more in every one of the {} frames, purple in the gallery)",
-            o.pixels(),
+            o.pixels,
             o.threshold_grey,
             o.frames
         ),
     };
-    let by_check: Vec<serde_json::Value> = crate::pipeline::sequence_frames::rejections_by_check(&run.frames)
-        .into_iter()
-        .map(|(check, frames)| serde_json::json!({"check": check, "frames": frames}))
-        .collect();
-    let not_found: Vec<serde_json::Value> = failures(run)
-        .into_iter()
-        .map(|(frame, reason)| serde_json::json!({"frame": frame, "reason": reason}))
-        .collect();
     let mut order: Vec<&crate::pipeline::tracked::TrackedFrame> = run.frames.iter().collect();
     order.sort_by_key(|f| (f.rejected.is_none(), f.index));
     let gallery: Vec<serde_json::Value> = order
@@ -243,28 +134,28 @@ pub fn html(run: &SegmentRun, baseline: Option<&Baseline>) -> Result<String, Out
         })
         .collect();
     let mut ctx = tera::Context::new();
-    ctx.insert("sequence", &crate::io::fs::display_path(&run.sequence));
-    ctx.insert("config", &crate::io::fs::display_path(&run.config));
-    ctx.insert("found", &run.frames.iter().filter(|f| f.rejected.is_none()).count());
-    ctx.insert("total", &run.frames.len());
+    ctx.insert("sequence", &summary.sequence);
+    ctx.insert("config", &summary.config);
+    ctx.insert("found", &summary.found);
+    ctx.insert("total", &summary.frames);
     ctx.insert("nwires", &(run.wire_ids.len() / 3));
-    ctx.insert("size", &format!("{}x{}", run.image_size_px[0], run.image_size_px[1]));
+    ctx.insert(
+        "size",
+        &format!("{}x{}", summary.image_size_px[0], summary.image_size_px[1]),
+    );
     ctx.insert("orientation", &format!("{:?}", run.orientation));
     ctx.insert("region", &region);
-    ctx.insert(
-        "opening_px",
-        &run.segmentation.opening_radius_for(run.spacing_guess_mm_per_px),
-    );
-    ctx.insert("threshold_percent", &run.segmentation.threshold_percent);
-    ctx.insert("plus", &baseline.map(baseline_context));
-    ctx.insert("by_check", &by_check);
-    ctx.insert("not_found", &not_found);
+    ctx.insert("opening_px", &summary.opening_radius_px);
+    ctx.insert("threshold_percent", &summary.threshold_percent);
+    ctx.insert("plus", &summary.plus_baseline.as_ref().map(baseline_context));
+    ctx.insert("by_check", &summary.not_found_by_check);
+    ctx.insert("not_found", &summary.not_found);
     ctx.insert("gallery", &gallery);
     Ok(tera::Tera::one_off(TEMPLATE, &ctx, true)?)
 }
 
 /// The comparison with PLUS's segmentation, for the page.
-fn baseline_context(b: &Baseline) -> serde_json::Value {
+fn baseline_context(b: &PlusBaseline) -> serde_json::Value {
     let s = &b.score;
     let list = |frames: &[usize]| {
         if frames.is_empty() {
@@ -274,7 +165,7 @@ fn baseline_context(b: &Baseline) -> serde_json::Value {
         }
     };
     serde_json::json!({
-        "file": crate::io::fs::display_path(&b.path),
+        "file": b.file,
         "section": b.section,
         "plus_frames": s.plus_frames,
         "both_frames": s.both_frames,
@@ -294,20 +185,20 @@ fn baseline_context(b: &Baseline) -> serde_json::Value {
 }
 
 /// Writes every output into `out` (whole, or nothing).
-pub fn write(run: &SegmentRun, baseline: Option<&Baseline>, out: &std::path::Path) -> Result<(), OutputError> {
-    Ok(write_all_atomic(out, &outputs(run, baseline)?)?)
+pub fn write(summary: &SegmentationSummary, run: &SegmentRun, out: &std::path::Path) -> Result<(), OutputError> {
+    Ok(write_all_atomic(out, &outputs(summary, run)?)?)
 }
 
 /// Every output file: the gallery's pictures, then the tables and the page.
-fn outputs(run: &SegmentRun, baseline: Option<&Baseline>) -> Result<Vec<(String, Vec<u8>)>, OutputError> {
+fn outputs(summary: &SegmentationSummary, run: &SegmentRun) -> Result<Vec<(String, Vec<u8>)>, OutputError> {
     let mut files = Vec::with_capacity(run.frames.len() + 3);
     for (k, f) in run.frames.iter().enumerate() {
         let jpeg = picture(run, k).map_err(|e| OutputError::figure(format!("frame {}: {e}", f.index)))?;
         files.push((gallery_name(f.index), jpeg));
     }
-    let text = crate::results::summary::to_text(&summary(run, baseline))?;
+    let text = crate::results::summary::to_text(summary)?;
     files.push(("segmentation.csv".into(), csv(run).into_bytes()));
     files.push(("summary.json".into(), text.into_bytes()));
-    files.push(("report.html".into(), html(run, baseline)?.into_bytes()));
+    files.push(("report.html".into(), html(summary, run)?.into_bytes()));
     Ok(files)
 }

@@ -5,10 +5,11 @@
 use std::fmt::Write as _;
 use std::path::Path;
 
-use crate::io::fs::{display_path, write_all_atomic};
+use crate::io::fs::write_all_atomic;
 use crate::pipeline::tracked::time::temporal::TemporalRun;
 use crate::report::error::OutputError;
 use crate::report::page::figures::{svg, Chart, Series, Style};
+use crate::results::temporal::TemporalSummary;
 use plotters::style::RGBColor;
 
 /// `lines.csv`: frame, found, origin and direction in pixels, or the reason.
@@ -35,20 +36,6 @@ pub fn lines_csv(run: &TemporalRun) -> String {
         }
     }
     out
-}
-
-pub fn summary(run: &TemporalRun) -> serde_json::Value {
-    serde_json::json!({
-        "video": display_path(&run.video),
-        "tracker": display_path(&run.tracker),
-        "tracker_lag_s": run.tracker_lag_s,
-        "peak_correlation": run.peak_correlation,
-        "frames": run.frames.len(),
-        "frames_with_line": run.frames.iter().filter(|f| f.line.is_ok()).count(),
-        "tracker_samples": run.tracker_samples,
-        "lag_step_s": crate::pipeline::tracked::time::temporal::STEP_S,
-        "lag_range_s": crate::pipeline::tracked::time::temporal::MAX_LAG_S,
-    })
 }
 
 /// The correlation over the lags searched, and the estimate as its own series.
@@ -88,19 +75,20 @@ fn curve_chart(run: &TemporalRun) -> Chart {
 
 const TEMPLATE: &str = include_str!("../../../templates/temporal.html.tera");
 
-/// `report.html`, from `templates/temporal.html.tera`.
-pub fn html(run: &TemporalRun) -> Result<String, OutputError> {
+/// `report.html`, from `templates/temporal.html.tera`: the summary's figures
+/// and the run's correlation curve.
+pub fn html(summary: &TemporalSummary, run: &TemporalRun) -> Result<String, OutputError> {
     let chart = curve_chart(run);
     let mut ctx = tera::Context::new();
-    ctx.insert("video", &display_path(&run.video));
-    ctx.insert("frames", &run.frames.len());
-    ctx.insert("with_line", &run.frames.iter().filter(|f| f.line.is_ok()).count());
-    ctx.insert("tracker", &display_path(&run.tracker));
-    ctx.insert("tracker_samples", &run.tracker_samples);
-    ctx.insert("lag_ms", &format!("{:.1}", run.tracker_lag_s * 1000.0));
-    ctx.insert("lag_s", &format!("{:.4}", run.tracker_lag_s));
-    ctx.insert("peak", &format!("{:.3}", run.peak_correlation));
-    ctx.insert("range_s", &crate::pipeline::tracked::time::temporal::MAX_LAG_S);
+    ctx.insert("video", &summary.video);
+    ctx.insert("frames", &summary.frames);
+    ctx.insert("with_line", &summary.frames_with_line);
+    ctx.insert("tracker", &summary.tracker);
+    ctx.insert("tracker_samples", &summary.tracker_samples);
+    ctx.insert("lag_ms", &format!("{:.1}", summary.tracker_lag_s * 1000.0));
+    ctx.insert("lag_s", &format!("{:.4}", summary.tracker_lag_s));
+    ctx.insert("peak", &format!("{:.3}", summary.peak_correlation));
+    ctx.insert("range_s", &summary.lag_range_s);
     ctx.insert("curve_svg", &svg(&chart)?);
     ctx.insert("curve_caption", &chart.caption);
     Ok(tera::Tera::one_off(TEMPLATE, &ctx, true)?)
@@ -108,11 +96,12 @@ pub fn html(run: &TemporalRun) -> Result<String, OutputError> {
 
 /// Writes `summary.json`, `lines.csv` and `report.html` into `out` (whole, or nothing).
 pub fn write(run: &TemporalRun, out: &Path) -> Result<(), OutputError> {
-    let text = crate::results::summary::to_text(&summary(run))?;
+    let summary = TemporalSummary::of(run);
+    let text = crate::results::summary::to_text(&summary)?;
     let files = [
         ("summary.json".to_string(), text.into_bytes()),
         ("lines.csv".to_string(), lines_csv(run).into_bytes()),
-        ("report.html".to_string(), html(run)?.into_bytes()),
+        ("report.html".to_string(), html(&summary, run)?.into_bytes()),
     ];
     Ok(write_all_atomic(out, &files)?)
 }

@@ -118,7 +118,7 @@ pub fn find_summaries(inputs: &[PathBuf]) -> Result<Vec<FoundSummary>, CheckErro
                         message: e.to_string(),
                     })?
                     .path();
-                if crate::report::reconstruct::is_reconstruction(&dataset.join("summary.json")) {
+                if crate::results::reconstruction::is_reconstruction(&dataset.join("summary.json")) {
                     // A volume reconstruction (`probecal reconstruct`), not a calibration run.
                     continue;
                 }
