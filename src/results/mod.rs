@@ -9,11 +9,13 @@
 //! - [`volume`]: what a tracked run says of its reconstruction;
 //! - [`reconstruction`]: `probecal reconstruct` (and its agreement with a reference);
 //! - [`segmentation`]: `probecal segment` (and its score against PLUS's);
+//! - [`study`]: `probecal study` (`study.json`);
 //! - [`temporal`]: `probecal temporal`.
 
 pub mod calibration;
 pub mod reconstruction;
 pub mod segmentation;
+pub mod study;
 pub mod summary;
 pub mod temporal;
 pub mod tracked;
@@ -28,6 +30,21 @@ pub const SCHEMA_VERSION: u32 = 1;
 /// The schema version of a summary written before the field existed.
 pub fn first_schema_version() -> u32 {
     1
+}
+
+/// Why a results file's `schema_version` cannot be read by this probecal: a
+/// newer layout, or not a whole number from 1 (none: absent or readable).
+pub fn schema_version_fault(value: &serde_json::Value) -> Option<String> {
+    let version = value.get("schema_version")?;
+    match version.as_u64() {
+        Some(v) if v >= 1 && v <= u64::from(SCHEMA_VERSION) => None,
+        Some(v) if v > u64::from(SCHEMA_VERSION) => Some(format!(
+            "field `schema_version`: {v}: written by a newer probecal (this one reads summaries of schema version 1 to {SCHEMA_VERSION})"
+        )),
+        _ => Some(format!(
+            "field `schema_version`: {version}: not a schema version (a whole number from 1)"
+        )),
+    }
 }
 
 /// A file that could not be read or is not what it should be: the path and

@@ -513,25 +513,8 @@ impl RunSummary {
     /// Parses a summary's text read from `path` (the kind from its `kind` field).
     pub fn parse(text: &str, path: &Path) -> Result<RunSummary, ReadError> {
         let value = crate::io::unique_keys::json_value(text).map_err(|e| ReadError::new(path, e))?;
-        if let Some(version) = value.get("schema_version") {
-            match version.as_u64() {
-                Some(v) if v >= 1 && v <= u64::from(crate::results::SCHEMA_VERSION) => {}
-                Some(v) if v > u64::from(crate::results::SCHEMA_VERSION) => {
-                    return Err(ReadError::new(
-                        path,
-                        format!(
-                            "field `schema_version`: {v}: written by a newer probecal (this one reads summaries of schema version 1 to {})",
-                            crate::results::SCHEMA_VERSION
-                        ),
-                    ))
-                }
-                _ => {
-                    return Err(ReadError::new(
-                        path,
-                        format!("field `schema_version`: {version}: not a schema version (a whole number from 1)"),
-                    ))
-                }
-            }
+        if let Some(fault) = crate::results::schema_version_fault(&value) {
+            return Err(ReadError::new(path, fault));
         }
         let tracked = value.get("kind").and_then(|k| k.as_str()) == Some(TRACKED_KIND);
         let described = |e: serde_path_to_error::Error<serde_json::Error>| {

@@ -2,7 +2,7 @@
 
 use std::path::Path;
 
-use serde::{Deserialize, Serialize};
+use serde::Serialize;
 
 use crate::io::fs::write_atomic;
 use crate::report::error::OutputError;
@@ -102,23 +102,6 @@ pub fn render_index(entries: &[&IndexEntry], studies: &[(String, String)]) -> Re
     Ok(tera()?.render("index.html", &ctx)?)
 }
 
-/// What the index reads of a `study.json`: the Monte Carlo study's experiment and seeds.
-#[derive(Deserialize)]
-struct StudyHead {
-    monte_carlo: Option<MonteCarloHead>,
-}
-
-#[derive(Deserialize)]
-struct MonteCarloHead {
-    experiment: String,
-    seeds: Vec<SeedHead>,
-}
-
-#[derive(Deserialize)]
-struct SeedHead {
-    seed: u64,
-}
-
 /// "N seeds", with their range when they run on without a gap (studies of one
 /// experiment differ by their seeds).
 fn seeds_phrase(seeds: &[u64]) -> String {
@@ -137,9 +120,8 @@ fn seeds_phrase(seeds: &[u64]) -> String {
 /// The index's words for a study folder: its experiment and seeds from
 /// `study.json`, or the folder's name when that cannot be read.
 pub fn study_label(study_json: &Path, folder: &str) -> String {
-    let head = crate::io::fs::read_text_capped(study_json, crate::core::limits::MAX_TEXT_FILE_BYTES)
+    let head = crate::results::study::StudyFile::read(study_json)
         .ok()
-        .and_then(|text| serde_json::from_str::<StudyHead>(&text).ok())
         .and_then(|s| s.monte_carlo);
     match head {
         Some(mc) => format!(

@@ -5,50 +5,9 @@ pub mod compare;
 pub mod design;
 use std::path::Path;
 
-use serde::{Deserialize, Serialize};
-
 use crate::pipeline::study::{BoundModel, MonteCarlo, SigmaRow};
+pub use crate::results::study::StudyFile;
 use crate::results::summary::to_text;
-
-/// `study.json`: the σ-table and, when seeds were run, the Monte Carlo study.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct StudyFile {
-    pub sigma_table: Vec<SigmaRow>,
-    pub monte_carlo: Option<MonteCarlo>,
-}
-
-impl StudyFile {
-    /// Reads a `study.json`.
-    pub fn read(path: &Path) -> Result<StudyFile, crate::report::error::ReadError> {
-        let fail = |e: &dyn std::fmt::Display| crate::report::error::ReadError::new(path, e);
-        let text =
-            crate::io::fs::read_text_capped(path, crate::core::limits::MAX_TEXT_FILE_BYTES).map_err(|e| fail(&e))?;
-        let file: StudyFile = crate::io::unique_keys::json(&text).map_err(|e| fail(&e))?;
-        if let Some(why) = file.monte_carlo.as_ref().and_then(seeds_refusal) {
-            return Err(fail(&why));
-        }
-        Ok(file)
-    }
-}
-
-/// Why a study's seeds cannot be read as a sample: a seed listed twice (it
-/// would count twice in every mean and pairing), or an error that is not a
-/// finite distance (negative, infinite or not a number).
-fn seeds_refusal(mc: &MonteCarlo) -> Option<String> {
-    let mut seen = std::collections::BTreeSet::new();
-    for s in &mc.seeds {
-        if !seen.insert(s.seed) {
-            return Some(format!("monte_carlo.seeds: seed {} is listed twice", s.seed));
-        }
-        if let Some((method, e)) = s.rms_error_mm.iter().find(|(_, e)| !(e.is_finite() && *e >= 0.0)) {
-            return Some(format!(
-                "monte_carlo.seeds: seed {}, method `{method}`: rms error {e} mm is not a finite distance (≥ 0)",
-                s.seed
-            ));
-        }
-    }
-    None
-}
 
 /// The study's tables as Markdown (also the body of the HTML page).
 pub fn markdown(sigma: &[SigmaRow], monte_carlo: Option<&MonteCarlo>) -> String {
@@ -199,6 +158,7 @@ pub const STUDY_FILES: [&str; 3] = ["study.json", "study.md", "study.html"];
 pub fn write(out: &Path, sigma: &[SigmaRow], monte_carlo: Option<&MonteCarlo>) -> std::io::Result<()> {
     std::fs::create_dir_all(out)?;
     let file = StudyFile {
+        schema_version: crate::results::SCHEMA_VERSION,
         sigma_table: sigma.to_vec(),
         monte_carlo: monte_carlo.cloned(),
     };
