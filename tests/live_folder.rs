@@ -74,6 +74,9 @@ fn frames_written_into_a_folder_give_the_batch_calibration() {
 
     let summary: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    // The typed results model holds every field written.
+    let typed: probecal::results::live::FolderSummary = serde_json::from_value(summary.clone()).unwrap();
+    assert_eq!(serde_json::to_value(&typed).unwrap(), summary);
     assert_eq!(summary["ended_by"], "frame_list");
     assert_eq!(summary["frames"].as_u64().unwrap(), frames);
     let difference = summary["live_minus_batch_max_abs"].as_f64().unwrap();

@@ -98,6 +98,9 @@ fn a_pyigtl_stream_at_4x_calibrates_as_run_does_and_gets_the_matrix_back() {
     assert!(status.success());
     let sent = json(&report);
     let s = json(&dir.join("live/summary.json"));
+    // The typed results model holds every field written.
+    let typed: probecal::results::live::IgtlSummary = serde_json::from_value(s.clone()).unwrap();
+    assert_eq!(serde_json::to_value(&typed).unwrap(), s);
     // Every frame sent is received, paired and accounted for.
     assert_eq!(sent["images_sent"], 190);
     assert_eq!(s["images_received"], sent["images_sent"]);

@@ -49,6 +49,9 @@ fn live_predicts_each_frame_and_ends_on_the_batch_calibration() {
         .unwrap();
     assert!(batch.status.success(), "{}", String::from_utf8_lossy(&batch.stderr));
     let summary = json(&dir.join("live/summary.json"));
+    // The typed results model holds every field written.
+    let typed: probecal::results::live::LiveSummary = serde_json::from_value(summary.clone()).unwrap();
+    assert_eq!(serde_json::to_value(&typed).unwrap(), summary);
     let run = json(&dir.join("batch/plus_fcal2_nwire/fcal2_3nwires/summary.json"));
     assert_eq!(summary["final_matrix"], run["image_to_probe"]["matrix"]);
     assert_eq!(summary["frames"], 190);

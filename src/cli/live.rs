@@ -85,12 +85,13 @@ pub fn command(manifest: &Path, out: &Path, source: &LiveSource) -> Result<(), F
         .map_err(|e| Failure::failed(format!("{}: {e}", out.display())))?;
     folder.commit().map_err(Failure::failed)?;
     println!(
-        "{} frames at {:.1} frames/s recorded; work per frame {:.1} ms mean, {:.1} ms max ({}); final validation PRE3D {}; written to {}",
+        "{} frames at {:.1} frames/s recorded; work per frame {:.1} ms mean, {:.1} ms max ({}); running PRE3D at the last frame {} (estimated while frames arrived, from those so far); final validation PRE3D {} (the batch calibration of every frame); written to {}",
         s.frames,
         s.recorded_rate_hz,
         s.processing_ms.mean,
         s.processing_ms.max,
         if s.kept_up { "kept up" } else { "fell behind" },
+        s.running_pre3d_mm.map(|v| format!("{v:.4} mm")).unwrap_or_else(|| "—".into()),
         s.final_validation_pre3d_mm.map(|v| format!("{v:.4} mm")).unwrap_or_else(|| "—".into()),
         out.display()
     );

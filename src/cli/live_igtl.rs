@@ -134,7 +134,7 @@ fn session(
         .map(|p| format!("{:.1} ms median, {:.1} ms p99", p.p50, p.p99))
         .unwrap_or_else(|| "—".into());
     println!(
-        "{} images received ({} frames, {} without a pose), ended by {}; latency {latency}; {}; final validation PRE3D {}; written to {}",
+        "{} images received ({} frames, {} without a pose), ended by {}; latency {latency}; {}; running PRE3D at the last frame {} (estimated while frames arrived, from those so far); final validation PRE3D {} (the batch calibration of every frame); written to {}",
         s.images_received,
         s.frames,
         s.frames_without_pose,
@@ -143,6 +143,7 @@ fn session(
             None => format!("ImageToProbe sent as `{}`", s.sent_device),
             Some(e) => format!("ImageToProbe {e}"),
         },
+        s.running_pre3d_mm.map(|v| format!("{v:.4} mm")).unwrap_or_else(|| "—".into()),
         s.final_validation_pre3d_mm.map(|v| format!("{v:.4} mm")).unwrap_or_else(|| "—".into()),
         out.display()
     );

@@ -7,12 +7,14 @@
 //!   either kind as read back from disk;
 //! - [`tracked`]: a tracked-sequence (PLUS recording) run;
 //! - [`volume`]: what a tracked run says of its reconstruction;
+//! - [`live`]: a live session (replay, watched folder, OpenIGTLink);
 //! - [`reconstruction`]: `probecal reconstruct` (and its agreement with a reference);
 //! - [`segmentation`]: `probecal segment` (and its score against PLUS's);
 //! - [`study`]: `probecal study` (`study.json`);
 //! - [`temporal`]: `probecal temporal`.
 
 pub mod calibration;
+pub mod live;
 pub mod reconstruction;
 pub mod segmentation;
 pub mod study;

@@ -197,7 +197,7 @@ enum ImageRefusal {
 }
 
 /// What the live reconstruction did.
-#[derive(Debug, Clone, serde::Serialize)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct VolumeOutcome {
     pub dims: [usize; 3],
     pub spacing_mm: [f64; 3],

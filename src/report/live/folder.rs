@@ -9,11 +9,9 @@ use crate::report::error::OutputError;
 use std::fmt::Write as _;
 use std::path::Path;
 
-use serde::Serialize;
-
-use crate::estimate::horn::HornFit;
-use crate::pipeline::live::folder::{Ending, FolderFrame, FolderRun};
-use crate::report::live::timing::{number, timing, write_session, Timing};
+use crate::pipeline::live::folder::{FolderFrame, FolderRun};
+use crate::report::live::timing::{number, write_session};
+use crate::results::live::FolderSummary;
 
 /// `live.csv`.
 pub fn frames_csv(run: &FolderRun) -> String {
@@ -41,62 +39,6 @@ pub fn frames_csv(run: &FolderRun) -> String {
     out
 }
 
-#[derive(Serialize)]
-pub struct FolderSummary {
-    pub frames: usize,
-    pub frames_used: usize,
-    /// `frame_list` (the frame list appeared and every frame it lists was taken)
-    /// or `idle` (no new frame for the idle time).
-    pub ended_by: &'static str,
-    /// Per frame, ms.
-    pub latency_ms: Timing,
-    pub processing_ms: Timing,
-    /// The running error estimate at the last frame, mm.
-    pub running_error_mm: Option<f64>,
-    /// The live all-frames fit at the last frame, and the batch run's.
-    pub live_all_frames_matrix: Option<Vec<Vec<f64>>>,
-    pub batch_all_frames_matrix: Option<Vec<Vec<f64>>>,
-    /// Largest difference between their entries.
-    pub live_minus_batch_max_abs: Option<f64>,
-    /// The batch run's reported calibration (its cut-off) and its BRE means, mm.
-    pub batch_reported_matrix: Option<Vec<Vec<f64>>>,
-    pub batch_reported_bre_mean_mm: Option<[f64; 3]>,
-}
-
-fn matrix(fit: &HornFit) -> Vec<Vec<f64>> {
-    crate::report::tracked::rows(&fit.target_T_source.to_homogeneous())
-}
-
-fn summary(run: &FolderRun) -> FolderSummary {
-    let latency: Vec<f64> = run.frames.iter().map(|f| f.latency_ms).collect();
-    let processing: Vec<f64> = run.frames.iter().map(|f| f.processing_ms).collect();
-    let batch_all = run.batch.as_ref().map(|b| &b.all_frames_fit);
-    let difference =
-        run.last_fit.as_ref().zip(batch_all).map(|(live, batch)| {
-            (live.target_T_source.to_homogeneous() - batch.target_T_source.to_homogeneous()).amax()
-        });
-    FolderSummary {
-        frames: run.frames.len(),
-        frames_used: run.frames.last().map(|f| f.frames_used).unwrap_or(0),
-        ended_by: match run.ending {
-            Ending::FrameList => "frame_list",
-            Ending::Idle => "idle",
-        },
-        latency_ms: timing(&latency),
-        processing_ms: timing(&processing),
-        running_error_mm: run.frames.last().and_then(|f| f.running_error_mm),
-        live_all_frames_matrix: run.last_fit.as_ref().map(matrix),
-        batch_all_frames_matrix: batch_all.map(matrix),
-        live_minus_batch_max_abs: difference,
-        batch_reported_matrix: run.batch.as_ref().map(|b| matrix(b.primary_fit())),
-        batch_reported_bre_mean_mm: run
-            .batch
-            .as_ref()
-            .and_then(|b| b.thresholds[b.primary].stats.as_ref())
-            .map(|s| s.axes().map(|a| a.mean)),
-    }
-}
-
 /// The terminal's line for one frame.
 pub fn line(f: &FolderFrame) -> String {
     let mm = |v: Option<f64>| v.map(|v| format!("{v:.3} mm")).unwrap_or_else(|| "—".into());
@@ -120,7 +62,7 @@ pub fn line(f: &FolderFrame) -> String {
 
 /// Writes `summary.json` and `live.csv` into `out` (whole, or nothing); the summary.
 pub fn write(run: &FolderRun, out: &Path) -> Result<FolderSummary, OutputError> {
-    let s = summary(run);
+    let s = FolderSummary::of(run);
     write_session(out, &s, frames_csv(run))?;
     Ok(s)
 }

@@ -11,11 +11,9 @@ use crate::report::error::OutputError;
 use std::fmt::Write as _;
 use std::path::Path;
 
-use serde::Serialize;
-
 use crate::pipeline::live::{LiveFrame, LiveRun, Replay};
-use crate::pipeline::tracked::Role;
-pub(crate) use crate::report::live::timing::{number, timing, write_session, Timing};
+pub(crate) use crate::report::live::timing::{number, write_session};
+use crate::results::live::LiveSummary;
 
 /// `live.csv`.
 pub fn frames_csv(frames: &[LiveFrame]) -> String {
@@ -39,46 +37,6 @@ pub fn frames_csv(frames: &[LiveFrame]) -> String {
     out
 }
 
-#[derive(Serialize)]
-pub struct LiveSummary {
-    pub frames: usize,
-    pub recorded_rate_hz: f64,
-    pub replay_speed: f64,
-    /// Per frame, ms.
-    pub latency_ms: Timing,
-    pub processing_ms: Timing,
-    /// Every frame's work took less than the recording's frame interval at the
-    /// replay speed.
-    pub kept_up: bool,
-    /// The running accuracy estimate at the last frame, mm.
-    running_pre3d_mm: Option<f64>,
-    /// The live fit at the last frame and the final (batch) calibration.
-    pub last_live_matrix: Option<Vec<Vec<f64>>>,
-    pub final_matrix: Vec<Vec<f64>>,
-    pub final_validation_pre3d_mm: Option<f64>,
-}
-
-/// `summary.json`.
-fn summary(run: &LiveRun, replay: Replay) -> LiveSummary {
-    let latency: Vec<f64> = run.frames.iter().map(|f| f.latency_ms).collect();
-    let processing: Vec<f64> = run.frames.iter().map(|f| f.processing_ms).collect();
-    let speed = if replay.speed > 0.0 { replay.speed } else { 1.0 };
-    let interval_ms = 1e3 / (run.recorded_rate_hz * speed).max(1e-9);
-    let rows = |m: nalgebra::Matrix4<f64>| crate::report::tracked::rows(&m);
-    LiveSummary {
-        frames: run.frames.len(),
-        recorded_rate_hz: run.recorded_rate_hz,
-        replay_speed: replay.speed,
-        kept_up: processing.iter().all(|p| *p < interval_ms),
-        latency_ms: timing(&latency),
-        processing_ms: timing(&processing),
-        running_pre3d_mm: run.frames.last().and_then(|f| f.running_pre3d_mm),
-        last_live_matrix: run.last_live.as_ref().map(|f| rows(f.image_to_probe.matrix())),
-        final_matrix: rows(run.final_run.fit.image_to_probe.matrix()),
-        final_validation_pre3d_mm: crate::core::stats::best_95(&run.final_run.pre3d(Role::Validation)).map(|s| s.mean),
-    }
-}
-
 /// The terminal's line for one frame.
 pub fn line(f: &LiveFrame) -> String {
     let mm = |v: Option<f64>| v.map(|v| format!("{v:.3} mm")).unwrap_or_else(|| "—".into());
@@ -99,7 +57,7 @@ pub fn line(f: &LiveFrame) -> String {
 
 /// Writes `summary.json` and `live.csv` into `out` (whole, or nothing); the summary.
 pub fn write(run: &LiveRun, replay: Replay, out: &Path) -> Result<LiveSummary, OutputError> {
-    let s = summary(run, replay);
+    let s = LiveSummary::of(run, replay);
     write_session(out, &s, frames_csv(&run.frames))?;
     Ok(s)
 }
