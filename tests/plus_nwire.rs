@@ -290,7 +290,7 @@ fn experiment_on_plus_data_chooses_on_calibration_frames_and_compares_like_for_l
     assert_eq!(volume["wires"]["wires_measured"], 9, "{volume}");
     let position = volume["wires"]["position_error_mm"].as_f64().unwrap();
     assert!(position > 0.0 && position < 1.5, "{volume}");
-    assert!(page.contains("id=\"wires\"") && page.contains("reconstruction/mip_z.png"));
+    assert!(page.contains("id=\"wires\"") && page.contains("reconstruction/mean_z.png"));
     // What the recording measured, in pictures: the lag's objective, PRE3D per
     // validation frame (both matrices), the residuals in the phantom's frame,
     // the sweeps' tilts and the reconstruction; each figure's PNG beside the

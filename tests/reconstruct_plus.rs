@@ -115,7 +115,7 @@ fn plus_case(config_name: &str, reference: &str, least_within_one: f64, least_di
         "slice_x.png",
         "slice_y.png",
         "slice_z.png",
-        "mip_z.png",
+        "mean_z.png",
     ] {
         assert!(out.join(file).is_file(), "{file}");
     }

@@ -1,7 +1,7 @@
 //! Outputs of `probecal reconstruct`: `volume.mha` (PLUS's MetaImage layout),
 //! optionally `volume.nrrd`, `summary.json` (frames used and skipped with their
 //! reasons, voxels filled before and after hole filling, time per stage) and
-//! `report.html` with three orthogonal slices and a maximum-intensity projection.
+//! `report.html` with three orthogonal slices and a windowed mean-intensity projection, each with a scale bar.
 //!
 //! Everything is written into a staging folder and swapped in only when all of
 //! it is written; an existing `--out` that is not a reconstruction is refused.
@@ -20,12 +20,16 @@ pub struct Picture {
     pub title: String,
     pub width: usize,
     pub height: usize,
+    /// Its extent across and down, mm: the page shows it at this aspect.
+    pub size_mm: [f64; 2],
     pub pixels: Vec<u8>,
 }
 
-/// Slices across each axis through the intensity-weighted centre and the
-/// maximum-intensity projection along z, grey levels scaled so that the
-/// brightest voxel is white.
+/// Slices across each axis through the intensity-weighted centre (grey levels
+/// scaled so that the brightest voxel is white) and the mean-intensity
+/// projection along z (windowed: see [`window`]; a maximum over a sweep's
+/// speckle is white almost everywhere), each with a scale bar and
+/// its physical size, so that the page shows it at its true aspect.
 pub fn pictures(volume: &AnyVolume) -> Vec<Picture> {
     match volume {
         AnyVolume::U8(v) => pictures_of(&v.grid, &v.voxels),
@@ -36,16 +40,97 @@ pub fn pictures(volume: &AnyVolume) -> Vec<Picture> {
 /// [`pictures`] of voxels as they are (read one by one, never copied whole).
 fn pictures_of<T: Copy + Into<f64>>(grid: &crate::reconstruct::grid::Grid, voxels: &[T]) -> Vec<Picture> {
     let [nx, ny, nz] = grid.dims;
+    let [sx, sy, sz] = grid.spacing_mm;
     let value = |v: &T| -> f64 { (*v).into() };
     let top = voxels.iter().map(value).fold(0.0f64, f64::max).max(f64::MIN_POSITIVE);
     let grey = |v: f64| (v / top * 255.0).round().clamp(0.0, 255.0) as u8;
     let at = |x: usize, y: usize, z: usize| value(&voxels[(z * ny + y) * nx + x]);
-    // Slices through the intensity-weighted centre (the middle of an empty volume).
-    // In memory order, as one pass over the voxels would add them.
+    let [cx, cy, cz] = weighted_centre(grid, voxels);
+    // The mean along z of the voxels with a value, plane after plane (in memory order).
+    let (mut total, mut count) = (vec![0.0f64; nx * ny], vec![0u32; nx * ny]);
+    for plane in voxels.chunks_exact(nx * ny) {
+        for ((t, c), v) in total.iter_mut().zip(count.iter_mut()).zip(plane) {
+            let v = value(v);
+            if v > 0.0 {
+                *t += v;
+                *c += 1;
+            }
+        }
+    }
+    let mean: Vec<f64> = total
+        .iter()
+        .zip(&count)
+        .map(|(t, c)| if *c > 0 { t / f64::from(*c) } else { 0.0 })
+        .collect();
+    let (low, high) = window(&mean);
+    let projection: Vec<u8> = mean
+        .iter()
+        .map(|&v| {
+            if v > 0.0 {
+                (((v - low) / (high - low).max(f64::MIN_POSITIVE)) * 255.0)
+                    .round()
+                    .clamp(0.0, 255.0) as u8
+            } else {
+                0
+            }
+        })
+        .collect();
+    let slice = |name: &'static str, title: String, size: [usize; 2], mm: [f64; 2], pixels: Vec<u8>| {
+        Picture::with_scale_bar(name, title, size, mm, pixels)
+    };
+    vec![
+        slice(
+            "slice_z.png",
+            format!("z = {cz} (x across, y down)"),
+            [nx, ny],
+            [sx, sy],
+            (0..ny)
+                .flat_map(|y| (0..nx).map(move |x| (x, y)))
+                .map(|(x, y)| grey(at(x, y, cz)))
+                .collect(),
+        ),
+        slice(
+            "slice_y.png",
+            format!("y = {cy} (x across, z down)"),
+            [nx, nz],
+            [sx, sz],
+            (0..nz)
+                .flat_map(|z| (0..nx).map(move |x| (x, z)))
+                .map(|(x, z)| grey(at(x, cy, z)))
+                .collect(),
+        ),
+        slice(
+            "slice_x.png",
+            format!("x = {cx} (y across, z down)"),
+            [ny, nz],
+            [sy, sz],
+            (0..nz)
+                .flat_map(|z| (0..ny).map(move |y| (y, z)))
+                .map(|(y, z)| grey(at(cx, y, z)))
+                .collect(),
+        ),
+        slice(
+            "mean_z.png",
+            format!(
+                "mean-intensity projection along z (x across, y down) of the voxels with a value, windowed: \
+                 grey {low:.0} and below black, {high:.0} and above white (the 1st and 99th percentiles of its \
+                 nonzero pixels); where a column saw tissue along much of its length it is bright"
+            ),
+            [nx, ny],
+            [sx, sy],
+            projection,
+        ),
+    ]
+}
+
+/// The voxel nearest the intensity-weighted centre (the middle of an empty
+/// volume), summed in memory order as one pass over the voxels adds them.
+fn weighted_centre<T: Copy + Into<f64>>(grid: &crate::reconstruct::grid::Grid, voxels: &[T]) -> [usize; 3] {
+    let [nx, ny, _] = grid.dims;
     let (mut sum, mut at_sum) = (0.0, [0.0f64; 3]);
     for (z, plane) in voxels.chunks_exact(nx * ny).enumerate() {
         for (y, row) in plane.chunks_exact(nx).enumerate() {
-            for (x, v) in row.iter().map(value).enumerate() {
+            for (x, v) in row.iter().map(|v| -> f64 { (*v).into() }).enumerate() {
                 sum += v;
                 at_sum[0] += v * x as f64;
                 at_sum[1] += v * y as f64;
@@ -53,61 +138,68 @@ fn pictures_of<T: Copy + Into<f64>>(grid: &crate::reconstruct::grid::Grid, voxel
             }
         }
     }
-    let centre = |a: usize, n: usize| {
+    std::array::from_fn(|a| {
+        let n = grid.dims[a];
         if sum > 0.0 {
             ((at_sum[a] / sum).round() as usize).min(n - 1)
         } else {
             n / 2
         }
-    };
-    let (cx, cy, cz) = (centre(0, nx), centre(1, ny), centre(2, nz));
-    // The maximum along z, plane after plane (in memory order).
-    let mut highest = vec![0.0f64; nx * ny];
-    for plane in voxels.chunks_exact(nx * ny) {
-        for (m, v) in highest.iter_mut().zip(plane) {
-            *m = m.max(value(v));
+    })
+}
+
+/// A projection's grey window: the 1st and 99th percentiles of its nonzero
+/// values; 0 and the largest value when fewer than two are nonzero.
+fn window(values: &[f64]) -> (f64, f64) {
+    let mut nonzero: Vec<f64> = values.iter().copied().filter(|v| *v > 0.0).collect();
+    if nonzero.len() < 2 {
+        return (0.0, values.iter().copied().fold(0.0, f64::max).max(1.0));
+    }
+    nonzero.sort_by(f64::total_cmp);
+    let at = |q: f64| nonzero[((nonzero.len() - 1) as f64 * q).round() as usize];
+    let (low, high) = (at(0.01), at(0.99));
+    if high > low {
+        (low, high)
+    } else {
+        (0.0, high.max(1.0))
+    }
+}
+
+impl Picture {
+    /// A picture of `size` pixels of `mm` each (across, down), with a white
+    /// scale bar in its lower left corner, about a fifth of its width long in
+    /// round millimetres; the title says the bar's length.
+    fn with_scale_bar(
+        name: &'static str,
+        title: String,
+        size: [usize; 2],
+        mm: [f64; 2],
+        mut pixels: Vec<u8>,
+    ) -> Picture {
+        let [w, h] = size;
+        let width_mm = w as f64 * mm[0];
+        let bar_mm = [1.0, 2.0, 5.0, 10.0, 20.0, 50.0, 100.0]
+            .into_iter()
+            .rev()
+            .find(|b| *b <= width_mm / 5.0)
+            .unwrap_or(1.0);
+        let bar_px = ((bar_mm / mm[0]).round() as usize).min(w.saturating_sub(8));
+        let thick = (h / 60).clamp(1, 4);
+        let bottom = h.saturating_sub(4 + thick);
+        for y in bottom..(bottom + thick).min(h) {
+            for x in 4..(4 + bar_px).min(w) {
+                pixels[y * w + x] = 255;
+            }
+        }
+        Picture {
+            name,
+            title: format!("{title}; the white bar is {bar_mm:.0} mm"),
+            width: w,
+            height: h,
+            size_mm: [width_mm, h as f64 * mm[1]],
+            pixels,
         }
     }
-    let mip: Vec<u8> = highest.into_iter().map(grey).collect();
-    vec![
-        Picture {
-            name: "slice_z.png",
-            title: format!("z = {cz} (x across, y down)"),
-            width: nx,
-            height: ny,
-            pixels: (0..ny)
-                .flat_map(|y| (0..nx).map(move |x| (x, y)))
-                .map(|(x, y)| grey(at(x, y, cz)))
-                .collect(),
-        },
-        Picture {
-            name: "slice_y.png",
-            title: format!("y = {cy} (x across, z down)"),
-            width: nx,
-            height: nz,
-            pixels: (0..nz)
-                .flat_map(|z| (0..nx).map(move |x| (x, z)))
-                .map(|(x, z)| grey(at(x, cy, z)))
-                .collect(),
-        },
-        Picture {
-            name: "slice_x.png",
-            title: format!("x = {cx} (y across, z down)"),
-            width: ny,
-            height: nz,
-            pixels: (0..nz)
-                .flat_map(|z| (0..ny).map(move |y| (y, z)))
-                .map(|(y, z)| grey(at(cx, y, z)))
-                .collect(),
-        },
-        Picture {
-            name: "mip_z.png",
-            title: "maximum-intensity projection along z".into(),
-            width: nx,
-            height: ny,
-            pixels: mip,
-        },
-    ]
 }
 
 pub fn png_bytes(p: &Picture) -> Result<Vec<u8>, OutputError> {
@@ -149,6 +241,11 @@ pub fn html(
         "by_holes",
         &filled.after_hole_filling.saturating_sub(filled.before_hole_filling),
     );
+    ctx.insert("voxels", &g.voxels);
+    ctx.insert("pixels", &summary.pixels_inserted);
+    ctx.insert("holes_left", &filled.holes_left);
+    let by_element: Vec<String> = filled.holes_filled_by_element.iter().map(u64::to_string).collect();
+    ctx.insert("by_element", &(by_element.len() > 1).then(|| by_element.join(", ")));
     ctx.insert("source", &summary.image_to_probe_source);
     ctx.insert("lag_ms", &format!("{:+.0}", summary.tracker_lag_s * 1000.0));
     ctx.insert("lag_source", &summary.tracker_lag_source);
@@ -158,8 +255,10 @@ pub fn html(
     let pictures: Vec<serde_json::Value> = pictures
         .iter()
         .map(|p| {
-            let scale = (480 / p.width.max(p.height)).max(1);
-            serde_json::json!({"name": p.name, "title": p.title, "width": p.width * scale, "height": p.height * scale})
+            // 480 px for the longer side, at the physical aspect.
+            let px_per_mm = 480.0 / p.size_mm[0].max(p.size_mm[1]).max(f64::MIN_POSITIVE);
+            let shown = |mm: f64| (mm * px_per_mm).round().max(1.0) as usize;
+            serde_json::json!({"name": p.name, "title": p.title, "width": shown(p.size_mm[0]), "height": shown(p.size_mm[1])})
         })
         .collect();
     ctx.insert("pictures", &pictures);
