@@ -143,3 +143,35 @@ fn same_values<T: serde::Serialize>(typed: &T, text: &str) -> Result<(), String>
     let read: serde_json::Value = serde_json::from_str(text).map_err(|e| e.to_string())?;
     diff(&again, &read, "")
 }
+
+/// No committed page prints `null` where a value is absent: the LaTeX and HTML
+/// pages say "—" (a JSON null that reached a template is a bug of its context).
+#[test]
+fn committed_pages_print_no_null() {
+    fn pages(dir: &std::path::Path, out: &mut Vec<std::path::PathBuf>) {
+        for entry in std::fs::read_dir(dir).unwrap() {
+            let path = entry.unwrap().path();
+            if path.is_dir() {
+                pages(&path, out);
+            } else if path.extension().is_some_and(|e| e == "tex" || e == "html") {
+                out.push(path);
+            }
+        }
+    }
+    fn nulls(text: &str) -> usize {
+        ["& null", "null \\\\", "<td>null</td>"]
+            .iter()
+            .map(|n| text.matches(n).count())
+            .sum()
+    }
+    let mut found = Vec::new();
+    pages(&root().join("reports"), &mut found);
+    assert!(found.len() > 20, "{} pages", found.len());
+    let bad: Vec<String> = found
+        .iter()
+        .filter(|p| nulls(&std::fs::read_to_string(p).unwrap()) > 0)
+        .map(|p| p.display().to_string())
+        .collect();
+    assert!(bad.is_empty(), "pages printing null: {bad:#?}");
+    assert_eq!(nulls("a & 0.5 & null \\\\\n<td>null</td>"), 3);
+}

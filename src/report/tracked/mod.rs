@@ -371,7 +371,8 @@ fn resolution_rows(r: &ValidationResolution) -> serde_json::Value {
 /// PLUS's result, ours and PLUS's matrix on the same frames and PLUS as published.
 fn pre3d_rows(summary: &TrackedSummary) -> Vec<serde_json::Value> {
     let f3 = |v: Option<f64>| v.map(|x| format!("{x:.3}")).unwrap_or_else(|| "—".into());
-    let n = |v: Option<MeanSd>| v.map(|s| serde_json::json!(s.n)).unwrap_or(serde_json::Value::Null);
+    // An absent count says so as the other absent cells do (never `null` in LaTeX).
+    let n = |v: Option<MeanSd>| v.map_or_else(|| "—".to_string(), |s| s.n.to_string());
     let row = |estimate: &str, frames: &str, best: Option<MeanSd>, all: Option<MeanSd>| {
         serde_json::json!({
             "estimate": estimate, "frames": frames,
