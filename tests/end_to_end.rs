@@ -27,9 +27,10 @@ fn run_writes_the_tables_summary_and_page() {
     // A study written beside the runs earlier is linked from the index.
     std::fs::create_dir_all(out.join("study/variant_a")).unwrap();
     std::fs::write(out.join("study/variant_a/study.html"), "<html></html>").unwrap();
-    std::fs::write(
+    // A study's results as `probecal study` writes them (a committed one).
+    std::fs::copy(
+        common::root().join("reports/study/spheres/study.json"),
         out.join("study/variant_a/study.json"),
-        r#"{"monte_carlo": {"experiment": "rig_a", "seeds": [{"seed": 1000}, {"seed": 1001}]}}"#,
     )
     .unwrap();
     std::fs::create_dir_all(out.join("study/variant_b")).unwrap();
@@ -70,7 +71,7 @@ fn run_writes_the_tables_summary_and_page() {
     let index = std::fs::read_to_string(out.join("index.html")).unwrap();
     assert!(index.contains("study&#x2F;variant_a&#x2F;study.html"), "{index}");
     assert!(
-        index.contains("Monte Carlo accuracy study of rig_a (2 seeds, 1000–1001)"),
+        index.contains("Monte Carlo accuracy study of spheres_checkerboard (10 seeds, 1000–1009)"),
         "{index}"
     );
     // Without a readable study.json the folder's name stands for it.
