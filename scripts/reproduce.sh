@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # The long reproductions, after scripts/test.sh: the first seed of every committed
-# study, the sharded study, the reports in pdflatex and Chromium (the test files
+# study, the sharded study, the reports in pdflatex and Chromium, the measured constants (the test files
 # of scripts/long-tests), then the main job into a copy of reports/ (every
 # committed file must regenerate byte-identical) and the accuracy gate against
 # the committed baselines (scripts/check-reports.sh).
