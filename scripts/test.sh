@@ -9,18 +9,20 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh
 source scripts/env.sh
-started=$(date +%s)
-cargo build --all-targets
-built=$(date +%s)
-# The code's shape: formatted, no lint (functions over 100 lines among them, see clippy.toml).
-cargo fmt --check
-cargo clippy --all-targets -- -D warnings
 mapfile -t long < <(grep -v '^#' scripts/long-tests | grep .)
 targets=(--lib --bins)
 for file in tests/*.rs; do
   name=$(basename "$file" .rs)
   [[ " ${long[*]} " == *" $name "* ]] || targets+=(--test "$name")
 done
+started=$(date +%s)
+# The build: the test binaries and the probecal binary they run, as the tests
+# below use them (a `cargo build` first compiled the crate twice).
+cargo test --no-run "${targets[@]}" "$@"
+built=$(date +%s)
+# The code's shape: formatted, no lint (functions over 100 lines among them, see clippy.toml).
+cargo fmt --check
+cargo clippy --all-targets -- -D warnings
 cargo test --no-fail-fast "${targets[@]}" "$@" -- --include-ignored
 cargo test --no-fail-fast --doc "$@"
 echo "tests: $(( $(date +%s) - built )) s after a $(( built - started )) s build"
