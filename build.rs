@@ -9,8 +9,12 @@ fn main() {
         .filter(|o| o.status.success())
         .map(|o| String::from_utf8_lossy(&o.stdout).trim().to_string())
         .unwrap_or_else(|| "unknown".into());
+    // --no-optional-locks: `git status` would otherwise refresh and rewrite
+    // .git/index, which this script watches, so that the next build of
+    // another profile (clippy's, then the tests') ran it again and recompiled
+    // the crate.
     let dirty = Command::new("git")
-        .args(["status", "--porcelain", "--untracked-files=no"])
+        .args(["--no-optional-locks", "status", "--porcelain", "--untracked-files=no"])
         .output()
         .ok()
         .filter(|o| o.status.success())

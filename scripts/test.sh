@@ -16,13 +16,13 @@ for file in tests/*.rs; do
   [[ " ${long[*]} " == *" $name "* ]] || targets+=(--test "$name")
 done
 started=$(date +%s)
-# The build: the test binaries and the probecal binary they run, as the tests
-# below use them (a `cargo build` first compiled the crate twice).
+# The build and the checks: the test binaries and the probecal binary they run,
+# as the tests below use them (a `cargo build` first compiled the crate twice).
 cargo test --no-run "${targets[@]}" "$@"
-built=$(date +%s)
 # The code's shape: formatted, no lint (functions over 100 lines among them, see clippy.toml).
 cargo fmt --check
 cargo clippy --all-targets -- -D warnings
+built=$(date +%s)
 cargo test --no-fail-fast "${targets[@]}" "$@" -- --include-ignored
 cargo test --no-fail-fast --doc "$@"
-echo "tests: $(( $(date +%s) - built )) s after a $(( built - started )) s build"
+echo "tests: $(( $(date +%s) - built )) s after $(( built - started )) s of build, format and lint checks"
