@@ -109,17 +109,25 @@ impl<F: Clone> Trajectory<F> {
 }
 
 impl<F: Clone> Trajectory<F> {
-    /// The pose at `time_s` by Gaussian kernel regression over the samples
-    /// within four `sigma_s` of it (the kernel lowered by its value there, so
-    /// that a sample enters or leaves the window with no weight and the pose
-    /// moves continuously with the time): translations averaged with the kernel's
-    /// weights, rotations as the normalised weighted sum of sign-aligned
-    /// quaternions. With `sigma_s` at least the sampling interval, the noise
-    /// of the result is the same wherever `time_s` falls between samples (an
-    /// interpolated pose averages its two samples' noise least at a sample and
-    /// most halfway); the kernel is symmetric, so it shifts no motion in time.
+    /// The pose at `time_s` by local quadratic regression with a Gaussian
+    /// kernel of SD `sigma_s` over the samples within four SDs of it (the
+    /// kernel lowered by its value there, so that a sample enters or leaves the
+    /// window with no weight and the pose moves continuously with the time):
+    /// the quadratic in time that fits the samples best under the kernel's
+    /// weights, read at `time_s`. Translations are fitted as they are; rotations
+    /// as rotation vectors relative to the sample nearest `time_s`.
+    ///
+    /// With `sigma_s` at least the sampling interval, the noise of the result
+    /// is nearly the same wherever `time_s` falls between samples (its
+    /// variance moves by about 1 % of itself at one interval, where an
+    /// interpolated pose's halves from a sample to halfway). The kernel is
+    /// symmetric, so it shifts no motion in time, and the quadratic follows a
+    /// curving path: a plain kernel average (Nadaraya–Watson) cuts a bend by
+    /// `sigma² x''/2` (at one frame period of 78 ms, 0.3 mm at the turns of a
+    /// 20 mm sweep back and forth every two seconds), which the lag would then absorb.
     /// Refused outside the samples' span, with no usable sample on either side
-    /// within [`MAX_GAP_S`], or at an unusable sample inside the window.
+    /// within [`MAX_GAP_S`], at an unusable sample inside the window, or where
+    /// the window's samples cannot hold a quadratic.
     pub fn smoothed_at(&self, time_s: f64, sigma_s: f64) -> Result<Rigid, Miss<F>> {
         if !time_s.is_finite() {
             return Err(Miss::Outside("at no time"));
@@ -133,7 +141,6 @@ impl<F: Clone> Trajectory<F> {
         }
         let lo = self.samples.partition_point(|s| s.0 < time_s - KERNEL_SDS * sigma_s);
         let hi = self.samples.partition_point(|s| s.0 <= time_s + KERNEL_SDS * sigma_s);
-        let floor = (-0.5 * KERNEL_SDS * KERNEL_SDS).exp();
         let window = &self.samples[lo..hi];
         let before = window.iter().rev().find(|s| s.0 <= time_s).map(|s| time_s - s.0);
         let after = window.iter().find(|s| s.0 >= time_s).map(|s| s.0 - time_s);
@@ -144,32 +151,53 @@ impl<F: Clone> Trajectory<F> {
                 limit_s: MAX_GAP_S,
             });
         }
-        let mut weight_sum = 0.0;
-        let mut translation = Vector3::zeros();
-        let mut quaternion = nalgebra::Vector4::zeros();
-        let mut reference: Option<nalgebra::Vector4<f64>> = None;
+        let floor = (-0.5 * KERNEL_SDS * KERNEL_SDS).exp();
+        let mut used = Vec::with_capacity(window.len());
         for (t, pose) in window {
-            let w = ((-0.5 * ((t - time_s) / sigma_s).powi(2)).exp() - floor).max(0.0);
-            if w == 0.0 {
-                continue;
+            let d = (t - time_s) / sigma_s;
+            let k = ((-0.5 * d * d).exp() - floor).max(0.0);
+            if k > 0.0 {
+                used.push((d, k, pose.clone().map_err(Miss::Sample)?));
             }
-            let pose = pose.clone().map_err(Miss::Sample)?;
-            let q = pose.rotation.coords;
-            let q = match reference {
-                Some(r) if r.dot(&q) < 0.0 => -q,
-                Some(_) => q,
-                None => {
-                    reference = Some(q);
-                    q
-                }
-            };
-            weight_sum += w;
-            translation += pose.translation.vector * w;
-            quaternion += q * w;
         }
-        let rotation = UnitQuaternion::from_quaternion(nalgebra::Quaternion::from(quaternion));
-        Ok(Rigid::from_parts((translation / weight_sum).into(), rotation))
+        let weights = local_quadratic_weights(&used).ok_or(Miss::Outside("where too few samples hold a quadratic"))?;
+        let nearest = used
+            .iter()
+            .min_by(|a, b| a.0.abs().total_cmp(&b.0.abs()))
+            .map(|u| u.2.rotation)
+            .ok_or(Miss::Outside("where too few samples hold a quadratic"))?;
+        let mut translation = Vector3::zeros();
+        let mut turn = Vector3::zeros();
+        for ((_, _, pose), w) in used.iter().zip(&weights) {
+            translation += pose.translation.vector * *w;
+            turn += (nearest.inverse() * pose.rotation).scaled_axis() * *w;
+        }
+        Ok(Rigid::from_parts(
+            translation.into(),
+            nearest * UnitQuaternion::from_scaled_axis(turn),
+        ))
     }
+}
+
+/// Each sample's weight in the local quadratic fit read at the kernel's centre:
+/// `k_j (c0 + c1 d_j + c2 d_j²)` with `c` the first row of the weighted moment
+/// matrix's inverse (`d` in kernel SDs, `k` the kernel's weight). The weights
+/// sum to one and reproduce any quadratic in time exactly. `None` where the
+/// moment matrix is singular (fewer than three distinct times) or the weights
+/// would amplify the samples' noise more than tenfold.
+fn local_quadratic_weights<P>(used: &[(f64, f64, P)]) -> Option<Vec<f64>> {
+    let mut moments = nalgebra::Matrix3::zeros();
+    for (d, k, _) in used {
+        let basis = Vector3::new(1.0, *d, d * d);
+        moments += basis * basis.transpose() * *k;
+    }
+    let row = moments.try_inverse()?.column(0).into_owned();
+    let weights: Vec<f64> = used
+        .iter()
+        .map(|(d, k, _)| k * (row[0] + row[1] * d + row[2] * d * d))
+        .collect();
+    let gain: f64 = weights.iter().map(|w| w * w).sum();
+    (weights.iter().all(|w| w.is_finite()) && gain <= 10.0).then_some(weights)
 }
 
 /// `a` moved the fraction `w` of the way to `b`: slerp of the rotation, linear
@@ -270,6 +298,15 @@ mod tests {
         let p = steady(10).smoothed_at(10.45, 0.1).unwrap();
         assert!((p.translation.vector.x - 4.5).abs() < 1e-9, "{p:?}");
         assert!((p.rotation.angle() - 0.45).abs() < 1e-3);
+        // A bend is followed: a slide accelerating as t² and a turn as t² are
+        // read on the curve, not cut inside it.
+        let bend: Trajectory<String> = Trajectory::from_samples((0..40).map(|k| {
+            let t = 0.1 * k as f64;
+            (k, Some(t), Ok(pose(0.05 * t * t, 3.0 * t * t)))
+        }));
+        let p = bend.smoothed_at(2.05, 0.1).unwrap();
+        assert!((p.translation.vector.x - 3.0 * 2.05 * 2.05).abs() < 1e-9, "{p:?}");
+        assert!((p.rotation.angle() - 0.05 * 2.05 * 2.05).abs() < 1e-9, "{p:?}");
     }
 
     #[test]

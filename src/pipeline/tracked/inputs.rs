@@ -73,7 +73,7 @@ impl TrackedInputs {
 pub struct TrackerPaths {
     pub probe: Trajectory,
     pub reference: Trajectory,
-    /// Poses by Gaussian kernel regression of this SD (s) instead of
+    /// Poses by local quadratic regression with a Gaussian kernel of this SD (s) instead of
     /// interpolation: the lag's estimate scores every lag with poses of the same
     /// noise ([`crate::core::trajectory::Trajectory::smoothed_at`]).
     pub smoothing_s: Option<f64>,
@@ -88,7 +88,7 @@ impl TrackerPaths {
         }
     }
 
-    /// The same trajectories read by kernel regression of SD `sigma_s`.
+    /// The same trajectories read by local quadratic regression, kernel SD `sigma_s`.
     pub fn smoothed(&self, sigma_s: f64) -> TrackerPaths {
         TrackerPaths {
             smoothing_s: Some(sigma_s),
@@ -210,7 +210,7 @@ impl Trajectory {
         self.path.at(time_s).map_err(|miss| self.fault(miss, time_s, frame))
     }
 
-    /// The pose at `time_s` by kernel regression of SD `sigma_s`.
+    /// The pose at `time_s` by local quadratic regression, kernel SD `sigma_s`.
     pub fn smoothed_at(&self, time_s: f64, sigma_s: f64, frame: usize) -> Result<Rigid, PoseFault> {
         self.path
             .smoothed_at(time_s, sigma_s)

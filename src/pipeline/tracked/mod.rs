@@ -333,8 +333,8 @@ fn estimate_lag(
         return Ok(LagEstimate::refused(why, Some(motion)));
     }
     let motion = lag_from_sweep(paths, frames, inputs);
-    // Every lag scored with poses of the same noise: the trajectory smoothed
-    // by a kernel of one frame period.
+    // Every lag scored with poses of the same noise: the trajectory read by a
+    // local quadratic fit under a kernel of one frame period.
     let sigma_s = SMOOTHING_PERIODS * median_period_s(frames).unwrap_or(0.0).max(1e-3);
     let paths = &paths.smoothed(sigma_s);
     let coarse = crate::pipeline::tracked::time::lag::search(paths, frames, inputs);
@@ -348,11 +348,11 @@ fn estimate_lag(
     Ok(lag_joint::assemble(coarse, joint, cv, Some(motion)))
 }
 
-/// The SD of the kernel the lag is estimated with, in frame periods: a smoothed
-/// pose's noise variance (the sum of the kernel's squared normalised weights)
-/// varies between samples by about `2 exp(-pi^2 k^2)` of itself: 17 % at
-/// k = 1/2, 0.8 % at 3/4, 0.01 % at 1. One frame period makes every lag's
-/// poses equally noisy.
+/// The SD of the kernel the lag is estimated with, in frame periods: the
+/// local quadratic fit's noise variance (the sum of its squared weights) varies
+/// between samples by about 1 % of itself at k = 1 (13 % at 3/4, 42 % at 1/2;
+/// an interpolated pose's falls by half from a sample to halfway). One frame
+/// period makes every lag's poses nearly equally noisy.
 pub const SMOOTHING_PERIODS: f64 = 1.0;
 
 /// The median time between consecutive calibration frames, s.
