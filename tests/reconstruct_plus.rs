@@ -116,6 +116,8 @@ fn plus_case(config_name: &str, reference: &str, least_within_one: f64, least_di
         "slice_y.png",
         "slice_z.png",
         "mean_z.png",
+        "outlines_xy.png",
+        "outlines_xz.png",
     ] {
         assert!(out.join(file).is_file(), "{file}");
     }
@@ -134,6 +136,11 @@ fn plus_case(config_name: &str, reference: &str, least_within_one: f64, least_di
         "{config_name}: the page does not say {said}"
     );
     assert!(page.contains(&format!("{} of {} voxels are equal", m.equal_voxels, our_voxels.len())));
+    // The frames' outlines: every one of the 21 frames drawn, in both views.
+    assert!(
+        page.contains("outlines_xy.png") && page.contains("outlines_xz.png") && page.contains("21 of 21 drawn"),
+        "{config_name}: the page shows no outlines of its frames"
+    );
     assert_eq!(page.contains("<b>byte-identical files</b>"), identical, "{config_name}");
     let summary: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();

@@ -95,6 +95,10 @@ pub struct Reconstruction {
     pub timings: Vec<(String, f64)>,
     /// The phantom's wires in the volume, with `inputs.wires`.
     pub wires: Option<crate::evaluate::wire_profile::WireFigures>,
+    /// Each inserted frame's clip rectangle in the volume's frame: its four
+    /// corners (first column and row, last column, last row, first column)
+    /// in mm, in the order the frames were inserted.
+    pub frame_outlines_mm: Vec<[[f64; 3]; 4]>,
 }
 
 /// The tracker's lag to apply and where it came from: given (a number, or a
@@ -235,6 +239,7 @@ pub fn run(inputs: &ReconstructInputs) -> Result<Reconstruction, ReconstructErro
         )));
     }
     let (grid, paste_settings) = grid_and_paste(&settings, &sequence, &poses)?;
+    let frame_outlines_mm = outlines(&poses, paste_settings.clip_px);
     check_budget(&settings, &sequence, deferred.as_ref(), &grid)?;
     lap("poses and grid", &mut timings);
     // PLUS's volume depends on its NumberOfThreads; probecal's does not, so it
@@ -292,7 +297,23 @@ pub fn run(inputs: &ReconstructInputs) -> Result<Reconstruction, ReconstructErro
         threads,
         timings,
         wires,
+        frame_outlines_mm,
     })
+}
+
+/// The clip rectangle `[first column, first row, last column, last row]` of
+/// each frame, placed by its pose.
+fn outlines(poses: &[FramePose], clip_px: [usize; 4]) -> Vec<[[f64; 3]; 4]> {
+    let [u0, v0, u1, v1] = clip_px.map(|c| c as f64);
+    poses
+        .iter()
+        .map(|p| {
+            [[u0, v0], [u1, v0], [u1, v1], [u0, v1]].map(|[u, v]| {
+                let q = p.reference_T_pixel * nalgebra::Vector4::new(u, v, 0.0, 1.0);
+                [q[0], q[1], q[2]]
+            })
+        })
+        .collect()
 }
 
 /// The wires of the device set at `path` (its N-wire patterns, placed in the
@@ -471,4 +492,32 @@ fn slices<'a, T>(
             })
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_frames_outline_is_its_clip_rectangle_placed_by_its_pose() {
+        // 0.2 mm pixels, the image's columns along y, its rows along -x, moved to (5, 6, 7) mm.
+        let mut m = Matrix4::identity();
+        m.fixed_view_mut::<3, 3>(0, 0)
+            .copy_from(&nalgebra::Matrix3::new(0.0, -0.2, 0.0, 0.2, 0.0, 0.0, 0.0, 0.0, 0.2));
+        m.fixed_view_mut::<3, 1>(0, 3)
+            .copy_from(&nalgebra::Vector3::new(5.0, 6.0, 7.0));
+        let poses = [FramePose {
+            index: 3,
+            reference_T_pixel: m,
+        }];
+        let [corners] = outlines(&poses, [10, 20, 109, 219])[..] else {
+            panic!("one frame, one outline");
+        };
+        let expected = [[1.0, 8.0, 7.0], [1.0, 27.8, 7.0], [-38.8, 27.8, 7.0], [-38.8, 8.0, 7.0]];
+        for (got, want) in corners.iter().zip(expected) {
+            for a in 0..3 {
+                assert!((got[a] - want[a]).abs() < 1e-9, "{corners:?}");
+            }
+        }
+    }
 }

@@ -11,7 +11,93 @@ use std::path::Path;
 use crate::io::volume_file::{metaimage_bytes, nrrd_bytes, VolumeHeader};
 use crate::pipeline::reconstruct::{AnyVolume, Reconstruction};
 use crate::report::error::OutputError;
+use crate::report::page::figures::{Chart, Series, Style};
 use crate::results::reconstruction::{header, is_reconstruction, Agreement, ReconstructionSummary, VolumeWires};
+use plotters::style::RGBColor;
+
+/// The frames' outlines seen along z and along y, each frame's clip rectangle
+/// placed by its pose (every `k`-th frame, so that at most 40 are drawn; the
+/// first and the last always), with the volume's extent around them.
+pub fn outline_charts(r: &Reconstruction) -> Vec<Chart> {
+    let outlines = &r.frame_outlines_mm;
+    let (Some(first), Some(last)) = (outlines.first(), outlines.last()) else {
+        return Vec::new();
+    };
+    let step = outlines.len().div_ceil(40).max(1);
+    let grid = r.volume.grid();
+    let low = grid.origin_mm;
+    let high: [f64; 3] = std::array::from_fn(|a| low[a] + (grid.dims[a].saturating_sub(1)) as f64 * grid.spacing_mm[a]);
+    let views = [
+        ("outlines_xy", [0, 1], "seen along z (x across, y up)"),
+        ("outlines_xz", [0, 2], "seen along y (x across, z up)"),
+    ];
+    views
+        .into_iter()
+        .map(|(id, [a, b], seen)| {
+            let edges = |corners: &[[f64; 3]; 4]| -> Vec<(f64, f64)> {
+                (0..4)
+                    .flat_map(|k| [corners[k], corners[(k + 1) % 4]])
+                    .map(|p| (p[a], p[b]))
+                    .collect()
+            };
+            let box_corners = [
+                [low[a], low[b]],
+                [high[a], low[b]],
+                [high[a], high[b]],
+                [low[a], high[b]],
+            ]
+            .map(|[x, y]| {
+                let mut p = [0.0; 3];
+                (p[a], p[b]) = (x, y);
+                p
+            });
+            let series = vec![
+                Series {
+                    name: if step == 1 {
+                        "each frame's clip rectangle".to_string()
+                    } else {
+                        format!("one frame's clip rectangle in {step}")
+                    },
+                    colour: RGBColor(150, 170, 220),
+                    points: outlines.iter().step_by(step).flat_map(edges).collect(),
+                },
+                Series {
+                    name: format!("first inserted frame ({})", r.frames_used.first().copied().unwrap_or(0)),
+                    colour: RGBColor(40, 140, 40),
+                    points: edges(first),
+                },
+                Series {
+                    name: format!("last inserted frame ({})", r.frames_used.last().copied().unwrap_or(0)),
+                    colour: RGBColor(200, 40, 40),
+                    points: edges(last),
+                },
+                Series {
+                    name: "the volume's extent (voxel centres)".into(),
+                    colour: RGBColor(0, 0, 0),
+                    points: edges(&box_corners),
+                },
+            ];
+            let names = ["x", "y", "z"];
+            Chart {
+                id,
+                caption: format!(
+                    "The frames' clip rectangles in the volume's frame ({} mm), {seen}, {} of {} drawn: the sweep's \
+                     path and coverage. Look for frames that leave the volume (an extent set too small), jumps \
+                     between neighbouring frames (a tracker glitch the poses let through) and regions no frame \
+                     reached (filled by hole filling, or left empty).",
+                    r.settings.reference_frame,
+                    outlines.iter().step_by(step).count(),
+                    outlines.len()
+                ),
+                x_desc: format!("{} (mm)", names[a]),
+                y_desc: format!("{} (mm)", names[b]),
+                style: Style::Segments,
+                series,
+                equal_axes: true,
+            }
+        })
+        .collect()
+}
 
 /// An 8-bit picture: `width` x `height`, row by row.
 #[derive(Debug, Clone, PartialEq)]
@@ -220,6 +306,7 @@ const TEMPLATE: &str = include_str!("../../templates/reconstruct.html.tera");
 pub fn html(
     summary: &ReconstructionSummary,
     pictures: &[Picture],
+    outlines: &[Chart],
     agreement: Option<&Agreement>,
 ) -> Result<String, OutputError> {
     let g = &summary.volume;
@@ -262,6 +349,11 @@ pub fn html(
         })
         .collect();
     ctx.insert("pictures", &pictures);
+    let outlines: Vec<serde_json::Value> = outlines
+        .iter()
+        .map(|c| serde_json::json!({"name": format!("{}.png", c.id), "caption": c.caption}))
+        .collect();
+    ctx.insert("outlines", &outlines);
     let s = &summary.settings;
     ctx.insert(
         "settings",
@@ -410,7 +502,14 @@ pub fn write(r: &Reconstruction, dir: &Path, options: &WriteOptions) -> Result<(
     for p in &pictures {
         write(p.name, &png_bytes(p)?)?;
     }
+    let outlines = outline_charts(r);
+    for c in &outlines {
+        write(&format!("{}.png", c.id), &crate::report::page::figures::png(c)?)?;
+    }
     write("summary.json", crate::results::summary::to_text(&summary)?.as_bytes())?;
-    write("report.html", html(&summary, &pictures, agreement.as_ref())?.as_bytes())?;
+    write(
+        "report.html",
+        html(&summary, &pictures, &outlines, agreement.as_ref())?.as_bytes(),
+    )?;
     Ok(())
 }

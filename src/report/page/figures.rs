@@ -27,6 +27,8 @@ pub enum Style {
     Points,
     /// Bars from 0 at each x, `width` wide.
     Bars { width: f64 },
+    /// Line segments: the points taken two by two as each segment's ends.
+    Segments,
 }
 
 /// One figure: its file stem, caption, axes and series.
@@ -112,6 +114,13 @@ pub fn draw<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, chart: &Chart) ->
             }
             Style::Points => c
                 .draw_series(s.points.iter().map(|p| Circle::new(*p, px(3.0), colour.filled())))
+                .map_err(OutputError::figure)?,
+            Style::Segments => c
+                .draw_series(
+                    s.points
+                        .chunks_exact(2)
+                        .map(|ends| PathElement::new(ends.to_vec(), colour.stroke_width(px(1.0)))),
+                )
                 .map_err(OutputError::figure)?,
             Style::Bars { width } => {
                 // Series side by side within each bin.
