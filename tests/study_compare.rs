@@ -216,6 +216,29 @@ fn committed_paired_comparisons_regenerate() {
     assert!(checked >= 3, "{checked} paired comparisons in reports/study");
 }
 
+/// Every committed comparison is the results model's `PairedStudies` whole:
+/// read into it and written back, nothing is lost or added, and it says the
+/// schema version it was written in.
+#[test]
+fn committed_comparisons_read_into_the_results_model_whole() {
+    let mut checked = 0;
+    for path in committed_comparisons() {
+        let text = std::fs::read_to_string(&path).unwrap();
+        let value: Value = serde_json::from_str(&text).unwrap();
+        let model: probecal::results::comparison::PairedStudies =
+            serde_json::from_value(value.clone()).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+        assert_eq!(serde_json::to_value(&model).unwrap(), value, "{}", path.display());
+        assert_eq!(
+            model.schema_version,
+            probecal::results::SCHEMA_VERSION,
+            "{}",
+            path.display()
+        );
+        checked += 1;
+    }
+    assert!(checked >= 3, "{checked}");
+}
+
 /// Every committed comparison names how its intervals were made, and none uses
 /// the percentile bootstrap on fewer than 30 seeds (too narrow at that size).
 #[test]

@@ -14,6 +14,7 @@
 //! - [`temporal`]: `probecal temporal`.
 
 pub mod calibration;
+pub mod comparison;
 pub mod live;
 pub mod reconstruction;
 pub mod segmentation;
