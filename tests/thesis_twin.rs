@@ -45,6 +45,23 @@ fn the_twins_hand_speed_is_the_one_measured_on_plus_recording() {
     }
 }
 
+/// The committed error budget is the results model's `AblationFile` whole:
+/// read into it and written back, nothing is lost or added, and it says its
+/// schema version.
+#[test]
+fn the_committed_error_budget_reads_into_the_results_model_whole() {
+    let path = root().join("reports/ablation/thesis_twin_dataset3/ablation.json");
+    let text = std::fs::read_to_string(&path).unwrap();
+    let value: serde_json::Value = serde_json::from_str(&text).unwrap();
+    let file: probecal::results::ablation::AblationFile = serde_json::from_value(value.clone()).unwrap();
+    assert_eq!(file.schema_version, probecal::results::SCHEMA_VERSION);
+    assert!(
+        serde_json::to_value(&file).unwrap() == value,
+        "{}: read into the model and written back, it differs",
+        path.display()
+    );
+}
+
 #[test]
 #[ignore = "renders and runs one variant of the committed ablation (full tier: scripts/test.sh)"]
 fn a_variant_of_the_committed_error_budget_reproduces() {

@@ -13,6 +13,7 @@
 //! - [`study`]: `probecal study` (`study.json`);
 //! - [`temporal`]: `probecal temporal`.
 
+pub mod ablation;
 pub mod calibration;
 pub mod comparison;
 pub mod live;

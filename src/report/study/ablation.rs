@@ -111,7 +111,7 @@ pub fn markdown(a: &Ablation) -> String {
 /// Writes `ablation.json`, `ablation.md` and `ablation.html` into `out` (whole,
 /// or nothing); the Markdown.
 pub fn write(a: &Ablation, out: &std::path::Path) -> Result<String, crate::report::error::OutputError> {
-    let json = crate::io::json::to_text(a)?;
+    let json = crate::io::json::to_text(&crate::results::ablation::AblationFile::of(a))?;
     let md = markdown(a);
     crate::io::fs::write_all_atomic(
         out,
