@@ -55,9 +55,15 @@ impl PlusResult {
                 .and_then(|n| n.attribute(name))
                 .and_then(|v| v.parse::<f64>().ok())
         };
-        let per_frame = super::segmentation::PlusSegmentation::of_document(&x)?;
+        // A bare transform (`<CoordinateDefinitions>`, as `probecal run` and
+        // `selfcal` write ImageToProbe.xml) or a device set lists no frames.
+        let per_frame = match doc.root_element().tag_name().name() {
+            "CoordinateDefinitions" | "PlusConfiguration" => None,
+            _ => Some(super::segmentation::PlusSegmentation::of_document(&x)?),
+        };
         let found = |name: &str| {
             per_frame
+                .as_ref()?
                 .section(name)
                 .map(|frames| frames.iter().filter(|(_, p)| p.is_some()).map(|(f, _)| *f).collect())
         };
