@@ -8,6 +8,7 @@ pub mod horn;
 pub mod image_to_probe;
 pub mod model_selection;
 pub mod robust;
+pub mod selfcal;
 pub mod sphere_bundle;
 pub mod sphere_fit;
 pub mod sphere_matching;

@@ -17,6 +17,7 @@ pub mod realism;
 pub mod render_cache;
 pub mod scene;
 pub mod shape;
+pub mod sliced_sweeps;
 pub mod tracked_sweep;
 
 use std::path::{Path, PathBuf};
