@@ -11,6 +11,7 @@ fresh="$(mktemp -d)/reports"
 cp -r reports "$fresh"
 "$probecal" compare experiments/*.yaml --out "$fresh" --force --quiet
 bash scripts/reconstructions.sh "$fresh"
+bash scripts/selfcal.sh "$fresh"
 if ! diff -r --exclude=provenance.json --exclude=.probecal.lock --exclude=volume.mha reports "$fresh"; then
   echo "reports/ differs from what the main job writes now: regenerate it with scripts/main-job.sh and commit" >&2
   exit 1

@@ -67,4 +67,6 @@ pub enum ValueError {
     NotSeconds(String),
     #[error("{0} s: a tracker lag is between -1 and 1 s")]
     Lag(f64),
+    #[error("`{0}`: a size in mm from 0.05 to 20")]
+    VoxelMm(String),
 }

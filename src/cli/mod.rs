@@ -16,6 +16,7 @@ mod phantom;
 mod reconstruct;
 mod resolve;
 mod segment;
+mod selfcal;
 mod study;
 mod temporal;
 
@@ -208,6 +209,10 @@ enum Command {
     /// VolumeReconstructor does (the device set's <VolumeReconstruction>):
     /// volume.mha, summary.json, report.html with slices in --out.
     Reconstruct(reconstruct::ReconstructArgs),
+    /// Refine ImageToProbe from the images: the correction that makes two or
+    /// more overlapping tracked sweeps compound alike, refined only in the
+    /// directions they hold: summary.json, ImageToProbe.xml, report.html in --out.
+    Selfcal(selfcal::SelfcalArgs),
     /// Calibrate a camera from chessboard or ChArUco images; writes OpenCV FileStorage YAML.
     #[command(group = clap::ArgGroup::new("pattern").required(true).args(["board", "charuco"]))]
     CalibrateCamera {
@@ -343,6 +348,7 @@ pub fn main() -> ExitCode {
         Command::Design { manifest, out, force } => failure::exit_code(design::command(&manifest, &out, force)),
         Command::Phantom { manifest, stl, force } => failure::exit_code(phantom::command(&manifest, &stl, force)),
         Command::Reconstruct(args) => failure::exit_code(reconstruct::command(&args)),
+        Command::Selfcal(args) => failure::exit_code(selfcal::command(&args)),
         Command::CalibrateCamera {
             images,
             board,

@@ -123,7 +123,7 @@ pub fn command(args: &ReconstructArgs) -> Result<(), Failure> {
 }
 
 /// A lag in seconds within ±1 s.
-fn tracker_lag(text: &str) -> Result<f64, super::failure::ValueError> {
+pub(super) fn tracker_lag(text: &str) -> Result<f64, super::failure::ValueError> {
     let s: f64 = text
         .parse()
         .map_err(|e: std::num::ParseFloatError| super::failure::ValueError::NotSeconds(e.to_string()))?;

@@ -14,6 +14,7 @@ pub mod live;
 pub mod reconstruct;
 pub mod record;
 pub mod run;
+pub mod selfcal;
 pub mod sequence_frames;
 pub mod settings;
 pub mod solve;

@@ -11,7 +11,8 @@
 //! - [`reconstruction`]: `probecal reconstruct` (and its agreement with a reference);
 //! - [`segmentation`]: `probecal segment` (and its score against PLUS's);
 //! - [`study`]: `probecal study` (`study.json`);
-//! - [`temporal`]: `probecal temporal`.
+//! - [`temporal`]: `probecal temporal`;
+//! - [`selfcal`]: `probecal selfcal`.
 
 pub mod ablation;
 pub mod calibration;
@@ -19,6 +20,7 @@ pub mod comparison;
 pub mod live;
 pub mod reconstruction;
 pub mod segmentation;
+pub mod selfcal;
 pub mod study;
 pub mod summary;
 pub mod temporal;
@@ -67,6 +69,27 @@ impl ReadError {
             message: message.to_string(),
         }
     }
+}
+
+/// A `summary.json`'s `kind` (none where it has none or cannot be read).
+pub fn kind_of(summary: &std::path::Path) -> Option<String> {
+    #[derive(serde::Deserialize)]
+    struct Kind {
+        kind: Option<String>,
+    }
+    crate::io::fs::read_text_capped(summary, crate::core::limits::MAX_TEXT_FILE_BYTES)
+        .ok()
+        .and_then(|t| serde_json::from_str::<Kind>(&t).ok())
+        .and_then(|k| k.kind)
+}
+
+/// Whether a `summary.json` is another command's (`reconstruct`, `selfcal`)
+/// beside the runs, not a calibration run's.
+pub fn is_not_a_run(summary: &std::path::Path) -> bool {
+    matches!(
+        kind_of(summary).as_deref(),
+        Some(reconstruction::KIND) | Some(selfcal::KIND)
+    )
 }
 
 #[cfg(test)]

@@ -137,14 +137,7 @@ impl ReconstructionSummary {
 /// Whether a `summary.json` is a reconstruction's (`kind: reconstruction`), not a
 /// calibration run's.
 pub fn is_reconstruction(summary: &Path) -> bool {
-    #[derive(Deserialize)]
-    struct Kind {
-        kind: Option<String>,
-    }
-    crate::io::fs::read_text_capped(summary, crate::core::limits::MAX_TEXT_FILE_BYTES)
-        .ok()
-        .and_then(|t| serde_json::from_str::<Kind>(&t).ok())
-        .is_some_and(|k| k.kind.as_deref() == Some(KIND))
+    super::kind_of(summary).as_deref() == Some(KIND)
 }
 
 /// The header a volume is written with.

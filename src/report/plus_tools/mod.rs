@@ -1,5 +1,6 @@
-//! The pages of the PLUS tools' counterparts: `probecal segment` ([`segment`])
-//! and `probecal temporal` ([`temporal`]).
+//! The pages of the PLUS tools' counterparts: `probecal segment` ([`segment`]),
+//! `probecal temporal` ([`temporal`]) and `probecal selfcal` ([`selfcal`]).
 
 pub mod segment;
+pub mod selfcal;
 pub mod temporal;

@@ -118,8 +118,8 @@ pub fn find_summaries(inputs: &[PathBuf]) -> Result<Vec<FoundSummary>, CheckErro
                         message: e.to_string(),
                     })?
                     .path();
-                if crate::results::reconstruction::is_reconstruction(&dataset.join("summary.json")) {
-                    // A volume reconstruction (`probecal reconstruct`), not a calibration run.
+                if crate::results::is_not_a_run(&dataset.join("summary.json")) {
+                    // A volume reconstruction or a refinement from the images, not a calibration run.
                     continue;
                 }
                 if dataset.join("summary.json").is_file() {

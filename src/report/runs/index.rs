@@ -237,7 +237,7 @@ fn earlier_runs(out: &Path, entries: &[IndexEntry]) -> (Vec<IndexEntry>, Vec<Str
             let listed = entries
                 .iter()
                 .any(|e| e.experiment == experiment && e.dataset == dataset);
-            if listed || !summary.is_file() || crate::results::reconstruction::is_reconstruction(&summary) {
+            if listed || !summary.is_file() || crate::results::is_not_a_run(&summary) {
                 continue;
             }
             match RunSummary::read(&summary) {

@@ -5,7 +5,7 @@ pub mod figures;
 pub mod gallery;
 pub mod lag;
 mod selection;
-mod transform_files;
+pub mod transform_files;
 pub mod volume;
 use std::path::Path;
 

@@ -1,0 +1,132 @@
+//! `probecal selfcal`: the correction of ImageToProbe that makes overlapping
+//! tracked sweeps compound alike; 0 written, 2 when an input cannot be used,
+//! 1 when the search or the outputs fail.
+
+use std::path::PathBuf;
+
+use super::failure::Failure;
+use crate::estimate::selfcal::refine::SearchSettings;
+use crate::pipeline::selfcal::load::Framing;
+use crate::pipeline::selfcal::{SelfcalError, SelfcalInputs};
+
+/// `probecal selfcal`'s arguments.
+#[derive(Debug, clap::Args)]
+pub struct SelfcalArgs {
+    /// Two or more PLUS sequence files (.mha, .igs.mha) of tracked 8-bit
+    /// B-scans whose sweeps overlap.
+    #[arg(required = true, num_args = 2..)]
+    pub sequences: Vec<PathBuf>,
+    /// The PLUS device set: the fixed transforms (CoordinateDefinitions) from
+    /// Probe to Reference, and its <VolumeReconstruction> clip rectangle and
+    /// frame names when it has one.
+    #[arg(long)]
+    pub config: PathBuf,
+    /// The start: a probecal run folder of a PLUS recording or a PLUS
+    /// calibration result (.xml).
+    #[arg(long)]
+    pub calibration: PathBuf,
+    /// Output folder: summary.json, ImageToProbe.xml, report.html (written
+    /// whole on success).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// The tracker's lag behind the images, s (-1 to 1). Default: the
+    /// --calibration run folder's time_offset_s, else none.
+    #[arg(long, allow_hyphen_values = true, value_parser = super::reconstruct::tracker_lag)]
+    pub tracker_lag: Option<f64>,
+    /// The finest voxel the sweeps are compared on, mm (coarser grids of 2 and
+    /// 4 times it come first).
+    #[arg(long, default_value_t = 1.0, value_parser = size_mm)]
+    pub voxel_mm: f64,
+    /// Pixels are averaged in squares of this side before compounding.
+    /// Default: about half the voxel, by the start's pixel size.
+    #[arg(long, value_parser = clap::value_parser!(u16).range(1..=64))]
+    pub block_px: Option<u16>,
+    /// Each block less the mean of the blocks within this distance, mm:
+    /// slow changes of brightness left out (sparse echoes in water). Default: none.
+    #[arg(long, value_parser = size_mm)]
+    pub background_mm: Option<f64>,
+    /// Replace --out even when another command (or no command) wrote it.
+    #[arg(long)]
+    pub force: bool,
+}
+
+fn size_mm(text: &str) -> Result<f64, super::failure::ValueError> {
+    match text.parse::<f64>() {
+        Ok(v) if v.is_finite() && (0.05..=20.0).contains(&v) => Ok(v),
+        _ => Err(super::failure::ValueError::VoxelMm(text.to_string())),
+    }
+}
+
+pub fn command(args: &SelfcalArgs) -> Result<(), Failure> {
+    let mut read: Vec<&std::path::Path> = args.sequences.iter().map(PathBuf::as_path).collect();
+    read.push(&args.config);
+    read.push(&args.calibration);
+    let folder = crate::io::output::OutputFolder::claim(&args.out, "selfcal", &read, args.force)?;
+    let given = crate::results::calibration::read(&args.calibration).map_err(Failure::bad_input)?;
+    let framing = match crate::io::plus::volume_config::VolumeSettings::read(&args.config) {
+        Ok(v) => Framing {
+            image_frame: v.image_frame,
+            reference_frame: v.reference_frame,
+            clip_px: (v.clip_size_px != [0, 0]).then_some([
+                v.clip_origin_px[0],
+                v.clip_origin_px[1],
+                v.clip_size_px[0],
+                v.clip_size_px[1],
+            ]),
+        },
+        Err(_) => Framing {
+            image_frame: "Image".into(),
+            reference_frame: "Reference".into(),
+            clip_px: None,
+        },
+    };
+    let mut settings = SearchSettings::default();
+    settings.comparison.voxel_mm = args.voxel_mm;
+    settings.step_mm = 2.0 * args.voxel_mm;
+    let lag = args
+        .tracker_lag
+        .or(given.tracker_lag_s.as_ref().map(|l| l.0))
+        .unwrap_or(0.0);
+    let inputs = SelfcalInputs {
+        sequences: args.sequences.clone(),
+        config: args.config.clone(),
+        framing,
+        start: (given.image_to_probe, given.source),
+        tracker_lag_s: lag,
+        block_px: args.block_px.map(usize::from),
+        background_mm: args.background_mm,
+        settings,
+    };
+    let run = crate::pipeline::selfcal::run(&inputs).map_err(|e| match e {
+        SelfcalError::Search(_) | SelfcalError::Grid(_) => Failure::failed(e),
+        _ => Failure::bad_input(e),
+    })?;
+    let summary = crate::report::plus_tools::selfcal::write(&run, folder.path()).map_err(Failure::failed)?;
+    folder.commit().map_err(Failure::failed)?;
+    let held: Vec<&str> = summary
+        .directions
+        .iter()
+        .filter(|d| d.held)
+        .map(|d| d.mostly.as_str())
+        .collect();
+    let left: Vec<&str> = summary
+        .directions
+        .iter()
+        .filter(|d| !d.held)
+        .map(|d| d.mostly.as_str())
+        .collect();
+    println!(
+        "correlation {:.4} -> {:.4}; corners moved at most {:.2} mm; refined: {}; left at the start: {}; written to {}",
+        summary.correlation_start,
+        summary.correlation_end,
+        summary.corner_change_mm,
+        held.join(" | "),
+        if left.is_empty() {
+            "none".to_string()
+        } else {
+            left.join(" | ")
+        },
+        args.out.display()
+    );
+    Ok(())
+}

@@ -1,0 +1,181 @@
+//! `probecal selfcal`: two or more overlapping tracked sweeps and a starting
+//! calibration into the correction of `ImageToProbe` that makes the sweeps
+//! compound alike ([`crate::estimate::selfcal`]), with the directions they hold.
+
+pub mod load;
+
+use std::path::PathBuf;
+
+use nalgebra::{Matrix4, Vector6};
+
+use crate::estimate::selfcal::compound::GridFault;
+use crate::estimate::selfcal::refine::{level_grids, search, Search, SearchFault, SearchSettings};
+use crate::estimate::selfcal::Frame0;
+use crate::io::plus::config::PlusConfig;
+use load::{Framing, LoadedSweep};
+
+#[derive(Debug, thiserror::Error)]
+pub enum SelfcalError {
+    #[error(transparent)]
+    Sequence(#[from] crate::io::plus::sequence::SequenceError),
+    #[error(transparent)]
+    Config(#[from] crate::io::plus::config::ConfigError),
+    #[error("{}: {message}", crate::io::fs::display_path(path))]
+    Input { path: PathBuf, message: String },
+    #[error("{0}")]
+    Grid(#[from] GridFault),
+    #[error("{0}")]
+    Search(#[from] SearchFault),
+}
+
+/// What to refine.
+#[derive(Debug, Clone)]
+pub struct SelfcalInputs {
+    pub sequences: Vec<PathBuf>,
+    pub config: PathBuf,
+    pub framing: Framing,
+    /// The start: pixel (column, row, 0, 1) to probe mm, and where it came from.
+    pub start: (Matrix4<f64>, String),
+    pub tracker_lag_s: f64,
+    /// Pixels are averaged in squares of this side before compounding (`None`:
+    /// about half the finest voxel, [`block_px_for`]).
+    pub block_px: Option<usize>,
+    /// Each block less the mean of the blocks within this distance of it, mm
+    /// (`None`: kept as imaged).
+    pub background_mm: Option<f64>,
+    pub settings: SearchSettings,
+}
+
+/// The sweeps read, ready to compare.
+#[derive(Debug, Clone)]
+pub struct Prepared {
+    pub sweeps: Vec<LoadedSweep>,
+    pub frame0: Frame0,
+    pub block_px: usize,
+    /// The background's reach in blocks (0: none).
+    pub background_blocks: usize,
+}
+
+/// Reads the sweeps and sets the grid around them under the start calibration.
+pub fn prepare(inputs: &SelfcalInputs) -> Result<Prepared, SelfcalError> {
+    let config = PlusConfig::read(&inputs.config)?;
+    let block_px = inputs
+        .block_px
+        .unwrap_or_else(|| block_px_for(&inputs.start.0, inputs.settings.comparison.voxel_mm));
+    let pixel_mm = pixel_size_mm(&inputs.start.0);
+    let background_blocks = inputs
+        .background_mm
+        .map_or(0, |mm| (mm / (block_px as f64 * pixel_mm)).round().max(1.0) as usize);
+    let mut sweeps = Vec::new();
+    for path in &inputs.sequences {
+        let loaded = load::load(
+            path,
+            &config,
+            &inputs.framing,
+            block_px,
+            background_blocks,
+            inputs.tracker_lag_s,
+        )?;
+        if loaded.sweep.frames.len() < 2 {
+            return Err(SelfcalError::Input {
+                path: path.clone(),
+                message: format!(
+                    "{} of {} frames have a pose{}",
+                    loaded.sweep.frames.len(),
+                    loaded.frames_total,
+                    loaded
+                        .skipped
+                        .first()
+                        .map(|s| format!("; frame {}: {}", s.index, s.reason))
+                        .unwrap_or_default()
+                ),
+            });
+        }
+        sweeps.push(loaded);
+    }
+    let size = sweeps.first().map_or([0, 0], |s| s.image_size_px);
+    if let Some(other) = sweeps.iter().find(|s| s.image_size_px != size) {
+        return Err(SelfcalError::Input {
+            path: other.path.clone(),
+            message: format!(
+                "{:?} px images, the first sequence's are {size:?} px",
+                other.image_size_px
+            ),
+        });
+    }
+    let frame0 = Frame0::new(inputs.start.0, size[0], size[1]);
+    let plain: Vec<_> = sweeps.iter().map(|s| s.sweep.clone()).collect();
+    level_grids(&plain, &frame0, &inputs.settings)?;
+    Ok(Prepared {
+        sweeps,
+        frame0,
+        block_px,
+        background_blocks,
+    })
+}
+
+/// The mean pixel size of a calibration, mm (its first two columns' lengths).
+pub fn pixel_size_mm(probe_T_pixel: &Matrix4<f64>) -> f64 {
+    let u = probe_T_pixel.fixed_view::<3, 1>(0, 0).norm();
+    let v = probe_T_pixel.fixed_view::<3, 1>(0, 1).norm();
+    (u + v) / 2.0
+}
+
+/// Blocks of about half the finest voxel: a voxel then averages a few blocks
+/// of each frame that crosses it.
+pub fn block_px_for(probe_T_pixel: &Matrix4<f64>, voxel_mm: f64) -> usize {
+    let px = pixel_size_mm(probe_T_pixel);
+    if px.is_finite() && px > 0.0 {
+        ((voxel_mm / 2.0) / px).round().clamp(1.0, 64.0) as usize
+    } else {
+        1
+    }
+}
+
+impl Prepared {
+    pub fn plain(&self) -> Vec<crate::estimate::selfcal::Sweep> {
+        self.sweeps.iter().map(|s| s.sweep.clone()).collect()
+    }
+
+    /// The search from the start (or from `start` unknowns away from it).
+    pub fn search(&self, settings: &SearchSettings) -> Result<Search, SelfcalError> {
+        Ok(search(&self.plain(), &self.frame0, settings, None)?)
+    }
+
+    /// The same sweeps with the start moved by `q` (for trials from set-off starts).
+    pub fn restarted(&self, q: &Vector6<f64>) -> Prepared {
+        Prepared {
+            frame0: self.frame0.moved(q),
+            ..self.clone()
+        }
+    }
+}
+
+/// A refinement and what it read.
+#[derive(Debug, Clone)]
+pub struct SelfcalRun {
+    pub inputs: SelfcalInputs,
+    pub prepared: Prepared,
+    pub search: Search,
+}
+
+impl SelfcalRun {
+    /// The refined calibration: pixel (column, row, 0, 1) to probe mm.
+    pub fn image_to_probe(&self) -> Matrix4<f64> {
+        self.prepared.frame0.calibration(&self.search.correction)
+    }
+}
+
+/// Reads the sweeps and searches; nothing is written here.
+pub fn run(inputs: &SelfcalInputs) -> Result<SelfcalRun, SelfcalError> {
+    if inputs.sequences.len() < 2 {
+        return Err(SelfcalError::Search(SearchFault::OneSweep));
+    }
+    let prepared = prepare(inputs)?;
+    let search = prepared.search(&inputs.settings)?;
+    Ok(SelfcalRun {
+        inputs: inputs.clone(),
+        prepared,
+        search,
+    })
+}
