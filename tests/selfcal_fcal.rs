@@ -80,16 +80,16 @@ fn set_off_starts_are_refined_where_the_sweeps_hold_and_scored_on_the_phantom() 
                 format!("moved {:+} mm along {}", 2.0 * sign, ["x", "y", "z"][(k - 7) % 3])
             }
         };
-        let start = prepared.restarted(&q);
-        let found = start.search(&settings).unwrap();
-        let refined = start.frame0.calibration(&found.correction);
+        let start = prepared.frame0.moved(&q);
+        let found = prepared.search_from(&start, &settings).unwrap();
+        let refined = start.calibration(&found.correction);
         let held: Vec<&str> = found
             .directions
             .iter()
             .filter(|d| d.held)
             .map(|d| d.mostly.as_str())
             .collect();
-        let (before, after) = (score(&start.frame0.probe_T_pixel) - base, score(&refined) - base);
+        let (before, after) = (score(&start.probe_T_pixel) - base, score(&refined) - base);
         println!("| {name} | {} | {before:+.3} | {after:+.3} |", held.join("; "));
         // Whatever is not held is left at the start.
         for d in found.directions.iter().filter(|d| !d.held) {

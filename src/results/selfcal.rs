@@ -77,12 +77,13 @@ impl SelfcalSummary {
             kind: KIND.into(),
             sweeps: run
                 .prepared
-                .sweeps
+                .sources
                 .iter()
-                .map(|s| SweepRead {
+                .zip(&run.prepared.sweeps)
+                .map(|(s, sweep)| SweepRead {
                     sequence: display_path(&s.path),
                     frames: s.frames_total,
-                    frames_used: s.sweep.frames.len(),
+                    frames_used: sweep.frames.len(),
                     first_skipped: s.skipped.first().map(|k| format!("frame {}: {}", k.index, k.reason)),
                     blocks: s.blocks,
                     blocks_left_out: s.blocks_left_out,

@@ -14,10 +14,9 @@ use crate::reconstruct::poses::{frame_poses, SkippedFrame};
 
 use super::SelfcalError;
 
-/// What one sequence gave.
+/// Where a sweep came from and what was left out of it.
 #[derive(Debug, Clone)]
 pub struct LoadedSweep {
-    pub sweep: Sweep,
     pub path: PathBuf,
     pub image_size_px: [usize; 2],
     pub frames_total: usize,
@@ -45,7 +44,7 @@ pub fn load(
     block_px: usize,
     background_blocks: usize,
     tracker_lag_s: f64,
-) -> Result<LoadedSweep, SelfcalError> {
+) -> Result<(Sweep, LoadedSweep), SelfcalError> {
     let sequence = Sequence::read(path)?;
     if sequence.is_float() {
         return Err(SelfcalError::Input {
@@ -116,30 +115,36 @@ pub fn load(
     let frames = poses
         .iter()
         .zip(all)
-        .map(|(p, values)| SweepFrame {
-            index: p.index,
-            reference_T_probe: p.reference_T_pixel,
-            values: values
-                .into_iter()
-                .zip(&keep)
-                .filter(|(_, &k)| k)
-                .map(|(v, _)| v)
-                .collect(),
-        })
+        .map(|(p, values)| kept_frame(p, values, &keep))
         .collect();
-    Ok(LoadedSweep {
-        sweep: Sweep {
-            name: crate::io::fs::display_path(path),
-            samples_px,
-            frames,
-        },
+    let sweep = Sweep {
+        name: crate::io::fs::display_path(path),
+        samples_px,
+        frames,
+    };
+    let source = LoadedSweep {
         path: path.to_path_buf(),
         image_size_px: [w, h],
         frames_total: sequence.frames.len(),
         skipped,
         blocks_left_out: keep.iter().filter(|&&k| !k).count(),
         blocks: blocks.len(),
-    })
+    };
+    Ok((sweep, source))
+}
+
+/// A frame's pose and the values of its kept blocks.
+fn kept_frame(pose: &crate::reconstruct::poses::FramePose, values: Vec<f32>, keep: &[bool]) -> SweepFrame {
+    SweepFrame {
+        index: pose.index,
+        reference_T_probe: pose.reference_T_pixel,
+        values: values
+            .into_iter()
+            .zip(keep)
+            .filter(|(_, &k)| k)
+            .map(|(v, _)| v)
+            .collect(),
+    }
 }
 
 /// Which blocks touch no pixel of the drawn overlay (all where none was found).

@@ -6,11 +6,11 @@ pub mod load;
 
 use std::path::PathBuf;
 
-use nalgebra::{Matrix4, Vector6};
+use nalgebra::Matrix4;
 
 use crate::estimate::selfcal::compound::GridFault;
 use crate::estimate::selfcal::refine::{level_grids, search, Search, SearchFault, SearchSettings};
-use crate::estimate::selfcal::Frame0;
+use crate::estimate::selfcal::{Frame0, Sweep};
 use crate::io::plus::config::PlusConfig;
 use load::{Framing, LoadedSweep};
 
@@ -49,7 +49,9 @@ pub struct SelfcalInputs {
 /// The sweeps read, ready to compare.
 #[derive(Debug, Clone)]
 pub struct Prepared {
-    pub sweeps: Vec<LoadedSweep>,
+    pub sweeps: Vec<Sweep>,
+    /// Each sweep's sequence and what was left out of it, in the same order.
+    pub sources: Vec<LoadedSweep>,
     pub frame0: Frame0,
     pub block_px: usize,
     /// The background's reach in blocks (0: none).
@@ -66,9 +68,9 @@ pub fn prepare(inputs: &SelfcalInputs) -> Result<Prepared, SelfcalError> {
     let background_blocks = inputs
         .background_mm
         .map_or(0, |mm| (mm / (block_px as f64 * pixel_mm)).round().max(1.0) as usize);
-    let mut sweeps = Vec::new();
+    let (mut sweeps, mut sources) = (Vec::new(), Vec::new());
     for path in &inputs.sequences {
-        let loaded = load::load(
+        let (sweep, loaded) = load::load(
             path,
             &config,
             &inputs.framing,
@@ -76,12 +78,12 @@ pub fn prepare(inputs: &SelfcalInputs) -> Result<Prepared, SelfcalError> {
             background_blocks,
             inputs.tracker_lag_s,
         )?;
-        if loaded.sweep.frames.len() < 2 {
+        if sweep.frames.len() < 2 {
             return Err(SelfcalError::Input {
                 path: path.clone(),
                 message: format!(
                     "{} of {} frames have a pose{}",
-                    loaded.sweep.frames.len(),
+                    sweep.frames.len(),
                     loaded.frames_total,
                     loaded
                         .skipped
@@ -91,10 +93,11 @@ pub fn prepare(inputs: &SelfcalInputs) -> Result<Prepared, SelfcalError> {
                 ),
             });
         }
-        sweeps.push(loaded);
+        sweeps.push(sweep);
+        sources.push(loaded);
     }
-    let size = sweeps.first().map_or([0, 0], |s| s.image_size_px);
-    if let Some(other) = sweeps.iter().find(|s| s.image_size_px != size) {
+    let size = sources.first().map_or([0, 0], |s| s.image_size_px);
+    if let Some(other) = sources.iter().find(|s| s.image_size_px != size) {
         return Err(SelfcalError::Input {
             path: other.path.clone(),
             message: format!(
@@ -104,10 +107,10 @@ pub fn prepare(inputs: &SelfcalInputs) -> Result<Prepared, SelfcalError> {
         });
     }
     let frame0 = Frame0::new(inputs.start.0, size[0], size[1]);
-    let plain: Vec<_> = sweeps.iter().map(|s| s.sweep.clone()).collect();
-    level_grids(&plain, &frame0, &inputs.settings)?;
+    level_grids(&sweeps, &frame0, &inputs.settings)?;
     Ok(Prepared {
         sweeps,
+        sources,
         frame0,
         block_px,
         background_blocks,
@@ -133,21 +136,14 @@ pub fn block_px_for(probe_T_pixel: &Matrix4<f64>, voxel_mm: f64) -> usize {
 }
 
 impl Prepared {
-    pub fn plain(&self) -> Vec<crate::estimate::selfcal::Sweep> {
-        self.sweeps.iter().map(|s| s.sweep.clone()).collect()
-    }
-
-    /// The search from the start (or from `start` unknowns away from it).
+    /// The search from the start.
     pub fn search(&self, settings: &SearchSettings) -> Result<Search, SelfcalError> {
-        Ok(search(&self.plain(), &self.frame0, settings, None)?)
+        self.search_from(&self.frame0, settings)
     }
 
-    /// The same sweeps with the start moved by `q` (for trials from set-off starts).
-    pub fn restarted(&self, q: &Vector6<f64>) -> Prepared {
-        Prepared {
-            frame0: self.frame0.moved(q),
-            ..self.clone()
-        }
+    /// The search from another start on the same sweeps (trials from set-off starts).
+    pub fn search_from(&self, start: &Frame0, settings: &SearchSettings) -> Result<Search, SelfcalError> {
+        Ok(search(&self.sweeps, start, settings, None)?)
     }
 }
 
