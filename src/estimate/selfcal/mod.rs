@@ -15,7 +15,9 @@
 //! The six unknowns are in millimetres: `t`, and `ω · r` with `r` the image's
 //! half-diagonal, so a unit is a millimetre at the image's corners either way.
 
+pub mod check;
 pub mod compound;
+pub mod profile;
 pub mod refine;
 
 use nalgebra::{Matrix4, Point3, Rotation3, Vector3, Vector6};

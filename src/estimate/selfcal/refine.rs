@@ -96,6 +96,8 @@ pub enum SearchFault {
     NoOverlap(usize),
     #[error("the search reached the edge of its range ({limit_mm} mm from the start): {how}; not applied")]
     AtEdge { limit_mm: f64, how: String },
+    #[error("only {used} of {of} resamples of the sweeps share enough voxels for the standard errors (at least half)")]
+    FewResamples { used: usize, of: usize },
     #[error("fewer than two sweeps")]
     OneSweep,
     #[error("{0}")]
@@ -343,6 +345,8 @@ pub struct Search {
     /// At the solution, on the finest grid.
     pub end: Quadratic,
     pub iterations: usize,
+    /// The resamples the standard errors came from (those whose sweeps still overlap).
+    pub resamples_used: usize,
     /// Each accepted step: the voxel size, the correction and the mean correlation there.
     pub path: Vec<(f64, Vector6<f64>, f64)>,
 }
@@ -369,6 +373,10 @@ fn at_level(settings: &SearchSettings, grid: &SplatGrid) -> SearchSettings {
     s.step_mm = settings.step_mm * grid.voxel_mm / settings.comparison.voxel_mm;
     s
 }
+
+/// The fewest frames of a sweep a coarse grid is compared on (fewer leave too
+/// few voxels that every sweep covers).
+pub const MIN_COARSE_FRAMES: usize = 12;
 
 /// Every `n`-th frame of each sweep (of `subsets`' frames where given).
 fn every_nth_frame(sweeps: &[Sweep], n: usize, subsets: Subsets) -> Vec<Vec<usize>> {
@@ -400,15 +408,25 @@ pub fn search(
     let mut iterations = 0;
     for grid in &grids {
         let level = at_level(settings, grid);
-        // A coarser grid needs fewer frames: every 2nd on twice the voxel, every 4th on four times.
-        let stride = (grid.voxel_mm / settings.comparison.voxel_mm).round().max(1.0) as usize;
+        // A coarser grid needs fewer frames: every 2nd on twice the voxel, every
+        // 4th on four times, while every sweep keeps at least MIN_COARSE_FRAMES.
+        let fewest = (0..sweeps.len())
+            .map(|k| subsets.map_or(sweeps[k].frames.len(), |f| f[k].len()))
+            .min()
+            .unwrap_or(0);
+        let stride = ((grid.voxel_mm / settings.comparison.voxel_mm).round().max(1.0) as usize)
+            .min((fewest / MIN_COARSE_FRAMES).max(1));
         let thinned = every_nth_frame(sweeps, stride, subsets);
         let subsets = if stride > 1 { Some(thinned.as_slice()) } else { subsets };
         let mut current = agreement(grid, sweeps, frame0, &q, &level, subsets).0;
         path.push((grid.voxel_mm, q, current));
         for _ in 0..settings.max_iterations {
             iterations += 1;
-            let quad = quadratic(grid, sweeps, frame0, &q, level.step_mm, &level, subsets)?;
+            let quad = match quadratic(grid, sweeps, frame0, &q, level.step_mm, &level, subsets) {
+                // A coarse grid's fewer frames may share too few voxels: the finer grids go on.
+                Err(SearchFault::NoOverlap(_)) if grid.voxel_mm > finest.voxel_mm => break,
+                other => other?,
+            };
             let held = directions(&quad, level.min_curvature_ratio);
             let accepted = line_search(grid, sweeps, frame0, &level, subsets, &quad, &held, (&q, current));
             let Some((next, ncc)) = accepted else { break };
@@ -429,7 +447,7 @@ pub fn search(
     }
     let end = quadratic(&finest, sweeps, frame0, &q, settings.step_mm, settings, subsets)?;
     let mut held = directions(&end, settings.min_curvature_ratio);
-    let errors = standard_errors(&finest, sweeps, frame0, &q, settings, &held)?;
+    let (errors, resamples_used) = standard_errors(&finest, sweeps, frame0, &q, settings, &held, subsets)?;
     for (d, se) in held.iter_mut().zip(errors) {
         d.standard_error_mm = se;
         d.held = se.is_some_and(|se| se <= settings.max_standard_error_mm);
@@ -446,6 +464,7 @@ pub fn search(
         start_correlation,
         end,
         iterations,
+        resamples_used,
         path,
     })
 }
@@ -454,13 +473,19 @@ pub fn search(
 /// frames see nearly the same tissue).
 pub const RESAMPLE_BLOCK_FRAMES: usize = 5;
 
-/// Half of every sweep's blocks of frames, drawn from `seed`.
-pub fn half_of(sweeps: &[Sweep], seed: u64) -> Vec<Vec<usize>> {
+/// Half of every sweep's blocks of frames (of the frames `subsets` keeps, all
+/// when `None`), drawn from `seed`.
+pub fn half_of(sweeps: &[Sweep], subsets: Subsets, seed: u64) -> Vec<Vec<usize>> {
     let mut rng = crate::core::rng::Rng::new(seed);
     sweeps
         .iter()
-        .map(|s| {
-            let blocks = s.frames.len().div_ceil(RESAMPLE_BLOCK_FRAMES);
+        .enumerate()
+        .map(|(k, s)| {
+            let frames: Vec<usize> = match subsets {
+                Some(f) => f[k].clone(),
+                None => (0..s.frames.len()).collect(),
+            };
+            let blocks = frames.len().div_ceil(RESAMPLE_BLOCK_FRAMES);
             let mut order: Vec<usize> = (0..blocks).collect();
             for i in (1..blocks).rev() {
                 order.swap(i, rng.below(i + 1));
@@ -468,7 +493,29 @@ pub fn half_of(sweeps: &[Sweep], seed: u64) -> Vec<Vec<usize>> {
             let mut kept: Vec<usize> = order[..blocks.div_ceil(2)].to_vec();
             kept.sort_unstable();
             kept.iter()
-                .flat_map(|b| b * RESAMPLE_BLOCK_FRAMES..((b + 1) * RESAMPLE_BLOCK_FRAMES).min(s.frames.len()))
+                .flat_map(|b| &frames[b * RESAMPLE_BLOCK_FRAMES..((b + 1) * RESAMPLE_BLOCK_FRAMES).min(frames.len())])
+                .copied()
+                .collect()
+        })
+        .collect()
+}
+
+/// A block bootstrap of the sweeps: each sweep's 5-frame blocks drawn with
+/// replacement, as many as it has (a frame drawn twice weighs twice), from
+/// `seed`. A resampled recording of the same size, for the spread of anything
+/// computed from the sweeps.
+pub fn block_bootstrap(sweeps: &[Sweep], seed: u64) -> Vec<Vec<usize>> {
+    let mut rng = crate::core::rng::Rng::new(seed);
+    sweeps
+        .iter()
+        .map(|s| {
+            let n = s.frames.len();
+            let blocks = n.div_ceil(RESAMPLE_BLOCK_FRAMES);
+            let mut drawn: Vec<usize> = (0..blocks).map(|_| rng.below(blocks)).collect();
+            drawn.sort_unstable();
+            drawn
+                .iter()
+                .flat_map(|b| b * RESAMPLE_BLOCK_FRAMES..((b + 1) * RESAMPLE_BLOCK_FRAMES).min(n))
                 .collect()
         })
         .collect()
@@ -478,7 +525,8 @@ pub fn half_of(sweeps: &[Sweep], seed: u64) -> Vec<Vec<usize>> {
 /// (half of each sweep's frame blocks) the Newton step from `q` along the
 /// direction, whose spread over the resamples, divided by √2 (a half sample's
 /// spread is √2 times the whole's), is the error. `None` where the curvature
-/// is not positive.
+/// is not positive. A resample whose halves share too few voxels is left out
+/// (the count used is returned); fewer than half of them used is an error.
 pub fn standard_errors(
     grid: &SplatGrid,
     sweeps: &[Sweep],
@@ -486,32 +534,46 @@ pub fn standard_errors(
     q: &Vector6<f64>,
     settings: &SearchSettings,
     directions: &[Direction],
-) -> Result<Vec<Option<f64>>, SearchFault> {
+    subsets: Subsets,
+) -> Result<(Vec<Option<f64>>, usize), SearchFault> {
     let h = settings.step_mm;
     let mut steps: Vec<Vec<f64>> = vec![Vec::new(); directions.len()];
     for r in 0..settings.resamples.max(2) {
-        let subsets = half_of(sweeps, 0x05e1_fca1 + r as u64);
+        let halves = half_of(sweeps, subsets, 0x05e1_fca1 + r as u64);
         let mut points = vec![*q];
         for d in directions {
             let v = Vector6::from_column_slice(&d.vector);
             points.push(q + v * h);
             points.push(q - v * h);
         }
-        let (ncc, _) = correlations_over(grid, sweeps, frame0, q, &points, settings, Some(&subsets))?;
+        let ncc = match correlations_over(grid, sweeps, frame0, q, &points, settings, Some(&halves)) {
+            Ok((ncc, _)) => ncc,
+            // Half of thin sweeps may not overlap: that resample is left out.
+            Err(SearchFault::NoOverlap(_)) => continue,
+            Err(e) => return Err(e),
+        };
         for (k, d) in directions.iter().enumerate() {
             let slope = ((1.0 - ncc[1 + 2 * k]) - (1.0 - ncc[2 + 2 * k])) / (2.0 * h);
             steps[k].push(-slope / d.curvature_per_mm2);
         }
     }
-    Ok(directions
-        .iter()
-        .zip(steps)
-        .map(|(d, s)| {
-            (d.curvature_per_mm2 > 0.0).then(|| {
-                let n = s.len() as f64;
-                let mean = s.iter().sum::<f64>() / n;
-                (s.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1.0)).sqrt() / 2f64.sqrt()
+    let used = steps.first().map_or(0, Vec::len);
+    let wanted = settings.resamples.max(2);
+    if used < (wanted / 2).max(2) {
+        return Err(SearchFault::FewResamples { used, of: wanted });
+    }
+    Ok((
+        directions
+            .iter()
+            .zip(steps)
+            .map(|(d, s)| {
+                (d.curvature_per_mm2 > 0.0).then(|| {
+                    let n = s.len() as f64;
+                    let mean = s.iter().sum::<f64>() / n;
+                    (s.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1.0)).sqrt() / 2f64.sqrt()
+                })
             })
-        })
-        .collect())
+            .collect(),
+        used,
+    ))
 }
