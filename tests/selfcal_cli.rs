@@ -5,6 +5,7 @@
 mod common;
 
 use common::{probecal, scratch, shared_data};
+use probecal::estimate::selfcal::check::Verdict;
 use probecal::results::selfcal::SelfcalSummary;
 
 const SET: &str = "plus-fcal2.0-3nwires";
@@ -63,7 +64,7 @@ fn fcal_sweeps_refine_plus_matrix_and_say_what_they_hold() {
         .arg(shared_data(SET, "PlusDeviceSet_fCal_Sim_SpatialCalibration_2.0.xml"))
         .arg("--calibration")
         .arg(&plus)
-        .arg("--out")
+        .args(["--lag-range-ms", "30", "--out"])
         .arg(&out)
         .output()
         .unwrap();
@@ -100,4 +101,104 @@ fn fcal_sweeps_refine_plus_matrix_and_say_what_they_hold() {
     for d in &summary.directions {
         assert!(page.contains(&d.mostly), "the page names {}", d.mostly);
     }
+    // The check of the start: the statistic is the refinement's corner change,
+    // the verdict follows it and the page says it.
+    let check = &summary.check;
+    assert!((check.offset_mm - summary.corner_change_mm).abs() < 1e-9);
+    assert_eq!(
+        check.verdict == Verdict::Consistent,
+        check.offset_mm <= check.tolerance_mm
+    );
+    assert!(page.contains(check.verdict.words()), "the page says the verdict");
+    assert!((0.0..=1.0).contains(&check.false_alarm_rate));
+    // The profiles: one per direction, all through the refined calibration
+    // (the same value at 0, compared over the same voxels), drawn on the page.
+    assert_eq!(summary.profiles.len(), 6);
+    let centre = summary.profiles[0].points.iter().find(|p| p.0 == 0.0).unwrap().1;
+    for p in &summary.profiles {
+        assert_eq!(p.points.len(), 9);
+        let at_zero = p.points.iter().find(|q| q.0 == 0.0).unwrap().1;
+        assert!((at_zero - centre).abs() < 1e-12, "{}: {at_zero} vs {centre}", p.mostly);
+        assert!(p.points.iter().all(|q| q.1.is_finite() && q.1 <= 1.0));
+    }
+    assert!(page.contains("<svg"), "the page draws the profiles");
+    // The lag profile: 7 lags, 10 ms apart, centred on the lag refined at; a
+    // best lag inside the range, or the reason there is none.
+    let lag = summary.lag_profile.as_ref().expect("a lag profile was asked for");
+    assert_eq!(lag.points.len(), 7);
+    for (k, p) in lag.points.iter().enumerate() {
+        let want = summary.tracker_lag_s + (k as f64 - 3.0) * 0.01;
+        assert!((p.0 - want).abs() < 1e-12, "lag {} vs {want}", p.0);
+        assert!(p.1.is_finite() && p.2 >= 100);
+    }
+    match lag.best_s {
+        Some(best) => assert!(best > lag.points[0].0 && best < lag.points[6].0, "{best}"),
+        None => assert!(lag.no_best.is_some()),
+    }
+    assert!(page.contains("against the tracker's lag"));
+}
+
+#[test]
+fn a_lag_range_outside_its_bounds_is_a_usage_error() {
+    let out = scratch("selfcal_cli", "lag_range");
+    let r = probecal()
+        .args([
+            "selfcal",
+            "a.mha",
+            "b.mha",
+            "--config",
+            "c.xml",
+            "--calibration",
+            "r.xml",
+            "--lag-range-ms",
+            "500",
+            "--out",
+        ])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert_eq!(r.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert!(err.contains("--lag-range-ms") && err.contains("10 to 200"), "{err}");
+    assert!(!out.exists());
+}
+
+/// PLUS's matrix moved 3 mm along the probe's y axis (which the fCal sweeps
+/// hold, mostly) is flagged by `--check`: exit 1, the outputs written, the
+/// reason on stderr.
+#[test]
+#[ignore = "needs ../shared/data (full tier: scripts/test.sh)"]
+fn check_flags_plus_matrix_moved_3_mm() {
+    let dir = scratch("selfcal_cli", "check_moved");
+    std::fs::create_dir_all(&dir).unwrap();
+    let plus = probecal::io::plus::result::PlusResult::read(&shared_data(
+        SET,
+        "FreehandCalibration3NWires_fCal2.0.results.xml",
+    ))
+    .unwrap()
+    .image_to_probe;
+    let moved = nalgebra::Matrix4::new_translation(&nalgebra::Vector3::new(0.0, 3.0, 0.0)) * plus;
+    let start = dir.join("moved.xml");
+    std::fs::write(&start, probecal::report::tracked::transform_files::plus_xml(&moved)).unwrap();
+    let out = dir.join("out");
+    let r = probecal()
+        .arg("selfcal")
+        .arg(shared_data(SET, "fCal_Test_Calibration_3NWires_fCal2.0.igs.mha"))
+        .arg(shared_data(SET, "fCal_Test_Validation_3NWires_fCal2.0.igs.mha"))
+        .arg("--config")
+        .arg(shared_data(SET, "PlusDeviceSet_fCal_Sim_SpatialCalibration_2.0.xml"))
+        .arg("--calibration")
+        .arg(&start)
+        .args(["--check", "--out"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&r.stderr);
+    println!("{}{err}", String::from_utf8_lossy(&r.stdout));
+    assert_eq!(r.status.code(), Some(1), "{err}");
+    assert!(err.contains("NOT consistent"), "{err}");
+    let summary: SelfcalSummary =
+        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    assert_eq!(summary.check.verdict, Verdict::Inconsistent);
+    assert!(summary.check.offset_mm > summary.check.tolerance_mm);
 }

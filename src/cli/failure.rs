@@ -69,4 +69,6 @@ pub enum ValueError {
     Lag(f64),
     #[error("`{0}`: a size in mm from 0.05 to 20")]
     VoxelMm(String),
+    #[error("`{0}`: a lag range in ms from 10 to 200")]
+    LagRangeMs(String),
 }

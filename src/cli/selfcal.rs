@@ -5,9 +5,15 @@
 use std::path::PathBuf;
 
 use super::failure::Failure;
+use crate::estimate::selfcal::check::{CheckSettings, Verdict};
 use crate::estimate::selfcal::refine::SearchSettings;
+use crate::pipeline::selfcal::lag::LagScan;
 use crate::pipeline::selfcal::load::Framing;
 use crate::pipeline::selfcal::{SelfcalError, SelfcalInputs};
+use crate::results::selfcal::SelfcalSummary;
+
+/// The lag profile's step, s.
+const LAG_STEP_S: f64 = 0.01;
 
 /// `probecal selfcal`'s arguments.
 #[derive(Debug, clap::Args)]
@@ -45,6 +51,20 @@ pub struct SelfcalArgs {
     /// slow changes of brightness left out (sparse echoes in water). Default: none.
     #[arg(long, value_parser = size_mm)]
     pub background_mm: Option<f64>,
+    /// The start is consistent with the sweeps when their own calibration
+    /// puts the image's corners at most this far from it, mm.
+    #[arg(long, default_value_t = 1.0, value_parser = size_mm)]
+    pub tolerance_mm: f64,
+    /// Also profile the sweeps' agreement against the tracker's lag at the
+    /// refined calibration, over this many ms each side of the start's lag in
+    /// steps of 10 ms (10 to 200), and say the lag they prefer. Not applied.
+    #[arg(long, value_parser = lag_range_ms)]
+    pub lag_range_ms: Option<f64>,
+    /// Check the start: exit 1 (outputs written) when it is not consistent
+    /// with the sweeps, as after a bumped marker, or when the sweeps hold no
+    /// direction to check it along.
+    #[arg(long)]
+    pub check: bool,
     /// Replace --out even when another command (or no command) wrote it.
     #[arg(long)]
     pub force: bool,
@@ -54,6 +74,13 @@ fn size_mm(text: &str) -> Result<f64, super::failure::ValueError> {
     match text.parse::<f64>() {
         Ok(v) if v.is_finite() && (0.05..=20.0).contains(&v) => Ok(v),
         _ => Err(super::failure::ValueError::VoxelMm(text.to_string())),
+    }
+}
+
+fn lag_range_ms(text: &str) -> Result<f64, super::failure::ValueError> {
+    match text.parse::<f64>() {
+        Ok(v) if v.is_finite() && (10.0..=200.0).contains(&v) => Ok(v),
+        _ => Err(super::failure::ValueError::LagRangeMs(text.to_string())),
     }
 }
 
@@ -96,6 +123,14 @@ pub fn command(args: &SelfcalArgs) -> Result<(), Failure> {
         block_px: args.block_px.map(usize::from),
         background_mm: args.background_mm,
         settings,
+        check: CheckSettings {
+            tolerance_mm: args.tolerance_mm,
+            ..CheckSettings::default()
+        },
+        lag_scan: args.lag_range_ms.map(|ms| LagScan {
+            step_s: LAG_STEP_S,
+            steps: (ms / 1e3 / LAG_STEP_S).round() as usize,
+        }),
     };
     let run = crate::pipeline::selfcal::run(&inputs).map_err(|e| match e {
         SelfcalError::Search(_) | SelfcalError::Grid(_) => Failure::failed(e),
@@ -103,6 +138,16 @@ pub fn command(args: &SelfcalArgs) -> Result<(), Failure> {
     })?;
     let summary = crate::report::plus_tools::selfcal::write(&run, folder.path()).map_err(Failure::failed)?;
     folder.commit().map_err(Failure::failed)?;
+    let verdict = say(&summary, &args.out);
+    if args.check && summary.check.verdict != Verdict::Consistent {
+        return Err(Failure::failed(verdict));
+    }
+    println!("{verdict}");
+    Ok(())
+}
+
+/// Prints the refinement and the lag to the console; gives the check's line.
+fn say(summary: &SelfcalSummary, out: &std::path::Path) -> String {
     let held: Vec<&str> = summary
         .directions
         .iter()
@@ -126,7 +171,30 @@ pub fn command(args: &SelfcalArgs) -> Result<(), Failure> {
         } else {
             left.join(" | ")
         },
-        args.out.display()
+        out.display()
     );
-    Ok(())
+    let c = &summary.check;
+    let verdict = format!(
+        "the start is {}: their own calibration puts the corners {:.2} mm from it (tolerance {:.2} mm; noise alone goes past it {:.1} % of the time; not checked: {})",
+        c.verdict.words(),
+        c.offset_mm,
+        c.tolerance_mm,
+        c.false_alarm_rate * 100.0,
+        if c.not_checked.is_empty() {
+            "none".to_string()
+        } else {
+            c.not_checked.join(" | ")
+        },
+    );
+    if let Some(p) = &summary.lag_profile {
+        match (p.best_s, &p.no_best) {
+            (Some(best), _) => println!(
+                "lag: the sweeps agree best at {:.1} ms (refined at {:.1} ms; not applied)",
+                best * 1e3,
+                summary.tracker_lag_s * 1e3
+            ),
+            (None, why) => println!("lag: no lag preferred: {}", why.as_deref().unwrap_or("")),
+        }
+    }
+    verdict
 }

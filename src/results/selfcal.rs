@@ -3,8 +3,11 @@
 
 use serde::{Deserialize, Serialize};
 
+use crate::estimate::selfcal::check::Consistency;
+use crate::estimate::selfcal::profile::Profile;
 use crate::estimate::selfcal::refine::{Direction, SearchSettings};
 use crate::io::fs::display_path;
+use crate::pipeline::selfcal::lag::LagProfile;
 use crate::pipeline::selfcal::SelfcalRun;
 
 /// One sweep as read.
@@ -56,11 +59,23 @@ pub struct SelfcalSummary {
     pub correlation_end: f64,
     pub voxels_compared: usize,
     pub iterations: usize,
+    /// The resamples the standard errors came from (of `settings.resamples`).
+    pub resamples_used: usize,
     /// Pixels averaged per block (a side), and the background's reach in
     /// blocks (0: none).
     pub block_px: usize,
     pub background_blocks: usize,
     pub settings: SearchSettings,
+    /// The start checked against the sweeps: the corners' offset, the
+    /// tolerance, the verdict and its false-alarm rate.
+    pub check: Consistency,
+    /// The agreement along each direction through the refined calibration
+    /// (the page's figure).
+    pub profiles: Vec<Profile>,
+    /// The agreement against the tracker's lag at the refined calibration
+    /// (`--lag-range-ms`), and the lag the sweeps prefer when they have one.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub lag_profile: Option<LagProfile>,
 }
 
 fn rows(m: &nalgebra::Matrix4<f64>) -> [[f64; 4]; 4] {
@@ -103,9 +118,13 @@ impl SelfcalSummary {
             correlation_end: run.search.end.correlation(),
             voxels_compared: run.search.end.voxels,
             iterations: run.search.iterations,
+            resamples_used: run.search.resamples_used,
             block_px: run.prepared.block_px,
             background_blocks: run.prepared.background_blocks,
             settings: run.inputs.settings,
+            check: run.check.clone(),
+            profiles: run.profiles.clone(),
+            lag_profile: run.lag_profile.clone(),
         }
     }
 }

@@ -2,14 +2,17 @@
 //! calibration into the correction of `ImageToProbe` that makes the sweeps
 //! compound alike ([`crate::estimate::selfcal`]), with the directions they hold.
 
+pub mod lag;
 pub mod load;
 
 use std::path::PathBuf;
 
 use nalgebra::Matrix4;
 
+use crate::estimate::selfcal::check::{consistency, CheckSettings, Consistency};
 use crate::estimate::selfcal::compound::GridFault;
-use crate::estimate::selfcal::refine::{level_grids, search, Search, SearchFault, SearchSettings};
+use crate::estimate::selfcal::profile::{profiles, Profile};
+use crate::estimate::selfcal::refine::{level_grids, search, Search, SearchFault, SearchSettings, Subsets};
 use crate::estimate::selfcal::{Frame0, Sweep};
 use crate::io::plus::config::PlusConfig;
 use load::{Framing, LoadedSweep};
@@ -44,6 +47,10 @@ pub struct SelfcalInputs {
     /// (`None`: kept as imaged).
     pub background_mm: Option<f64>,
     pub settings: SearchSettings,
+    /// The check of the start against the sweeps.
+    pub check: CheckSettings,
+    /// The lags the agreement is profiled over at the refined calibration (none: not profiled).
+    pub lag_scan: Option<lag::LagScan>,
 }
 
 /// The sweeps read, ready to compare.
@@ -143,7 +150,17 @@ impl Prepared {
 
     /// The search from another start on the same sweeps (trials from set-off starts).
     pub fn search_from(&self, start: &Frame0, settings: &SearchSettings) -> Result<Search, SelfcalError> {
-        Ok(search(&self.sweeps, start, settings, None)?)
+        self.search_on(start, settings, None)
+    }
+
+    /// The search on some frames of each sweep (resampled sweeps).
+    pub fn search_on(
+        &self,
+        start: &Frame0,
+        settings: &SearchSettings,
+        frames: Subsets,
+    ) -> Result<Search, SelfcalError> {
+        Ok(search(&self.sweeps, start, settings, frames)?)
     }
 }
 
@@ -153,6 +170,12 @@ pub struct SelfcalRun {
     pub inputs: SelfcalInputs,
     pub prepared: Prepared,
     pub search: Search,
+    /// The start checked against the sweeps.
+    pub check: Consistency,
+    /// The agreement along each direction through the solution.
+    pub profiles: Vec<Profile>,
+    /// The agreement against the lag at the solution, when asked for.
+    pub lag_profile: Option<lag::LagProfile>,
 }
 
 impl SelfcalRun {
@@ -169,9 +192,24 @@ pub fn run(inputs: &SelfcalInputs) -> Result<SelfcalRun, SelfcalError> {
     }
     let prepared = prepare(inputs)?;
     let search = prepared.search(&inputs.settings)?;
+    let check = consistency(&search, &prepared.frame0, &inputs.check);
+    let profiles = profiles(
+        &prepared.sweeps,
+        &prepared.frame0,
+        &search.correction,
+        &search.directions,
+        &inputs.settings,
+    )?;
+    let lag_profile = match &inputs.lag_scan {
+        Some(scan) => Some(lag::profile(inputs, &prepared, &search.correction, scan)?),
+        None => None,
+    };
     Ok(SelfcalRun {
         inputs: inputs.clone(),
         prepared,
         search,
+        check,
+        profiles,
+        lag_profile,
     })
 }

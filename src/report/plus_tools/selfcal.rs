@@ -5,8 +5,10 @@
 use std::path::Path;
 
 use crate::io::fs::write_all_atomic;
+use crate::pipeline::selfcal::lag::LagProfile;
 use crate::pipeline::selfcal::SelfcalRun;
 use crate::report::error::OutputError;
+use crate::report::page::figures::{svg, Chart, Series, Style};
 use crate::report::tracked::transform_files::plus_xml;
 use crate::results::selfcal::SelfcalSummary;
 
@@ -26,7 +28,14 @@ fn html(summary: &SelfcalSummary) -> Result<String, OutputError> {
     ctx.insert("turn_deg", &summary.turn_deg.map(|v| format!("{v:+.2}")));
     ctx.insert("radius_mm", &format!("{:.1}", summary.radius_mm));
     ctx.insert("ratio", &summary.settings.min_curvature_ratio);
-    ctx.insert("resamples", &summary.settings.resamples);
+    let resamples = match summary.resamples_used {
+        n if n == summary.settings.resamples => n.to_string(),
+        n => format!(
+            "{n} (of {}; the others' halves share too few voxels)",
+            summary.settings.resamples
+        ),
+    };
+    ctx.insert("resamples", &resamples);
     ctx.insert("max_se", &summary.settings.max_standard_error_mm);
     let directions: Vec<serde_json::Value> = summary
         .directions
@@ -41,7 +50,94 @@ fn html(summary: &SelfcalSummary) -> Result<String, OutputError> {
         })
         .collect();
     ctx.insert("directions", &directions);
+    let c = &summary.check;
+    ctx.insert("verdict", &c.verdict.words());
+    ctx.insert("offset_mm", &format!("{:.2}", c.offset_mm));
+    ctx.insert("tolerance_mm", &format!("{:.2}", c.tolerance_mm));
+    ctx.insert("alarm_pct", &format!("{:.1} %", c.false_alarm_rate * 100.0));
+    ctx.insert("noise_95_mm", &format!("{:.2}", c.noise_95_mm));
+    ctx.insert("draws", &c.draws);
+    ctx.insert("not_checked", &c.not_checked);
+    ctx.insert("profile_svg", &profile_chart(summary)?);
+    match &summary.lag_profile {
+        Some(p) => {
+            ctx.insert("lag_svg", &lag_chart(p)?);
+            ctx.insert(
+                "lag_best",
+                &match (p.best_s, &p.no_best) {
+                    (Some(best), _) => format!("the sweeps agree best at {:.1} ms", best * 1e3),
+                    (None, why) => format!("no lag is preferred: {}", why.as_deref().unwrap_or("")),
+                },
+            );
+            ctx.insert(
+                "lag_range",
+                &format!(
+                    "{:.0} to {:.0} ms",
+                    p.points.first().map_or(0.0, |x| x.0 * 1e3),
+                    p.points.last().map_or(0.0, |x| x.0 * 1e3)
+                ),
+            );
+        }
+        None => ctx.insert("lag_svg", &""),
+    }
     Ok(tera::Tera::one_off(TEMPLATE, &ctx, true)?)
+}
+
+const PROFILE_COLOURS: [plotters::style::RGBColor; 6] = [
+    plotters::style::RGBColor(200, 40, 40),
+    plotters::style::RGBColor(40, 140, 40),
+    plotters::style::RGBColor(40, 70, 200),
+    plotters::style::RGBColor(200, 130, 0),
+    plotters::style::RGBColor(130, 50, 160),
+    plotters::style::RGBColor(110, 110, 110),
+];
+
+/// The agreement along each direction through the refined calibration, as SVG.
+fn profile_chart(summary: &SelfcalSummary) -> Result<String, OutputError> {
+    let series = summary
+        .profiles
+        .iter()
+        .enumerate()
+        .map(|(k, p)| {
+            let first_two: Vec<&str> = p.mostly.split(", ").take(2).collect();
+            Series {
+                name: format!(
+                    "{}: {}{}",
+                    k + 1,
+                    first_two.join(", "),
+                    if p.held { " (refined)" } else { " (left)" }
+                ),
+                colour: PROFILE_COLOURS[k % PROFILE_COLOURS.len()],
+                points: p.points.clone(),
+            }
+        })
+        .collect();
+    svg(&Chart {
+        id: "selfcal_profiles",
+        caption: "The sweeps' agreement along each direction through the refined calibration".into(),
+        x_desc: "distance from the refined calibration along the direction (mm)".into(),
+        y_desc: "mean normalised correlation".into(),
+        style: Style::Lines,
+        series,
+        equal_axes: false,
+    })
+}
+
+/// The agreement against the tracker's lag, as SVG.
+fn lag_chart(p: &LagProfile) -> Result<String, OutputError> {
+    svg(&Chart {
+        id: "selfcal_lag",
+        caption: "The sweeps' agreement against the tracker's lag at the refined calibration".into(),
+        x_desc: "tracker lag (ms)".into(),
+        y_desc: "mean normalised correlation".into(),
+        style: Style::Lines,
+        series: vec![Series {
+            name: "at the refined calibration".into(),
+            colour: PROFILE_COLOURS[2],
+            points: p.points.iter().map(|(lag, ncc, _)| (lag * 1e3, *ncc)).collect(),
+        }],
+        equal_axes: false,
+    })
 }
 
 /// Writes `summary.json`, `ImageToProbe.xml` and `report.html` into `out` (whole, or nothing).

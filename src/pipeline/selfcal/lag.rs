@@ -1,0 +1,128 @@
+//! The sweeps' agreement against the tracker's lag, at the refined calibration:
+//! the poses read again at each lag of a range around the start's, the pixels
+//! the same. A peak inside the range gives the lag the sweeps prefer (the
+//! vertex of a parabola through the peak and its neighbours); a peak at the
+//! range's edge, or none, gives no lag. Nothing is applied: the calibration is
+//! refined at the start's lag.
+
+use nalgebra::Vector6;
+
+use super::{load, Prepared, SelfcalError, SelfcalInputs};
+use crate::estimate::selfcal::refine::{agreement, level_grids};
+use crate::io::plus::config::PlusConfig;
+
+/// The lags scanned: the start's, and `steps` steps of `step_s` each side of it.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct LagScan {
+    pub step_s: f64,
+    pub steps: usize,
+}
+
+/// The most steps each side (a bound on the sequences read again).
+pub const MAX_LAG_STEPS: usize = 20;
+
+/// The agreement at each lag, and the lag the sweeps prefer when they have one.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct LagProfile {
+    /// Each lag, s, the mean normalised correlation there and the voxels it was taken over.
+    pub points: Vec<(f64, f64, usize)>,
+    /// The lag at the parabola's vertex through the peak and its neighbours, s.
+    pub best_s: Option<f64>,
+    /// Why there is no best lag (the peak at the range's edge, or no peak).
+    pub no_best: Option<String>,
+}
+
+/// The profile at the correction `q` of the start, on the finest grid of the
+/// sweeps as prepared (at the start's lag).
+pub fn profile(
+    inputs: &SelfcalInputs,
+    prepared: &Prepared,
+    q: &Vector6<f64>,
+    scan: &LagScan,
+) -> Result<LagProfile, SelfcalError> {
+    let config = PlusConfig::read(&inputs.config)?;
+    let steps = scan.steps.clamp(1, MAX_LAG_STEPS) as i32;
+    let frame0 = &prepared.frame0;
+    let grids = level_grids(&prepared.sweeps, frame0, &inputs.settings)?;
+    let grid = grids[grids.len() - 1];
+    let mut points = Vec::new();
+    for k in -steps..=steps {
+        let lag = inputs.tracker_lag_s + f64::from(k) * scan.step_s;
+        let sweeps = inputs
+            .sequences
+            .iter()
+            .map(|path| {
+                load::load(
+                    path,
+                    &config,
+                    &inputs.framing,
+                    prepared.block_px,
+                    prepared.background_blocks,
+                    lag,
+                )
+                .map(|(sweep, _)| sweep)
+            })
+            .collect::<Result<Vec<_>, _>>()?;
+        let (ncc, voxels) = agreement(&grid, &sweeps, frame0, q, &inputs.settings, None);
+        points.push((lag, ncc, voxels));
+    }
+    let (best_s, no_best) = peak(&points);
+    Ok(LagProfile {
+        points,
+        best_s,
+        no_best,
+    })
+}
+
+/// The vertex of the parabola through the highest point and its neighbours,
+/// when the highest point is inside the range and the three bend down.
+fn peak(points: &[(f64, f64, usize)]) -> (Option<f64>, Option<String>) {
+    let finite = points.iter().all(|p| p.1.is_finite());
+    let Some(top) = (0..points.len()).max_by(|&a, &b| points[a].1.total_cmp(&points[b].1)) else {
+        return (None, Some("no lag was scanned".into()));
+    };
+    if !finite {
+        return (None, Some("a correlation is not finite".into()));
+    }
+    if top == 0 || top + 1 == points.len() {
+        return (
+            None,
+            Some(format!(
+                "the highest correlation is at the range's edge ({:.1} ms)",
+                points[top].0 * 1e3
+            )),
+        );
+    }
+    let (l, c, r) = (points[top - 1].1, points[top].1, points[top + 1].1);
+    let bend = l - 2.0 * c + r;
+    if bend >= 0.0 {
+        return (
+            None,
+            Some("the correlation does not bend down at its highest point".into()),
+        );
+    }
+    let step = points[top + 1].0 - points[top].0;
+    (Some(points[top].0 + step * 0.5 * (l - r) / bend), None)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::peak;
+
+    #[test]
+    fn the_peak_is_the_vertex_and_never_at_the_edge() {
+        // A parabola with its vertex at 0.013 s, sampled every 10 ms.
+        let at = |t: f64| 0.9 - 50.0 * (t - 0.013) * (t - 0.013);
+        let points: Vec<(f64, f64, usize)> = (-3..=3)
+            .map(|k| (f64::from(k) * 0.01, at(f64::from(k) * 0.01), 100))
+            .collect();
+        let (best, why) = peak(&points);
+        assert!(why.is_none());
+        assert!((best.unwrap() - 0.013).abs() < 1e-9, "{best:?}");
+        // Rising to the last lag: no best, and the reason names the edge.
+        let rising: Vec<(f64, f64, usize)> = (0..5).map(|k| (f64::from(k) * 0.01, f64::from(k), 100)).collect();
+        let (best, why) = peak(&rising);
+        assert!(best.is_none());
+        assert!(why.unwrap().contains("edge"));
+    }
+}
