@@ -3,7 +3,8 @@
 # <reports>/selfcal/: fCal 2.0's calibration and validation sweeps compared with
 # each other, from probecal's own calibration of the recording
 # (reports/plus_fcal2_nwire, with its lag) and from PLUS's matrix (no lag), at
-# selfcal's default settings. Skipped, saying so, when ../shared/data is absent.
+# selfcal's default settings, with the agreement profiled over the lag (±100 ms).
+# Skipped, saying so, when ../shared/data is absent.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 source scripts/env.sh
@@ -24,9 +25,9 @@ keep() { # the case's files, without the output guard's lock
   find "$scratch/$1" -maxdepth 1 -type f ! -name '.*' -exec cp {} "$reports/selfcal/$1/" \;
 }
 "$probecal" selfcal "${sweeps[@]}" --config "$config" --calibration reports/plus_fcal2_nwire/fcal2_3nwires \
-  --out "$scratch/fcal2_from_probecal"
+  --lag-range-ms 100 --out "$scratch/fcal2_from_probecal"
 keep fcal2_from_probecal
 "$probecal" selfcal "${sweeps[@]}" --config "$config" --calibration "$fcal/FreehandCalibration3NWires_fCal2.0.results.xml" \
-  --out "$scratch/fcal2_from_plus"
+  --lag-range-ms 100 --out "$scratch/fcal2_from_plus"
 keep fcal2_from_plus
 echo "refinements written to $reports/selfcal/"
