@@ -3,7 +3,7 @@
 
 use nalgebra::Vector6;
 
-use super::refine::{correlations_over, level_grids, Direction, SearchFault, SearchSettings};
+use super::refine::{correlations_over, finest_grid, Direction, SearchFault, SearchSettings};
 use super::{Frame0, Sweep};
 
 /// Points each side of the solution along a direction.
@@ -30,8 +30,7 @@ pub fn profiles(
     directions: &[Direction],
     settings: &SearchSettings,
 ) -> Result<Vec<Profile>, SearchFault> {
-    let grids = level_grids(sweeps, frame0, settings)?;
-    let finest = grids[grids.len() - 1];
+    let finest = finest_grid(sweeps, frame0, settings)?;
     let offsets: Vec<f64> = (-PROFILE_SIDE_POINTS..=PROFILE_SIDE_POINTS)
         .map(|k| f64::from(k) * settings.step_mm / 2.0)
         .collect();

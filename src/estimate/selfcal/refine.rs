@@ -367,6 +367,13 @@ pub fn level_grids(
         .collect()
 }
 
+/// The finest grid alone (the last of [`level_grids`]).
+pub fn finest_grid(sweeps: &[Sweep], frame0: &Frame0, settings: &SearchSettings) -> Result<SplatGrid, SearchFault> {
+    let voxel = settings.comparison.voxel_mm;
+    let margin = settings.max_correction_mm + 2.0 * voxel;
+    SplatGrid::around(sweeps, &frame0.probe_T_pixel, voxel, margin).map_err(SearchFault::from)
+}
+
 fn at_level(settings: &SearchSettings, grid: &SplatGrid) -> SearchSettings {
     let mut s = *settings;
     s.comparison.voxel_mm = grid.voxel_mm;

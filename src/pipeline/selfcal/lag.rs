@@ -8,7 +8,7 @@
 use nalgebra::Vector6;
 
 use super::{load, Prepared, SelfcalError, SelfcalInputs};
-use crate::estimate::selfcal::refine::{agreement, level_grids};
+use crate::estimate::selfcal::refine::{agreement, finest_grid};
 use crate::io::plus::config::PlusConfig;
 
 /// The lags scanned: the start's, and `steps` steps of `step_s` each side of it.
@@ -43,27 +43,33 @@ pub fn profile(
     let config = PlusConfig::read(&inputs.config)?;
     let steps = scan.steps.clamp(1, MAX_LAG_STEPS) as i32;
     let frame0 = &prepared.frame0;
-    let grids = level_grids(&prepared.sweeps, frame0, &inputs.settings)?;
-    let grid = grids[grids.len() - 1];
+    let grid = finest_grid(&prepared.sweeps, frame0, &inputs.settings)?;
     let mut points = Vec::new();
     for k in -steps..=steps {
         let lag = inputs.tracker_lag_s + f64::from(k) * scan.step_s;
-        let sweeps = inputs
-            .sequences
-            .iter()
-            .map(|path| {
-                load::load(
-                    path,
-                    &config,
-                    &inputs.framing,
-                    prepared.block_px,
-                    prepared.background_blocks,
-                    lag,
-                )
-                .map(|(sweep, _)| sweep)
-            })
-            .collect::<Result<Vec<_>, _>>()?;
-        let (ncc, voxels) = agreement(&grid, &sweeps, frame0, q, &inputs.settings, None);
+        let read_again;
+        let sweeps = if k == 0 {
+            // The start's lag: the sweeps as prepared.
+            &prepared.sweeps
+        } else {
+            read_again = inputs
+                .sequences
+                .iter()
+                .map(|path| {
+                    load::load(
+                        path,
+                        &config,
+                        &inputs.framing,
+                        prepared.block_px,
+                        prepared.background_blocks,
+                        lag,
+                    )
+                    .map(|(sweep, _)| sweep)
+                })
+                .collect::<Result<Vec<_>, _>>()?;
+            &read_again
+        };
+        let (ncc, voxels) = agreement(&grid, sweeps, frame0, q, &inputs.settings, None);
         points.push((lag, ncc, voxels));
     }
     let (best_s, no_best) = peak(&points);
