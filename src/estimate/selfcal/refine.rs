@@ -584,3 +584,54 @@ pub fn standard_errors(
         used,
     ))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::estimate::selfcal::SweepFrame;
+    use nalgebra::Matrix4;
+
+    fn sweep(frames: usize) -> Sweep {
+        Sweep {
+            name: "s".into(),
+            samples_px: vec![[0.0, 0.0]],
+            frames: (0..frames)
+                .map(|index| SweepFrame {
+                    index,
+                    reference_T_probe: Matrix4::identity(),
+                    values: vec![0.0],
+                })
+                .collect(),
+        }
+    }
+
+    #[test]
+    fn a_half_of_resampled_sweeps_stays_within_their_frames() {
+        let sweeps = vec![sweep(40), sweep(23)];
+        let subsets = vec![(0..40).step_by(3).collect::<Vec<_>>(), (5..23).collect()];
+        for seed in 0..20 {
+            let half = half_of(&sweeps, Some(&subsets), seed);
+            for (h, s) in half.iter().zip(&subsets) {
+                assert!(h.iter().all(|f| s.contains(f)), "{h:?} outside {s:?}");
+                assert!(h.len() * 2 >= s.len() - RESAMPLE_BLOCK_FRAMES && h.len() <= s.len());
+            }
+        }
+        // On whole sweeps, the same as before resampling within subsets.
+        let all: Vec<Vec<usize>> = sweeps.iter().map(|s| (0..s.frames.len()).collect()).collect();
+        assert_eq!(half_of(&sweeps, None, 7), half_of(&sweeps, Some(&all), 7));
+    }
+
+    #[test]
+    fn a_block_bootstrap_keeps_each_sweep_s_size_and_blocks() {
+        let sweeps = vec![sweep(40), sweep(23)];
+        for seed in 0..20 {
+            let drawn = block_bootstrap(&sweeps, seed);
+            assert_eq!(drawn[0].len(), 40);
+            assert!(drawn[1].iter().all(|&f| f < 23));
+            // Whole blocks: each drawn frame's block start is drawn with it.
+            for d in &drawn {
+                assert!(d.iter().all(|f| d.contains(&(f - f % RESAMPLE_BLOCK_FRAMES))));
+            }
+        }
+    }
+}
