@@ -19,6 +19,7 @@ pub mod check;
 pub mod compound;
 pub mod profile;
 pub mod refine;
+pub mod resample;
 
 use nalgebra::{Matrix4, Point3, Rotation3, Vector3, Vector6};
 
