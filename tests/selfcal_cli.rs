@@ -136,6 +136,72 @@ fn fcal_sweeps_refine_plus_matrix_and_say_what_they_hold() {
         None => assert!(lag.no_best.is_some()),
     }
     assert!(page.contains("against the tracker's lag"));
+    // The overlaid slices: a plane normal to each Reference axis, its
+    // agreement before and after in the summary, its two pictures inline as
+    // PNG that decodes to the size the page shows them at (enlarged by
+    // a whole factor).
+    assert_eq!(summary.overlays.len(), 3);
+    let normals: Vec<char> = summary.overlays.iter().map(|o| o.normal).collect();
+    assert_eq!(normals, ['z', 'y', 'x']);
+    for o in &summary.overlays {
+        assert!(o.pixels_before > 100 && o.pixels_after > 100, "{o:?}");
+        for c in [o.correlation_before, o.correlation_after].into_iter().flatten() {
+            assert!((-1.0..=1.0).contains(&c), "{o:?}");
+        }
+    }
+    let images: Vec<&str> = page.split("<img src=\"data:image/png;base64,").skip(1).collect();
+    assert_eq!(images.len(), 6, "before and after in each of three planes");
+    for img in images {
+        let data = img.split('"').next().unwrap();
+        let bytes = base64_decode(data);
+        let mut reader = png::Decoder::new(std::io::Cursor::new(bytes)).read_info().unwrap();
+        let mut pixels = vec![0; reader.output_buffer_size().unwrap()];
+        let info = reader.next_frame(&mut pixels).unwrap();
+        assert_eq!(info.color_type, png::ColorType::Rgb);
+        let (cols, rows) = (info.width as usize, info.height as usize);
+        assert!(
+            pixels[..cols * rows * 3].iter().any(|&v| v > 0),
+            "a picture with nothing in it"
+        );
+        let shown = |attr: &str| -> usize {
+            img.split(&format!("{attr}=\""))
+                .nth(1)
+                .unwrap()
+                .split('"')
+                .next()
+                .unwrap()
+                .parse()
+                .unwrap()
+        };
+        assert!(cols > 10 && rows > 10, "{cols}x{rows}");
+        assert_eq!(shown("width") % cols, 0);
+        assert_eq!(shown("width") / cols, shown("height") / rows);
+    }
+}
+
+/// RFC 4648 base64 (the page's data URIs), written here so that the test does
+/// not read the page with the code that wrote it.
+fn base64_decode(text: &str) -> Vec<u8> {
+    let value = |c: u8| -> u32 {
+        match c {
+            b'A'..=b'Z' => u32::from(c - b'A'),
+            b'a'..=b'z' => u32::from(c - b'a') + 26,
+            b'0'..=b'9' => u32::from(c - b'0') + 52,
+            b'+' => 62,
+            b'/' => 63,
+            _ => panic!("not base64: {c}"),
+        }
+    };
+    let mut out = Vec::new();
+    for chunk in text.as_bytes().chunks(4) {
+        let pad = chunk.iter().filter(|&&c| c == b'=').count();
+        let n = chunk
+            .iter()
+            .map(|&c| if c == b'=' { 0 } else { value(c) })
+            .fold(0u32, |n, v| n << 6 | v);
+        out.extend_from_slice(&n.to_be_bytes()[1..4 - pad]);
+    }
+    out
 }
 
 #[test]

@@ -9,6 +9,7 @@
 use nalgebra::{Matrix4, Vector6};
 use probecal::core::rng::Rng;
 use probecal::estimate::selfcal::check::{consistency, CheckSettings, Verdict};
+use probecal::estimate::selfcal::overlay::slices;
 use probecal::estimate::selfcal::refine::{search, SearchSettings};
 use probecal::estimate::selfcal::{Frame0, Sweep, SweepFrame};
 use probecal::synth::sliced_sweeps::{crossing_pose, render_frame, SliceScanner, TexturedVolume};
@@ -220,4 +221,46 @@ fn the_check_passes_the_truth_and_flags_starts_2_mm_off() {
         missed.is_empty(),
         "set off along held directions and not flagged: {missed:?}"
     );
+}
+
+/// The page's overlaid slices: from a start 2 mm off along y (a direction the
+/// crossing sweeps hold) the sweeps' volumes come together in the planes the
+/// page draws, and from the truth they stay as they were.
+#[test]
+#[ignore = "a minute of searches (long reproductions: scripts/reproduce.sh)"]
+fn the_overlaid_slices_come_together_from_a_start_2_mm_off() {
+    let volume = TexturedVolume::blobs(7, 70.0, 0.5);
+    let sweeps = vec![sweep(&volume, 0.0, 60, 1), sweep(&volume, 90.0, 60, 2)];
+    let truth_frame = Frame0::new(truth(), SCANNER.width_px, SCANNER.height_px);
+    let settings = SearchSettings::default();
+    let mut q = Vector6::zeros();
+    q[1] = 2.0;
+    let start = truth_frame.moved(&q);
+    let found = search(&sweeps, &start, &settings, None).unwrap();
+    let cuts = slices(&sweeps, &start, &found.correction, &settings).unwrap();
+    assert_eq!(cuts.len(), 3, "a plane normal to each axis");
+    let mut better = 0;
+    for c in &cuts {
+        let (b, a) = (c.before.correlation.unwrap(), c.after.correlation.unwrap());
+        println!(
+            "{} = {:.1} mm ({} x {} px): {b:.3} over {} px -> {a:.3} over {} px",
+            probecal::estimate::selfcal::overlay::AXES[c.normal],
+            c.position_mm,
+            c.size[0],
+            c.size[1],
+            c.before.pixels_compared,
+            c.after.pixels_compared
+        );
+        assert!(c.before.pixels_compared >= 500 && c.after.pixels_compared >= 500);
+        assert_eq!(c.before.layers[0].len(), c.size[0] * c.size[1]);
+        better += usize::from(a > b + 0.02);
+    }
+    assert!(better >= 2, "{better} of 3 planes agree better after the correction");
+    // From the truth nothing moves much, and neither does the agreement.
+    let found = search(&sweeps, &truth_frame, &settings, None).unwrap();
+    for c in slices(&sweeps, &truth_frame, &found.correction, &settings).unwrap() {
+        let (b, a) = (c.before.correlation.unwrap(), c.after.correlation.unwrap());
+        println!("from the truth: {b:.3} -> {a:.3}");
+        assert!((a - b).abs() < 0.05, "{b} -> {a}");
+    }
 }

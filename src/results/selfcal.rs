@@ -4,6 +4,7 @@
 use serde::{Deserialize, Serialize};
 
 use crate::estimate::selfcal::check::Consistency;
+use crate::estimate::selfcal::overlay::{OverlaySlice, AXES};
 use crate::estimate::selfcal::profile::Profile;
 use crate::estimate::selfcal::refine::{Direction, SearchSettings};
 use crate::io::fs::display_path;
@@ -76,6 +77,38 @@ pub struct SelfcalSummary {
     /// (`--lag-range-ms`), and the lag the sweeps prefer when they have one.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub lag_profile: Option<LagProfile>,
+    /// The sweeps' agreement in the planes the page overlays, before and after
+    /// the correction (empty when the sweeps share no voxel).
+    #[serde(default)]
+    pub overlays: Vec<OverlayAgreement>,
+}
+
+/// The agreement of the first sweep with the others in one plane of the grid.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct OverlayAgreement {
+    /// The Reference axis the plane is normal to (`x`, `y` or `z`) and where
+    /// it cuts it, mm.
+    pub normal: char,
+    pub position_mm: f64,
+    /// The normalised correlation over the plane's pixels both cover, under
+    /// the start and under the refined calibration (`None`: too few pixels).
+    pub correlation_before: Option<f64>,
+    pub correlation_after: Option<f64>,
+    pub pixels_before: usize,
+    pub pixels_after: usize,
+}
+
+impl OverlayAgreement {
+    pub fn of(s: &OverlaySlice) -> OverlayAgreement {
+        OverlayAgreement {
+            normal: AXES[s.normal],
+            position_mm: s.position_mm,
+            correlation_before: s.before.correlation,
+            correlation_after: s.after.correlation,
+            pixels_before: s.before.pixels_compared,
+            pixels_after: s.after.pixels_compared,
+        }
+    }
 }
 
 fn rows(m: &nalgebra::Matrix4<f64>) -> [[f64; 4]; 4] {
@@ -125,6 +158,7 @@ impl SelfcalSummary {
             check: run.check.clone(),
             profiles: run.profiles.clone(),
             lag_profile: run.lag_profile.clone(),
+            overlays: run.overlays.iter().map(OverlayAgreement::of).collect(),
         }
     }
 }

@@ -17,6 +17,7 @@
 
 pub mod check;
 pub mod compound;
+pub mod overlay;
 pub mod profile;
 pub mod refine;
 pub mod resample;

@@ -11,6 +11,7 @@ use nalgebra::Matrix4;
 
 use crate::estimate::selfcal::check::{consistency, CheckSettings, Consistency};
 use crate::estimate::selfcal::compound::GridFault;
+use crate::estimate::selfcal::overlay::{slices, OverlaySlice};
 use crate::estimate::selfcal::profile::{profiles, Profile};
 use crate::estimate::selfcal::refine::{level_grids, search, Search, SearchFault, SearchSettings};
 use crate::estimate::selfcal::resample::Subsets;
@@ -177,6 +178,9 @@ pub struct SelfcalRun {
     pub profiles: Vec<Profile>,
     /// The agreement against the lag at the solution, when asked for.
     pub lag_profile: Option<lag::LagProfile>,
+    /// The sweeps cut by a plane normal to each Reference axis, before and
+    /// after the correction.
+    pub overlays: Vec<OverlaySlice>,
 }
 
 impl SelfcalRun {
@@ -205,6 +209,7 @@ pub fn run(inputs: &SelfcalInputs) -> Result<SelfcalRun, SelfcalError> {
         Some(scan) => Some(lag::profile(inputs, &prepared, &search.correction, scan)?),
         None => None,
     };
+    let overlays = slices(&prepared.sweeps, &prepared.frame0, &search.correction, &inputs.settings)?;
     Ok(SelfcalRun {
         inputs: inputs.clone(),
         prepared,
@@ -212,5 +217,6 @@ pub fn run(inputs: &SelfcalInputs) -> Result<SelfcalRun, SelfcalError> {
         check,
         profiles,
         lag_profile,
+        overlays,
     })
 }

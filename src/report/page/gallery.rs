@@ -132,9 +132,14 @@ pub fn gallery(run: &DatasetRun) -> Result<Vec<GalleryImage>, opencv::Error> {
 
 /// `data:image/jpeg;base64,...` for a self-contained HTML page.
 pub fn data_uri(jpeg: &[u8]) -> String {
+    data_uri_of("image/jpeg", jpeg)
+}
+
+/// `data:<mime>;base64,...` for a self-contained HTML page.
+pub fn data_uri_of(mime: &str, bytes: &[u8]) -> String {
     const TABLE: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
-    let mut out = String::from("data:image/jpeg;base64,");
-    for chunk in jpeg.chunks(3) {
+    let mut out = format!("data:{mime};base64,");
+    for chunk in bytes.chunks(3) {
         let b = [chunk[0], *chunk.get(1).unwrap_or(&0), *chunk.get(2).unwrap_or(&0)];
         let n = (b[0] as u32) << 16 | (b[1] as u32) << 8 | b[2] as u32;
         for k in 0..4 {

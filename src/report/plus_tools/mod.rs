@@ -3,4 +3,5 @@
 
 pub mod segment;
 pub mod selfcal;
+pub mod selfcal_overlay;
 pub mod temporal;

@@ -4,6 +4,7 @@
 
 use std::path::Path;
 
+use crate::estimate::selfcal::overlay::OverlaySlice;
 use crate::io::fs::write_all_atomic;
 use crate::pipeline::selfcal::lag::LagProfile;
 use crate::pipeline::selfcal::SelfcalRun;
@@ -14,8 +15,9 @@ use crate::results::selfcal::SelfcalSummary;
 
 const TEMPLATE: &str = include_str!("../../../templates/selfcal.html.tera");
 
-fn html(summary: &SelfcalSummary) -> Result<String, OutputError> {
+fn html(summary: &SelfcalSummary, overlays: &[OverlaySlice]) -> Result<String, OutputError> {
     let mut ctx = tera::Context::new();
+    ctx.insert("overlays", &super::selfcal_overlay::figures(overlays)?);
     ctx.insert("sweeps", &summary.sweeps);
     ctx.insert("start_source", &summary.start_source);
     ctx.insert("lag_ms", &format!("{:.1}", summary.tracker_lag_s * 1e3));
@@ -150,7 +152,7 @@ pub fn write(run: &SelfcalRun, out: &Path) -> Result<SelfcalSummary, OutputError
             "ImageToProbe.xml".to_string(),
             plus_xml(&run.image_to_probe()).into_bytes(),
         ),
-        ("report.html".to_string(), html(&summary)?.into_bytes()),
+        ("report.html".to_string(), html(&summary, &run.overlays)?.into_bytes()),
     ];
     write_all_atomic(out, &files)?;
     Ok(summary)
