@@ -135,6 +135,14 @@ fn fcal_sweeps_refine_plus_matrix_and_say_what_they_hold() {
         Some(best) => assert!(best > lag.points[0].0 && best < lag.points[6].0, "{best}"),
         None => assert!(lag.no_best.is_some()),
     }
+    // The best lag's standard error from resampled sweeps: only with a best
+    // lag and at least half of the resamples peaking inside the range.
+    assert_eq!(lag.resamples, 8);
+    assert!(lag.resamples_peaked <= lag.resamples);
+    if let Some(se) = lag.standard_error_s {
+        assert!(lag.best_s.is_some() && lag.resamples_peaked >= 4);
+        assert!(se.is_finite() && se > 0.0, "{se}");
+    }
     assert!(page.contains("against the tracker's lag"));
     // The overlaid slices: a plane normal to each Reference axis, its
     // agreement before and after in the summary, its two pictures inline as

@@ -60,6 +60,7 @@ pub struct SelfcalArgs {
     /// steps of 10 ms (10 to 200), and say the lag they prefer. Not applied.
     #[arg(long, value_parser = lag_range_ms)]
     pub lag_range_ms: Option<f64>,
+
     /// Check the start: exit 1 (outputs written) when it is not consistent
     /// with the sweeps, as after a bumped marker, or when the sweeps hold no
     /// direction to check it along.
@@ -189,12 +190,22 @@ fn say(summary: &SelfcalSummary, out: &std::path::Path) -> String {
     if let Some(p) = &summary.lag_profile {
         match (p.best_s, &p.no_best) {
             (Some(best), _) => println!(
-                "lag: the sweeps agree best at {:.1} ms (refined at {:.1} ms; not applied)",
+                "lag: the sweeps agree best at {:.1} ms{} (refined at {:.1} ms; not applied)",
                 best * 1e3,
+                lag_error(summary),
                 summary.tracker_lag_s * 1e3
             ),
             (None, why) => println!("lag: no lag preferred: {}", why.as_deref().unwrap_or("")),
         }
     }
     verdict
+}
+
+/// " ± SE ms" of the lag profile's best lag, when it has one.
+fn lag_error(summary: &SelfcalSummary) -> String {
+    summary
+        .lag_profile
+        .as_ref()
+        .and_then(|p| p.standard_error_s)
+        .map_or(String::new(), |se| format!(" ± {:.1} ms", se * 1e3))
 }

@@ -42,6 +42,7 @@ pub struct SelfcalSummary {
     pub start_image_to_probe: [[f64; 4]; 4],
     /// The refined calibration (written as ImageToProbe.xml).
     pub image_to_probe: [[f64; 4]; 4],
+    /// The lag the poses were read at, s.
     pub tracker_lag_s: f64,
     /// The correction, in the probe's frame about the image's centre: moves
     /// (mm) along x, y, z and turns (degrees) about them.

@@ -186,6 +186,12 @@ pub fn render_frame(
 /// (about the Reference z), `length_mm` long, rocking and turning as it goes.
 pub fn crossing_pose(scanner: &SliceScanner, heading_deg: f64, length_mm: f64, i: usize, n: usize) -> Matrix4<f64> {
     let s = if n > 1 { i as f64 / (n - 1) as f64 } else { 0.5 };
+    crossing_pose_at(scanner, heading_deg, length_mm, s)
+}
+
+/// [`crossing_pose`] at the fraction `s` of the sweep (0 its first frame, 1
+/// its last; any other value continues the same motion).
+pub fn crossing_pose_at(scanner: &SliceScanner, heading_deg: f64, length_mm: f64, s: f64) -> Matrix4<f64> {
     let phase = std::f64::consts::TAU * s;
     // Rocking across the plane (tilt about the image's rows), leaning in the
     // plane (about the normal), and twisting (about the image's columns).

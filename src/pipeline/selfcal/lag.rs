@@ -7,8 +7,11 @@
 
 use nalgebra::Vector6;
 
+use std::collections::BTreeSet;
+
 use super::{load, Prepared, SelfcalError, SelfcalInputs};
 use crate::estimate::selfcal::refine::{agreement, finest_grid};
+use crate::estimate::selfcal::resample::half_of;
 use crate::io::plus::config::PlusConfig;
 
 /// The lags scanned: the start's, and `steps` steps of `step_s` each side of it.
@@ -30,26 +33,54 @@ pub struct LagProfile {
     pub best_s: Option<f64>,
     /// Why there is no best lag (the peak at the range's edge, or no peak).
     pub no_best: Option<String>,
+    /// The best lag's standard error from resampled sweeps, s (`None`: no
+    /// best lag, no resamples, or fewer than half of them peak inside the range).
+    #[serde(default)]
+    pub standard_error_s: Option<f64>,
+    /// Of the `resamples`, those whose agreement peaks inside the range.
+    #[serde(default)]
+    pub resamples_peaked: usize,
+    #[serde(default)]
+    pub resamples: usize,
 }
 
+/// Resamples of the sweeps the preferred lag's standard error comes from.
+pub const LAG_RESAMPLES: usize = 8;
+
 /// The profile at the correction `q` of the start, on the finest grid of the
-/// sweeps as prepared (at the start's lag).
+/// sweeps as prepared (read at `centre_s`), over the lags `scan` sets around
+/// `centre_s`. With `resamples`, the preferred lag is also found on that many
+/// resamples of the sweeps (half of each sweep's 5-frame blocks, the same
+/// frames at every lag): their spread, divided by √2, is its standard error.
 pub fn profile(
     inputs: &SelfcalInputs,
     prepared: &Prepared,
+    centre_s: f64,
     q: &Vector6<f64>,
     scan: &LagScan,
+    resamples: usize,
 ) -> Result<LagProfile, SelfcalError> {
     let config = PlusConfig::read(&inputs.config)?;
     let steps = scan.steps.clamp(1, MAX_LAG_STEPS) as i32;
     let frame0 = &prepared.frame0;
     let grid = finest_grid(&prepared.sweeps, frame0, &inputs.settings)?;
+    // Each resample as the sequence frames it keeps, per sweep.
+    let halves: Vec<Vec<BTreeSet<usize>>> = (0..resamples)
+        .map(|r| {
+            half_of(&prepared.sweeps, None, 0x1a60_0000 + r as u64)
+                .iter()
+                .zip(&prepared.sweeps)
+                .map(|(kept, sweep)| kept.iter().map(|&k| sweep.frames[k].index).collect())
+                .collect()
+        })
+        .collect();
     let mut points = Vec::new();
+    let mut resampled: Vec<Vec<(f64, f64, usize)>> = vec![Vec::new(); resamples];
     for k in -steps..=steps {
-        let lag = inputs.tracker_lag_s + f64::from(k) * scan.step_s;
+        let lag = centre_s + f64::from(k) * scan.step_s;
         let read_again;
         let sweeps = if k == 0 {
-            // The start's lag: the sweeps as prepared.
+            // The centre's lag: the sweeps as prepared.
             &prepared.sweeps
         } else {
             read_again = inputs
@@ -71,12 +102,34 @@ pub fn profile(
         };
         let (ncc, voxels) = agreement(&grid, sweeps, frame0, q, &inputs.settings, None);
         points.push((lag, ncc, voxels));
+        for (half, out) in halves.iter().zip(&mut resampled) {
+            let subsets: Vec<Vec<usize>> = sweeps
+                .iter()
+                .zip(half)
+                .map(|(s, keep)| {
+                    (0..s.frames.len())
+                        .filter(|&i| keep.contains(&s.frames[i].index))
+                        .collect()
+                })
+                .collect();
+            let (ncc, voxels) = agreement(&grid, sweeps, frame0, q, &inputs.settings, Some(&subsets));
+            out.push((lag, ncc, voxels));
+        }
     }
     let (best_s, no_best) = peak(&points);
+    let vertices: Vec<f64> = resampled.iter().filter_map(|p| peak(p).0).collect();
+    let standard_error_s = (vertices.len() >= (resamples / 2).max(2)).then(|| {
+        let n = vertices.len() as f64;
+        let mean = vertices.iter().sum::<f64>() / n;
+        (vertices.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0)).sqrt() / 2f64.sqrt()
+    });
     Ok(LagProfile {
         points,
         best_s,
         no_best,
+        standard_error_s: best_s.and(standard_error_s),
+        resamples_peaked: vertices.len(),
+        resamples,
     })
 }
 

@@ -206,7 +206,14 @@ pub fn run(inputs: &SelfcalInputs) -> Result<SelfcalRun, SelfcalError> {
         &inputs.settings,
     )?;
     let lag_profile = match &inputs.lag_scan {
-        Some(scan) => Some(lag::profile(inputs, &prepared, &search.correction, scan)?),
+        Some(scan) => Some(lag::profile(
+            inputs,
+            &prepared,
+            inputs.tracker_lag_s,
+            &search.correction,
+            scan,
+            lag::LAG_RESAMPLES,
+        )?),
         None => None,
     };
     let overlays = slices(&prepared.sweeps, &prepared.frame0, &search.correction, &inputs.settings)?;

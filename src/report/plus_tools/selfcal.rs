@@ -67,7 +67,21 @@ fn html(summary: &SelfcalSummary, overlays: &[OverlaySlice]) -> Result<String, O
             ctx.insert(
                 "lag_best",
                 &match (p.best_s, &p.no_best) {
-                    (Some(best), _) => format!("the sweeps agree best at {:.1} ms", best * 1e3),
+                    (Some(best), _) => format!(
+                        "the sweeps agree best at {:.1} ms{}",
+                        best * 1e3,
+                        p.standard_error_s.map_or(
+                            format!(
+                                " (no standard error: {} of {} resamples peak inside the range)",
+                                p.resamples_peaked, p.resamples
+                            ),
+                            |se| format!(
+                                " ± {:.1} ms (standard error over {} resamples of the sweeps)",
+                                se * 1e3,
+                                p.resamples
+                            )
+                        )
+                    ),
                     (None, why) => format!("no lag is preferred: {}", why.as_deref().unwrap_or("")),
                 },
             );
