@@ -197,6 +197,9 @@ fn say(summary: &SelfcalSummary, out: &std::path::Path) -> String {
             ),
             (None, why) => println!("lag: no lag preferred: {}", why.as_deref().unwrap_or("")),
         }
+        if let Some(caution) = crate::report::plus_tools::selfcal::lag_caution(p, summary.tracker_lag_s) {
+            println!("note: {caution}");
+        }
     }
     verdict
 }

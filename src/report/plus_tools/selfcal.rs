@@ -85,6 +85,7 @@ fn html(summary: &SelfcalSummary, overlays: &[OverlaySlice]) -> Result<String, O
                     (None, why) => format!("no lag is preferred: {}", why.as_deref().unwrap_or("")),
                 },
             );
+            ctx.insert("lag_caution", &lag_caution(p, summary.tracker_lag_s));
             ctx.insert(
                 "lag_range",
                 &format!(
@@ -97,6 +98,27 @@ fn html(summary: &SelfcalSummary, overlays: &[OverlaySlice]) -> Result<String, O
         None => ctx.insert("lag_svg", &""),
     }
     Ok(tera::Tera::one_off(TEMPLATE, &ctx, true)?)
+}
+
+/// The preferred lag is said to differ from the one refined at when it is
+/// more than this many standard errors from it (about one time in twenty by
+/// chance, for a normal spread).
+pub const LAG_APART_SES: f64 = 2.0;
+
+/// A caution when the sweeps prefer a lag more than [`LAG_APART_SES`]
+/// standard errors from `given_s`, the lag the calibration was refined at and
+/// checked at: a right matrix read at a wrong lag can look inconsistent.
+pub fn lag_caution(p: &LagProfile, given_s: f64) -> Option<String> {
+    let (best, se) = (p.best_s?, p.standard_error_s?);
+    let apart = (best - given_s) / se;
+    (apart.abs() > LAG_APART_SES).then(|| {
+        format!(
+            "the sweeps prefer a lag {:.1} standard errors from the {:.1} ms the calibration was refined and checked at; \
+             a right calibration read at a wrong lag can look inconsistent with the sweeps, so the check may be flagging the lag",
+            apart.abs(),
+            given_s * 1e3
+        )
+    })
 }
 
 const PROFILE_COLOURS: [plotters::style::RGBColor; 6] = [
@@ -170,4 +192,32 @@ pub fn write(run: &SelfcalRun, out: &Path) -> Result<SelfcalSummary, OutputError
     ];
     write_all_atomic(out, &files)?;
     Ok(summary)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn profile(best_s: Option<f64>, standard_error_s: Option<f64>) -> LagProfile {
+        LagProfile {
+            points: Vec::new(),
+            best_s,
+            no_best: None,
+            standard_error_s,
+            resamples_peaked: 8,
+            resamples: 8,
+        }
+    }
+
+    #[test]
+    fn a_lag_is_cautioned_only_beyond_two_standard_errors_of_the_one_given() {
+        // 38.5 ± 6.5 ms against 60.4 ms: 3.4 standard errors apart.
+        let far = lag_caution(&profile(Some(0.0385), Some(0.0065)), 0.0604).unwrap();
+        assert!(far.contains("3.4 standard errors") && far.contains("60.4 ms"), "{far}");
+        // 25.9 ± 15.5 ms against 0: 1.7 apart, no caution.
+        assert_eq!(lag_caution(&profile(Some(0.0259), Some(0.0155)), 0.0), None);
+        // No standard error, or no best lag: nothing to say.
+        assert_eq!(lag_caution(&profile(Some(0.09), None), 0.0), None);
+        assert_eq!(lag_caution(&profile(None, Some(0.001)), 0.0), None);
+    }
 }
