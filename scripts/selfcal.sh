@@ -3,7 +3,8 @@
 # <reports>/selfcal/: fCal 2.0's calibration and validation sweeps compared with
 # each other, from probecal's own calibration of the recording
 # (reports/plus_fcal2_nwire, with its lag) and from PLUS's matrix (no lag), at
-# selfcal's default settings, with the agreement profiled over the lag (±100 ms).
+# selfcal's default settings, with the agreement profiled over the lag (±100 ms),
+# and the turn the wires' straightness alone asks for (scripts/wire-lines.py).
 # Skipped, saying so, when ../shared/data is absent.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -30,4 +31,6 @@ keep fcal2_from_probecal
 "$probecal" selfcal "${sweeps[@]}" --config "$config" --calibration "$fcal/FreehandCalibration3NWires_fCal2.0.results.xml" \
   --lag-range-ms 100 --out "$scratch/fcal2_from_plus"
 keep fcal2_from_plus
+# The wires' straightness as a second objective, measured with numpy.
+/usr/bin/python3 scripts/wire-lines.py "$reports"
 echo "refinements written to $reports/selfcal/"

@@ -5,14 +5,15 @@
 # tests check the reports in (pdflatex with the LaTeX report's packages, Chromium),
 # ADMesh, the independent STL reader the printable phantom is checked with, and
 # python3-opencv, OpenCV's own calibration sample the camera calibration is
-# checked against, and two OpenIGTLink implementations the live stream is tested
+# checked against, numpy (the plain reference scripts/wire-lines.py measures with),
+# and two OpenIGTLink implementations the live stream is tested
 # with: libopenigtlink-dev (the protocol's reference library, Debian) and pyigtl
 # (PyPI, in a virtual environment).
 # Safe to run again.
 set -euo pipefail
 
 packages=(libopencv-dev libopencv-contrib-dev clang libclang-dev fonts-dejavu-core pkg-config admesh
-  texlive-latex-recommended texlive-latex-extra texlive-science lmodern chromium python3-opencv python3-venv
+  texlive-latex-recommended texlive-latex-extra texlive-science lmodern chromium python3-opencv python3-numpy python3-venv
   libopenigtlink-dev g++ libturbojpeg0-dev)
 missing=()
 for p in "${packages[@]}"; do
