@@ -26,7 +26,8 @@ import sys
 import numpy as np
 
 REPORTS = sys.argv[1] if len(sys.argv) > 1 else "reports"
-RUN = os.path.join(REPORTS, "plus_fcal2_nwire", "fcal2_3nwires")
+# The run scripts/selfcal.sh refines from: the committed one.
+RUN = os.path.join("reports", "plus_fcal2_nwire", "fcal2_3nwires")
 DATA = os.path.join("..", "shared", "data", "plus-fcal2.0-3nwires")
 SEQUENCES = {
     "calibration": "fCal_Test_Calibration_3NWires_fCal2.0.igs.mha",

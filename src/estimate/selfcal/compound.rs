@@ -100,6 +100,16 @@ pub struct Splat {
     pub weight: Vec<f32>,
 }
 
+impl Splat {
+    /// Nothing splatted on `grid` yet.
+    pub fn empty(grid: &SplatGrid) -> Splat {
+        Splat {
+            sum: vec![0.0; grid.voxels()],
+            weight: vec![0.0; grid.voxels()],
+        }
+    }
+}
+
 /// Splats every frame of `sweep` placed by `probe_T_pixel` (frames outside the
 /// grid are clipped voxel by voxel).
 pub fn splat(grid: &SplatGrid, sweep: &Sweep, probe_T_pixel: &Matrix4<f64>, frames: Option<&[usize]>) -> Splat {

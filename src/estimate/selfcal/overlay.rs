@@ -55,25 +55,16 @@ pub struct OverlaySlice {
 fn two_layers(grid: &SplatGrid, sweeps: &[Sweep], frame0: &Frame0, q: &Vector6<f64>) -> [Splat; 2] {
     let m = frame0.calibration(q);
     let mut splats = sweeps.iter().map(|s| splat(grid, s, &m, None));
-    let first = splats.next().unwrap_or(Splat {
-        sum: vec![0.0; grid.voxels()],
-        weight: vec![0.0; grid.voxels()],
+    let first = splats.next().unwrap_or_else(|| Splat::empty(grid));
+    let rest = splats.fold(Splat::empty(grid), |mut acc, s| {
+        for (a, b) in acc.sum.iter_mut().zip(&s.sum) {
+            *a += b;
+        }
+        for (a, b) in acc.weight.iter_mut().zip(&s.weight) {
+            *a += b;
+        }
+        acc
     });
-    let rest = splats.fold(
-        Splat {
-            sum: vec![0.0; grid.voxels()],
-            weight: vec![0.0; grid.voxels()],
-        },
-        |mut acc, s| {
-            for (a, b) in acc.sum.iter_mut().zip(&s.sum) {
-                *a += b;
-            }
-            for (a, b) in acc.weight.iter_mut().zip(&s.weight) {
-                *a += b;
-            }
-            acc
-        },
-    );
     [first, rest]
 }
 

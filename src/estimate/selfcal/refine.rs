@@ -5,7 +5,7 @@
 use nalgebra::{Matrix6, SymmetricEigen, Vector6};
 
 use super::compound::{common_voxels, correlation, splat, standardised, values_at, Comparison, Splat, SplatGrid};
-use super::resample::{half_of, Subsets};
+use super::resample::{half_of, half_sample_standard_error, Subsets};
 use super::{Frame0, Sweep, UNKNOWNS};
 use crate::core::parallel::parallel_map;
 
@@ -520,11 +520,9 @@ pub fn standard_errors(
             .iter()
             .zip(steps)
             .map(|(d, s)| {
-                (d.curvature_per_mm2 > 0.0).then(|| {
-                    let n = s.len() as f64;
-                    let mean = s.iter().sum::<f64>() / n;
-                    (s.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1.0)).sqrt() / 2f64.sqrt()
-                })
+                (d.curvature_per_mm2 > 0.0)
+                    .then(|| half_sample_standard_error(&s))
+                    .flatten()
             })
             .collect(),
         used,

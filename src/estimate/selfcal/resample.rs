@@ -59,6 +59,19 @@ pub fn block_bootstrap(sweeps: &[Sweep], seed: u64) -> Vec<Vec<usize>> {
         .collect()
 }
 
+/// The standard error of an estimate over the whole sweeps from its values on
+/// halves of them: their spread (n − 1 in the denominator) divided by √2, as a
+/// half has twice the whole's variance. `None` with fewer than two values.
+pub fn half_sample_standard_error(values: &[f64]) -> Option<f64> {
+    if values.len() < 2 {
+        return None;
+    }
+    let n = values.len() as f64;
+    let mean = values.iter().sum::<f64>() / n;
+    let variance = values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0);
+    Some(variance.sqrt() / 2f64.sqrt())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -93,6 +106,14 @@ mod tests {
         // On whole sweeps, the same as before resampling within subsets.
         let all: Vec<Vec<usize>> = sweeps.iter().map(|s| (0..s.frames.len()).collect()).collect();
         assert_eq!(half_of(&sweeps, None, 7), half_of(&sweeps, Some(&all), 7));
+    }
+
+    #[test]
+    fn a_half_sample_standard_error_is_the_halves_spread_over_root_two() {
+        assert_eq!(half_sample_standard_error(&[1.0]), None);
+        // Spread of 1, 3: sample variance 2, so the whole's SE is 1.
+        let se = half_sample_standard_error(&[1.0, 3.0]).unwrap_or(f64::NAN);
+        assert!((se - 1.0).abs() < 1e-12, "{se}");
     }
 
     #[test]

@@ -11,7 +11,7 @@ use std::collections::BTreeSet;
 
 use super::{load, Prepared, SelfcalError, SelfcalInputs};
 use crate::estimate::selfcal::refine::{agreement, finest_grid};
-use crate::estimate::selfcal::resample::half_of;
+use crate::estimate::selfcal::resample::{half_of, half_sample_standard_error};
 use crate::io::plus::config::PlusConfig;
 
 /// The lags scanned: the start's, and `steps` steps of `step_s` each side of it.
@@ -118,11 +118,9 @@ pub fn profile(
     }
     let (best_s, no_best) = peak(&points);
     let vertices: Vec<f64> = resampled.iter().filter_map(|p| peak(p).0).collect();
-    let standard_error_s = (vertices.len() >= (resamples / 2).max(2)).then(|| {
-        let n = vertices.len() as f64;
-        let mean = vertices.iter().sum::<f64>() / n;
-        (vertices.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0)).sqrt() / 2f64.sqrt()
-    });
+    let standard_error_s = (vertices.len() >= (resamples / 2).max(2))
+        .then(|| half_sample_standard_error(&vertices))
+        .flatten();
     Ok(LagProfile {
         points,
         best_s,
