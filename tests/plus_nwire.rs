@@ -202,6 +202,47 @@ fn experiment_on_plus_data_chooses_on_calibration_frames_and_compares_like_for_l
         page.contains(&format!("{d:+.3} mm")) && page.contains(verdict),
         "{paired}"
     );
+    // The lag's uncertainty carried to the validation figure: the model
+    // refitted at lags across the lag's interval (the wider of the curvature's
+    // and the resamples'), and at the lag applied, where it is the figure above.
+    let e = &summary["time_offset_estimate"];
+    let at = |v: &serde_json::Value| v.as_f64().unwrap();
+    let (lo, hi) = (
+        at(&e["interval_90_s"][0]).min(at(&e["coarse"]["bootstrap_lag_s"]["p5"])),
+        at(&e["interval_90_s"][1]).max(at(&e["coarse"]["bootstrap_lag_s"]["p95"])),
+    );
+    let span = summary["validation"]["across_lag_interval"].as_array().unwrap();
+    let lags: Vec<f64> = span.iter().map(|p| at(&p["lag_s"])).collect();
+    assert_eq!(lags.len(), 6, "{lags:?}");
+    assert!(lags.windows(2).all(|w| w[0] < w[1]), "{lags:?}");
+    assert!(
+        (lags[0] - lo).abs() < 1e-12 && (lags[5] - hi).abs() < 1e-12,
+        "{lags:?} against {lo}..{hi}"
+    );
+    let applied: Vec<&serde_json::Value> = span.iter().filter(|p| p["applied"] == true).collect();
+    assert_eq!(applied.len(), 1);
+    assert_eq!(at(&applied[0]["lag_s"]), lag);
+    assert!((at(&applied[0]["pre3d_mm"]["mean"]) - pre3d).abs() < 1e-12, "{span:?}");
+    assert!(
+        (at(&applied[0]["plus_matrix_pre3d_mm"]["mean"]) - plus).abs() < 1e-12,
+        "{span:?}"
+    );
+    assert!(span
+        .iter()
+        .all(|p| p["pre3d_mm"]["n"] == summary["validation"]["pre3d_mm"]["n"]));
+    // Across the interval the figure moves by more than the paired difference's
+    // resolution: the lag's uncertainty is part of the reported accuracy.
+    let means: Vec<f64> = span.iter().map(|p| at(&p["pre3d_mm"]["mean"])).collect();
+    let spread =
+        means.iter().copied().fold(f64::NEG_INFINITY, f64::max) - means.iter().copied().fold(f64::INFINITY, f64::min);
+    assert!(spread > 0.01 && spread < 0.2, "{means:?}");
+    assert!(
+        page.contains("id=\"lag-span\"")
+            && page.contains(&format!(
+                "{:.3} to",
+                means.iter().copied().fold(f64::INFINITY, f64::min)
+            ))
+    );
     // The model: every candidate of the family scored on the calibration frames
     // alone, and the chosen one within one standard error of the best.
     let selection = &summary["model_selection"];

@@ -128,6 +128,9 @@ pub fn tracked_run(run: &TrackedRun, summary: &TrackedSummary, folder: &std::pat
         if let Some(d) = v.ours_minus_plus_matrix_mm {
             println!("{}", d.sentence("probecal", "PLUS's matrix"));
         }
+        if let Some(span) = crate::report::tracked::lag::span_sentence(&v.across_lag_interval) {
+            println!("{span}");
+        }
         println!(
             "PLUS's published validation PRE3D: {} mm on its own dots{}",
             f3(plus.published_validation_pre3d_mm.mean),

@@ -122,7 +122,7 @@ pub struct ImageToProbeSummary {
 }
 
 /// PRE3D in PLUS's convention (best 95 %) and over all points.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct Pre3d {
     pub pre3d_mm: Option<MeanSd>,
     pub pre3d_all_mm: Option<MeanSd>,
@@ -146,6 +146,24 @@ pub struct Pre3d {
     /// frame's own poses).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub no_lag: Option<NoLagPre3d>,
+    /// Where an estimated lag is applied: the calibration refitted at lags
+    /// across the lag's 90 % interval (and at the lag applied), scored with
+    /// the poses at each, on the frames posed at all of them, in lag order.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub across_lag_interval: Vec<Pre3dAtLag>,
+}
+
+/// PRE3D with the calibration refitted at one lag, poses read at that lag.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+pub struct Pre3dAtLag {
+    pub lag_s: f64,
+    /// Whether this is the lag applied.
+    pub applied: bool,
+    /// Our model refitted on the calibration frames at this lag.
+    pub pre3d_mm: Option<MeanSd>,
+    /// PLUS's matrix at this lag, on the frames of `plus_matrix_pre3d_mm`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub plus_matrix_pre3d_mm: Option<MeanSd>,
 }
 
 /// PRE3D with no tracker lag, on the frames and dots of the lagged figures.

@@ -31,6 +31,7 @@ pub use crate::pipeline::tracked::inputs::{
     attach_poses, attach_poses_along, fit_settings, usable_constraints, TrackedInputs, TrackerPaths,
 };
 use crate::pipeline::tracked::time::lag_joint::{self, LagEstimate};
+use crate::pipeline::tracked::time::lag_span;
 use crate::pipeline::tracked::time::sweep_lag::SweepLag;
 use crate::spec::nwire::NWire;
 
@@ -172,6 +173,9 @@ pub struct TrackedRun {
     pub overlay_px: Option<usize>,
     /// The chosen model fitted with no lag, when a lag is applied.
     pub no_lag_fit: Option<image_to_probe::Fit>,
+    /// When an estimated lag is applied: the chosen model refitted at lags
+    /// across the lag's 90 % interval, with every frame's poses there.
+    pub lag_span: Vec<lag_span::SpanPoint>,
 }
 
 impl TrackedRun {
@@ -396,14 +400,9 @@ pub fn run(inputs: &TrackedInputs, min_frames: usize) -> Result<TrackedRun, Trac
         }
     };
     refuse_clock(&calibration, time_offset_s)?;
-    // Each frame's pose with no lag too, for the comparisons without it.
-    attach_poses_along(&paths, &mut frames, inputs, 0.0);
-    let at_zero: Vec<Option<Matrix4<f64>>> = frames.iter().map(|f| f.marker_T_phantom).collect();
-    attach_poses_along(&paths, &mut frames, inputs, time_offset_s);
-    for (f, zero) in frames.iter_mut().zip(at_zero) {
-        f.marker_T_phantom_no_lag = zero;
-    }
+    attach_poses_and_no_lag(&paths, &mut frames, inputs, time_offset_s);
     drop(calibration);
+    let mut validation_paths = None;
     if let Some(path) = &inputs.validation_sequence {
         refuse_same_recording(&inputs.calibration_sequence, path)?;
         let validation = Sequence::read(path)?;
@@ -411,13 +410,9 @@ pub fn run(inputs: &TrackedInputs, min_frames: usize) -> Result<TrackedRun, Trac
         refuse_clock(&validation, time_offset_s)?;
         let (mut more, _) = segment_sequence(&validation, Role::Validation, inputs)?;
         let paths = TrackerPaths::of(&validation, inputs);
-        attach_poses_along(&paths, &mut more, inputs, 0.0);
-        let at_zero: Vec<Option<Matrix4<f64>>> = more.iter().map(|f| f.marker_T_phantom).collect();
-        attach_poses_along(&paths, &mut more, inputs, time_offset_s);
-        for (f, zero) in more.iter_mut().zip(at_zero) {
-            f.marker_T_phantom_no_lag = zero;
-        }
+        attach_poses_and_no_lag(&paths, &mut more, inputs, time_offset_s);
         frames.extend(more);
+        validation_paths = Some(paths);
     }
     let usable = frames
         .iter()
@@ -446,6 +441,21 @@ pub fn run(inputs: &TrackedInputs, min_frames: usize) -> Result<TrackedRun, Trac
     let no_lag_fit = (time_offset_s != 0.0)
         .then(|| no_lag_fit(&frames, inputs, selection.chosen()))
         .flatten();
+    let lag_span = match lag_estimate
+        .as_ref()
+        .filter(|e| e.applied)
+        .and_then(LagEstimate::interval_s)
+    {
+        Some(interval_s) => lag_span::refit(
+            &frames,
+            &paths,
+            validation_paths.as_ref(),
+            inputs,
+            selection.chosen(),
+            &lag_span::lags(interval_s, time_offset_s),
+        ),
+        None => Vec::new(),
+    };
     Ok(TrackedRun {
         frames,
         fit,
@@ -457,7 +467,24 @@ pub fn run(inputs: &TrackedInputs, min_frames: usize) -> Result<TrackedRun, Trac
         selection,
         overlay_px,
         no_lag_fit,
+        lag_span,
     })
+}
+
+/// Each frame's pose at `time_offset_s`, and with no lag too, for the
+/// comparisons without it.
+fn attach_poses_and_no_lag(
+    paths: &TrackerPaths,
+    frames: &mut [TrackedFrame],
+    inputs: &TrackedInputs,
+    time_offset_s: f64,
+) {
+    attach_poses_along(paths, frames, inputs, 0.0);
+    let at_zero: Vec<Option<Matrix4<f64>>> = frames.iter().map(|f| f.marker_T_phantom).collect();
+    attach_poses_along(paths, frames, inputs, time_offset_s);
+    for (f, zero) in frames.iter_mut().zip(at_zero) {
+        f.marker_T_phantom_no_lag = zero;
+    }
 }
 
 /// The chosen model fitted to the calibration frames with no lag (each frame's

@@ -4,12 +4,13 @@
 
 use crate::core::geometry::Rigid;
 use crate::core::stats::best_95;
+use crate::estimate::image_to_probe::Fit;
 use crate::io::plus::result::PlusResult;
 use crate::pipeline::labels::TrackedLabels;
 use crate::pipeline::tracked::time::lag_joint::LagEstimate;
 use crate::pipeline::tracked::{Role, TrackedFrame, TrackedRun};
 use crate::report::page::figures::{Chart, Series, Style};
-use crate::results::summary::NoLagPre3d;
+use crate::results::summary::{NoLagPre3d, Pre3dAtLag};
 
 /// The lag in one console line: the estimate, its intervals, what was
 /// applied, and the motion's estimate.
@@ -35,30 +36,15 @@ pub fn lag_line(e: &LagEstimate) -> String {
     .replace(" (90 %)", "")
 }
 
-/// `f` with its poses at no lag.
-fn at_no_lag(f: &TrackedFrame) -> TrackedFrame {
-    TrackedFrame {
-        marker_T_phantom: f.marker_T_phantom_no_lag,
-        ..f.clone()
-    }
-}
-
-/// PRE3D with no lag of our model refitted without it, and of PLUS's matrix on
-/// the frames `keep` admits.
-pub fn no_lag_pre3d(
-    run: &TrackedRun,
+/// PRE3D of `fit` and of PLUS's matrix (on the frames `keep` admits) over
+/// `frames`, each placed with the poses it carries.
+fn scored(
+    frames: &[TrackedFrame],
     labels: &TrackedLabels,
     plus: Option<&PlusResult>,
-    role: Role,
-    keep: impl Fn(usize) -> bool,
-) -> Option<NoLagPre3d> {
-    let fit = run.no_lag_fit.as_ref()?;
-    let frames: Vec<_> = run
-        .frames
-        .iter()
-        .filter(|f| f.role == role && f.rejected.is_none())
-        .map(at_no_lag)
-        .collect();
+    fit: &Fit,
+    keep: &impl Fn(usize) -> bool,
+) -> NoLagPre3d {
     let ours: Vec<f64> = frames
         .iter()
         .flat_map(|f| {
@@ -81,10 +67,84 @@ pub fn no_lag_pre3d(
             .flat_map(|f| crate::pipeline::tracked::pre3d(f, &labels.nwires, map, &Rigid::identity()))
             .collect::<Vec<f64>>()
     });
-    Some(NoLagPre3d {
+    NoLagPre3d {
         pre3d_mm: best_95(&ours),
         plus_matrix_pre3d_mm: theirs.and_then(|t| best_95(&t)),
-    })
+    }
+}
+
+/// PRE3D with no lag of our model refitted without it, and of PLUS's matrix on
+/// the frames `keep` admits; and the same at each lag of the run's span across
+/// the lag's interval, on the frames posed at all of them.
+pub fn other_lags_pre3d(
+    run: &TrackedRun,
+    labels: &TrackedLabels,
+    plus: Option<&PlusResult>,
+    role: Role,
+    keep: impl Fn(usize) -> bool,
+) -> (Option<NoLagPre3d>, Vec<Pre3dAtLag>) {
+    let of_role = |f: &&TrackedFrame| f.role == role && f.rejected.is_none();
+    let no_lag = run.no_lag_fit.as_ref().map(|fit| {
+        let frames: Vec<TrackedFrame> = run
+            .frames
+            .iter()
+            .filter(of_role)
+            .map(|f| TrackedFrame {
+                marker_T_phantom: f.marker_T_phantom_no_lag,
+                ..f.clone()
+            })
+            .collect();
+        scored(&frames, labels, plus, fit, &keep)
+    });
+    let posed: Vec<usize> = (0..run.frames.len())
+        .filter(|&i| of_role(&&run.frames[i]) && run.lag_span.iter().all(|p| p.poses[i].is_some()))
+        .collect();
+    let span = run
+        .lag_span
+        .iter()
+        .map(|p| {
+            let frames: Vec<TrackedFrame> = posed
+                .iter()
+                .map(|&i| TrackedFrame {
+                    marker_T_phantom: p.poses[i],
+                    ..run.frames[i].clone()
+                })
+                .collect();
+            let s = scored(&frames, labels, plus, &p.fit, &keep);
+            Pre3dAtLag {
+                lag_s: p.lag_s,
+                applied: p.lag_s == run.time_offset_s,
+                pre3d_mm: s.pre3d_mm,
+                plus_matrix_pre3d_mm: s.plus_matrix_pre3d_mm,
+            }
+        })
+        .collect();
+    (no_lag, span)
+}
+
+/// How much the validation PRE3D moves across the lag's interval, in a
+/// sentence; none without a span.
+pub fn span_sentence(span: &[Pre3dAtLag]) -> Option<String> {
+    let range = |pick: &dyn Fn(&Pre3dAtLag) -> Option<f64>| {
+        let values: Vec<f64> = span.iter().filter_map(pick).collect();
+        (values.len() == span.len() && !values.is_empty()).then(|| {
+            (
+                values.iter().copied().fold(f64::INFINITY, f64::min),
+                values.iter().copied().fold(f64::NEG_INFINITY, f64::max),
+            )
+        })
+    };
+    let (first, last) = (span.first()?, span.last()?);
+    let (lo, hi) = range(&|p| p.pre3d_mm.map(|s| s.mean))?;
+    let plus = range(&|p| p.plus_matrix_pre3d_mm.map(|s| s.mean))
+        .map(|(a, b)| format!("; PLUS's matrix at the same lags, {a:.3} to {b:.3} mm"))
+        .unwrap_or_default();
+    Some(format!(
+        "Across the lag's 90 % interval ({:+.0} to {:+.0} ms, {} lags), the calibration refitted at each lag scores a validation PRE3D of {lo:.3} to {hi:.3} mm (best 95 %){plus}: what the lag's uncertainty alone can move the reported figure by.",
+        first.lag_s * 1000.0,
+        last.lag_s * 1000.0,
+        span.len()
+    ))
 }
 
 /// The coarse search's objective against the lag, with the estimate applied
@@ -149,8 +209,15 @@ pub fn lag_chart(e: &LagEstimate) -> Option<Chart> {
     })
 }
 
-/// The lag's figure (SVG) and caption in a page's context; none without an estimate.
-pub fn insert_figure(ctx: &mut tera::Context, run: &TrackedRun) -> Result<(), crate::report::error::OutputError> {
+/// The lag's figure (SVG) and caption in a page's context, with what the
+/// lag's interval does to the validation PRE3D (`span`); none without an
+/// estimate.
+pub fn insert_figure(
+    ctx: &mut tera::Context,
+    run: &TrackedRun,
+    span: &[Pre3dAtLag],
+) -> Result<(), crate::report::error::OutputError> {
+    ctx.insert("lag_span", &span_sentence(span));
     let chart = run.lag_estimate.as_ref().and_then(lag_chart);
     ctx.insert(
         "lag_figure",

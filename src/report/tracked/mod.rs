@@ -72,7 +72,7 @@ fn pre3d(run: &TrackedRun, labels: &TrackedLabels, plus: Option<&PlusResult>, ro
         pre3d_all_mm: mean_sd_of(&ours),
         ..Pre3d::default()
     };
-    out.no_lag = crate::report::tracked::lag::no_lag_pre3d(run, labels, plus, role, |index| {
+    (out.no_lag, out.across_lag_interval) = lag::other_lags_pre3d(run, labels, plus, role, |index| {
         let listed = plus.and_then(|p| match role {
             Role::Calibration => p.calibration_frames_segmented.as_ref(),
             Role::Validation => p.validation_frames_segmented.as_ref(),
@@ -541,7 +541,7 @@ fn render_pages(
     ctx.insert("translation", &format!("[{:.2}, {:.2}, {:.2}]", t.x, t.y, t.z));
     let pre3d = pre3d_rows(summary);
     ctx.insert("pre3d", &pre3d);
-    crate::report::tracked::lag::insert_figure(&mut ctx, run)?;
+    lag::insert_figure(&mut ctx, run, &summary.validation.across_lag_interval)?;
     let figures = crate::report::tracked::figures::insert(&mut ctx, charts)?;
     crate::report::tracked::gallery::insert(&mut ctx, gallery);
     let paired = summary

@@ -5,5 +5,6 @@
 
 pub mod lag;
 pub mod lag_joint;
+pub mod lag_span;
 pub mod sweep_lag;
 pub mod temporal;
